@@ -1,0 +1,1 @@
+"""Task configuration files (YAML) of the library's environments, installed as ``rl_environments.config``."""

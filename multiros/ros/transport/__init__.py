@@ -1,0 +1,1 @@
+"""multiros/ros/transport"""

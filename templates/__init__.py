@@ -1,0 +1,1 @@
+"""Copyable env templates, installed as ``uniros.templates``; ``uniros new`` copies them."""
