@@ -1,0 +1,178 @@
+"""MujocoBaseEnv and MujocoGoalEnv: gymnasium environments on the MuJoCo simulation node.
+
+Both share :class:`multiros.envs.core.MujocoEnvCore`; this module adds only what differs: the
+``step``/``reset`` templates of a plain ``gymnasium.Env`` and of a goal-conditioned
+``gymnasium_robotics.GoalEnv`` (observation dict, vectorised ``compute_reward`` for HER).
+"""
+
+from __future__ import annotations
+
+import inspect
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium_robotics.core import GoalEnv
+
+from multiros.envs.core import EnvError, MujocoEnvCore
+
+_GOAL_KEYS = ("observation", "achieved_goal", "desired_goal")
+
+
+def _call(fn: Any, *args: Any) -> Any:
+    """Call a hook with as many of ``args`` as its signature takes (MultiROS hooks take ``info``)."""
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        return fn(*args)
+    if any(p.kind is p.VAR_POSITIONAL for p in params):
+        return fn(*args)
+    n = sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
+    return fn(*args[:n])
+
+
+class MujocoBaseEnv(MujocoEnvCore, gym.Env):
+    """A gymnasium ``Env`` whose robot lives in the MuJoCo simulation node.
+
+    Subclass it twice, as in MultiROS: a robot env (spawning, controllers, readiness) and a task env
+    (spaces, action, observation, reward, termination). Constructor knobs are documented on
+    :class:`multiros.envs.core.MujocoEnvCore`.
+
+    Hooks to implement (canonical names; MultiROS/FRobs_RL names in brackets also work):
+        ``_set_action(action)`` [``_send_action``], ``_get_obs()`` [``_get_observation``],
+        ``_get_reward()`` [``_get_reward(info)``], ``_check_if_done()`` [``_compute_terminated(info)``],
+        optional ``_compute_truncated(info)``, ``_set_init_pose()``, ``_set_episode_init_params()``
+        [``_set_init_params(options)``], ``_check_connection_and_readiness()``
+        [``_check_subs_and_pubs_connection``].
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        gym.Env.__init__(self)
+        self._init_core(**kwargs)
+
+    # -- gymnasium API ----------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        if seed is None and self._pending_seed is not None:
+            seed = self._pending_seed
+        self._pending_seed = None
+        gym.Env.reset(self, seed=seed)
+        self._core_reset(MujocoBaseEnv, seed, options)
+        obs = self._observe()
+        info = self.info
+        info.setdefault("is_success", False)
+        return obs, info
+
+    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        action = self._check_action(action)
+        self.info = {}
+        self._set_action_hook(MujocoBaseEnv, action)
+        self._advance()
+        obs = self._observe()
+        info = self.info
+        reward = self._hook(MujocoBaseEnv, "_get_reward")
+        if reward is None:
+            raise NotImplementedError(f"{type(self).__name__} must implement _get_reward()")
+        reward_value = float(_call(reward, info))
+        done = self._hook(MujocoBaseEnv, "_check_if_done", "_compute_terminated")
+        terminated = bool(_call(done, info)) if done is not None else False
+        trunc = self._hook(MujocoBaseEnv, "_compute_truncated")
+        truncated = bool(_call(trunc, info)) if trunc is not None else False
+        info.setdefault("is_success", False)
+        return obs, reward_value, terminated, truncated, info
+
+    def _observe(self) -> Any:
+        hook = self._hook(MujocoBaseEnv, "_get_obs", "_get_observation")
+        if hook is None:
+            raise NotImplementedError(f"{type(self).__name__} must implement _get_obs()")
+        return hook()
+
+
+class MujocoGoalEnv(MujocoEnvCore, GoalEnv):
+    """A goal-conditioned env (``gymnasium_robotics.GoalEnv``) on the MuJoCo simulation node, ready for HER.
+
+    The observation is a dict with ``observation``, ``achieved_goal`` and ``desired_goal``;
+    ``compute_reward``, ``compute_terminated`` and ``compute_truncated`` accept batches (arrays of
+    goals with a leading batch axis and a list of infos), as SB3's ``HerReplayBuffer`` calls them.
+    They must read only their arguments: no ROS calls, no side effects.
+
+    Hooks to implement (canonical; MultiROS names in brackets):
+        ``_set_action(action)``, ``_get_obs() -> dict`` [or ``_get_observation()``,
+        ``_get_achieved_goal()``, ``_get_desired_goal()``], ``_compute_reward(achieved_goal,
+        desired_goal, info)`` [``compute_reward``], ``_is_success(achieved_goal, desired_goal)``
+        (vectorised; default termination), ``_check_if_done()`` (extra, goal-independent
+        termination), ``_set_init_pose()``, ``_set_episode_init_params()`` [``_set_init_params``],
+        ``_check_connection_and_readiness()``.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        gym.Env.__init__(self)
+        self._init_core(**kwargs)
+
+    # -- vectorised goal functions (HER) ----------------------------------------------------
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        hook = self._hook(MujocoGoalEnv, "_compute_reward")
+        if hook is None:
+            raise NotImplementedError(f"{type(self).__name__} must implement _compute_reward(achieved_goal, desired_goal, info)")
+        return hook(achieved_goal, desired_goal, info)
+
+    def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        hook = self._hook(MujocoGoalEnv, "_is_success")
+        if hook is None:
+            return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool) if np.ndim(achieved_goal) > 1 else False
+        return hook(achieved_goal, desired_goal)
+
+    def compute_truncated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        if np.ndim(achieved_goal) > 1:
+            return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool)
+        return False
+
+    # -- gymnasium API ----------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
+        if seed is None and self._pending_seed is not None:
+            seed = self._pending_seed
+        self._pending_seed = None
+        GoalEnv.reset(self, seed=seed)
+        self._core_reset(MujocoGoalEnv, seed, options)
+        obs = self._observe()
+        info = self.info
+        info.setdefault("is_success", self._success(obs, info))
+        return obs, info
+
+    def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
+        action = self._check_action(action)
+        self.info = {}
+        self._set_action_hook(MujocoGoalEnv, action)
+        self._advance()
+        obs = self._observe()
+        info = self.info
+        ag, dg = obs["achieved_goal"], obs["desired_goal"]
+        info.setdefault("is_success", self._success(obs, info))
+        reward = float(self.compute_reward(ag, dg, info))
+        terminated = bool(self.compute_terminated(ag, dg, info))
+        extra = self._hook(MujocoGoalEnv, "_check_if_done")
+        if extra is not None:
+            terminated = terminated or bool(extra())
+        truncated = bool(self.compute_truncated(ag, dg, info))
+        return obs, reward, terminated, truncated, info
+
+    def _success(self, obs: dict, info: dict) -> bool:
+        hook = self._hook(MujocoGoalEnv, "_is_success")
+        if hook is not None:
+            return bool(hook(obs["achieved_goal"], obs["desired_goal"]))
+        return bool(self.compute_terminated(obs["achieved_goal"], obs["desired_goal"], info))
+
+    def _observe(self) -> dict:
+        hook = self._hook(MujocoGoalEnv, "_get_obs")
+        if hook is not None:
+            obs = hook()
+        else:
+            parts = [self._hook(MujocoGoalEnv, n) for n in ("_get_observation", "_get_achieved_goal", "_get_desired_goal")]
+            if any(p is None for p in parts):
+                raise NotImplementedError(
+                    f"{type(self).__name__} must implement _get_obs() returning a dict with {_GOAL_KEYS} "
+                    "(or _get_observation(), _get_achieved_goal() and _get_desired_goal())"
+                )
+            obs = dict(zip(_GOAL_KEYS, (p() for p in parts)))
+        if not isinstance(obs, dict) or any(k not in obs for k in _GOAL_KEYS):
+            raise EnvError(f"{type(self).__name__}._get_obs() must return a dict with keys {_GOAL_KEYS}")
+        return obs

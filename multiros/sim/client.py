@@ -1,0 +1,385 @@
+"""Client side of the MuJoCo simulation node: typed calls over ROS 2 services.
+
+Everything that drives the simulation node from outside (environments, ``multiros.utils.sim_core``,
+the CLI, tests) goes through :class:`SimulationClient`. It owns one ROS client per service, created
+lazily and reused, so the per-step path (:meth:`SimulationClient.step_robot`) is a single service
+call with no name resolution or allocation beyond the messages themselves.
+
+Every call has a timeout. A result code other than ``RESULT_OK`` raises
+:class:`SimulationServiceError`, which carries the service name, the code and the node's message.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from multiros.ros.interfaces import get_message, get_service
+
+_logger = logging.getLogger(__name__)
+
+DEFAULT_NODE_NAME = "mujoco_sim"
+
+Result = get_message("simulation_interfaces/msg/Result")
+SimulationState = get_message("simulation_interfaces/msg/SimulationState")
+ControllerCommand = get_message("uniros_interfaces/msg/ControllerCommand")
+Pose = get_message("geometry_msgs/msg/Pose")
+
+_SERVICES: dict[str, str] = {
+    "get_simulator_features": "simulation_interfaces/srv/GetSimulatorFeatures",
+    "spawn_entity": "simulation_interfaces/srv/SpawnEntity",
+    "delete_entity": "simulation_interfaces/srv/DeleteEntity",
+    "get_entities": "simulation_interfaces/srv/GetEntities",
+    "get_entity_state": "simulation_interfaces/srv/GetEntityState",
+    "set_entity_state": "simulation_interfaces/srv/SetEntityState",
+    "get_entities_states": "simulation_interfaces/srv/GetEntitiesStates",
+    "reset_simulation": "simulation_interfaces/srv/ResetSimulation",
+    "get_simulation_state": "simulation_interfaces/srv/GetSimulationState",
+    "set_simulation_state": "simulation_interfaces/srv/SetSimulationState",
+    "step_simulation": "simulation_interfaces/srv/StepSimulation",
+    "step_robot": "uniros_interfaces/srv/StepRobot",
+    "set_robot_joint_state": "uniros_interfaces/srv/SetRobotJointState",
+    "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
+    "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",
+}
+
+_RESULT_NAMES = {
+    value: name
+    for name, value in vars(Result).items()
+    if name.startswith("RESULT_") and isinstance(value, int)
+}
+
+
+class SimulationNodeError(RuntimeError):
+    """The simulation node could not be reached, or did not answer in time."""
+
+
+class SimulationServiceError(RuntimeError):
+    """A simulation service answered with a result code other than ``RESULT_OK``.
+
+    Attributes:
+        service: the fully qualified service name.
+        code: the ``simulation_interfaces/msg/Result`` code (or a service-specific code > 100).
+        message: the node's error message.
+    """
+
+    def __init__(self, service: str, code: int, message: str) -> None:
+        self.service = service
+        self.code = int(code)
+        self.message = message
+        label = _RESULT_NAMES.get(self.code, f"code {self.code}")
+        super().__init__(f"{service} failed ({label}): {message}")
+
+
+@dataclass(frozen=True)
+class RobotState:
+    """What one lockstep step returns for one robot.
+
+    Attributes:
+        sim_time: simulation time in seconds after the step.
+        names: joint names, in the node's order for this robot.
+        position, velocity, effort: joint state arrays aligned with ``names``.
+        frame_positions: ``(len(frames), 3)`` world positions of the requested frames.
+        frame_orientations: ``(len(frames), 4)`` world orientations, quaternions ``(w, x, y, z)``.
+    """
+
+    sim_time: float
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+    frame_positions: np.ndarray
+    frame_orientations: np.ndarray
+
+
+def _check(service: str, result: Any) -> None:
+    if result.result != Result.RESULT_OK:
+        raise SimulationServiceError(service, result.result, result.error_message)
+
+
+def _time_to_sec(stamp: Any) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _robot_state(response: Any) -> RobotState:
+    js = response.joint_state
+    poses = response.frame_poses
+    n = len(poses)
+    positions = np.empty((n, 3))
+    orientations = np.empty((n, 4))
+    for i, pose in enumerate(poses):
+        p, q = pose.position, pose.orientation
+        positions[i] = (p.x, p.y, p.z)
+        orientations[i] = (q.w, q.x, q.y, q.z)
+    return RobotState(
+        sim_time=_time_to_sec(response.sim_time),
+        names=tuple(js.name),
+        position=np.asarray(js.position, dtype=np.float64),
+        velocity=np.asarray(js.velocity, dtype=np.float64),
+        effort=np.asarray(js.effort, dtype=np.float64),
+        frame_positions=positions,
+        frame_orientations=orientations,
+    )
+
+
+def make_pose(position: Sequence[float], orientation_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0)) -> Any:
+    """A ``geometry_msgs/Pose`` from a position and a ``(w, x, y, z)`` quaternion.
+
+    Raises:
+        ValueError: the quaternion is zero, not finite, or the position is not 3 finite numbers.
+    """
+    pos = np.asarray(position, dtype=np.float64)
+    quat = np.asarray(orientation_wxyz, dtype=np.float64)
+    if pos.shape != (3,) or not np.all(np.isfinite(pos)):
+        raise ValueError(f"position must be 3 finite numbers, got {position!r}")
+    norm = float(np.linalg.norm(quat)) if quat.shape == (4,) else 0.0
+    if quat.shape != (4,) or not np.isfinite(norm) or norm < 1e-9:
+        raise ValueError(
+            f"orientation must be a non-zero quaternion (w, x, y, z), got {orientation_wxyz!r}; "
+            "use (1, 0, 0, 0) for no rotation"
+        )
+    quat = quat / norm
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = (float(v) for v in pos)
+    o = pose.orientation
+    o.w, o.x, o.y, o.z = (float(v) for v in quat)
+    return pose
+
+
+class SimulationClient:
+    """Typed access to one simulation node's services.
+
+    Args:
+        node: the ROS node that owns the clients (any ``multiros.ros.Node``).
+        sim_node: the simulation node's fully qualified name, e.g. ``"/mujoco_sim"``.
+        timeout_sec: default timeout of every call.
+    """
+
+    def __init__(self, node: Any, sim_node: str = "/" + DEFAULT_NODE_NAME, timeout_sec: float = 10.0) -> None:
+        if not sim_node.startswith("/"):
+            sim_node = "/" + sim_node
+        self._node = node
+        self._prefix = sim_node.rstrip("/")
+        self.timeout_sec = float(timeout_sec)
+        self._clients: dict[str, Any] = {}
+        self._types = {name: get_service(type_name) for name, type_name in _SERVICES.items()}
+
+    @property
+    def sim_node(self) -> str:
+        """Fully qualified name of the simulation node."""
+        return self._prefix
+
+    def service_name(self, name: str) -> str:
+        """Fully qualified name of one of the node's services."""
+        return f"{self._prefix}/{name}"
+
+    def _client(self, name: str) -> Any:
+        client = self._clients.get(name)
+        if client is None:
+            client = self._node.create_client(self._types[name], self.service_name(name))
+            self._clients[name] = client
+        return client
+
+    def _call(self, name: str, request: Any, timeout_sec: float | None = None) -> Any:
+        timeout = self.timeout_sec if timeout_sec is None else timeout_sec
+        try:
+            return self._client(name).call(request, timeout_sec=timeout)
+        except TimeoutError as exc:
+            raise SimulationNodeError(
+                f"simulation node {self._prefix!r} did not answer {self.service_name(name)} within "
+                f"{timeout:g} s; is the node running (and on the same transport and ROS_DOMAIN_ID)?"
+            ) from exc
+
+    def request(self, name: str, **fields: Any) -> Any:
+        """A new request message for service ``name`` (e.g. ``"step_robot"``)."""
+        return self._types[name].Request(**fields)
+
+    # -- readiness --------------------------------------------------------------------------
+    def wait_until_ready(self, timeout_sec: float = 10.0) -> None:
+        """Block until the node's services are available.
+
+        Raises:
+            SimulationNodeError: not available within ``timeout_sec``.
+        """
+        if not self._client("step_robot").wait_for_service(timeout_sec=timeout_sec):
+            raise SimulationNodeError(
+                f"simulation node {self._prefix!r} not available after {timeout_sec:g} s "
+                f"(no service {self.service_name('step_robot')})"
+            )
+
+    def get_simulator_features(self) -> Any:
+        """The node's ``simulation_interfaces/msg/SimulatorFeatures``."""
+        return self._call("get_simulator_features", self.request("get_simulator_features")).features
+
+    # -- entities ---------------------------------------------------------------------------
+    def spawn_entity(
+        self,
+        name: str,
+        *,
+        uri: str = "",
+        resource_string: str = "",
+        namespace: str = "",
+        position: Sequence[float] = (0.0, 0.0, 0.0),
+        orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0),
+        allow_renaming: bool = False,
+        timeout_sec: float | None = None,
+    ) -> str:
+        """Spawn a robot or object from a URDF, xacro or MJCF file (``uri``) or text.
+
+        ``orientation`` is a ``(w, x, y, z)`` quaternion. Returns the entity's unique name.
+        """
+        req = self.request("spawn_entity", name=name, allow_renaming=allow_renaming, entity_namespace=namespace)
+        req.entity_resource.uri = uri
+        req.entity_resource.resource_string = resource_string
+        req.initial_pose.header.frame_id = "world"
+        req.initial_pose.pose = make_pose(position, orientation)
+        res = self._call("spawn_entity", req, timeout_sec)
+        _check(self.service_name("spawn_entity"), res.result)
+        return res.entity_name
+
+    def delete_entity(self, name: str) -> None:
+        """Remove an entity; the others keep their state."""
+        res = self._call("delete_entity", self.request("delete_entity", entity=name))
+        _check(self.service_name("delete_entity"), res.result)
+
+    def get_entities(self, name_filter: str = "") -> list[str]:
+        """Names of the entities whose name matches the regular expression ``name_filter``."""
+        req = self.request("get_entities")
+        req.filters.filter = name_filter
+        res = self._call("get_entities", req)
+        _check(self.service_name("get_entities"), res.result)
+        return list(res.entities)
+
+    def get_entity_state(self, name: str) -> Any:
+        """The entity's ``simulation_interfaces/msg/EntityState`` (world frame)."""
+        res = self._call("get_entity_state", self.request("get_entity_state", entity=name))
+        _check(self.service_name("get_entity_state"), res.result)
+        return res.state
+
+    def set_entity_pose(
+        self, name: str, position: Sequence[float], orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0)
+    ) -> None:
+        """Teleport an entity to a world pose (``orientation`` as ``(w, x, y, z)``)."""
+        req = self.request("set_entity_state", entity=name, set_pose=True)
+        req.state.header.frame_id = "world"
+        req.state.pose = make_pose(position, orientation)
+        res = self._call("set_entity_state", req)
+        _check(self.service_name("set_entity_state"), res.result)
+
+    # -- simulation control -----------------------------------------------------------------
+    def reset_simulation(self, scope: int = 255) -> None:
+        """``ResetSimulation`` with a scope bit field (255 = all, 1 = time, 2 = state, 4 = spawned)."""
+        res = self._call("reset_simulation", self.request("reset_simulation", scope=scope))
+        _check(self.service_name("reset_simulation"), res.result)
+
+    def get_simulation_state(self) -> int:
+        """The ``SimulationState`` constant the node is in (``STATE_PLAYING``, ``STATE_PAUSED``, ...)."""
+        res = self._call("get_simulation_state", self.request("get_simulation_state"))
+        _check(self.service_name("get_simulation_state"), res.result)
+        return int(res.state.state)
+
+    def set_simulation_state(self, state: int) -> None:
+        """Play, pause or stop the simulation. Already being in that state is not an error."""
+        req = self.request("set_simulation_state")
+        req.state.state = state
+        res = self._call("set_simulation_state", req)
+        already = get_service(_SERVICES["set_simulation_state"]).Response.ALREADY_IN_TARGET_STATE
+        if res.result.result != already:
+            _check(self.service_name("set_simulation_state"), res.result)
+
+    def pause(self) -> None:
+        """Pause physics (real-time mode stops advancing)."""
+        self.set_simulation_state(SimulationState.STATE_PAUSED)
+
+    def unpause(self) -> None:
+        """Run physics in real time (at the node's real-time factor)."""
+        self.set_simulation_state(SimulationState.STATE_PLAYING)
+
+    def step_simulation(self, steps: int = 1) -> None:
+        """Advance a paused simulation by ``steps`` physics steps."""
+        res = self._call("step_simulation", self.request("step_simulation", steps=int(steps)))
+        _check(self.service_name("step_simulation"), res.result)
+
+    # -- the lockstep hot path --------------------------------------------------------------
+    def step_robot(
+        self,
+        entity: str,
+        commands: Mapping[str, Iterable[float]] | None = None,
+        steps: int = 1,
+        frames: Sequence[str] = (),
+        timeout_sec: float | None = None,
+    ) -> RobotState:
+        """Apply controller commands to one robot, advance ``steps`` physics steps, return its state.
+
+        Args:
+            entity: the robot's entity name.
+            commands: controller name -> command vector (``""`` = the robot's default controller).
+            steps: physics steps to advance; 0 only applies the commands and reads the state.
+            frames: link or site names whose world poses to return.
+        """
+        req = self.request("step_robot", entity=entity, steps=int(steps), frames=list(frames))
+        if commands:
+            req.commands = [
+                ControllerCommand(controller=name, command=np.asarray(values, dtype=np.float64))
+                for name, values in commands.items()
+            ]
+        res = self._call("step_robot", req, timeout_sec)
+        _check(self.service_name("step_robot"), res.result)
+        return _robot_state(res)
+
+    def set_robot_joint_state(
+        self,
+        entity: str,
+        names: Sequence[str],
+        positions: Iterable[float],
+        velocities: Iterable[float] | None = None,
+        hold: bool = True,
+    ) -> None:
+        """Teleport joints of a robot; with ``hold`` the positions become controller setpoints."""
+        req = self.request("set_robot_joint_state", entity=entity, hold=hold)
+        req.joint_state.name = list(names)
+        req.joint_state.position = np.asarray(list(positions), dtype=np.float64)
+        if velocities is not None:
+            req.joint_state.velocity = np.asarray(list(velocities), dtype=np.float64)
+        res = self._call("set_robot_joint_state", req)
+        _check(self.service_name("set_robot_joint_state"), res.result)
+
+    # -- physics ----------------------------------------------------------------------------
+    def get_physics_properties(self) -> dict[str, Any]:
+        """``{"time_step": s, "real_time_factor": f, "gravity": (x, y, z)}``."""
+        res = self._call("get_physics_properties", self.request("get_physics_properties"))
+        _check(self.service_name("get_physics_properties"), res.result)
+        g = res.gravity
+        return {"time_step": res.time_step, "real_time_factor": res.real_time_factor, "gravity": (g.x, g.y, g.z)}
+
+    def set_physics_properties(
+        self,
+        *,
+        time_step: float | None = None,
+        real_time_factor: float | None = None,
+        gravity: Sequence[float] | None = None,
+    ) -> None:
+        """Change the physics time step, real-time factor or gravity (``None`` keeps a value)."""
+        req = self.request("set_physics_properties")
+        if time_step is not None:
+            req.set_time_step, req.time_step = True, float(time_step)
+        if real_time_factor is not None:
+            req.set_real_time_factor, req.real_time_factor = True, float(real_time_factor)
+        if gravity is not None:
+            req.set_gravity = True
+            req.gravity.x, req.gravity.y, req.gravity.z = (float(v) for v in gravity)
+        res = self._call("set_physics_properties", req)
+        _check(self.service_name("set_physics_properties"), res.result)
+
+    def close(self) -> None:
+        """Destroy the clients this object created."""
+        for client in self._clients.values():
+            try:
+                self._node.destroy_client(client)
+            except Exception:  # the node may already be gone
+                _logger.debug("destroy_client failed", exc_info=True)
+        self._clients.clear()

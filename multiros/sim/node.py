@@ -1,0 +1,605 @@
+"""The MuJoCo simulation node: a ROS 2 node serving ``simulation_interfaces`` over a :class:`World`.
+
+Service callbacks stay thin: decode the request, call one ``World`` method under the node's lock,
+encode the reply with the standard result code. Per-robot topics and controller-manager services
+live in :mod:`multiros.sim.robot_io`.
+
+Services (``~`` = this node, default ``/mujoco_sim``):
+``~/get_simulator_features``, ``~/spawn_entity``, ``~/delete_entity``, ``~/get_entities``,
+``~/get_entity_state``, ``~/set_entity_state``, ``~/get_entities_states``, ``~/reset_simulation``,
+``~/get_simulation_state``, ``~/set_simulation_state``, ``~/step_simulation``, and the project's own
+``~/step_robot`` (the lockstep env step), ``~/set_robot_joint_state``,
+``~/get_physics_properties``, ``~/set_physics_properties``, ``~/render_camera``.
+Topics: ``/clock`` while time advances; per robot ``joint_states``, ``robot_description``,
+controller command topics; ``/tf``.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from typing import Any
+from urllib.parse import parse_qsl, urlsplit
+
+import numpy as np
+
+from multiros.ros import Node
+from multiros.ros.interfaces import get_message, get_service
+from multiros.ros.qos import qos_profile_clock
+from multiros.sim import convert
+from multiros.sim.errors import (
+    CommandError,
+    ControllerError,
+    DescriptionError,
+    EntityError,
+    RenderError,
+    UnstableSimulationError,
+)
+from multiros.sim.robot_io import RobotInterfaces
+from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
+
+_logger = logging.getLogger(__name__)
+
+Result = get_message("simulation_interfaces/msg/Result")
+SimulationState = get_message("simulation_interfaces/msg/SimulationState")
+SimulatorFeatures = get_message("simulation_interfaces/msg/SimulatorFeatures")
+EntityStateMsg = get_message("simulation_interfaces/msg/EntityState")
+Clock = get_message("rosgraph_msgs/msg/Clock")
+
+_SRV = {
+    name: get_service(type_name)
+    for name, type_name in {
+        "get_simulator_features": "simulation_interfaces/srv/GetSimulatorFeatures",
+        "spawn_entity": "simulation_interfaces/srv/SpawnEntity",
+        "delete_entity": "simulation_interfaces/srv/DeleteEntity",
+        "get_entities": "simulation_interfaces/srv/GetEntities",
+        "get_entity_state": "simulation_interfaces/srv/GetEntityState",
+        "set_entity_state": "simulation_interfaces/srv/SetEntityState",
+        "get_entities_states": "simulation_interfaces/srv/GetEntitiesStates",
+        "reset_simulation": "simulation_interfaces/srv/ResetSimulation",
+        "get_simulation_state": "simulation_interfaces/srv/GetSimulationState",
+        "set_simulation_state": "simulation_interfaces/srv/SetSimulationState",
+        "step_simulation": "simulation_interfaces/srv/StepSimulation",
+        "step_robot": "uniros_interfaces/srv/StepRobot",
+        "set_robot_joint_state": "uniros_interfaces/srv/SetRobotJointState",
+        "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
+        "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",
+        "render_camera": "uniros_interfaces/srv/RenderCamera",
+    }.items()
+}
+
+OK, NOT_FOUND, INCORRECT_STATE, FAILED = (
+    Result.RESULT_OK,
+    Result.RESULT_NOT_FOUND,
+    Result.RESULT_INCORRECT_STATE,
+    Result.RESULT_OPERATION_FAILED,
+)
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_NAMESPACE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
+
+_FEATURES = [
+    SimulatorFeatures.SPAWNING,
+    SimulatorFeatures.DELETING,
+    SimulatorFeatures.ENTITY_CATEGORIES,
+    SimulatorFeatures.SPAWNING_RESOURCE_STRING,
+    SimulatorFeatures.ENTITY_STATE_GETTING,
+    SimulatorFeatures.ENTITY_STATE_SETTING,
+    SimulatorFeatures.SIMULATION_RESET,
+    SimulatorFeatures.SIMULATION_RESET_TIME,
+    SimulatorFeatures.SIMULATION_RESET_STATE,
+    SimulatorFeatures.SIMULATION_RESET_SPAWNED,
+    SimulatorFeatures.SIMULATION_STATE_GETTING,
+    SimulatorFeatures.SIMULATION_STATE_SETTING,
+    SimulatorFeatures.SIMULATION_STATE_PAUSE,
+    SimulatorFeatures.STEP_SIMULATION_SINGLE,
+    SimulatorFeatures.STEP_SIMULATION_MULTIPLE,
+]
+
+
+def _fail(result: Any, code: int, message: str) -> None:
+    result.result = code
+    result.error_message = message
+
+
+def _ok(result: Any) -> None:
+    result.result = OK
+    result.error_message = ""
+
+
+class SimulationNode(Node):
+    """The MuJoCo simulation node.
+
+    Args:
+        node_name: ROS node name (``mujoco_sim`` by default).
+        world: the world to serve; a new empty one (with ``options``) when omitted.
+        options: physics options of a new world.
+        real_time_factor: speed of the ``STATE_PLAYING`` mode (1.0 = wall clock, <= 0 = as fast as
+            possible).
+        paused: start paused (lockstep, the default for training) rather than playing.
+        **node_kwargs: passed to :class:`multiros.ros.Node` (``context``, ``namespace``, ...).
+    """
+
+    def __init__(
+        self,
+        node_name: str = "mujoco_sim",
+        *,
+        world: World | None = None,
+        options: WorldOptions | None = None,
+        real_time_factor: float = 1.0,
+        paused: bool = True,
+        **node_kwargs: Any,
+    ) -> None:
+        super().__init__(node_name, **node_kwargs)
+        self.world = world if world is not None else World(options)
+        self._runner = RealTimeRunner(
+            self.world, real_time_factor=real_time_factor, on_chunk=self._after_realtime_chunk,
+            on_error=self._realtime_error,
+        )
+        self.lock = self._runner.lock
+        self._state = SimulationState.STATE_PAUSED
+        self._robots: dict[str, RobotInterfaces] = {}
+        self._frame_sets: dict[tuple[str, tuple[str, ...]], Any] = {}
+        self._renderer: Any = None
+        self._viewer: Any = None
+        self._clock_pub = self.create_publisher(Clock, "/clock", qos_profile_clock)
+        self._services = [
+            self.create_service(_SRV[name], f"~/{name}", getattr(self, f"_srv_{name}")) for name in _SRV
+        ]
+        for name in self.world.entity_names():
+            self._attach_robot(name)
+        if not paused:
+            self._set_state(SimulationState.STATE_PLAYING)
+
+    # -- helpers ----------------------------------------------------------------------------
+    def _locked(self, fn: Callable[[], None]) -> None:
+        with self.lock:
+            fn()
+
+    def _publish_clock(self) -> None:
+        if self._clock_pub.get_subscription_count() > 0:
+            self._clock_pub.publish(Clock(clock=convert.time_msg(self.world.time)))
+
+    def _after_step(self) -> None:
+        self._publish_clock()
+        for robot in self._robots.values():
+            robot.publish_state()
+
+    def _after_realtime_chunk(self, world: World) -> None:
+        self._after_step()
+
+    def _realtime_error(self, exc: BaseException) -> None:
+        self.get_logger().error("real-time physics stopped: %s", exc)
+
+    def _attach_robot(self, name: str) -> None:
+        info = self.world.entity(name)
+        if info.category == EntityCategory.ROBOT:
+            self._robots[name] = RobotInterfaces(self, self.world, info, self.lock)
+
+    def _detach_robot(self, name: str) -> None:
+        robot = self._robots.pop(name, None)
+        if robot is not None:
+            robot.destroy()
+        for key in [k for k in self._frame_sets if k[0] == name]:
+            del self._frame_sets[key]
+
+    @property
+    def simulation_state(self) -> int:
+        """The ``SimulationState`` constant the node is in."""
+        return self._state
+
+    def _set_state(self, state: int) -> None:
+        if state == SimulationState.STATE_PLAYING:
+            self._runner.start()
+        else:
+            self._runner.stop()
+        if state == SimulationState.STATE_STOPPED:
+            with self.lock:
+                self.world.reset(ResetScope.ALL)
+                self._sync_robots()
+        self._state = state
+
+    def _sync_robots(self) -> None:
+        """Drop interfaces of robots a reset removed."""
+        for name in list(self._robots):
+            if not self.world.has_entity(name):
+                self._detach_robot(name)
+
+    # -- simulation_interfaces ---------------------------------------------------------------
+    def _srv_get_simulator_features(self, request: Any, response: Any) -> Any:
+        features = response.features
+        features.features = np.array(_FEATURES, dtype=np.uint16)
+        features.spawn_formats = ["urdf", "xacro", "mjcf"]
+        features.custom_info = (
+            "uniros MuJoCo simulation node; lockstep env step: uniros_interfaces/srv/StepRobot; "
+            "xacro arguments as URI query (package://pkg/robot.urdf.xacro?arg=value)"
+        )
+        return response
+
+    def _srv_spawn_entity(self, request: Any, response: Any) -> Any:
+        res = response.result
+        uri, text = request.entity_resource.uri, request.entity_resource.resource_string
+        if not uri and not text:
+            _fail(res, response.NO_RESOURCE, "both entity_resource.uri and resource_string are empty")
+            return response
+        namespace = request.entity_namespace
+        if namespace and not _NAMESPACE.match(namespace if namespace.startswith("/") else "/" + namespace):
+            _fail(res, response.NAMESPACE_INVALID, f"namespace {namespace!r} is not a valid ROS namespace")
+            return response
+        frame = request.initial_pose.header.frame_id
+        if frame not in ("", "world"):
+            _fail(res, FAILED, f"initial_pose frame {frame!r} is not supported; use 'world' (or empty)")
+            return response
+        position, quat = convert.pose_to_arrays(request.initial_pose.pose)
+        problem = convert.validate_quaternion(quat) or (
+            None if np.all(np.isfinite(position)) else f"position {position.tolist()} is not finite"
+        )
+        if problem:
+            _fail(res, response.INVALID_POSE, problem)
+            return response
+        description: str = text
+        args: dict[str, str] = {}
+        if uri:
+            parts = urlsplit(uri)
+            if parts.query:
+                args = dict(parse_qsl(parts.query, keep_blank_values=True))
+                uri = parts._replace(query="").geturl()
+            if parts.scheme != "string":  # "string:?opts" = options for the resource_string
+                description = uri
+        controllers_yaml = args.pop("__controllers_file", None)
+        controllers = [c for c in args.pop("__controllers", "").split(",") if c] or None
+        xacro_args = args or None
+        with self.lock:
+            name = self._entity_name(request.name, request.allow_renaming, response)
+            if name is None:
+                return response
+            try:
+                info = self.world.spawn(
+                    name,
+                    description,
+                    pose=(position, quat),
+                    namespace=namespace or None,
+                    xacro_args=xacro_args,
+                    controllers=controllers,
+                    controllers_yaml=controllers_yaml,
+                )
+            except DescriptionError as exc:
+                code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
+                _fail(res, code, str(exc))
+                return response
+            except EntityError as exc:
+                _fail(res, response.NAME_INVALID, str(exc))
+                return response
+            except ValueError as exc:
+                _fail(res, response.INVALID_POSE, str(exc))
+                return response
+            try:
+                self._attach_robot(info.name)
+            except Exception as exc:
+                self.world.delete(info.name)
+                _fail(res, FAILED, f"spawned {info.name!r} but could not create its ROS interfaces: {exc}")
+                return response
+        response.entity_name = info.name
+        _ok(res)
+        return response
+
+    def _entity_name(self, name: str, allow_renaming: bool, response: Any) -> str | None:
+        res = response.result
+        if name and not _NAME.match(name):
+            if not allow_renaming:
+                _fail(res, response.NAME_INVALID, f"entity name {name!r} must match [A-Za-z_][A-Za-z0-9_]*")
+                return None
+            name = re.sub(r"[^A-Za-z0-9_]", "_", name) or "entity"
+        if not name:
+            if not allow_renaming:
+                _fail(res, response.NAME_INVALID, "entity name is empty and allow_renaming is false")
+                return None
+            name = "entity"
+        if self.world.has_entity(name):
+            if not allow_renaming:
+                _fail(res, response.NAME_NOT_UNIQUE, f"an entity named {name!r} exists; pick another name")
+                return None
+            base, i = name, 1
+            while self.world.has_entity(f"{base}_{i}"):
+                i += 1
+            name = f"{base}_{i}"
+        return name
+
+    def _srv_delete_entity(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            if not self.world.has_entity(request.entity):
+                _fail(response.result, NOT_FOUND, f"no entity {request.entity!r}; entities: {list(self.world.entity_names())}")
+                return response
+            self._detach_robot(request.entity)
+            self.world.delete(request.entity)
+        _ok(response.result)
+        return response
+
+    def _filtered_entities(self, filters: Any, result: Any) -> list[str] | None:
+        try:
+            pattern = re.compile(filters.filter) if filters.filter else None
+        except re.error as exc:
+            _fail(result, FAILED, f"filter {filters.filter!r} is not a valid regular expression: {exc}")
+            return None
+        if len(filters.tags.tags) > 0:
+            _fail(result, Result.RESULT_FEATURE_UNSUPPORTED, "entity tags are not supported")
+            return None
+        if filters.bounds.type != 0 or len(filters.bounds.points) > 0:
+            _fail(result, Result.RESULT_FEATURE_UNSUPPORTED, "bounds filters are not supported")
+            return None
+        categories = {int(c.category) for c in filters.categories}
+        names = []
+        for name in self.world.entity_names():
+            if pattern is not None and not pattern.search(name):
+                continue
+            if categories and int(self.world.entity(name).category) not in categories:
+                continue
+            names.append(name)
+        return names
+
+    def _srv_get_entities(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            names = self._filtered_entities(request.filters, response.result)
+        if names is not None:
+            response.entities = names
+            _ok(response.result)
+        return response
+
+    def _entity_state(self, name: str) -> Any:
+        state = self.world.get_entity_state(name)
+        msg = EntityStateMsg()
+        msg.header.frame_id = "world"
+        msg.header.stamp = convert.time_msg(self.world.time)
+        convert.fill_pose(msg.pose, state.position, state.orientation)
+        lin, ang = msg.twist.linear, msg.twist.angular
+        lin.x, lin.y, lin.z = (float(v) for v in state.linear_velocity)
+        ang.x, ang.y, ang.z = (float(v) for v in state.angular_velocity)
+        return msg
+
+    def _srv_get_entity_state(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            if not self.world.has_entity(request.entity):
+                _fail(response.result, NOT_FOUND, f"no entity {request.entity!r}")
+                return response
+            response.state = self._entity_state(request.entity)
+        _ok(response.result)
+        return response
+
+    def _srv_get_entities_states(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            names = self._filtered_entities(request.filters, response.result)
+            if names is None:
+                return response
+            response.entities = names
+            response.states = [self._entity_state(n) for n in names]
+        _ok(response.result)
+        return response
+
+    def _srv_set_entity_state(self, request: Any, response: Any) -> Any:
+        res = response.result
+        frame = request.state.header.frame_id
+        if frame not in ("", "world"):
+            _fail(res, FAILED, f"frame {frame!r} is not supported; use 'world' (or empty)")
+            return response
+        kwargs: dict[str, Any] = {}
+        if request.set_pose:
+            position, quat = convert.pose_to_arrays(request.state.pose)
+            problem = convert.validate_quaternion(quat)
+            if problem or not np.all(np.isfinite(position)):
+                _fail(res, response.INVALID_POSE, problem or f"position {position.tolist()} is not finite")
+                return response
+            kwargs.update(position=position, orientation=quat)
+        if request.set_twist:
+            t = request.state.twist
+            kwargs.update(
+                linear_velocity=(t.linear.x, t.linear.y, t.linear.z),
+                angular_velocity=(t.angular.x, t.angular.y, t.angular.z),
+            )
+        with self.lock:
+            if not self.world.has_entity(request.entity):
+                _fail(res, NOT_FOUND, f"no entity {request.entity!r}")
+                return response
+            try:
+                self.world.set_entity_state(request.entity, **kwargs)
+            except ValueError as exc:
+                _fail(res, FAILED, str(exc))
+                return response
+        _ok(res)
+        return response
+
+    def _srv_reset_simulation(self, request: Any, response: Any) -> Any:
+        scope = int(request.scope) or int(ResetScope.ALL)
+        with self.lock:
+            self.world.reset(scope)
+            self._sync_robots()
+            for robot in self._robots.values():
+                robot.on_reset()
+        _ok(response.result)
+        return response
+
+    def _srv_get_simulation_state(self, request: Any, response: Any) -> Any:
+        response.state.state = self._state
+        _ok(response.result)
+        return response
+
+    def _srv_set_simulation_state(self, request: Any, response: Any) -> Any:
+        target = int(request.state.state)
+        valid = (SimulationState.STATE_STOPPED, SimulationState.STATE_PLAYING, SimulationState.STATE_PAUSED)
+        if target not in valid:
+            _fail(response.result, response.INCORRECT_TRANSITION, f"state {target} cannot be set on this node")
+            return response
+        if target == self._state:
+            _fail(response.result, response.ALREADY_IN_TARGET_STATE, "already in the requested state")
+            return response
+        if target == SimulationState.STATE_PAUSED and self._state == SimulationState.STATE_STOPPED:
+            # The standard allows pausing a stopped simulation: start it paused.
+            self._state = SimulationState.STATE_PAUSED
+        else:
+            self._set_state(target)
+        _ok(response.result)
+        return response
+
+    def _srv_step_simulation(self, request: Any, response: Any) -> Any:
+        if self._state != SimulationState.STATE_PAUSED:
+            _fail(response.result, FAILED, "StepSimulation needs a paused simulation; pause it first")
+            return response
+        with self.lock:
+            try:
+                self.world.step(int(request.steps))
+            except UnstableSimulationError as exc:
+                _fail(response.result, FAILED, str(exc))
+                return response
+            self._after_step()
+        _ok(response.result)
+        return response
+
+    # -- uniros_interfaces ------------------------------------------------------------------
+    def _srv_step_robot(self, request: Any, response: Any) -> Any:
+        res = response.result
+        steps = int(request.steps)
+        if steps > 0 and self._state != SimulationState.STATE_PAUSED:
+            _fail(res, INCORRECT_STATE, "StepRobot with steps > 0 needs a paused simulation (lockstep mode)")
+            return response
+        entity = request.entity
+        with self.lock:
+            robot = self._robots.get(entity)
+            if robot is None:
+                _fail(res, NOT_FOUND, f"no robot {entity!r}; robots: {list(self._robots)}")
+                return response
+            try:
+                for command in request.commands:
+                    self.world.set_command(entity, command.controller, command.command)
+            except CommandError as exc:
+                _fail(res, response.BAD_COMMAND, str(exc))
+                return response
+            except ControllerError as exc:
+                _fail(res, response.UNKNOWN_CONTROLLER, str(exc))
+                return response
+            frames = tuple(request.frames)
+            frame_set = None
+            if frames:
+                key = (entity, frames)
+                frame_set = self._frame_sets.get(key)
+                if frame_set is None:
+                    try:
+                        frame_set = self.world.frame_set(frames, entity)
+                    except EntityError as exc:
+                        _fail(res, response.UNKNOWN_FRAME, str(exc))
+                        return response
+                    self._frame_sets[key] = frame_set
+            if steps > 0:
+                try:
+                    self.world.step(steps)
+                except UnstableSimulationError as exc:
+                    _fail(res, response.UNSTABLE, str(exc))
+                    return response
+                self._after_step()
+            robot.fill_joint_state(response.joint_state)
+            response.sim_time = convert.time_msg(self.world.time)
+            if frame_set is not None:
+                response.frame_poses = [convert.pose_from_row(row) for row in frame_set.poses()]
+        _ok(res)
+        return response
+
+    def _srv_set_robot_joint_state(self, request: Any, response: Any) -> Any:
+        js = request.joint_state
+        with self.lock:
+            robot = self._robots.get(request.entity)
+            if robot is None:
+                _fail(response.result, NOT_FOUND, f"no robot {request.entity!r}; robots: {list(self._robots)}")
+                return response
+            velocities = js.velocity if len(js.velocity) else None
+            try:
+                self.world.set_joint_positions(request.entity, list(js.name), js.position, velocities, hold=request.hold)
+            except EntityError as exc:
+                _fail(response.result, response.UNKNOWN_JOINT, str(exc))
+                return response
+            except ValueError as exc:
+                _fail(response.result, response.BAD_VALUE, str(exc))
+                return response
+            robot.fill_joint_state(response.joint_state)
+            response.sim_time = convert.time_msg(self.world.time)
+        _ok(response.result)
+        return response
+
+    def _srv_get_physics_properties(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            response.time_step = float(self.world.timestep)
+            response.real_time_factor = float(self._runner.real_time_factor)
+            g = self.world.gravity
+            response.gravity.x, response.gravity.y, response.gravity.z = (float(v) for v in g)
+        _ok(response.result)
+        return response
+
+    def _srv_set_physics_properties(self, request: Any, response: Any) -> Any:
+        if request.set_time_step and not (np.isfinite(request.time_step) and request.time_step > 0):
+            _fail(response.result, FAILED, f"time_step must be > 0 seconds, got {request.time_step}")
+            return response
+        g = request.gravity
+        if request.set_gravity and not np.all(np.isfinite([g.x, g.y, g.z])):
+            _fail(response.result, FAILED, "gravity must be finite")
+            return response
+        if request.set_real_time_factor and not np.isfinite(request.real_time_factor):
+            _fail(response.result, FAILED, "real_time_factor must be finite (<= 0 = as fast as possible)")
+            return response
+        with self.lock:
+            if request.set_time_step:
+                self.world.timestep = float(request.time_step)
+            if request.set_gravity:
+                self.world.gravity = (g.x, g.y, g.z)
+            if request.set_real_time_factor:
+                self._runner.real_time_factor = float(request.real_time_factor)
+        self._srv_get_physics_properties(None, response)
+        return response
+
+    def _srv_render_camera(self, request: Any, response: Any) -> Any:
+        from multiros.sim.render_service import render_image_msgs
+
+        with self.lock:
+            try:
+                if self._renderer is None:
+                    from multiros.sim.render_service import Renderer
+
+                    self._renderer = Renderer(self.world)
+                render_image_msgs(self._renderer, request, response, self.world.time)
+            except (RenderError, EntityError, ValueError) as exc:
+                _fail(response.result, FAILED, str(exc))
+                return response
+        _ok(response.result)
+        return response
+
+    # -- conveniences for the launcher -------------------------------------------------------
+    def spawn_from_cli(self, name: str, uri: str) -> str:
+        """Spawn ``NAME=URI`` from the command line through the SpawnEntity service logic.
+
+        Raises:
+            RuntimeError: the spawn failed (the message is the service's error message).
+        """
+        srv = _SRV["spawn_entity"]
+        request = srv.Request(name=name)
+        request.entity_resource.uri = uri
+        response = self._srv_spawn_entity(request, srv.Response())
+        if response.result.result != OK:
+            raise RuntimeError(f"cannot spawn {name!r} from {uri!r}: {response.result.error_message}")
+        return response.entity_name
+
+    def open_viewer(self) -> None:
+        """Open the interactive MuJoCo viewer on this node's world (needs a display)."""
+        from multiros.sim.render import open_viewer
+
+        with self.lock:
+            self._viewer = open_viewer(self.world)
+
+    # -- lifecycle --------------------------------------------------------------------------
+    def destroy_node(self) -> None:
+        """Stop real-time physics, drop the per-robot interfaces and the renderer, destroy the node."""
+        self._runner.stop()
+        for name in list(self._robots):
+            self._detach_robot(name)
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+        if self._viewer is not None:
+            self._viewer.close()
+            self._viewer = None
+        super().destroy_node()
