@@ -1,1 +1,1 @@
-"""Task configuration files (YAML) of the library's environments, installed as ``rl_environments.config``."""
+"""Task configuration files (installed as ``rl_environments.config``)."""

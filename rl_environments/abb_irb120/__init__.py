@@ -1,0 +1,1 @@
+"""ABB IRB120 environments."""

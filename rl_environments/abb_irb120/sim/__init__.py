@@ -1,0 +1,1 @@
+"""IRB120 environments on the MuJoCo simulation node."""

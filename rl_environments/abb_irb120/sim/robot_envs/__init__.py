@@ -1,0 +1,1 @@
+"""IRB120 robot envs (the robot layer)."""

@@ -1,0 +1,42 @@
+"""Robot env of the ABB IRB120 (6-DOF) on the MuJoCo simulation node.
+
+FRobs_RL drove this arm through MoveIt plans; here the arm's group position controller takes a
+joint target every env step and the ``flange`` pose comes back with the step.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
+from rl_environments.arm_robot import ArmRobot
+
+
+class IRB120Robot(ArmRobot):
+    """The IRB120's constants; see :class:`~rl_environments.arm_robot.ArmRobot`."""
+
+    ROBOT_NAME = "irb120"
+    DESCRIPTION_PACKAGE = "abb_irb120_description"
+    DESCRIPTION_MODULE = "rl_environments.robots.abb_irb120_description"
+    XACRO_FILE = "irb120.urdf.xacro"
+    XACRO_ARGS: dict[str, str] = {}
+    ARM_JOINTS = ("joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6")
+    BASE_LINK = "base_link"
+    EE_LINK = "flange"
+    ARM_CONTROLLER = "arm_position_controller"
+    CONTROLLERS = ("joint_state_broadcaster", "arm_position_controller")
+    NUM_SIM_STEPS = 20
+
+
+class ABBIRB120RobotEnv(IRB120Robot, MujocoBaseEnv):
+    """The IRB120 robot layer for plain task envs."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
+
+
+class ABBIRB120RobotGoalEnv(IRB120Robot, MujocoGoalEnv):
+    """The IRB120 robot layer for goal-conditioned task envs."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))

@@ -1,0 +1,1 @@
+"""IRB120 task envs."""

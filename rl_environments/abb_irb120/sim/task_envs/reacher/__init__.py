@@ -1,0 +1,1 @@
+"""IRB120 reacher task envs: ABBIRB120ReacherEnv-v0 and ABBIRB120ReacherGoalEnv-v0."""

@@ -1,0 +1,81 @@
+"""``ABBIRB120ReacherEnv-v0``: FRobs_RL's IRB120 reacher on the MuJoCo simulation node.
+
+## Description
+Move the flange within ``tolerance_goal_pos`` (5 cm) of a goal sampled, among reachable points,
+in FRobs_RL's goal box (x, y in [-0.5, 0.5], z in [0, 1] m; here at least ``min_goal_height``
+above the floor). Config: ``config/irb120_reacher_task_config.yaml``.
+
+## Action space
+``Box(-1, 1, (6,))``: joint deltas, ``target = joints + action * max_joint_delta`` (0.1 rad),
+clipped to the joint limits. (FRobs_RL declared the whole joint range as the delta bound and
+relied on MoveIt's slow execution; the bounded delta is the lockstep equivalent.)
+
+## Observation space
+``Box(12,)``: unit vector from the flange to the goal (3), goal position (3), joint angles (6).
+
+## Rewards (FRobs_RL's)
+``+reached_goal_reward`` (10) on success; otherwise ``-multiplier_dist_reward * distance +
+step_reward`` (-1.0 * d - 0.01); plus ``joint_limits_reward`` (-5) when a joint target is at a limit.
+
+## Episode end
+Terminated on success with ``info["is_success"] = True``; truncated after 100 steps.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from rl_environments.abb_irb120.sim.robot_envs.irb120_robot_sim import ABBIRB120RobotEnv
+from rl_environments.abb_irb120.sim.task_envs.reacher.config import goal_box, load_irb120_reacher_config
+from rl_environments.reach_task import ReachTask
+
+
+class ABBIRB120ReacherEnv(ReachTask, ABBIRB120RobotEnv):
+    """IRB120 reacher (see the module docstring).
+
+    Args:
+        config_file: task config (file name in ``rl_environments.config`` or a path).
+        **kwargs: robot/base-env knobs (``sim_mode``, ``transport``, ``num_sim_steps``, ``seed``, ...).
+    """
+
+    def __init__(self, config_file: str = "irb120_reacher_task_config.yaml", **kwargs: Any) -> None:
+        cfg = load_irb120_reacher_config(config_file)
+        super().__init__(**kwargs)
+        low, high = goal_box(cfg)
+        self._setup_reach(
+            cfg,
+            delta_action=True,
+            ee_action_type=False,
+            delta_coeff=cfg["max_joint_delta"],
+            ee_delta_coeff=0.0,
+            tolerance=cfg["tolerance_goal_pos"],
+            goal_min=np.asarray(low),
+            goal_max=np.asarray(high),
+        )
+        obs_low = np.concatenate([-np.ones(3), self.goal_min, self.chain.lower])
+        obs_high = np.concatenate([np.ones(3), self.goal_max, self.chain.upper])
+        self.observation_space = spaces.Box(obs_low.astype(np.float32), obs_high.astype(np.float32), dtype=np.float32)
+
+    def _get_obs(self) -> np.ndarray:
+        unit, _ = self.ee_to_goal()
+        q = np.clip(self.arm_positions(), self.chain.lower, self.chain.upper)
+        obs = np.concatenate([unit, self.goal, q])
+        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _get_reward(self) -> float:
+        dist = float(np.linalg.norm(self.goal - self.ee_position()))
+        self.info["distance"] = dist
+        if dist <= self.tolerance:
+            self.info["is_success"] = True
+            reward = self.cfg["reached_goal_reward"]
+        else:
+            reward = -self.cfg["multiplier_dist_reward"] * dist + self.cfg["step_reward"]
+        if self.at_joint_limits():
+            reward += self.cfg["joint_limits_reward"]
+        return float(reward)
+
+    def _check_if_done(self) -> bool:
+        return float(np.linalg.norm(self.goal - self.ee_position())) <= self.tolerance

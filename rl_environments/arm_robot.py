@@ -1,0 +1,106 @@
+"""The robot layer every arm shares: spawn from a description package, a group position
+controller for the arm, an end-effector frame, and a kinematic chain for EE actions and goals.
+
+A robot env is this mixin plus constants (see ``rl_environments/rx200/sim/robot_envs``), mixed
+into :class:`~multiros.envs.MujocoBaseEnv` or :class:`~multiros.envs.MujocoGoalEnv`.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping
+from importlib import import_module
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from multiros.envs import EnvError
+from multiros.utils.kinematics import KinematicChain
+
+
+@functools.lru_cache(maxsize=8)
+def _chain(package: str, xacro_file: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> KinematicChain:
+    # A chain is immutable once built, so envs may share it; xacro processing costs ~0.1 s.
+    root = Path(import_module(package).__file__).parent
+    return KinematicChain.from_urdf(root / "urdf" / xacro_file, base, tip, xacro_args=dict(args))
+
+
+class ArmRobot:
+    """Robot-layer behaviour of a fixed-base arm.
+
+    Class attributes a robot sets:
+        ROBOT_NAME: entity name and default namespace.
+        DESCRIPTION_PACKAGE: the ROS package name (``package://`` URI host).
+        DESCRIPTION_MODULE: the Python package shipping it (for local kinematics).
+        XACRO_FILE: the xacro file in ``urdf/``.
+        XACRO_ARGS: xacro arguments.
+        ARM_JOINTS: the arm's joint names, in command order.
+        BASE_LINK, EE_LINK: the kinematic chain's ends (URDF link names).
+        ARM_CONTROLLER: the group position controller commanding ``ARM_JOINTS``.
+        CONTROLLERS: controllers to activate at spawn.
+        NUM_SIM_STEPS: physics steps per env step (lockstep).
+    """
+
+    ROBOT_NAME: ClassVar[str]
+    DESCRIPTION_PACKAGE: ClassVar[str]
+    DESCRIPTION_MODULE: ClassVar[str]
+    XACRO_FILE: ClassVar[str]
+    XACRO_ARGS: ClassVar[Mapping[str, str]] = {}
+    ARM_JOINTS: ClassVar[tuple[str, ...]]
+    BASE_LINK: ClassVar[str]
+    EE_LINK: ClassVar[str]
+    ARM_CONTROLLER: ClassVar[str]
+    CONTROLLERS: ClassVar[tuple[str, ...]]
+    NUM_SIM_STEPS: ClassVar[int] = 20
+
+    @classmethod
+    def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
+        """Base-env constructor arguments for this robot; ``overrides`` (user kwargs) win."""
+        kwargs: dict[str, Any] = {
+            "robot_name": cls.ROBOT_NAME,
+            "robot_model_xml": f"package://{cls.DESCRIPTION_PACKAGE}/urdf/{cls.XACRO_FILE}",
+            "urdf_xacro_args": dict(cls.XACRO_ARGS),
+            "controllers_list": list(cls.CONTROLLERS),
+            "frames": [cls.EE_LINK],
+            "num_sim_steps": cls.NUM_SIM_STEPS,
+        }
+        kwargs.update(overrides)
+        return kwargs
+
+    @classmethod
+    def kinematic_chain(cls) -> KinematicChain:
+        """The arm's chain from ``BASE_LINK`` to ``EE_LINK`` (built once per process)."""
+        return _chain(cls.DESCRIPTION_MODULE, cls.XACRO_FILE, tuple(sorted(cls.XACRO_ARGS.items())),
+                      cls.BASE_LINK, cls.EE_LINK)
+
+    # -- robot-level helpers for task envs -------------------------------------------------
+    @property
+    def base_position(self) -> np.ndarray:
+        """World position of the robot base (its spawn position)."""
+        return np.asarray(self.spawn_pose.position, dtype=np.float64)  # type: ignore[attr-defined]
+
+    def arm_positions(self) -> np.ndarray:
+        """Arm joint positions after the last step, in ``ARM_JOINTS`` order."""
+        return self.joint_positions(self.ARM_JOINTS)  # type: ignore[attr-defined]
+
+    def arm_velocities(self) -> np.ndarray:
+        """Arm joint velocities after the last step."""
+        return self.joint_velocities(self.ARM_JOINTS)  # type: ignore[attr-defined]
+
+    def ee_position(self) -> np.ndarray:
+        """World position of the end effector after the last step."""
+        return self.frame_position(self.EE_LINK)  # type: ignore[attr-defined]
+
+    def set_arm_targets(self, targets: np.ndarray) -> None:
+        """Command the arm's position controller (sent with the next physics step)."""
+        self.send_command(self.ARM_CONTROLLER, targets)  # type: ignore[attr-defined]
+
+    def _check_connection_and_readiness(self) -> bool:
+        missing = [j for j in self.ARM_JOINTS if j not in self.joint_names]  # type: ignore[attr-defined]
+        if missing:
+            raise EnvError(
+                f"robot {self.robot_name!r} reports no joints {missing}; "  # type: ignore[attr-defined]
+                f"joints: {self.joint_names}"  # type: ignore[attr-defined]
+            )
+        return True

@@ -1,0 +1,109 @@
+"""The reach task shared by every robot: goal sampling inside the reachable workspace, vectorised
+rewards and success.
+
+Pure functions and a small sampler, so HER can call them on batches (``axis=-1``) with no ROS
+call and no side effect, as ``compute_reward`` requires.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+
+from multiros.utils.kinematics import KinematicChain
+
+RewardType = Literal["sparse", "dense"]
+
+
+def goal_distance(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
+    """Euclidean distance over the last axis (works for single goals and batches)."""
+    return np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+
+
+def is_success(achieved_goal: np.ndarray, desired_goal: np.ndarray, tolerance: float) -> np.ndarray:
+    """True where the achieved goal is within ``tolerance`` metres of the desired goal."""
+    return goal_distance(achieved_goal, desired_goal) <= tolerance
+
+
+def goal_reward(
+    achieved_goal: np.ndarray,
+    desired_goal: np.ndarray,
+    tolerance: float,
+    reward_type: RewardType,
+    sparse_values: tuple[float, float] = (0.0, -1.0),
+) -> np.ndarray | float:
+    """Sparse (``sparse_values`` = (reached, not reached)) or dense (``-distance``) reward, vectorised."""
+    d = goal_distance(achieved_goal, desired_goal)
+    if reward_type == "dense":
+        reward = -d
+    else:
+        reward = np.where(d <= tolerance, sparse_values[0], sparse_values[1])
+    reward = np.asarray(reward, dtype=np.float32)
+    return float(reward) if reward.ndim == 0 else reward
+
+
+def parse_reward_type(value: str) -> RewardType:
+    """``"sparse"`` or ``"dense"`` (case-insensitive, as the original configs spell them either way)."""
+    v = str(value).lower()
+    if v not in ("sparse", "dense"):
+        raise ValueError(f"reward_type {value!r} is not 'sparse' or 'dense'")
+    return v  # type: ignore[return-value]
+
+
+class GoalSampler:
+    """Samples goals the robot can reach, inside a box.
+
+    Goals are forward kinematics of uniformly random joint configurations (within the joint
+    limits, optionally narrowed), kept when they fall inside the goal box: every goal is reachable
+    by construction, with no IK call.
+
+    Args:
+        chain: the arm's kinematic chain (base frame = the robot's base link).
+        low, high: the goal box corners in the base frame.
+        base_position: the robot base's world position (goals are returned in the world frame).
+        joint_low, joint_high: optional narrower joint ranges to sample from.
+        max_tries: bound on rejection sampling; the box must overlap the workspace.
+    """
+
+    def __init__(
+        self,
+        chain: KinematicChain,
+        low: Sequence[float],
+        high: Sequence[float],
+        *,
+        base_position: Sequence[float] = (0.0, 0.0, 0.0),
+        joint_low: Sequence[float] | None = None,
+        joint_high: Sequence[float] | None = None,
+        max_tries: int = 10_000,
+    ) -> None:
+        self.chain = chain
+        self.low = np.asarray(low, dtype=np.float64)
+        self.high = np.asarray(high, dtype=np.float64)
+        if self.low.shape != (3,) or self.high.shape != (3,) or np.any(self.low > self.high):
+            raise ValueError(f"goal box low {low} / high {high} must be 3 numbers each with low <= high")
+        self.base_position = np.asarray(base_position, dtype=np.float64)
+        jl = chain.lower if joint_low is None else np.asarray(joint_low, dtype=np.float64)
+        jh = chain.upper if joint_high is None else np.asarray(joint_high, dtype=np.float64)
+        self.joint_low = np.where(np.isfinite(jl), jl, -np.pi)
+        self.joint_high = np.where(np.isfinite(jh), jh, np.pi)
+        self.max_tries = int(max_tries)
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        """One reachable goal (world frame) drawn with ``rng``.
+
+        Raises:
+            RuntimeError: no configuration landed in the box within ``max_tries`` draws.
+        """
+        batch = 64
+        for _ in range(0, self.max_tries, batch):
+            q = rng.uniform(self.joint_low, self.joint_high, size=(batch, self.chain.n_joints))
+            for row in q:
+                p = self.chain.fk_position(row)
+                if np.all(p >= self.low) and np.all(p <= self.high):
+                    return p + self.base_position
+        raise RuntimeError(
+            f"no reachable goal inside the box {self.low.tolist()}..{self.high.tolist()} after {self.max_tries} "
+            "tries: the goal box does not overlap the robot's workspace"
+        )

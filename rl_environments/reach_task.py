@@ -1,0 +1,105 @@
+"""The task layer of the reach envs, shared by every arm and by the plain and goal variants:
+actions (joint deltas, absolute joints, or end-effector deltas through IK), episode start and goal
+sampling, and the goal marker.
+
+A task env mixes this in after its robot env and adds only its spaces, observation and reward.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from rl_environments.reach import GoalSampler
+
+
+class ReachTask:
+    """Reach-task behaviour on top of an :class:`~rl_environments.arm_robot.ArmRobot` env.
+
+    The task env sets, before calling :meth:`_setup_reach`: nothing; it passes its config dict.
+    """
+
+    def _setup_reach(
+        self,
+        cfg: Mapping[str, Any],
+        *,
+        delta_action: bool,
+        ee_action_type: bool,
+        delta_coeff: float,
+        ee_delta_coeff: float,
+        tolerance: float,
+        goal_min: np.ndarray,
+        goal_max: np.ndarray,
+    ) -> None:
+        self.cfg = dict(cfg)
+        self.chain = self.kinematic_chain()  # type: ignore[attr-defined]
+        self.delta_action = bool(delta_action)
+        self.ee_action_type = bool(ee_action_type)
+        self.delta_coeff = float(delta_coeff)
+        self.ee_delta_coeff = float(ee_delta_coeff)
+        self.tolerance = float(tolerance)
+        self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
+        self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
+        self.init_joint_pos = np.asarray(cfg["init_joint_pos"], dtype=np.float64)
+        n = len(self.ARM_JOINTS)  # type: ignore[attr-defined]
+        for key, arr in (("min_joint_pos", self.min_joint_pos), ("max_joint_pos", self.max_joint_pos),
+                         ("init_joint_pos", self.init_joint_pos)):
+            if arr.shape != (n,):
+                raise ValueError(f"task config key {key!r} must have {n} values (one per arm joint), got {arr.tolist()}")
+        base = self.base_position  # type: ignore[attr-defined]
+        self.goal_min = np.asarray(goal_min, dtype=np.float64) + base
+        self.goal_max = np.asarray(goal_max, dtype=np.float64) + base
+        self.goal_sampler = GoalSampler(
+            self.chain, goal_min, goal_max, base_position=base,
+            joint_low=self.min_joint_pos, joint_high=self.max_joint_pos,
+        )
+        if self.ee_action_type:
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(3,), dtype=np.float32)
+        elif self.delta_action:
+            self.action_space = spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32)
+        else:
+            self.action_space = spaces.Box(
+                self.min_joint_pos.astype(np.float32), self.max_joint_pos.astype(np.float32), dtype=np.float32
+            )
+        self.goal = self.goal_sampler.sample(np.random.default_rng(0))
+        self.prev_action = np.zeros(self.action_space.shape, dtype=np.float64)
+        self.joint_targets = self.init_joint_pos.copy()
+
+    # -- hooks ------------------------------------------------------------------------------
+    def _set_init_pose(self) -> None:
+        self.move_to_initial_pose(self.ARM_JOINTS, self.init_joint_pos)  # type: ignore[attr-defined]
+        self.joint_targets = self.init_joint_pos.copy()
+
+    def _set_episode_init_params(self) -> None:
+        self.goal = self.goal_sampler.sample(self.np_random)  # type: ignore[attr-defined]
+        self.prev_action = np.zeros(self.action_space.shape, dtype=np.float64)
+
+    def _set_action(self, action: np.ndarray) -> None:
+        current = self.arm_positions()  # type: ignore[attr-defined]
+        if self.ee_action_type:
+            target_ee = self.ee_position() - self.base_position + action * self.ee_delta_coeff  # type: ignore[attr-defined]
+            result = self.chain.ik(target_ee, q0=current, max_iters=30, restarts=0, tol=1e-3)
+            targets = result.q
+        elif self.delta_action:
+            targets = current + action * self.delta_coeff
+        else:
+            targets = np.asarray(action, dtype=np.float64)
+        self.joint_targets = np.clip(targets, self.min_joint_pos, self.max_joint_pos)
+        self.set_arm_targets(self.joint_targets)  # type: ignore[attr-defined]
+        self.prev_action = np.asarray(action, dtype=np.float64)
+
+    # -- helpers for observations and rewards -------------------------------------------------
+    def at_joint_limits(self, margin: float = 1e-4) -> bool:
+        """True when an arm joint target sits at a limit of the task's joint range."""
+        q = self.joint_targets
+        return bool(np.any(q <= self.min_joint_pos + margin) or np.any(q >= self.max_joint_pos - margin))
+
+    def ee_to_goal(self) -> tuple[np.ndarray, float]:
+        """Unit vector from the end effector to the goal, and the distance."""
+        vec = self.goal - self.ee_position()  # type: ignore[attr-defined]
+        dist = float(np.linalg.norm(vec))
+        unit = vec / dist if dist > 1e-9 else np.zeros(3)
+        return unit, dist

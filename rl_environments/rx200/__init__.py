@@ -1,0 +1,1 @@
+"""Interbotix ReactorX 200 environments."""

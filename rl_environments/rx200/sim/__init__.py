@@ -1,0 +1,1 @@
+"""RX200 environments on the MuJoCo simulation node."""

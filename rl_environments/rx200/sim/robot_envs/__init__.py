@@ -1,0 +1,1 @@
+"""RX200 robot envs (the robot layer)."""

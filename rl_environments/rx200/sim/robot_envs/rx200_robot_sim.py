@@ -1,0 +1,44 @@
+"""Robot env of the Interbotix ReactorX 200 (5-DOF arm + gripper) on the MuJoCo simulation node.
+
+``RX200RobotEnv`` (plain) and ``RX200RobotGoalEnv`` (goal-conditioned) spawn the RX200 from the
+``rx200_description`` package shipped with uniros, activate the arm's group position controller
+and the gripper controller, and return the ``rx200/ee_gripper_link`` pose with every step.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
+from rl_environments.arm_robot import ArmRobot
+
+
+class RX200Robot(ArmRobot):
+    """The RX200's constants; see :class:`~rl_environments.arm_robot.ArmRobot`."""
+
+    ROBOT_NAME = "rx200"
+    DESCRIPTION_PACKAGE = "rx200_description"
+    DESCRIPTION_MODULE = "rl_environments.robots.rx200_description"
+    XACRO_FILE = "rx200.urdf.xacro"
+    XACRO_ARGS = {"robot_name": "rx200"}
+    ARM_JOINTS = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
+    BASE_LINK = "rx200/base_link"
+    EE_LINK = "rx200/ee_gripper_link"
+    ARM_CONTROLLER = "arm_position_controller"
+    CONTROLLERS = ("joint_state_broadcaster", "arm_position_controller", "gripper_controller")
+    NUM_SIM_STEPS = 20
+
+
+class RX200RobotEnv(RX200Robot, MujocoBaseEnv):
+    """The RX200 robot layer for plain (non-goal) task envs. Keyword arguments go to
+    :class:`~multiros.envs.MujocoBaseEnv` (robot defaults filled in)."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
+
+
+class RX200RobotGoalEnv(RX200Robot, MujocoGoalEnv):
+    """The RX200 robot layer for goal-conditioned task envs."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))

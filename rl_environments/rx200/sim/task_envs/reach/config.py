@@ -1,0 +1,32 @@
+"""The RX200 reach task's config schema (``config/rx200_reach_task_config.yaml``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from rl_environments.task_config import load_task_config, vector
+
+RX200_REACH_SCHEMA = {
+    "arm_joints": list,
+    "min_joint_pos": vector(5),
+    "max_joint_pos": vector(5),
+    "init_joint_pos": vector(5),
+    "delta_coeff": float,
+    "ee_delta_coeff": float,
+    "position_ee_min": vector(3),
+    "position_ee_max": vector(3),
+    "position_goal_min": vector(3),
+    "position_goal_max": vector(3),
+    "reach_tolerance": float,
+    "step_reward": float,
+    "multiplier_dist_reward": float,
+    "reached_goal_reward": float,
+    "joint_limits_reward": float,
+    "max_joint_vel": float,
+}
+
+
+def load_rx200_reach_config(name: str | Path = "rx200_reach_task_config.yaml") -> dict[str, Any]:
+    """Load and check the RX200 reach config (keys under ``rx200:``)."""
+    return load_task_config(name, RX200_REACH_SCHEMA, section="rx200")

@@ -1,0 +1,114 @@
+"""``RX200ReacherSim-v0``: the RX200 reaches a random point; a plain gymnasium env.
+
+## Description
+The end effector (``rx200/ee_gripper_link``) must come within ``reach_tolerance`` (2 cm) of a goal
+sampled inside the goal box of ``config/rx200_reach_task_config.yaml``, among points the arm can
+reach. One env step is one lockstep round trip to the simulation node (20 physics steps of 2 ms).
+
+## Action space
+``Box(-1, 1, (5,))``: joint deltas, ``target = joints + action * delta_coeff`` (0.05 rad), clipped
+to the joint range. ``delta_action=False``: absolute joint targets in ``[min_joint_pos,
+max_joint_pos]``. ``ee_action_type=True``: ``Box(-1, 1, (3,))`` end-effector deltas
+(``ee_delta_coeff`` metres) solved by damped-least-squares IK.
+
+## Observation space
+``Box(float32)`` of 3 + 3 + 1 + 5 + n_action + 5 values: EE position, unit vector EE -> goal,
+distance, arm joint positions, previous action, arm joint velocities. Every value lies inside the
+declared bounds (EE position and velocities are clipped to them).
+
+## Rewards
+``reward_type="dense"`` (default): ``-distance`` (``simple_dense_reward=True``), or the shaped
+reward ``+reached_goal_reward`` on success, else ``multiplier_dist_reward * -distance +
+step_reward``, plus ``joint_limits_reward`` when a joint target is at a limit.
+``reward_type="sparse"``: +1 on success, -1 otherwise.
+
+## Episode end
+Terminated on success (``info["is_success"] = True``); truncated after 100 steps (registration).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+from rl_environments.reach import goal_reward, parse_reward_type
+from rl_environments.reach_task import ReachTask
+from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotEnv
+from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
+
+
+class RX200ReacherEnv(ReachTask, RX200RobotEnv):
+    """RX200 reach task, plain observation (see the module docstring).
+
+    Args:
+        reward_type: ``"dense"`` or ``"sparse"``.
+        delta_action: joint deltas (True) or absolute joint targets.
+        ee_action_type: end-effector delta actions through IK.
+        simple_dense_reward: ``-distance`` (True) or the shaped reward of the original task.
+        config_file: task config (file name in ``rl_environments.config`` or a path).
+        **kwargs: robot/base-env knobs (``sim_mode``, ``transport``, ``num_sim_steps``, ``seed``, ...).
+    """
+
+    def __init__(
+        self,
+        reward_type: str = "dense",
+        delta_action: bool = True,
+        ee_action_type: bool = False,
+        simple_dense_reward: bool = True,
+        config_file: str = "rx200_reach_task_config.yaml",
+        **kwargs: Any,
+    ) -> None:
+        cfg = load_rx200_reach_config(config_file)
+        self.reward_type = parse_reward_type(reward_type)
+        self.simple_dense_reward = bool(simple_dense_reward)
+        super().__init__(**kwargs)
+        self._setup_reach(
+            cfg,
+            delta_action=delta_action,
+            ee_action_type=ee_action_type,
+            delta_coeff=cfg["delta_coeff"],
+            ee_delta_coeff=cfg["ee_delta_coeff"],
+            tolerance=cfg["reach_tolerance"],
+            goal_min=np.asarray(cfg["position_goal_min"]),
+            goal_max=np.asarray(cfg["position_goal_max"]),
+        )
+        self.ee_low = np.asarray(cfg["position_ee_min"]) + self.base_position
+        self.ee_high = np.asarray(cfg["position_ee_max"]) + self.base_position
+        self.max_vel = float(cfg["max_joint_vel"])
+        n_act = self.action_space.shape[0]
+        q_low, q_high = self.chain.lower, self.chain.upper
+        max_dist = float(np.linalg.norm(self.ee_high - self.ee_low))
+        low = np.concatenate([self.ee_low, -np.ones(3), [0.0], q_low, self.action_space.low, -self.max_vel * np.ones(5)])
+        high = np.concatenate([self.ee_high, np.ones(3), [max_dist], q_high, self.action_space.high,
+                               self.max_vel * np.ones(5)])
+        self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
+        assert len(low) == 12 + n_act + 5
+
+    def _get_obs(self) -> np.ndarray:
+        ee = np.clip(self.ee_position(), self.ee_low, self.ee_high)
+        unit, dist = self.ee_to_goal()
+        q = np.clip(self.arm_positions(), self.chain.lower, self.chain.upper)
+        qd = np.clip(self.arm_velocities(), -self.max_vel, self.max_vel)
+        obs = np.concatenate([ee, unit, [dist], q, self.prev_action, qd])
+        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+
+    def _get_reward(self) -> float:
+        dist = float(np.linalg.norm(self.goal - self.ee_position()))
+        reached = dist <= self.tolerance
+        self.info["is_success"] = reached
+        self.info["distance"] = dist
+        if self.reward_type == "sparse":
+            return float(goal_reward(self.ee_position(), self.goal, self.tolerance, "sparse", (1.0, -1.0)))
+        if self.simple_dense_reward:
+            return -dist
+        if reached:
+            return self.cfg["reached_goal_reward"]
+        reward = -self.cfg["multiplier_dist_reward"] * dist + self.cfg["step_reward"]
+        if self.at_joint_limits():
+            reward += self.cfg["joint_limits_reward"]
+        return reward
+
+    def _check_if_done(self) -> bool:
+        return float(np.linalg.norm(self.goal - self.ee_position())) <= self.tolerance

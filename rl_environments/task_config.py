@@ -1,0 +1,88 @@
+"""Loading task configuration YAML files with a schema: missing or mistyped keys name the key and the file.
+
+Task configs live in the repository's top-level ``config/`` folder, installed as the package
+``rl_environments.config``. A user may pass a path to their own copy instead.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+class TaskConfigError(ValueError):
+    """A task configuration file is missing, unreadable, or has a missing or mistyped key."""
+
+
+def config_path(name: str | Path) -> Path:
+    """Resolve a config file: an existing path, or a file name inside ``rl_environments.config``."""
+    path = Path(name)
+    if path.is_file():
+        return path
+    packaged = resources.files("rl_environments.config").joinpath(str(name))
+    if packaged.is_file():
+        return Path(str(packaged))
+    available = sorted(p.name for p in resources.files("rl_environments.config").iterdir() if p.name.endswith(".yaml"))
+    raise TaskConfigError(f"task config {str(name)!r} not found (not a file, not one of the packaged configs {available})")
+
+
+def _check_value(value: Any, expected: Any, key: str, source: Path) -> Any:
+    if isinstance(expected, tuple) and expected and expected[0] == "vector":
+        length = expected[1]
+        if (
+            not isinstance(value, list)
+            or len(value) != length
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+        ):
+            raise TaskConfigError(f"{source}: key {key!r} must be a list of {length} numbers, got {value!r}")
+        return [float(v) for v in value]
+    if expected is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise TaskConfigError(f"{source}: key {key!r} must be a number, got {value!r}")
+        return float(value)
+    if expected is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise TaskConfigError(f"{source}: key {key!r} must be an integer, got {value!r}")
+        return value
+    if not isinstance(value, expected):
+        raise TaskConfigError(f"{source}: key {key!r} must be of type {expected.__name__}, got {value!r}")
+    return value
+
+
+def vector(length: int) -> tuple[str, int]:
+    """Schema marker: a list of ``length`` numbers."""
+    return ("vector", length)
+
+
+def load_task_config(name: str | Path, schema: Mapping[str, Any], section: str | None = None) -> dict[str, Any]:
+    """Load a YAML task config and check it against ``schema`` (key -> type or :func:`vector`).
+
+    Args:
+        name: a path, or a file name in ``rl_environments.config``.
+        schema: the required keys and their types; other keys are kept unchecked.
+        section: a top-level key the values sit under (e.g. the robot namespace ``rx200``).
+
+    Raises:
+        TaskConfigError: the file is missing or not YAML, or a key is missing or mistyped.
+    """
+    path = config_path(name)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise TaskConfigError(f"{path}: not valid YAML: {exc}") from exc
+    if section is not None:
+        if not isinstance(data, dict) or section not in data:
+            raise TaskConfigError(f"{path}: missing top-level key {section!r}")
+        data = data[section]
+    if not isinstance(data, dict):
+        raise TaskConfigError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
+    out = dict(data)
+    for key, expected in schema.items():
+        if key not in data:
+            raise TaskConfigError(f"{path}: missing key {key!r}")
+        out[key] = _check_value(data[key], expected, key, path)
+    return out

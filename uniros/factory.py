@@ -1,0 +1,63 @@
+"""``uniros.make``: gymnasium's ``make`` for the library's envs, with errors that say what exists.
+
+Extra keyword arguments go to the env's constructor; the ones every uniros env accepts choose how
+the simulation node runs (``sim_mode="composed" | "process" | "existing"``, ``sim_node_name``,
+``transport="inproc" | "zenoh"``, ``gui``, ``render_mode``, ``seed``, ...).
+"""
+
+from __future__ import annotations
+
+import difflib
+import inspect
+from typing import Any
+
+import gymnasium as gym
+from gymnasium import error as gym_error
+
+import rl_environments
+
+
+class UnknownEnvError(gym_error.Error, LookupError):
+    """The env ID is not registered."""
+
+
+def _accepted_kwargs(env_id: str) -> list[str]:
+    from multiros.envs.core import MujocoEnvCore
+
+    spec = gym.spec(env_id)
+    cls = spec.entry_point if not isinstance(spec.entry_point, str) else gym.envs.registration.load_env_creator(
+        spec.entry_point
+    )
+    names: set[str] = set()
+    for klass in getattr(cls, "__mro__", [cls]):
+        init = vars(klass).get("__init__")
+        if init is not None:
+            names |= {p for p in inspect.signature(init).parameters if p not in ("self", "kwargs")}
+    names |= {p for p in inspect.signature(MujocoEnvCore._init_core).parameters if p not in ("self", "legacy")}
+    return sorted(names)
+
+
+def make(env_id: str, **kwargs: Any) -> gym.Env:
+    """Create a registered env, like ``gymnasium.make``.
+
+    Raises:
+        UnknownEnvError: ``env_id`` is not registered (the message lists the uniros IDs and close matches).
+        TypeError: an unknown keyword argument (the message lists the accepted ones).
+    """
+    if isinstance(env_id, str) and env_id not in gym.registry:
+        close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
+        hint = f" Did you mean {close}?" if close else ""
+        raise UnknownEnvError(f"no env {env_id!r}.{hint} uniros envs: {list(rl_environments.ENV_IDS)}")
+    try:
+        return gym.make(env_id, **kwargs)
+    except TypeError as exc:
+        if isinstance(env_id, str) and env_id in rl_environments.ENV_IDS and "keyword argument" in str(exc):
+            raise TypeError(f"{exc}. {env_id} accepts: {_accepted_kwargs(env_id)}") from exc
+        raise
+
+
+def make_vec(env_id: str, num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """``gymnasium.make_vec`` for uniros IDs (each sub-env composes its own simulation node)."""
+    if env_id not in gym.registry:
+        make(env_id)  # raises the helpful error
+    return gym.make_vec(env_id, num_envs=num_envs, **kwargs)
