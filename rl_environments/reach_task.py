@@ -48,7 +48,9 @@ class ReachTask:
         for key, arr in (("min_joint_pos", self.min_joint_pos), ("max_joint_pos", self.max_joint_pos),
                          ("init_joint_pos", self.init_joint_pos)):
             if arr.shape != (n,):
-                raise ValueError(f"task config key {key!r} must have {n} values (one per arm joint), got {arr.tolist()}")
+                raise ValueError(
+                    f"task config key {key!r} must have {n} values (one per arm joint), got {arr.tolist()}"
+                )
         base = self.base_position  # type: ignore[attr-defined]
         self.goal_min = np.asarray(goal_min, dtype=np.float64) + base
         self.goal_max = np.asarray(goal_max, dtype=np.float64) + base

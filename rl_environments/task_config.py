@@ -27,7 +27,9 @@ def config_path(name: str | Path) -> Path:
     if packaged.is_file():
         return Path(str(packaged))
     available = sorted(p.name for p in resources.files("rl_environments.config").iterdir() if p.name.endswith(".yaml"))
-    raise TaskConfigError(f"task config {str(name)!r} not found (not a file, not one of the packaged configs {available})")
+    raise TaskConfigError(
+        f"task config {str(name)!r} not found (not a file, not one of the packaged configs {available})"
+    )
 
 
 def _check_value(value: Any, expected: Any, key: str, source: Path) -> Any:

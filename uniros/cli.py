@@ -114,7 +114,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     def env_options(p: argparse.ArgumentParser) -> None:
         p.add_argument("--sim-mode", choices=["composed", "process", "existing"],
-                       help="run the simulation node in this process (default), a child process, or reach a running one")
+                       help="run the simulation node in this process (default), a child process, "
+                       "or reach a running one")
         p.add_argument("--transport", choices=["inproc", "zenoh"], help="ROS transport")
 
     p = sub.add_parser("train", help="train an agent and evaluate it")

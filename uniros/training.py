@@ -108,7 +108,9 @@ def parse_training_config(data: Mapping[str, Any], source: str = "<mapping>") ->
         policy = dict(_require(data, "policy_params", dict, source))
     use_her = bool(_require(data, "use_HER", bool, source, False))
     if use_her and algo not in _OFF_POLICY:
-        raise TrainingConfigError(f"{source}: use_HER needs an off-policy algorithm (sac, td3, ddpg, dqn), not {algo!r}")
+        raise TrainingConfigError(
+            f"{source}: use_HER needs an off-policy algorithm (sac, td3, ddpg, dqn), not {algo!r}"
+        )
     her = dict(_require(data, "her_params", dict, source, {}) or {})
     for obsolete in ("online_sampling", "max_episode_length"):
         her.pop(obsolete, None)  # read by old SB3 versions, gone since SB3 1.7

@@ -112,7 +112,9 @@ class MujocoGoalEnv(MujocoEnvCore, GoalEnv):
     def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
         hook = self._hook(MujocoGoalEnv, "_compute_reward")
         if hook is None:
-            raise NotImplementedError(f"{type(self).__name__} must implement _compute_reward(achieved_goal, desired_goal, info)")
+            raise NotImplementedError(
+                f"{type(self).__name__} must implement _compute_reward(achieved_goal, desired_goal, info)"
+            )
         return hook(achieved_goal, desired_goal, info)
 
     def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
@@ -166,7 +168,8 @@ class MujocoGoalEnv(MujocoEnvCore, GoalEnv):
         if hook is not None:
             obs = hook()
         else:
-            parts = [self._hook(MujocoGoalEnv, n) for n in ("_get_observation", "_get_achieved_goal", "_get_desired_goal")]
+            names = ("_get_observation", "_get_achieved_goal", "_get_desired_goal")
+            parts = [self._hook(MujocoGoalEnv, n) for n in names]
             if any(p is None for p in parts):
                 raise NotImplementedError(
                     f"{type(self).__name__} must implement _get_obs() returning a dict with {_GOAL_KEYS} "

@@ -287,7 +287,9 @@ class MujocoEnvCore:
         try:
             return values[[self._joint_index[n] for n in names]]
         except KeyError as exc:
-            raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: {self.joint_names}") from None
+            raise EnvError(
+                f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: {self.joint_names}"
+            ) from None
 
     def frame_position(self, frame: str) -> np.ndarray:
         """World position of a frame listed in ``frames``."""
@@ -344,7 +346,8 @@ class MujocoEnvCore:
                 return
         raise ResetError(
             f"robot {self.robot_name!r} did not reach its initial pose {target.tolist()} for joints {list(names)} "
-            f"after {self.max_reset_attempts} attempts (max error {error:.4g}); check the pose is within the joint limits"
+            f"after {self.max_reset_attempts} attempts (max error {error:.4g}); "
+            "check the pose is within the joint limits"
         )
 
     def _advance(self) -> None:

@@ -45,6 +45,14 @@ _SERVICES: dict[str, str] = {
     "set_robot_joint_state": "uniros_interfaces/srv/SetRobotJointState",
     "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
     "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",
+    "render_camera": "uniros_interfaces/srv/RenderCamera",
+}
+_CONTROLLER_SERVICES: dict[str, str] = {
+    "list_controllers": "controller_manager_msgs/srv/ListControllers",
+    "switch_controller": "controller_manager_msgs/srv/SwitchController",
+    "load_controller": "controller_manager_msgs/srv/LoadController",
+    "configure_controller": "controller_manager_msgs/srv/ConfigureController",
+    "unload_controller": "controller_manager_msgs/srv/UnloadController",
 }
 
 _RESULT_NAMES = {
@@ -374,6 +382,57 @@ class SimulationClient:
             req.gravity.x, req.gravity.y, req.gravity.z = (float(v) for v in gravity)
         res = self._call("set_physics_properties", req)
         _check(self.service_name("set_physics_properties"), res.result)
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(self, camera: str = "", width: int = 640, height: int = 480, depth: bool = False) -> np.ndarray:
+        """An image of the scene: HxWx3 uint8 RGB, or HxW float32 depth in metres."""
+        from multiros.sim.render_service import image_to_array
+
+        req = self.request("render_camera", camera=camera, width=int(width), height=int(height), depth=bool(depth))
+        res = self._call("render_camera", req, max(self.timeout_sec, 30.0))
+        _check(self.service_name("render_camera"), res.result)
+        return image_to_array(res.image)
+
+    # -- controller manager (per robot namespace) ---------------------------------------------
+    def _controller_call(self, namespace: str, name: str, request_fields: dict[str, Any]) -> Any:
+        service = f"{namespace.rstrip('/')}/controller_manager/{name}"
+        client = self._clients.get(service)
+        if client is None:
+            client = self._node.create_client(get_service(_CONTROLLER_SERVICES[name]), service)
+            self._clients[service] = client
+        request = get_service(_CONTROLLER_SERVICES[name]).Request(**request_fields)
+        try:
+            return client.call(request, timeout_sec=self.timeout_sec)
+        except TimeoutError as exc:
+            raise SimulationNodeError(f"{service} did not answer within {self.timeout_sec:g} s") from exc
+
+    def list_controllers(self, namespace: str) -> list[Any]:
+        """``controller_manager_msgs/ControllerState`` of every controller of the robot in ``namespace``."""
+        return list(self._controller_call(namespace, "list_controllers", {}).controller)
+
+    def switch_controllers(
+        self, namespace: str, activate: Sequence[str] = (), deactivate: Sequence[str] = (), strict: bool = True
+    ) -> None:
+        """Activate/deactivate controllers of a robot (ros2_control ``switch_controller``).
+
+        Raises:
+            SimulationServiceError: the controller manager refused the switch.
+        """
+        req = {"activate_controllers": list(activate), "deactivate_controllers": list(deactivate),
+               "strictness": 2 if strict else 1}
+        if not self._controller_call(namespace, "switch_controller", req).ok:
+            raise SimulationServiceError(
+                f"{namespace.rstrip('/')}/controller_manager/switch_controller", Result.RESULT_OPERATION_FAILED,
+                f"refused activate={list(activate)} deactivate={list(deactivate)} (see the node's log)",
+            )
+
+    def reset_controllers(self, namespace: str, names: Sequence[str] | None = None) -> None:
+        """Restart controllers (deactivate, then activate): they drop their state and hold the current pose."""
+        if names is None:
+            names = [c.name for c in self.list_controllers(namespace) if c.state == "active"]
+        if names:
+            self.switch_controllers(namespace, deactivate=names)
+            self.switch_controllers(namespace, activate=names)
 
     def close(self) -> None:
         """Destroy the clients this object created."""

@@ -85,7 +85,7 @@ def compose(
     from multiros.sim.world import WorldOptions
 
     if context is None:
-        context = Context(transport=transport)
+        context = Context(transport=transport).init()
     options = WorldOptions() if timestep is None else WorldOptions(timestep=timestep)
     node = SimulationNode(
         node_name, options=options, paused=paused, real_time_factor=real_time_factor, context=context, **node_kwargs
@@ -145,7 +145,7 @@ class SimulationConnection:
                 _stop_process(self.process)
                 _children.discard(self.process)
             if self._owns_context:
-                self.context.shutdown()
+                self.context.try_shutdown()
 
 
 def _wait_ready(client: SimulationClient, process: subprocess.Popen | None, timeout_sec: float) -> None:
@@ -198,7 +198,7 @@ def connect(
         raise ValueError(f"sim_mode {mode!r} needs a wire transport; use transport='zenoh'")
     transport = transport or ("inproc" if mode == "composed" else "zenoh")
     owns = context is None
-    ctx = context if context is not None else Context(transport=transport)
+    ctx = context if context is not None else Context(transport=transport).init()
     sim_node = None
     process = None
     node = None
@@ -223,7 +223,7 @@ def connect(
         if process is not None:
             _stop_process(process)
         if owns:
-            ctx.shutdown()
+            ctx.try_shutdown()
         raise
 
 
@@ -239,10 +239,19 @@ def _spawn_child(
     if timestep is not None:
         argv += ["--timestep", str(timestep)]
     env = dict(os.environ)
-    env.update(ctx.child_environment())
+    env.update(_child_environment(ctx))
     proc = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL)
     _children.add(proc)
     return proc
+
+
+def _child_environment(ctx: Context) -> dict[str, str]:
+    """Environment variables that make a child process join ``ctx``'s ROS graph."""
+    env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": "zenoh"}
+    endpoint = ctx.transport_options.get("router_endpoint")
+    if endpoint:
+        env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
+    return env
 
 
 def robot_resource(
@@ -285,10 +294,10 @@ def robot_resource(
         args["__controllers"] = ",".join(controllers_list)
     if robot_model_xml.lstrip().startswith("<"):
         if args:
-            from multiros.sim.description import process_xacro_string
+            from multiros.sim.description import xacro_to_urdf
 
             plain = {k: v for k, v in args.items() if not k.startswith("__")}
-            text = process_xacro_string(robot_model_xml, plain) if plain else robot_model_xml
+            text = xacro_to_urdf(robot_model_xml, plain) if plain else robot_model_xml
             reserved = {k: v for k, v in args.items() if k.startswith("__")}
             if reserved:
                 return "string:?" + urlencode(reserved), text
@@ -317,7 +326,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     opts = parser.parse_args(argv)
     logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
 
-    ctx = Context(transport=opts.transport)
+    ctx = Context(transport=opts.transport).init()
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
@@ -336,7 +345,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if node is not None:
             node.destroy_node()
-        ctx.shutdown()
+        ctx.try_shutdown()
     return 0
 
 

@@ -46,6 +46,8 @@ SimulationState = get_message("simulation_interfaces/msg/SimulationState")
 SimulatorFeatures = get_message("simulation_interfaces/msg/SimulatorFeatures")
 EntityStateMsg = get_message("simulation_interfaces/msg/EntityState")
 Clock = get_message("rosgraph_msgs/msg/Clock")
+Marker = get_message("visualization_msgs/msg/Marker")
+MarkerArray = get_message("visualization_msgs/msg/MarkerArray")
 
 _SRV = {
     name: get_service(type_name)
@@ -143,6 +145,11 @@ class SimulationNode(Node):
         self._renderer: Any = None
         self._viewer: Any = None
         self._clock_pub = self.create_publisher(Clock, "/clock", qos_profile_clock)
+        self._marker_subs = [
+            self.create_subscription(Marker, "/visualization_marker", self._on_marker, 100),
+            self.create_subscription(MarkerArray, "/visualization_marker_array",
+                                     lambda msg: [self._on_marker(m) for m in msg.markers], 10),
+        ]
         self._services = [
             self.create_service(_SRV[name], f"~/{name}", getattr(self, f"_srv_{name}")) for name in _SRV
         ]
@@ -308,7 +315,8 @@ class SimulationNode(Node):
     def _srv_delete_entity(self, request: Any, response: Any) -> Any:
         with self.lock:
             if not self.world.has_entity(request.entity):
-                _fail(response.result, NOT_FOUND, f"no entity {request.entity!r}; entities: {list(self.world.entity_names())}")
+                known = list(self.world.entity_names())
+                _fail(response.result, NOT_FOUND, f"no entity {request.entity!r}; entities: {known}")
                 return response
             self._detach_robot(request.entity)
             self.world.delete(request.entity)
@@ -510,7 +518,9 @@ class SimulationNode(Node):
                 return response
             velocities = js.velocity if len(js.velocity) else None
             try:
-                self.world.set_joint_positions(request.entity, list(js.name), js.position, velocities, hold=request.hold)
+                self.world.set_joint_positions(
+                    request.entity, list(js.name), js.position, velocities, hold=request.hold
+                )
             except EntityError as exc:
                 _fail(response.result, response.UNKNOWN_JOINT, str(exc))
                 return response
@@ -552,16 +562,28 @@ class SimulationNode(Node):
         self._srv_get_physics_properties(None, response)
         return response
 
+    def _get_renderer(self) -> Any:
+        if self._renderer is None:
+            from multiros.sim.render_service import Renderer
+
+            self._renderer = Renderer(self.world)
+        return self._renderer
+
+    def _on_marker(self, marker: Any) -> None:
+        from multiros.sim.render_service import apply_marker
+
+        with self.lock:
+            try:
+                apply_marker(self._get_renderer(), marker)
+            except ValueError as exc:
+                self.get_logger().warning("marker %s/%s ignored: %s", marker.ns, marker.id, exc)
+
     def _srv_render_camera(self, request: Any, response: Any) -> Any:
         from multiros.sim.render_service import render_image_msgs
 
         with self.lock:
             try:
-                if self._renderer is None:
-                    from multiros.sim.render_service import Renderer
-
-                    self._renderer = Renderer(self.world)
-                render_image_msgs(self._renderer, request, response, self.world.time)
+                render_image_msgs(self._get_renderer(), request, response, self.world.time)
             except (RenderError, EntityError, ValueError) as exc:
                 _fail(response.result, FAILED, str(exc))
                 return response

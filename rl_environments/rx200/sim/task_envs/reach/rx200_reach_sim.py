@@ -80,7 +80,9 @@ class RX200ReacherEnv(ReachTask, RX200RobotEnv):
         n_act = self.action_space.shape[0]
         q_low, q_high = self.chain.lower, self.chain.upper
         max_dist = float(np.linalg.norm(self.ee_high - self.ee_low))
-        low = np.concatenate([self.ee_low, -np.ones(3), [0.0], q_low, self.action_space.low, -self.max_vel * np.ones(5)])
+        low = np.concatenate(
+            [self.ee_low, -np.ones(3), [0.0], q_low, self.action_space.low, -self.max_vel * np.ones(5)]
+        )
         high = np.concatenate([self.ee_high, np.ones(3), [max_dist], q_high, self.action_space.high,
                                self.max_vel * np.ones(5)])
         self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
