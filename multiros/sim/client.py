@@ -202,9 +202,9 @@ class SimulationClient:
                 f"{timeout:g} s; is the node running (and on the same transport and ROS_DOMAIN_ID)?"
             ) from exc
 
-    def request(self, name: str, **fields: Any) -> Any:
-        """A new request message for service ``name`` (e.g. ``"step_robot"``)."""
-        return self._types[name].Request(**fields)
+    def request(self, service: str, /, **fields: Any) -> Any:
+        """A new request message for ``service`` (e.g. ``"step_robot"``)."""
+        return self._types[service].Request(**fields)
 
     # -- readiness --------------------------------------------------------------------------
     def wait_until_ready(self, timeout_sec: float = 10.0) -> None:

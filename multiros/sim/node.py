@@ -277,6 +277,9 @@ class SimulationNode(Node):
             except EntityError as exc:
                 _fail(res, response.NAME_INVALID, str(exc))
                 return response
+            except ControllerError as exc:
+                _fail(res, FAILED, f"controllers of {name!r}: {exc}")
+                return response
             except ValueError as exc:
                 _fail(res, response.INVALID_POSE, str(exc))
                 return response

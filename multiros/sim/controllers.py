@@ -1,0 +1,562 @@
+"""ros2_control-style controllers driven by the world at each control tick.
+
+Controllers never touch MuJoCo. They read and write a :class:`RobotHardware` (numpy arrays the
+world fills with joint state and reads commands from). The world turns each joint's command into
+a MuJoCo actuator: a position servo (``kp``, ``kd``), a velocity servo (``kv``) or a motor, clamped
+to the joint's effort limit. MuJoCo servos are used rather than a Python PD loop because their
+damping is integrated implicitly (``implicitfast``), which tracks stiffly and stays stable at the
+default 2 ms step, and because a constant setpoint then needs no Python work per physics step.
+
+Hand-written because ros2_control itself (C++, rclcpp) cannot run here; the YAML format, type
+strings, lifecycle states and claiming rules follow ros2_control.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from multiros.sim.errors import CommandError, ControllerError
+
+__all__ = [
+    "JointMode",
+    "RobotHardware",
+    "Controller",
+    "JointStateBroadcaster",
+    "ForwardCommandController",
+    "JointTrajectoryController",
+    "ControllerInfo",
+    "ControllerManager",
+    "CONTROLLER_TYPES",
+    "load_controller_config",
+]
+
+
+class JointMode(enum.IntEnum):
+    """How the world actuates a joint."""
+
+    EFFORT = 0
+    POSITION = 1
+    VELOCITY = 2
+
+
+class RobotHardware:
+    """Joint state and command buffers of one robot, shared between the world and its controllers.
+
+    Args:
+        joint_names: the robot's actuatable joints.
+        lower, upper: position limits (+-inf when unlimited).
+        effort_limit: effort limits (0 = unlimited).
+        velocity_limit: velocity limits (0 = unknown).
+        kp, kd, kv: servo gains per joint (position stiffness, position damping, velocity gain).
+    """
+
+    def __init__(self, joint_names: Sequence[str], lower: np.ndarray, upper: np.ndarray,
+                 effort_limit: np.ndarray, velocity_limit: np.ndarray, kp: np.ndarray, kd: np.ndarray,
+                 kv: np.ndarray) -> None:
+        self.joint_names = tuple(joint_names)
+        n = len(self.joint_names)
+        self._index = {name: i for i, name in enumerate(self.joint_names)}
+        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
+        self.effort_limit, self.velocity_limit = np.asarray(effort_limit, float), np.asarray(velocity_limit, float)
+        self.kp, self.kd, self.kv = np.asarray(kp, float), np.asarray(kd, float), np.asarray(kv, float)
+        self.position, self.velocity, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.command = np.zeros(n)
+        self.mode = np.full(n, int(JointMode.EFFORT), dtype=np.int8)
+        self.dirty = True  # modes or gains changed: the world rewrites actuator parameters
+
+    def indices(self, names: Iterable[str], *, what: str = "joint") -> np.ndarray:
+        """Indices of joint names; raises ControllerError naming the unknown ones."""
+        names = list(names)
+        missing = [n for n in names if n not in self._index]
+        if missing:
+            raise ControllerError(f"unknown {what}(s) {missing}; the robot's joints are {list(self.joint_names)}")
+        return np.array([self._index[n] for n in names], dtype=np.intp)
+
+    def set_mode(self, idx: np.ndarray, mode: JointMode, command: np.ndarray | float) -> None:
+        self.mode[idx] = int(mode)
+        self.command[idx] = command
+        self.dirty = True
+
+    def set_gains(self, idx: int, *, p: float | None = None, d: float | None = None, v: float | None = None) -> None:
+        for arr, value in ((self.kp, p), (self.kd, d), (self.kv, v)):
+            if value is not None:
+                arr[idx] = float(value)
+        self.dirty = True
+
+
+def _check_vector(values: Sequence[float], n: int, what: str) -> np.ndarray:
+    try:
+        arr = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError) as exc:
+        raise CommandError(f"{what}: command is not a vector of numbers ({exc})") from exc
+    if arr.shape[0] != n:
+        raise CommandError(f"{what}: command has {arr.shape[0]} values, expected {n} (one per joint)")
+    if not np.all(np.isfinite(arr)):
+        raise CommandError(f"{what}: command contains NaN or infinite values: {arr.tolist()}")
+    return arr
+
+
+# ------------------------------------------------------------------------------------------ controllers
+class Controller:
+    """Base class: a named controller over some joints with ros2_control lifecycle states."""
+
+    type_name = ""
+    time_varying = False  # True when update() must run at every control tick
+
+    def __init__(self, name: str, params: Mapping | None = None) -> None:
+        self.name = name
+        self.params = dict(params or {})
+        self.joints: tuple[str, ...] = tuple(self.params.get("joints", ()))
+        self.state = "unconfigured"
+        self.hw: RobotHardware | None = None
+        self.idx = np.zeros(0, dtype=np.intp)
+
+    @property
+    def command_interfaces(self) -> tuple[str, ...]:
+        """Interfaces this controller claims when active (``"<joint>/<interface>"``)."""
+        return ()
+
+    @property
+    def state_interfaces(self) -> tuple[str, ...]:
+        ifaces = self.params.get("state_interfaces", ("position", "velocity", "effort"))
+        return tuple(f"{j}/{i}" for j in self.joints for i in ifaces)
+
+    def configure(self, hw: RobotHardware) -> None:
+        if not self.joints:
+            self.joints = hw.joint_names
+        self.idx = hw.indices(self.joints)
+        self.hw = hw
+
+    def activate(self, time: float) -> None:
+        """Take over the claimed joints (hook)."""
+
+    def deactivate(self) -> None:
+        """Release the claimed joints (hook)."""
+
+    def update(self, time: float) -> None:
+        """Write setpoints for ``time`` (hook; only called when ``time_varying``)."""
+
+    def hold(self) -> None:
+        """Re-take the current joint positions as setpoint (after a teleport or reset)."""
+
+    def set_command(self, values: Sequence[float], time: float) -> None:
+        raise ControllerError(f"controller '{self.name}' ({self.type_name}) takes no command vector")
+
+
+class JointStateBroadcaster(Controller):
+    """Marks which joints are reported in ``joint_states`` (all joints when ``joints`` is empty)."""
+
+    type_name = "joint_state_broadcaster/JointStateBroadcaster"
+
+
+class ForwardCommandController(Controller):
+    """Forwards a command vector (controller joint order) to one interface of its joints.
+
+    Params: ``joints``, ``interface_name`` (``position``, ``velocity`` or ``effort``). Position
+    commands are clamped to the joint limits; efforts to the effort limits by the actuator.
+    """
+
+    type_name = "forward_command_controller/ForwardCommandController"
+    default_interface = ""
+
+    def __init__(self, name: str, params: Mapping | None = None) -> None:
+        super().__init__(name, params)
+        self.interface = str(self.params.get("interface_name", self.default_interface))
+        if self.interface not in ("position", "velocity", "effort"):
+            raise ControllerError(f"controller '{name}': interface_name '{self.interface}' is not one of "
+                                  f"position, velocity, effort")
+        self.mode = {"position": JointMode.POSITION, "velocity": JointMode.VELOCITY,
+                     "effort": JointMode.EFFORT}[self.interface]
+
+    @property
+    def command_interfaces(self) -> tuple[str, ...]:
+        return tuple(f"{j}/{self.interface}" for j in self.joints)
+
+    def activate(self, time: float) -> None:
+        hw = self.hw
+        hold = hw.position[self.idx] if self.mode == JointMode.POSITION else 0.0
+        hw.set_mode(self.idx, self.mode, hold)
+
+    def deactivate(self) -> None:
+        self.hw.set_mode(self.idx, JointMode.EFFORT, 0.0)
+
+    def hold(self) -> None:
+        if self.mode == JointMode.POSITION:
+            self.hw.command[self.idx] = self.hw.position[self.idx]
+        else:
+            self.hw.command[self.idx] = 0.0
+
+    def set_command(self, values: Sequence[float], time: float) -> None:
+        arr = _check_vector(values, len(self.idx), f"controller '{self.name}'")
+        if self.mode == JointMode.POSITION:
+            arr = np.clip(arr, self.hw.lower[self.idx], self.hw.upper[self.idx])
+        self.hw.command[self.idx] = arr
+
+
+class JointGroupPositionController(ForwardCommandController):
+    type_name = "position_controllers/JointGroupPositionController"
+    default_interface = "position"
+
+
+class JointGroupVelocityController(ForwardCommandController):
+    type_name = "velocity_controllers/JointGroupVelocityController"
+    default_interface = "velocity"
+
+
+class JointGroupEffortController(ForwardCommandController):
+    type_name = "effort_controllers/JointGroupEffortController"
+    default_interface = "effort"
+
+
+class JointTrajectoryController(Controller):
+    """Follows a joint trajectory; holds the last point afterwards.
+
+    Params: ``joints``, ``command_interfaces`` (claimed; tracking is by the position servo),
+    ``interpolation_method``: ``splines`` (cubic Hermite where the points carry velocities,
+    linear otherwise; the default) or ``linear``/``none``.
+    The trajectory starts at the command's sim time, from the current setpoint.
+    """
+
+    type_name = "joint_trajectory_controller/JointTrajectoryController"
+    time_varying = True
+
+    def __init__(self, name: str, params: Mapping | None = None) -> None:
+        super().__init__(name, params)
+        self.interfaces = tuple(self.params.get("command_interfaces", ("position",)))
+        self.cubic = str(self.params.get("interpolation_method", "splines")) not in ("linear", "none")
+        self._times = np.zeros(1)
+        self._pos = np.zeros((1, 0))
+        self._vel: np.ndarray | None = None
+        self._start = 0.0
+        self._seg = 0
+
+    @property
+    def command_interfaces(self) -> tuple[str, ...]:
+        return tuple(f"{j}/{i}" for j in self.joints for i in self.interfaces)
+
+    def activate(self, time: float) -> None:
+        self.hw.set_mode(self.idx, JointMode.POSITION, self.hw.position[self.idx])
+        self._hold_at(self.hw.position[self.idx].copy(), time)
+
+    def deactivate(self) -> None:
+        self.hw.set_mode(self.idx, JointMode.EFFORT, 0.0)
+
+    def hold(self) -> None:
+        current = self.hw.position[self.idx].copy()
+        self.hw.command[self.idx] = current
+        self._hold_at(current, self._start)
+
+    def _hold_at(self, positions: np.ndarray, time: float) -> None:
+        self._times, self._pos, self._vel, self._start, self._seg = np.zeros(1), positions[None, :], None, time, 0
+
+    def set_command(self, values: Sequence[float], time: float) -> None:
+        """A bare vector is a one-point trajectory reached immediately (a setpoint step)."""
+        arr = _check_vector(values, len(self.idx), f"controller '{self.name}'")
+        self._hold_at(np.clip(arr, self.hw.lower[self.idx], self.hw.upper[self.idx]), time)
+        self.hw.command[self.idx] = self._pos[0]
+
+    def set_trajectory(self, joint_names: Sequence[str], positions: Sequence[Sequence[float]],
+                       times_from_start: Sequence[float], velocities: Sequence[Sequence[float]] | None = None,
+                       *, time: float) -> None:
+        """Replace the trajectory. ``joint_names`` may be in any order but must cover the
+        controller's joints; ``times_from_start`` strictly increasing, >= 0.
+
+        Raises:
+            CommandError: unknown/missing joints, wrong shapes, NaN/inf, bad times (nothing applied).
+        """
+        what = f"controller '{self.name}'"
+        names = list(joint_names)
+        if sorted(names) != sorted(self.joints) or len(set(names)) != len(names):
+            raise CommandError(f"{what}: trajectory joints {names} must be exactly {list(self.joints)}")
+        order = np.array([names.index(j) for j in self.joints], dtype=np.intp)
+        times = np.asarray(times_from_start, dtype=float).reshape(-1)
+        k = times.shape[0]
+        if k == 0:
+            raise CommandError(f"{what}: trajectory has no points")
+        if not np.all(np.isfinite(times)) or np.any(times < 0) or np.any(np.diff(times) <= 0):
+            raise CommandError(f"{what}: time_from_start must be finite, >= 0 and strictly increasing: "
+                               f"{times.tolist()}")
+        pos = np.stack([_check_vector(p, len(names), f"{what} point {i} positions")
+                        for i, p in enumerate(positions)]) if len(positions) == k else None
+        if pos is None:
+            raise CommandError(f"{what}: {len(positions)} position vectors for {k} points")
+        vel = None
+        if velocities is not None and len(velocities) > 0:
+            if len(velocities) != k:
+                raise CommandError(f"{what}: {len(velocities)} velocity vectors for {k} points")
+            vel = np.stack([_check_vector(v, len(names), f"{what} point {i} velocities")
+                            for i, v in enumerate(velocities)])[:, order]
+        pos = np.clip(pos[:, order], self.hw.lower[self.idx], self.hw.upper[self.idx])
+        start_pos = self.hw.command[self.idx].copy()
+        self._times = np.concatenate(([0.0], times)) if times[0] > 0 else times
+        self._pos = np.vstack([start_pos, pos]) if times[0] > 0 else pos
+        if vel is not None:
+            self._vel = np.vstack([np.zeros(len(self.idx)), vel]) if times[0] > 0 else vel
+        else:
+            self._vel = None
+        self._start, self._seg = time, 0
+
+    def update(self, time: float) -> None:
+        t = time - self._start
+        times, n = self._times, self._times.shape[0]
+        if n == 1 or t >= times[-1]:
+            self.hw.command[self.idx] = self._pos[-1]
+            return
+        if t <= times[0]:
+            self.hw.command[self.idx] = self._pos[0]
+            return
+        seg = self._seg
+        while seg + 1 < n - 1 and t >= times[seg + 1]:
+            seg += 1
+        self._seg = seg
+        t0, t1 = times[seg], times[seg + 1]
+        h = t1 - t0
+        s = (t - t0) / h
+        p0, p1 = self._pos[seg], self._pos[seg + 1]
+        if self.cubic and self._vel is not None:
+            v0, v1 = self._vel[seg] * h, self._vel[seg + 1] * h
+            s2, s3 = s * s, s * s * s
+            self.hw.command[self.idx] = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * v0
+                                         + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * v1)
+        else:
+            self.hw.command[self.idx] = p0 + s * (p1 - p0)
+
+    @property
+    def done(self) -> bool:
+        return True if self._times.shape[0] == 1 else bool(self._seg >= self._times.shape[0] - 2)
+
+
+CONTROLLER_TYPES: dict[str, type[Controller]] = {
+    cls.type_name: cls for cls in (JointStateBroadcaster, ForwardCommandController, JointGroupPositionController,
+                                   JointGroupVelocityController, JointGroupEffortController,
+                                   JointTrajectoryController)
+}
+
+
+# ------------------------------------------------------------------------------------------ manager
+@dataclass(frozen=True)
+class ControllerInfo:
+    """One row of ``list_controllers``."""
+
+    name: str
+    type: str
+    state: str
+    claimed_interfaces: tuple[str, ...]
+    required_command_interfaces: tuple[str, ...]
+    required_state_interfaces: tuple[str, ...]
+
+
+def load_controller_config(config: str | Path | Mapping | None) -> dict:
+    """Read a ros2_control YAML (path or parsed mapping) into ``{"update_rate", "types", "params"}``.
+
+    Raises:
+        ControllerError: unreadable file or malformed structure.
+    """
+    if config is None:
+        return {"update_rate": None, "types": {}, "params": {}}
+    if not isinstance(config, Mapping):
+        import yaml
+
+        try:
+            config = yaml.safe_load(Path(config).read_text()) or {}
+        except (OSError, yaml.YAMLError) as exc:
+            raise ControllerError(f"controllers file '{config}' cannot be read: {exc}") from exc
+    if not isinstance(config, Mapping):
+        raise ControllerError("controllers YAML must be a mapping at the top level")
+    cm = (config.get("controller_manager") or {}).get("ros__parameters") or {}
+    types, params = {}, {}
+    for name, value in cm.items():
+        if isinstance(value, Mapping) and "type" in value:
+            types[name] = str(value["type"])
+    for name in types:
+        section = config.get(name) or {}
+        params[name] = dict(section.get("ros__parameters") or {}) if isinstance(section, Mapping) else {}
+        for key, value in cm.get(name, {}).items():
+            if key != "type":
+                params[name].setdefault(key, value)
+    rate = cm.get("update_rate")
+    return {"update_rate": float(rate) if rate else None, "types": types, "params": params}
+
+
+class ControllerManager:
+    """Loads, switches and updates the controllers of one robot (one per robot, like ros2_control).
+
+    Args:
+        hardware: the robot's hardware buffers.
+        config: a ros2_control YAML path or mapping (see :func:`load_controller_config`).
+    """
+
+    def __init__(self, hardware: RobotHardware, config: str | Path | Mapping | None = None) -> None:
+        self.hw = hardware
+        cfg = load_controller_config(config)
+        self.update_rate: float | None = cfg["update_rate"]
+        self.types: dict[str, str] = cfg["types"]
+        self.params: dict[str, dict] = cfg["params"]
+        self._controllers: dict[str, Controller] = {}
+        self._active_varying: tuple[Controller, ...] = ()
+        self._apply_gains()
+
+    def _apply_gains(self) -> None:
+        for params in self.params.values():
+            for joint, g in (params.get("gains") or {}).items():
+                if isinstance(g, Mapping) and joint in self.hw.joint_names:
+                    i = int(self.hw.indices([joint])[0])
+                    self.hw.set_gains(i, p=g.get("p"), d=g.get("d"), v=g.get("v", g.get("p_v")))
+
+    # -------------------------------------------------------------- lifecycle
+    def load(self, name: str, type_name: str | None = None, params: Mapping | None = None) -> Controller:
+        """Load a controller defined in the YAML (or given ``type_name``/``params``)."""
+        if name in self._controllers:
+            raise ControllerError(f"controller '{name}' is already loaded")
+        type_name = type_name or self.types.get(name)
+        if type_name is None:
+            raise ControllerError(f"controller '{name}' has no type; define it under controller_manager in "
+                                  f"the controllers YAML (known: {sorted(self.types)})")
+        cls = CONTROLLER_TYPES.get(type_name)
+        if cls is None:
+            raise ControllerError(f"controller '{name}': unsupported type '{type_name}'; supported: "
+                                  f"{sorted(CONTROLLER_TYPES)}")
+        ctrl = cls(name, params if params is not None else self.params.get(name, {}))
+        self._controllers[name] = ctrl
+        return ctrl
+
+    def configure(self, name: str) -> None:
+        ctrl = self.get(name)
+        if ctrl.state not in ("unconfigured", "inactive"):
+            raise ControllerError(f"controller '{name}' is {ctrl.state}; only unconfigured or inactive "
+                                  f"controllers can be configured")
+        ctrl.configure(self.hw)
+        ctrl.state = "inactive"
+
+    def unload(self, name: str) -> None:
+        ctrl = self.get(name)
+        if ctrl.state == "active":
+            raise ControllerError(f"controller '{name}' is active; deactivate it before unloading")
+        del self._controllers[name]
+
+    def activate(self, names: Sequence[str], time: float = 0.0) -> None:
+        self.switch(activate=names, deactivate=(), strict=True, time=time)
+
+    def deactivate(self, names: Sequence[str], time: float = 0.0) -> None:
+        self.switch(activate=(), deactivate=names, strict=True, time=time)
+
+    def switch(self, activate: Sequence[str] = (), deactivate: Sequence[str] = (), *, strict: bool = True,
+               time: float = 0.0) -> list[str]:
+        """Deactivate then activate controllers atomically (strict) or as far as possible.
+
+        Returns:
+            Problems skipped in best-effort mode (empty when everything switched).
+
+        Raises:
+            ControllerError: in strict mode, the first problem (nothing is changed).
+        """
+        problems: list[str] = []
+        to_stop, to_start = [], []
+        for name in deactivate:
+            ctrl = self._controllers.get(name)
+            if ctrl is None or ctrl.state != "active":
+                problems.append(f"controller '{name}' is not active")
+            else:
+                to_stop.append(ctrl)
+        claimed = {i: c.name for c in self._controllers.values() if c.state == "active" and c not in to_stop
+                   for i in c.command_interfaces}
+        claimed_joints = {i.split("/")[0]: n for i, n in claimed.items()}
+        for name in activate:
+            ctrl = self._controllers.get(name)
+            if ctrl is None:
+                problems.append(f"controller '{name}' is not loaded")
+                continue
+            if ctrl.state == "active" and ctrl not in to_stop:
+                continue
+            if ctrl.state not in ("inactive", "active"):
+                problems.append(f"controller '{name}' is {ctrl.state}; configure it first")
+                continue
+            clash = sorted({f"{j} (held by '{claimed_joints[j]}')" for j in (i.split("/")[0]
+                            for i in ctrl.command_interfaces) if j in claimed_joints})
+            if clash:
+                problems.append(f"controller '{name}' claims joints already claimed: {', '.join(clash)}")
+                continue
+            for iface in ctrl.command_interfaces:
+                claimed_joints[iface.split("/")[0]] = name
+            to_start.append(ctrl)
+        if strict and problems:
+            raise ControllerError("switch_controllers refused: " + "; ".join(problems))
+        for ctrl in to_stop:
+            ctrl.deactivate()
+            ctrl.state = "inactive"
+        for ctrl in to_start:
+            ctrl.activate(time)
+            ctrl.state = "active"
+        self._active_varying = tuple(c for c in self._controllers.values()
+                                     if c.state == "active" and c.time_varying)
+        return problems
+
+    def spawn(self, names: Sequence[str] | None = None, time: float = 0.0) -> list[str]:
+        """Load, configure and activate ``names`` (default: every controller of the YAML, in order,
+        skipping ones whose joints are already claimed). Returns the activated names."""
+        explicit = names is not None
+        names = list(self.types) if names is None else list(names)
+        for name in names:
+            if name not in self._controllers:
+                self.load(name)
+            if self._controllers[name].state == "unconfigured":
+                self.configure(name)
+        if explicit:
+            self.activate(names, time)
+            return names
+        self.switch(activate=names, strict=False, time=time)
+        return [n for n in names if self._controllers[n].state == "active"]
+
+    # -------------------------------------------------------------- queries
+    def get(self, name: str) -> Controller:
+        try:
+            return self._controllers[name]
+        except KeyError:
+            raise ControllerError(f"controller '{name}' is not loaded (loaded: {sorted(self._controllers)})") from None
+
+    def list_controllers(self) -> list[ControllerInfo]:
+        return [ControllerInfo(c.name, c.type_name or self.types.get(c.name, ""), c.state,
+                               c.command_interfaces if c.state == "active" else (),
+                               c.command_interfaces, c.state_interfaces) for c in self._controllers.values()]
+
+    def active(self) -> list[Controller]:
+        return [c for c in self._controllers.values() if c.state == "active"]
+
+    @property
+    def default_command_controller(self) -> Controller | None:
+        """The first active controller that takes commands (the ``""`` controller of StepRobot)."""
+        for ctrl in self._controllers.values():
+            if ctrl.state == "active" and ctrl.command_interfaces:
+                return ctrl
+        return None
+
+    @property
+    def time_varying(self) -> bool:
+        """True when some active controller must be updated at every control tick."""
+        return bool(self._active_varying)
+
+    # -------------------------------------------------------------- per tick
+    def set_command(self, controller: str, values: Sequence[float], time: float) -> None:
+        ctrl = self.default_command_controller if controller == "" else self.get(controller)
+        if ctrl is None:
+            raise ControllerError("the robot has no active command controller; activate one first")
+        if ctrl.state != "active":
+            raise ControllerError(f"controller '{ctrl.name}' is {ctrl.state}; activate it before commanding")
+        ctrl.set_command(values, time)
+
+    def update(self, time: float) -> None:
+        for ctrl in self._active_varying:
+            ctrl.update(time)
+
+    def hold(self, time: float | None = None) -> None:
+        """Make every active controller hold the current joint positions."""
+        for ctrl in self._controllers.values():
+            if ctrl.state == "active":
+                if time is not None and isinstance(ctrl, JointTrajectoryController):
+                    ctrl._start = time
+                ctrl.hold()

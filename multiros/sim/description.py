@@ -1,0 +1,580 @@
+"""Robot and object descriptions: xacro -> URDF -> ``mujoco.MjSpec``; MJCF accepted as is.
+
+Why the URDF -> MjSpec conversion is written here instead of using MuJoCo's URDF importer: the
+importer fuses fixed-joint links (end-effector frames vanish), discards visuals, knows nothing of
+``package://`` and ``<ros2_control>``, and cannot fix degenerate inertias; we need all of those.
+Parsing is done by yourdfpy (no meshes loaded); ``<ros2_control>`` and ``<gazebo>`` tags, which
+yourdfpy ignores, are read with ElementTree.
+
+``$(find pkg)`` in xacro: xacro imports ``ament_index_python.packages.get_package_share_directory``
+lazily inside its ``find`` handler. During our call we put a tiny shim module under that name in
+``sys.modules`` that answers from our :class:`PackageIndex`, and remove it afterwards (a real
+``ament_index_python`` is restored if one was loaded). A lock serialises xacro calls because xacro
+keeps its substitution arguments and file stack in module globals.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import os
+import re
+import sys
+import threading
+import types
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from multiros.sim.errors import DescriptionError, PackageNotFoundError
+from multiros.sim.packages import PackageIndex, default_index
+
+__all__ = [
+    "JointInfo",
+    "Ros2ControlJoint",
+    "RobotDescription",
+    "MeshCache",
+    "xacro_to_urdf",
+    "load_description",
+    "urdf_to_description",
+    "mjcf_to_description",
+]
+
+MIN_MASS = 1e-3  # kg, for links without (or with a degenerate) inertial
+MIN_INERTIA = 1e-6  # kg m^2, smallest principal moment kept
+_DIRECT_MESH_FORMATS = {".stl", ".obj"}
+_xacro_lock = threading.Lock()
+
+
+@dataclass(frozen=True)
+class JointInfo:
+    """One actuatable (1-DoF) joint of a description.
+
+    Attributes:
+        name: joint name (unprefixed).
+        type: ``"revolute"``, ``"continuous"`` or ``"prismatic"`` (URDF terms; MJCF hinge/slide map to them).
+        lower, upper: position limits; ``limited`` False for continuous joints (then +-inf).
+        effort: effort limit (N m or N); 0 = unlimited.
+        velocity: velocity limit (metadata); 0 = unknown.
+        damping, friction, armature: as written into the model.
+    """
+
+    name: str
+    type: str
+    lower: float
+    upper: float
+    limited: bool
+    effort: float
+    velocity: float
+    damping: float
+    friction: float
+    armature: float
+
+
+@dataclass(frozen=True)
+class Ros2ControlJoint:
+    """A ``<joint>`` of the URDF's ``<ros2_control>`` tag."""
+
+    name: str
+    command_interfaces: tuple[str, ...]
+    state_interfaces: tuple[str, ...]
+    initial_position: float | None = None
+
+
+@dataclass
+class RobotDescription:
+    """A loaded description, ready to be attached to a world.
+
+    Attributes:
+        name: robot/model name from the file.
+        format: ``"urdf"`` or ``"mjcf"``.
+        spec: the MjSpec; its worldbody has exactly one child, the root body (link).
+        source: file path or ``"<string>"``.
+        text: URDF text (after xacro) or MJCF text.
+        root: root link/body name.
+        joints: actuatable joints, in file order.
+        links: all link (body) names, each also present as a site of the same name.
+        link_bodies: body names that differ from their link name (a URDF link ``world`` clashes
+            with MuJoCo's world body and becomes body ``world_urdf``).
+        ros2_control: joints of the ``<ros2_control>`` tag (empty if absent).
+        controllers_yaml: controller YAML referenced by a ``<gazebo><plugin><parameters>`` tag.
+    """
+
+    name: str
+    format: str
+    spec: mujoco.MjSpec
+    source: str
+    text: str
+    root: str
+    joints: tuple[JointInfo, ...]
+    links: tuple[str, ...]
+    ros2_control: tuple[Ros2ControlJoint, ...] = ()
+    controllers_yaml: Path | None = None
+    link_bodies: dict[str, str] = field(default_factory=dict)
+
+    def body_name(self, link: str) -> str:
+        """MuJoCo body name of a link (differs only for a link called ``world``)."""
+        return self.link_bodies.get(link, link)
+
+    @property
+    def actuated_joints(self) -> tuple[str, ...]:
+        """Joints with a ros2_control command interface, else every 1-DoF joint."""
+        if self.ros2_control:
+            known = {j.name for j in self.joints}
+            return tuple(j.name for j in self.ros2_control if j.command_interfaces and j.name in known)
+        return tuple(j.name for j in self.joints)
+
+
+# ---------------------------------------------------------------------------------------- meshes
+class MeshCache:
+    """Converts meshes MuJoCo cannot read (DAE, PLY, GLB, ...) to STL, cached by content hash.
+
+    Args:
+        directory: cache directory (default ``$XDG_CACHE_HOME/uniros/meshes`` or ``~/.cache/...``).
+    """
+
+    def __init__(self, directory: str | Path | None = None) -> None:
+        if directory is None:
+            base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+            directory = Path(base) / "uniros" / "meshes"
+        self.directory = Path(directory)
+
+    def usable_path(self, path: Path, *, source: str = "<string>") -> Path:
+        """Return ``path`` if MuJoCo reads it, else the path of a cached STL conversion."""
+        if path.suffix.lower() in _DIRECT_MESH_FORMATS:
+            return path
+        data = path.read_bytes()
+        digest = hashlib.sha256(data).hexdigest()[:24]
+        out = self.directory / f"{digest}.stl"
+        if out.is_file():
+            return out
+        try:
+            import trimesh
+
+            mesh = trimesh.load(str(path), force="mesh", process=False)
+            if mesh.is_empty:
+                raise ValueError("no triangles")
+            self.directory.mkdir(parents=True, exist_ok=True)
+            tmp = out.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
+            mesh.export(str(tmp), file_type="stl")
+            os.replace(tmp, out)  # atomic: concurrent converters of the same mesh agree
+        except Exception as exc:  # trimesh raises many types for unsupported/bad files
+            raise DescriptionError(
+                f"{source}: mesh '{path}' could not be converted to STL ({exc}); convert it to STL or OBJ",
+                source=source) from exc
+        return out
+
+
+# ---------------------------------------------------------------------------------------- xacro
+def _ament_shim(index: PackageIndex) -> tuple[types.ModuleType, types.ModuleType]:
+    top = types.ModuleType("ament_index_python")
+    pkgs = types.ModuleType("ament_index_python.packages")
+
+    def get_package_share_directory(package_name: str, print_warning: bool = True) -> str:
+        return str(index.find_package_share(package_name))
+
+    pkgs.get_package_share_directory = get_package_share_directory
+    pkgs.PackageNotFoundError = PackageNotFoundError
+    top.packages = pkgs
+    top.get_package_share_directory = get_package_share_directory
+    return top, pkgs
+
+
+def xacro_to_urdf(source: str | Path, args: Mapping[str, str] | None = None, *,
+                  index: PackageIndex | None = None, base_dir: str | Path | None = None) -> str:
+    """Run xacro on a file path or an XML string and return the URDF text.
+
+    Args:
+        source: a path to a ``.xacro``/``.urdf`` file, or the XML text itself (starts with ``<``).
+        args: ``$(arg name)`` values.
+        index: package index for ``$(find pkg)`` (default index otherwise).
+        base_dir: directory for relative ``xacro:include`` in a string (default: current directory).
+
+    Raises:
+        DescriptionError: xacro failed (message names the file and xacro's reason).
+    """
+    import xacro
+
+    index = index or default_index()
+    mappings = {str(k): str(v) for k, v in (args or {}).items()}
+    is_text = isinstance(source, str) and source.lstrip().startswith("<")
+    name = "<string>" if is_text else str(source)
+    if not is_text and not Path(source).is_file():
+        raise DescriptionError(f"xacro file '{source}' not found", source=name)
+    top, pkgs = _ament_shim(index)
+    with _xacro_lock:
+        saved = {k: sys.modules.get(k) for k in ("ament_index_python", "ament_index_python.packages")}
+        sys.modules["ament_index_python"], sys.modules["ament_index_python.packages"] = top, pkgs
+        try:
+            if is_text:
+                base = Path(base_dir) if base_dir is not None else Path.cwd()
+                xacro.init_stacks(str(base / "__string__.xacro"))
+                doc = xacro.parse(source)
+                xacro.process_doc(doc, mappings=mappings)
+            else:
+                doc = xacro.process_file(str(source), mappings=mappings)
+            return doc.toprettyxml(indent="  ")
+        except PackageNotFoundError as exc:
+            raise DescriptionError(f"xacro {name}: {exc}", source=name, missing_assets=True) from exc
+        except Exception as exc:  # xacro raises XacroException, ExpatError, NameError, KeyError, ...
+            missing = _find_cause(exc, PackageNotFoundError)
+            if missing is not None:
+                raise DescriptionError(f"xacro {name}: {missing}", source=name, missing_assets=True) from exc
+            detail = str(exc) or type(exc).__name__
+            if isinstance(exc, KeyError):
+                detail = f"undefined argument {exc}; pass it in xacro args"
+            raise DescriptionError(f"xacro {name} failed: {detail}", source=name) from exc
+        finally:
+            for key, module in saved.items():
+                if module is None:
+                    sys.modules.pop(key, None)
+                else:
+                    sys.modules[key] = module
+            xacro.init_stacks(None)
+
+
+def _find_cause(exc: BaseException, kind: type) -> BaseException | None:
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, kind):
+            return exc
+        seen.add(id(exc))
+        exc = getattr(exc, "exc", None) or exc.__cause__ or exc.__context__
+    return None
+
+
+# ---------------------------------------------------------------------------------------- entry point
+def load_description(source: str | Path, *, args: Mapping[str, str] | None = None,
+                     index: PackageIndex | None = None, mesh_cache: MeshCache | None = None,
+                     default_armature: float = 0.01, base_dir: str | Path | None = None) -> RobotDescription:
+    """Load a URDF, xacro or MJCF description from a path/URI or an XML string.
+
+    The format is taken from the root element (``<robot>`` = URDF/xacro, ``<mujoco>`` = MJCF);
+    files are run through xacro when their name ends in ``.xacro`` or they use the xacro namespace.
+
+    Raises:
+        DescriptionError: unreadable, malformed or unsupported input, or missing meshes/packages.
+    """
+    index = index or default_index()
+    text_input = isinstance(source, str) and source.lstrip().startswith("<")
+    if text_input:
+        text, name, directory = source, "<string>", Path(base_dir) if base_dir else Path.cwd()
+    else:
+        path = index.resolve_uri(source, base_dir)
+        name, directory = str(path), path.parent
+        if not path.is_file():
+            raise DescriptionError(f"description file '{source}' not found (resolved to {path})",
+                                   source=name, missing_assets=True)
+        text = path.read_text(errors="replace")
+    root_tag = _root_tag(text, name)
+    if root_tag == "mujoco":
+        return mjcf_to_description(text if text_input else Path(name), source_name=name)
+    if root_tag != "robot":
+        raise DescriptionError(f"{name}: unsupported root element <{root_tag}>; expected <robot> (URDF/xacro) "
+                               f"or <mujoco> (MJCF)", source=name)
+    if name.endswith(".xacro") or "xacro" in text[:4000] and "http://www.ros.org/wiki/xacro" in text:
+        text = xacro_to_urdf(text if text_input else Path(name), args, index=index, base_dir=directory)
+    return urdf_to_description(text, index=index, mesh_cache=mesh_cache, base_dir=directory,
+                               source_name=name, default_armature=default_armature)
+
+
+def _root_tag(text: str, name: str) -> str:
+    match = re.search(r"<\s*([A-Za-z_][\w:.-]*)", re.sub(r"<\?.*?\?>|<!--.*?-->|<!DOCTYPE[^>]*>", "", text,
+                                                      flags=re.S))
+    if not match:
+        raise DescriptionError(f"{name}: not an XML description (no root element)", source=name)
+    return match.group(1).split(":")[-1]
+
+
+# ---------------------------------------------------------------------------------------- URDF
+def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_cache: MeshCache | None = None,
+                        base_dir: str | Path | None = None, source_name: str = "<string>",
+                        default_armature: float = 0.01) -> RobotDescription:
+    """Build an MjSpec from URDF text (see the module docstring for what is kept)."""
+    import yourdfpy
+
+    index = index or default_index()
+    mesh_cache = mesh_cache or MeshCache()
+    try:
+        xml_root = ET.fromstring(urdf)
+    except ET.ParseError as exc:
+        raise DescriptionError(f"{source_name}: malformed URDF XML: {exc}", source=source_name) from exc
+    try:
+        robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False, load_meshes=False,
+                                   load_collision_meshes=False).robot
+    except Exception as exc:  # yourdfpy/lxml raise assorted errors on bad attributes
+        raise DescriptionError(f"{source_name}: invalid URDF: {exc}", source=source_name) from exc
+    if not robot.links:
+        raise DescriptionError(f"{source_name}: URDF has no <link>", source=source_name)
+    links = {link.name: link for link in robot.links}
+    children = {}
+    for joint in robot.joints:
+        for end in (joint.parent, joint.child):
+            if end not in links:
+                raise DescriptionError(f"{source_name}: joint '{joint.name}' names unknown link '{end}'",
+                                       source=source_name)
+        if joint.type in ("floating", "planar"):
+            raise DescriptionError(f"{source_name}: joint '{joint.name}' of type '{joint.type}' is not supported",
+                                   source=source_name)
+        children.setdefault(joint.parent, []).append(joint)
+    roots = [n for n in links if n not in {j.child for j in robot.joints}]
+    if len(roots) != 1:
+        raise DescriptionError(f"{source_name}: URDF must form one tree, found roots {roots}", source=source_name)
+    colors = {m.name: m.color.rgba for m in robot.materials if m.color is not None}
+
+    spec = mujoco.MjSpec()
+    spec.modelname = robot.name or "robot"
+    spec.compiler.degree = False
+    spec.compiler.inertiafromgeom = int(mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
+    ctx = _UrdfBuild(spec, index, mesh_cache, Path(base_dir) if base_dir else Path.cwd(), source_name, colors)
+    joint_infos: list[JointInfo] = []
+
+    link_bodies = {"world": "world_urdf"} if "world" in links else {}
+
+    def build(link_name: str, parent_body, joint) -> None:
+        body_name = link_bodies.get(link_name, link_name)
+        if joint is None:
+            body = parent_body.add_body(name=body_name)
+        else:
+            pos, quat = _mat_to_pos_quat(joint.origin)
+            body = parent_body.add_body(name=body_name, pos=pos, quat=quat)
+            if joint.type in ("revolute", "continuous", "prismatic"):
+                joint_infos.append(ctx.add_joint(body, joint, default_armature))
+        ctx.fill_link(body, links[link_name])
+        for child in children.get(link_name, []):
+            build(child.child, body, child)
+
+    build(roots[0], spec.worldbody, None)
+    rc_joints = _parse_ros2_control(xml_root)
+    return RobotDescription(name=spec.modelname, format="urdf", spec=spec, source=source_name, text=urdf,
+                            root=roots[0], joints=tuple(joint_infos), links=tuple(links),
+                            ros2_control=rc_joints, link_bodies=link_bodies,
+                            controllers_yaml=_parse_gazebo_parameters(xml_root, index, source_name))
+
+
+class _UrdfBuild:
+    """Per-conversion state: mesh assets, materials, naming."""
+
+    def __init__(self, spec, index, mesh_cache, base_dir, source, colors) -> None:
+        self.spec, self.index, self.cache, self.base_dir = spec, index, mesh_cache, base_dir
+        self.source, self.colors = source, colors
+        self.meshes: dict[tuple[str, tuple], str] = {}
+
+    def add_joint(self, body, joint, default_armature: float) -> JointInfo:
+        axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+        if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-9:
+            raise DescriptionError(f"{self.source}: joint '{joint.name}' has a zero axis", source=self.source)
+        limit, dyn = joint.limit, joint.dynamics
+        continuous = joint.type == "continuous"
+        lower = float(limit.lower) if limit is not None and limit.lower is not None else 0.0
+        upper = float(limit.upper) if limit is not None and limit.upper is not None else 0.0
+        limited = not continuous and upper > lower
+        effort = float(limit.effort or 0.0) if limit is not None else 0.0
+        velocity = float(limit.velocity or 0.0) if limit is not None else 0.0
+        damping = float(dyn.damping or 0.0) if dyn is not None else 0.0
+        friction = float(dyn.friction or 0.0) if dyn is not None else 0.0
+        jtype = mujoco.mjtJoint.mjJNT_SLIDE if joint.type == "prismatic" else mujoco.mjtJoint.mjJNT_HINGE
+        mj = body.add_joint(name=joint.name, type=jtype, axis=axis / np.linalg.norm(axis), damping=damping,
+                            frictionloss=friction, armature=default_armature)
+        if limited:
+            mj.range = [lower, upper]
+            mj.limited = int(mujoco.mjtLimited.mjLIMITED_TRUE)
+        else:
+            mj.limited = int(mujoco.mjtLimited.mjLIMITED_FALSE)
+        if effort > 0:
+            mj.actfrcrange = [-effort, effort]
+            mj.actfrclimited = int(mujoco.mjtLimited.mjLIMITED_TRUE)
+        return JointInfo(joint.name, joint.type, lower if limited else -np.inf, upper if limited else np.inf,
+                         limited, effort, velocity, damping, friction, default_armature)
+
+    def fill_link(self, body, link) -> None:
+        body.add_site(name=link.name, size=[0.005, 0.005, 0.005], group=4)
+        body.explicitinertial = True
+        inertial = link.inertial
+        mass = float(inertial.mass) if inertial is not None and inertial.mass is not None else 0.0
+        tensor = (np.asarray(inertial.inertia, dtype=float) if inertial is not None and inertial.inertia is not None
+                  else np.zeros((3, 3)))
+        origin = inertial.origin if inertial is not None and inertial.origin is not None else np.eye(4)
+        pos, rot = origin[:3, 3], origin[:3, :3]
+        principal, axes = _fix_inertia(mass, tensor)
+        body.mass = max(mass, MIN_MASS) if np.isfinite(mass) else MIN_MASS
+        body.ipos = pos
+        body.iquat = _mat_to_quat(rot @ axes)
+        body.inertia = principal
+        for i, visual in enumerate(link.visuals):
+            geom = self._add_geom(body, visual.geometry, visual.origin, f"{link.name}_visual_{i}")
+            if geom is not None:
+                geom.contype, geom.conaffinity, geom.group = 0, 0, 2
+                geom.rgba = self._rgba(visual.material)
+        has_visual = bool(link.visuals)
+        for i, collision in enumerate(link.collisions):
+            geom = self._add_geom(body, collision.geometry, collision.origin, f"{link.name}_collision_{i}")
+            if geom is not None:
+                geom.group = 3 if has_visual else 0
+                geom.rgba = [0.5, 0.5, 0.5, 1.0]
+
+    def _rgba(self, material) -> list[float]:
+        if material is not None:
+            if material.color is not None:
+                return list(material.color.rgba)
+            if material.name in self.colors:
+                return list(self.colors[material.name])
+        return [0.7, 0.7, 0.7, 1.0]
+
+    def _add_geom(self, body, geometry, origin, name: str):
+        if geometry is None:
+            return None
+        pos, quat = _mat_to_pos_quat(origin)
+        geom = body.add_geom(pos=pos, quat=quat)
+        if geometry.box is not None:
+            geom.type = mujoco.mjtGeom.mjGEOM_BOX
+            geom.size = np.asarray(geometry.box.size, dtype=float) / 2.0
+        elif geometry.cylinder is not None:
+            geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+            geom.size = [geometry.cylinder.radius, geometry.cylinder.length / 2.0, 0.0]
+        elif geometry.sphere is not None:
+            geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            geom.size = [geometry.sphere.radius, 0.0, 0.0]
+        elif geometry.mesh is not None:
+            geom.type = mujoco.mjtGeom.mjGEOM_MESH
+            geom.meshname = self._mesh(geometry.mesh)
+        else:
+            self.spec.delete(geom)
+            return None
+        return geom
+
+    def _mesh(self, mesh) -> str:
+        scale = mesh.scale if mesh.scale is not None else 1.0
+        scale = tuple(float(s) for s in np.broadcast_to(np.asarray(scale, dtype=float), (3,)))
+        key = (mesh.filename, scale)
+        if key in self.meshes:
+            return self.meshes[key]
+        try:
+            path = self.index.resolve_uri(mesh.filename, self.base_dir)
+        except PackageNotFoundError as exc:
+            raise DescriptionError(f"{self.source}: mesh '{mesh.filename}' not found: {exc}",
+                                   source=self.source, missing_assets=True) from exc
+        if not path.is_file():
+            raise DescriptionError(f"{self.source}: mesh '{mesh.filename}' not found; searched: {path}",
+                                   source=self.source, missing_assets=True)
+        usable = self.cache.usable_path(path, source=self.source)
+        name = f"mesh{len(self.meshes)}_{re.sub(r'[^A-Za-z0-9_]', '_', path.stem)}"
+        self.spec.add_mesh(name=name, file=str(usable.resolve()), scale=list(scale))
+        self.meshes[key] = name
+        return name
+
+
+def _fix_inertia(mass: float, tensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments and axes (right-handed) of an inertia tensor, made physically valid.
+
+    Zero/tiny/negative moments become ``MIN_INERTIA``; moments breaking the triangle inequality
+    (A + B >= C) are raised; a non-finite tensor is replaced by a small sphere's.
+    """
+    if not np.all(np.isfinite(tensor)):
+        tensor = np.zeros((3, 3))
+    sym = (tensor + tensor.T) / 2.0
+    moments, axes = np.linalg.eigh(sym)
+    if np.linalg.det(axes) < 0:
+        axes[:, 0] = -axes[:, 0]
+    floor = max(MIN_INERTIA, 1e-4 * max(mass, MIN_MASS) * 1e-2)
+    moments = np.maximum(moments, floor)
+    for _ in range(3):  # each pass fixes the largest violation; converges in <= 2 passes
+        big = int(np.argmax(moments))
+        others = moments.sum() - moments[big]
+        if others < moments[big]:
+            moments[np.arange(3) != big] += (moments[big] - others) / 2.0 + 1e-12
+    return moments, axes
+
+
+def _mat_to_quat(rot: np.ndarray) -> np.ndarray:
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rot, dtype=float).ravel())
+    return quat
+
+
+def _mat_to_pos_quat(matrix: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    matrix = np.eye(4) if matrix is None else np.asarray(matrix, dtype=float)
+    return matrix[:3, 3].copy(), _mat_to_quat(matrix[:3, :3])
+
+
+def _parse_ros2_control(root: ET.Element) -> tuple[Ros2ControlJoint, ...]:
+    joints: list[Ros2ControlJoint] = []
+    for tag in root.iter("ros2_control"):
+        for j in tag.findall("joint"):
+            initial = None
+            for si in j.findall("state_interface"):
+                if si.get("name") == "position":
+                    for param in si.findall("param"):
+                        if param.get("name") == "initial_value" and param.text:
+                            try:
+                                initial = float(param.text.strip())
+                            except ValueError:
+                                initial = None
+            joints.append(Ros2ControlJoint(
+                name=j.get("name", ""),
+                command_interfaces=tuple(c.get("name", "") for c in j.findall("command_interface")),
+                state_interfaces=tuple(s.get("name", "") for s in j.findall("state_interface")),
+                initial_position=initial))
+    return tuple(joints)
+
+
+def _parse_gazebo_parameters(root: ET.Element, index: PackageIndex, source: str) -> Path | None:
+    for plugin in root.iter("plugin"):
+        for param in plugin.iter("parameters"):
+            text = (param.text or "").strip()
+            if text.endswith((".yaml", ".yml")):
+                try:
+                    return index.resolve_uri(text)
+                except PackageNotFoundError as exc:
+                    raise DescriptionError(f"{source}: controllers file '{text}': {exc}", source=source,
+                                           missing_assets=True) from exc
+    return None
+
+
+# ---------------------------------------------------------------------------------------- MJCF
+def mjcf_to_description(source: str | Path, *, source_name: str | None = None) -> RobotDescription:
+    """Load an MJCF file or string. Its ``<actuator>`` elements are removed (the controllers add
+    their own) and each body gets a site of the same name. The worldbody must have exactly one
+    child body (the root); wrap several bodies in one if needed."""
+    is_text = isinstance(source, str) and source.lstrip().startswith("<")
+    name = source_name or ("<string>" if is_text else str(source))
+    try:
+        spec = mujoco.MjSpec.from_string(source) if is_text else mujoco.MjSpec.from_file(str(source))
+        spec.compile()  # validate now, to report the file's own errors with its name
+    except Exception as exc:
+        raise DescriptionError(f"{name}: invalid MJCF: {exc}", source=name,
+                               missing_assets="resource not found" in str(exc).lower()) from exc
+    text = source if is_text else Path(source).read_text(errors="replace")
+    roots = list(spec.worldbody.bodies)
+    if len(roots) != 1:
+        raise DescriptionError(f"{name}: MJCF worldbody must have exactly one body (found {len(roots)}); "
+                               f"put the model under one root body", source=name)
+    for act in list(spec.actuators):
+        spec.delete(act)
+    joints: list[JointInfo] = []
+    for j in spec.joints:
+        jtype = int(j.type)
+        if jtype not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            continue
+        lim = int(j.limited)
+        limited = lim == int(mujoco.mjtLimited.mjLIMITED_TRUE) or (
+            lim == int(mujoco.mjtLimited.mjLIMITED_AUTO) and j.range[1] > j.range[0])
+        scale = np.pi / 180.0 if (spec.compiler.degree and jtype == int(mujoco.mjtJoint.mjJNT_HINGE)) else 1.0
+        lower, upper = (float(j.range[0]) * scale, float(j.range[1]) * scale) if limited else (-np.inf, np.inf)
+        effort = float(max(abs(j.actfrcrange[0]), abs(j.actfrcrange[1]))) if int(j.actfrclimited) == 1 else 0.0
+        joints.append(JointInfo(j.name, "prismatic" if jtype == int(mujoco.mjtJoint.mjJNT_SLIDE) else
+                                ("revolute" if limited else "continuous"), lower, upper, limited, effort, 0.0,
+                                float(j.damping[0] if np.ndim(j.damping) else j.damping),
+                                float(j.frictionloss), float(j.armature[0] if np.ndim(j.armature) else j.armature)))
+    links = []
+    for body in spec.bodies:
+        if body.name and body is not spec.worldbody:
+            links.append(body.name)
+            if spec.site(body.name) is None:
+                body.add_site(name=body.name, size=[0.005, 0.005, 0.005], group=4)
+    return RobotDescription(name=spec.modelname or "mjcf", format="mjcf", spec=spec, source=name, text=text,
+                            root=roots[0].name, joints=tuple(joints), links=tuple(links))

@@ -1,0 +1,196 @@
+"""A ROS package index that works without ROS: ``package://`` URIs and ``$(find pkg)``.
+
+Search order for ``find_package_share(name)``:
+
+1. explicit ``extra_paths`` given to the index: directories that are a package root (named
+   ``<pkg>`` or with a ``package.xml`` naming ``<pkg>``), or that contain ``<pkg>/``;
+2. entry points of group ``uniros.description_packages`` (name = ROS package name, value = an
+   importable Python package whose directory is the package root);
+3. ``AMENT_PREFIX_PATH``: ``<prefix>/share/<pkg>``;
+4. ``ROS_PACKAGE_PATH``: directories holding ``<pkg>/package.xml`` (searched recursively, ROS 1
+   style) or named ``<pkg>``.
+
+``ament_index_python`` is not used because it is not on PyPI and only knows (3).
+"""
+
+from __future__ import annotations
+
+import functools
+import importlib.util
+import os
+import re
+from collections.abc import Iterable, Mapping
+from importlib.metadata import entry_points
+from pathlib import Path
+from urllib.parse import unquote, urlparse
+
+from multiros.sim.errors import PackageNotFoundError
+
+__all__ = ["ENTRY_POINT_GROUP", "PackageIndex", "default_index"]
+
+ENTRY_POINT_GROUP = "uniros.description_packages"
+_MAX_WALK_DEPTH = 4  # ROS_PACKAGE_PATH dirs are crawled like rospack, but not forever
+
+
+class PackageIndex:
+    """Finds ROS package share directories.
+
+    Args:
+        extra_paths: directories searched first (package roots or their parents).
+        use_entry_points: search the ``uniros.description_packages`` entry points.
+        environ: environment to read ``AMENT_PREFIX_PATH`` / ``ROS_PACKAGE_PATH`` from
+            (default ``os.environ``, read at each lookup).
+        packages: explicit ``{name: directory}`` mapping, searched before everything else.
+    """
+
+    def __init__(self, extra_paths: Iterable[str | Path] = (), *, use_entry_points: bool = True,
+                 environ: Mapping[str, str] | None = None,
+                 packages: Mapping[str, str | Path] | None = None) -> None:
+        self._extra = tuple(Path(p).expanduser().absolute() for p in extra_paths)
+        self._use_entry_points = use_entry_points
+        self._environ = environ
+        self._explicit = {k: Path(v).expanduser().absolute() for k, v in (packages or {}).items()}
+
+    # ------------------------------------------------------------------ lookup
+    def find_package_share(self, name: str) -> Path:
+        """Return the share directory (package root) of ROS package ``name``.
+
+        Raises:
+            PackageNotFoundError: the package is in none of the searched places (all listed).
+        """
+        searched: list[str] = []
+        for source, finder in (("explicit", self._find_explicit), ("extra path", self._find_extra),
+                               ("entry point", self._find_entry_point),
+                               ("AMENT_PREFIX_PATH", self._find_ament),
+                               ("ROS_PACKAGE_PATH", self._find_ros_package_path)):
+            found = finder(name, searched)
+            if found is not None:
+                return found
+        where = "; ".join(searched) if searched else "nothing (no extra paths, entry points or ROS paths)"
+        raise PackageNotFoundError(
+            f"package '{name}' not found; searched: {where}. Install a Python package registering it "
+            f"in the '{ENTRY_POINT_GROUP}' entry-point group, or add its parent directory to "
+            f"ROS_PACKAGE_PATH or to the index's extra paths.", package=name)
+
+    def resolve_uri(self, uri: str | Path, base_dir: str | Path | None = None) -> Path:
+        """Resolve ``package://pkg/rel``, ``file:///abs`` or a plain (possibly relative) path.
+
+        Relative plain paths are taken relative to ``base_dir`` (default: the current directory).
+        The returned path is not checked for existence (callers report missing files with context).
+        """
+        text = str(uri)
+        if text.startswith("package://"):
+            rest = text[len("package://"):]
+            pkg, _, rel = rest.partition("/")
+            if not pkg:
+                raise PackageNotFoundError(f"URI '{text}' names no package", package="")
+            return self.find_package_share(pkg) / unquote(rel)
+        if text.startswith("file://"):
+            parsed = urlparse(text)
+            return Path(unquote(parsed.netloc + parsed.path))
+        path = Path(text).expanduser()
+        if not path.is_absolute() and base_dir is not None:
+            path = Path(base_dir) / path
+        return path
+
+    # ------------------------------------------------------------------ sources
+    def _env(self, key: str) -> str:
+        env = os.environ if self._environ is None else self._environ
+        return env.get(key, "")
+
+    def _find_explicit(self, name: str, searched: list[str]) -> Path | None:
+        if name in self._explicit:
+            path = self._explicit[name]
+            searched.append(f"explicit {path}")
+            if path.is_dir():
+                return path
+        return None
+
+    def _find_extra(self, name: str, searched: list[str]) -> Path | None:
+        for base in self._extra:
+            searched.append(f"extra path {base}")
+            if _is_package_root(base, name):
+                return base
+            if (base / name).is_dir():
+                return base / name
+        return None
+
+    def _find_entry_point(self, name: str, searched: list[str]) -> Path | None:
+        if not self._use_entry_points:
+            return None
+        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        if not eps:
+            searched.append(f"entry points '{ENTRY_POINT_GROUP}'")
+        for ep in eps:
+            searched.append(f"entry point {ep.name} = {ep.value}")
+            root = _python_package_dir(ep.value)
+            if root is not None:
+                return root
+        return None
+
+    def _find_ament(self, name: str, searched: list[str]) -> Path | None:
+        for prefix in filter(None, self._env("AMENT_PREFIX_PATH").split(os.pathsep)):
+            share = Path(prefix) / "share" / name
+            searched.append(f"AMENT_PREFIX_PATH {share}")
+            if share.is_dir():
+                return share
+        return None
+
+    def _find_ros_package_path(self, name: str, searched: list[str]) -> Path | None:
+        for entry in filter(None, self._env("ROS_PACKAGE_PATH").split(os.pathsep)):
+            base = Path(entry)
+            searched.append(f"ROS_PACKAGE_PATH {base}")
+            found = _walk_for_package(base, name)
+            if found is not None:
+                return found
+        return None
+
+
+def _python_package_dir(module: str) -> Path | None:
+    """Directory of an importable package, without importing it (importing may be slow or fail)."""
+    module = module.split(":", 1)[0].strip()
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        return None
+    if spec is None:
+        return None
+    if spec.submodule_search_locations:
+        return Path(next(iter(spec.submodule_search_locations)))
+    return Path(spec.origin).parent if spec.origin else None
+
+
+_PKG_NAME = re.compile(r"<name>\s*([^<\s]+)\s*</name>")
+
+
+def _is_package_root(path: Path, name: str) -> bool:
+    manifest = path / "package.xml"
+    if manifest.is_file():
+        match = _PKG_NAME.search(manifest.read_text(errors="replace"))
+        if match:
+            return match.group(1) == name
+    return path.name == name and path.is_dir()
+
+
+def _walk_for_package(base: Path, name: str, depth: int = 0) -> Path | None:
+    if not base.is_dir():
+        return None
+    if _is_package_root(base, name):
+        return base
+    if depth >= _MAX_WALK_DEPTH or (base / "package.xml").is_file():
+        return None  # do not descend into other packages (rospack does the same)
+    try:
+        children = sorted(p for p in base.iterdir() if p.is_dir() and not p.name.startswith("."))
+    except OSError:
+        return None
+    for child in children:
+        found = _walk_for_package(child, name, depth + 1)
+        if found is not None:
+            return found
+    return None
+
+
+@functools.lru_cache(maxsize=1)
+def default_index() -> PackageIndex:
+    """A shared index with no extra paths (it reads the environment at each lookup)."""
+    return PackageIndex()

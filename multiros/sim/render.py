@@ -1,0 +1,209 @@
+"""Offscreen RGB/depth images of a :class:`~multiros.sim.world.World`, goal markers, the viewer.
+
+Headless rendering uses MuJoCo's EGL backend (``multiros.sim`` sets ``MUJOCO_GL=egl`` when no
+display exists and the user chose nothing). Markers are scene decorations added to each rendered
+scene with ``mjv_initGeom``: they never take part in physics.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from multiros.sim.errors import RenderError
+
+__all__ = ["FreeCamera", "Marker", "Renderer", "open_viewer", "display_available"]
+
+
+def display_available() -> bool:
+    """True when an X11 or Wayland display is set."""
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+@dataclass(frozen=True)
+class FreeCamera:
+    """A free camera looking at ``lookat`` from ``distance``, ``azimuth`` and ``elevation`` (degrees)."""
+
+    lookat: tuple[float, float, float] = (0.0, 0.0, 0.3)
+    distance: float = 1.5
+    azimuth: float = 135.0
+    elevation: float = -25.0
+
+
+@dataclass(frozen=True)
+class Marker:
+    """A visual marker: ``kind`` is ``"sphere"``, ``"box"`` or ``"arrow"`` (from ``position`` along
+    ``direction``, ``size[0]`` = shaft radius, length = ``|direction|``)."""
+
+    kind: str
+    position: tuple[float, float, float]
+    size: tuple[float, float, float] = (0.02, 0.02, 0.02)
+    rgba: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.6)
+    direction: tuple[float, float, float] | None = None
+
+
+_KINDS = {"sphere": mujoco.mjtGeom.mjGEOM_SPHERE, "box": mujoco.mjtGeom.mjGEOM_BOX,
+          "arrow": mujoco.mjtGeom.mjGEOM_ARROW}
+
+
+class Renderer:
+    """Renders images of a world; one MuJoCo renderer per image size, rebuilt after recompiles.
+
+    Args:
+        world: the world (its ``model``/``data`` are read at each render).
+        max_geom: scene capacity (bodies' geoms plus markers).
+    """
+
+    def __init__(self, world, *, max_geom: int = 10000) -> None:
+        self.world = world
+        self.max_geom = max_geom
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._markers: dict[str, Marker] = {}
+        self._default_camera = FreeCamera(*world.options.camera) if hasattr(world, "options") else FreeCamera()
+        world.add_change_callback(self._drop_renderers)
+
+    # ------------------------------------------------------------------ markers
+    def show_marker(self, marker_id: str, kind: str = "sphere", position: Sequence[float] = (0, 0, 0), *,
+                    size: Sequence[float] = (0.02, 0.02, 0.02), rgba: Sequence[float] = (1.0, 0.0, 0.0, 0.6),
+                    direction: Sequence[float] | None = None) -> None:
+        """Add or replace a marker drawn in every rendered image (and the viewer)."""
+        if kind not in _KINDS:
+            raise ValueError(f"marker kind '{kind}' is not one of {sorted(_KINDS)}")
+        values = list(position) + list(size) + list(rgba) + list(direction or ())
+        if not np.all(np.isfinite(np.asarray(values, dtype=float))):
+            raise ValueError(f"marker '{marker_id}': position/size/rgba must be finite")
+        if kind == "arrow" and direction is None:
+            raise ValueError(f"marker '{marker_id}': an arrow needs a direction")
+        self._markers[marker_id] = Marker(kind, tuple(position), tuple(size), tuple(rgba),
+                                          tuple(direction) if direction is not None else None)
+
+    def delete_marker(self, marker_id: str | None = None) -> None:
+        """Remove one marker, or all of them when ``marker_id`` is None."""
+        if marker_id is None:
+            self._markers.clear()
+        else:
+            self._markers.pop(marker_id, None)
+
+    @property
+    def markers(self) -> dict[str, Marker]:
+        return dict(self._markers)
+
+    def add_markers_to_scene(self, scene: mujoco.MjvScene) -> None:
+        """Append the markers to a scene (also used by the viewer's user scene)."""
+        for marker in self._markers.values():
+            if scene.ngeom >= scene.maxgeom:
+                break
+            geom = scene.geoms[scene.ngeom]
+            mat = np.eye(3).ravel()
+            size = np.asarray(marker.size, dtype=float)
+            if marker.kind == "arrow":
+                mujoco.mjv_initGeom(geom, int(_KINDS["arrow"]), np.zeros(3), np.zeros(3), mat,
+                                    np.asarray(marker.rgba, dtype=np.float32))
+                start = np.asarray(marker.position, dtype=float)
+                mujoco.mjv_connector(geom, int(_KINDS["arrow"]), float(size[0]), start,
+                                     start + np.asarray(marker.direction, dtype=float))
+            else:
+                mujoco.mjv_initGeom(geom, int(_KINDS[marker.kind]), size, np.asarray(marker.position, float),
+                                    mat, np.asarray(marker.rgba, dtype=np.float32))
+            scene.ngeom += 1
+
+    # ------------------------------------------------------------------ images
+    def _renderer(self, width: int, height: int) -> mujoco.Renderer:
+        key = (int(width), int(height))
+        r = self._renderers.get(key)
+        if r is None:
+            model = self.world.model
+            if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
+                raise RenderError(f"image size {width}x{height} exceeds the offscreen buffer "
+                                  f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}")
+            try:
+                r = mujoco.Renderer(model, height=key[1], width=key[0], max_geom=self.max_geom)
+            except Exception as exc:  # GL context creation fails with assorted errors
+                raise RenderError(f"offscreen rendering is unavailable ({exc}); on a headless machine set "
+                                  f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
+            self._renderers[key] = r
+        return r
+
+    def _camera(self, camera: str | int | FreeCamera | None):
+        if camera is None:
+            camera = self._default_camera
+        if isinstance(camera, FreeCamera):
+            cam = mujoco.MjvCamera()
+            cam.type = int(mujoco.mjtCamera.mjCAMERA_FREE)
+            cam.lookat[:] = camera.lookat
+            cam.distance, cam.azimuth, cam.elevation = camera.distance, camera.azimuth, camera.elevation
+            return cam
+        if isinstance(camera, str):
+            cid = mujoco.mj_name2id(self.world.model, int(mujoco.mjtObj.mjOBJ_CAMERA), camera)
+            if cid < 0:
+                names = [self.world.model.camera(i).name for i in range(self.world.model.ncam)]
+                raise RenderError(f"camera '{camera}' not found; cameras: {names} (or use a FreeCamera)")
+            return cid
+        return int(camera)
+
+    def render(self, camera: str | int | FreeCamera | None = None, *, width: int = 640, height: int = 480,
+               depth: bool = False) -> np.ndarray:
+        """Render one image.
+
+        Args:
+            camera: a camera name or id of the model, a :class:`FreeCamera`, or None (the default view).
+            width, height: image size in pixels.
+            depth: return depth in metres (float32, HxW) instead of RGB (uint8, HxWx3).
+        """
+        r = self._renderer(width, height)
+        r.update_scene(self.world.data, camera=self._camera(camera))
+        self.add_markers_to_scene(r.scene)
+        if depth:
+            r.enable_depth_rendering()
+            try:
+                return r.render().copy()
+            finally:
+                r.disable_depth_rendering()
+        return r.render().copy()
+
+    def rgb(self, camera: str | int | FreeCamera | None = None, *, width: int = 640, height: int = 480) -> np.ndarray:
+        """An RGB image (uint8, HxWx3)."""
+        return self.render(camera, width=width, height=height)
+
+    def depth(self, camera: str | int | FreeCamera | None = None, *, width: int = 640,
+              height: int = 480) -> np.ndarray:
+        """A depth image in metres (float32, HxW)."""
+        return self.render(camera, width=width, height=height, depth=True)
+
+    def _drop_renderers(self) -> None:
+        for r in self._renderers.values():
+            r.close()
+        self._renderers.clear()
+
+    def close(self) -> None:
+        """Close every cached renderer (their GL contexts)."""
+        self._drop_renderers()
+
+
+def open_viewer(world, renderer: Renderer | None = None):
+    """Open MuJoCo's interactive passive viewer on the world (needs a display).
+
+    The caller calls ``handle.sync()`` after stepping (under its lock) and ``handle.close()`` at
+    the end. Markers of ``renderer`` are drawn in the viewer's user scene at each sync.
+
+    Raises:
+        RenderError: no display (DISPLAY/WAYLAND_DISPLAY unset) or the viewer cannot start.
+    """
+    if not display_available():
+        raise RenderError("gui=True needs a display (DISPLAY or WAYLAND_DISPLAY is not set); run headless "
+                          "(gui=False) and use offscreen rendering instead")
+    try:
+        import mujoco.viewer
+
+        handle = mujoco.viewer.launch_passive(world.model, world.data)
+    except Exception as exc:
+        raise RenderError(f"the MuJoCo viewer could not start: {exc}") from exc
+    if renderer is not None:
+        with handle.lock():
+            handle.user_scn.ngeom = 0
+            renderer.add_markers_to_scene(handle.user_scn)
+    return handle
