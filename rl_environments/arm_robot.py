@@ -35,6 +35,7 @@ class ArmRobot:
         DESCRIPTION_MODULE: the Python package shipping it (for local kinematics).
         XACRO_FILE: the xacro file in ``urdf/``.
         XACRO_ARGS: xacro arguments.
+        CONTROLLERS_FILE: the ros2_control controllers YAML in the package's ``config/``.
         ARM_JOINTS: the arm's joint names, in command order.
         BASE_LINK, EE_LINK: the kinematic chain's ends (URDF link names).
         ARM_CONTROLLER: the group position controller commanding ``ARM_JOINTS``.
@@ -47,6 +48,7 @@ class ArmRobot:
     DESCRIPTION_MODULE: ClassVar[str]
     XACRO_FILE: ClassVar[str]
     XACRO_ARGS: ClassVar[Mapping[str, str]] = {}
+    CONTROLLERS_FILE: ClassVar[str]
     ARM_JOINTS: ClassVar[tuple[str, ...]]
     BASE_LINK: ClassVar[str]
     EE_LINK: ClassVar[str]
@@ -61,6 +63,7 @@ class ArmRobot:
             "robot_name": cls.ROBOT_NAME,
             "robot_model_xml": f"package://{cls.DESCRIPTION_PACKAGE}/urdf/{cls.XACRO_FILE}",
             "urdf_xacro_args": dict(cls.XACRO_ARGS),
+            "controllers_file": f"package://{cls.DESCRIPTION_PACKAGE}/config/{cls.CONTROLLERS_FILE}",
             "controllers_list": list(cls.CONTROLLERS),
             "frames": [cls.EE_LINK],
             "num_sim_steps": cls.NUM_SIM_STEPS,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import re
+import threading
 from collections.abc import Callable
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
@@ -25,6 +26,7 @@ from urllib.parse import parse_qsl, urlsplit
 import numpy as np
 
 from multiros.ros import Node
+from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.interfaces import get_message, get_service
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
@@ -119,6 +121,9 @@ class SimulationNode(Node):
         real_time_factor: speed of the ``STATE_PLAYING`` mode (1.0 = wall clock, <= 0 = as fast as
             possible).
         paused: start paused (lockstep, the default for training) rather than playing.
+        spin_topics: run this node's topic callbacks (controller commands, markers) in a background
+            executor thread. Services never need it: they are answered on the caller's or the
+            transport's thread. Turn it off when you spin the node yourself.
         **node_kwargs: passed to :class:`multiros.ros.Node` (``context``, ``namespace``, ...).
     """
 
@@ -130,9 +135,12 @@ class SimulationNode(Node):
         options: WorldOptions | None = None,
         real_time_factor: float = 1.0,
         paused: bool = True,
+        spin_topics: bool = True,
         **node_kwargs: Any,
     ) -> None:
         super().__init__(node_name, **node_kwargs)
+        self._executor: Any = None
+        self._spin_thread: threading.Thread | None = None
         self.world = world if world is not None else World(options)
         self._runner = RealTimeRunner(
             self.world, real_time_factor=real_time_factor, on_chunk=self._after_realtime_chunk,
@@ -157,6 +165,11 @@ class SimulationNode(Node):
             self._attach_robot(name)
         if not paused:
             self._set_state(SimulationState.STATE_PLAYING)
+        if spin_topics:
+            self._executor = SingleThreadedExecutor(context=self.context)
+            self._executor.add_node(self)
+            self._spin_thread = threading.Thread(target=self._executor.spin, name=f"{node_name}-topics", daemon=True)
+            self._spin_thread.start()
 
     # -- helpers ----------------------------------------------------------------------------
     def _locked(self, fn: Callable[[], None]) -> None:
@@ -253,7 +266,13 @@ class SimulationNode(Node):
                 uri = parts._replace(query="").geturl()
             if parts.scheme != "string":  # "string:?opts" = options for the resource_string
                 description = uri
-        controllers_yaml = args.pop("__controllers_file", None)
+        controllers_yaml: Any = args.pop("__controllers_file", None)
+        if controllers_yaml:
+            try:
+                controllers_yaml = self.world.index.resolve_uri(controllers_yaml)
+            except DescriptionError as exc:
+                _fail(res, response.MISSING_ASSETS, f"controllers file: {exc}")
+                return response
         controllers = [c for c in args.pop("__controllers", "").split(",") if c] or None
         xacro_args = args or None
         with self.lock:
@@ -617,8 +636,14 @@ class SimulationNode(Node):
 
     # -- lifecycle --------------------------------------------------------------------------
     def destroy_node(self) -> None:
-        """Stop real-time physics, drop the per-robot interfaces and the renderer, destroy the node."""
+        """Stop real-time physics and the topic thread, drop the per-robot interfaces and the renderer,
+        destroy the node."""
         self._runner.stop()
+        if self._executor is not None:
+            self._executor.shutdown()
+            if self._spin_thread is not None and self._spin_thread is not threading.current_thread():
+                self._spin_thread.join(timeout=5.0)
+            self._executor = None
         for name in list(self._robots):
             self._detach_robot(name)
         if self._renderer is not None:

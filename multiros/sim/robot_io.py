@@ -148,6 +148,7 @@ class RobotInterfaces:
                     raise ControllerError(f"controller '{controller}' is {ctrl.state}")
                 ctrl.set_trajectory(list(msg.joint_names), [p.positions for p in msg.points], times, velocities,
                                     time=self.world.time)
+                self.world.controllers_changed(self.name)
             except (CommandError, ControllerError) as exc:
                 self.node.get_logger().warning("%s/%s/joint_trajectory: %s (ignored)", self.ns, controller, exc)
 
@@ -169,6 +170,7 @@ class RobotInterfaces:
         with self.lock:
             try:
                 action(self.world.controller_manager(self.name))
+                self.world.controllers_changed(self.name)
                 response.ok = True
             except ControllerError as exc:
                 self.node.get_logger().warning("%s/controller_manager: %s", self.ns, exc)

@@ -20,6 +20,7 @@ class IRB120Robot(ArmRobot):
     DESCRIPTION_MODULE = "rl_environments.robots.abb_irb120_description"
     XACRO_FILE = "irb120.urdf.xacro"
     XACRO_ARGS: dict[str, str] = {}
+    CONTROLLERS_FILE = "irb120_controllers.yaml"
     ARM_JOINTS = ("joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6")
     BASE_LINK = "base_link"
     EE_LINK = "flange"

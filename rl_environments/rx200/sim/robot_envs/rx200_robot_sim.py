@@ -21,6 +21,7 @@ class RX200Robot(ArmRobot):
     DESCRIPTION_MODULE = "rl_environments.robots.rx200_description"
     XACRO_FILE = "rx200.urdf.xacro"
     XACRO_ARGS = {"robot_name": "rx200"}
+    CONTROLLERS_FILE = "rx200_controllers.yaml"
     ARM_JOINTS = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
     BASE_LINK = "rx200/base_link"
     EE_LINK = "rx200/ee_gripper_link"

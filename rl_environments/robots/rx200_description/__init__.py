@@ -1,0 +1,41 @@
+"""ROS description package ``rx200_description``: the Interbotix ReactorX 200 with primitive geometry.
+
+Files:
+    ``urdf/rx200.urdf.xacro``: the robot (``urdf/primitives.xacro`` holds its macros). Xacro args
+    ``robot_name`` (default ``rx200``, the prefix of every link name: ``rx200/base_link``),
+    ``use_world_frame`` (default true: fixed ``world`` -> ``<robot_name>/base_link``),
+    ``use_gripper`` (default true: gripper motor and fingers; the ``ee_gripper_link`` frame is
+    always there) and ``use_ros2_control`` (default true). It uses only ``$(arg ...)`` and a
+    relative include, so it processes without any package lookup.
+    ``config/rx200_controllers.yaml``: ros2_control controllers and per-joint PID gains.
+
+The ``<ros2_control>`` block names the hardware plugin ``mujoco_ros2_control/MujocoSystem`` and
+points at the controllers file with a hardware parameter
+``controllers_file = package://rx200_description/config/rx200_controllers.yaml`` (no Gazebo
+``$(find ...)``), so a simulator resolves it through the package index.
+
+Kinematics, limits, dynamics and inertials are Interbotix' (joint names unprefixed, damping and
+friction 0.1 on moving joints); the 1 g dummy frames get 1e-6 kg m^2 instead of 0.001. Collision
+simplifications (visuals keep the full envelope): the shoulder collides with its turntable only and
+the upper arm capsule has no sphere at the shoulder end, so the Sleep pose is contact-free; the
+gripper horn is visual only; finger collision boxes start where the gripper bar ends.
+"""
+
+from pathlib import Path
+
+PACKAGE_NAME = "rx200_description"
+PACKAGE_DIR = Path(__file__).resolve().parent
+URDF_XACRO = PACKAGE_DIR / "urdf" / "rx200.urdf.xacro"
+CONTROLLERS_YAML = PACKAGE_DIR / "config" / "rx200_controllers.yaml"
+
+ARM_JOINTS = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
+GRIPPER_JOINTS = ("gripper", "left_finger", "right_finger")
+BASE_LINK = "base_link"  # prefix with "<robot_name>/"
+EE_LINK = "ee_gripper_link"  # prefix with "<robot_name>/"
+
+# Named arm poses (waist, shoulder, elbow, wrist_angle, wrist_rotate), rad.
+HOME_POSE = (0.0, 0.0, 0.0, 0.0, 0.0)
+SLEEP_POSE = (0.0, -1.80, 1.55, 0.8, 0.0)
+UPRIGHT_POSE = (0.0, 0.0, -1.5708, 0.0, 0.0)
+# left_finger positions (m); right_finger mirrors them.
+GRIPPER_CLOSED, GRIPPER_HOME, GRIPPER_OPEN = 0.015, 0.0195, 0.037
