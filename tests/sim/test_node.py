@@ -65,7 +65,9 @@ def test_features_are_truthful(sim):
     node, client, _ = sim
     features = set(int(f) for f in client.get_simulator_features().features)
     Features = get_message("simulation_interfaces/msg/SimulatorFeatures")
-    assert {Features.SPAWNING, Features.DELETING, Features.STEP_SIMULATION_MULTIPLE, Features.SIMULATION_RESET_SPAWNED} <= features
+    expected = {Features.SPAWNING, Features.DELETING, Features.STEP_SIMULATION_MULTIPLE,
+                Features.SIMULATION_RESET_SPAWNED}
+    assert expected <= features
     # Advertised services exist; unsupported ones are not advertised.
     assert Features.NAMED_POSES not in features and Features.WORLD_LOADING not in features
 
