@@ -217,6 +217,8 @@ class MujocoEnvCore:
                 self.sim.pause()
             if spawn_robot:
                 self._spawn(given)
+            if self.step_config.mode == "realtime":
+                self.sim.unpause()  # physics runs free; the env acts and observes at its own pace
             self._refresh_state()
         except BaseException:
             self._connection.close()
