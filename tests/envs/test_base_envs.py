@@ -42,9 +42,8 @@ def _robot_kwargs(**overrides):
 
 def _goal_spaces():
     box = spaces.Box(-2.0, 2.0, shape=(3,), dtype=np.float32)
-    return spaces.Dict(
-        {"observation": spaces.Box(-10.0, 10.0, shape=(6,), dtype=np.float32), "achieved_goal": box, "desired_goal": box}
-    )
+    observation = spaces.Box(-10.0, 10.0, shape=(6,), dtype=np.float32)
+    return spaces.Dict({"observation": observation, "achieved_goal": box, "desired_goal": box})
 
 
 class CanonicalGoalEnv(MujocoGoalEnv):
