@@ -255,6 +255,7 @@ def train(
     on_eval: Callable[[int, float, float], None] | None = None,
     save_path: str | Path | None = None,
     verbose: int = 0,
+    make_env: Callable[[], Any] | None = None,
 ) -> TrainingResult:
     """Train on ``env_id`` with ``config``; evaluate every ``eval_freq`` steps on a second env.
 
@@ -262,13 +263,17 @@ def train(
         target: success rate that counts as solved (for ``steps_to_success``).
         on_eval: ``callback(steps, train_seconds, success_rate)`` after each evaluation.
         save_path: where to save the final model (``.zip``), if given.
+        make_env: build the train and eval envs with this instead of ``uniros.make`` (baselines).
     """
     from stable_baselines3.common.callbacks import BaseCallback
 
     import uniros
 
-    env = uniros.make(env_id, **config.env_kwargs)
-    eval_env = uniros.make(env_id, **config.env_kwargs)
+    def factory() -> Any:
+        return make_env() if make_env is not None else uniros.make(env_id, **config.env_kwargs)
+
+    env = factory()
+    eval_env = factory()
     evaluations: list[tuple[int, float, float]] = []
     clock = {"train": 0.0, "since": time.perf_counter()}
     reached: dict[str, Any] = {"steps": None, "seconds": None}
