@@ -14,7 +14,7 @@ strings, lifecycle states and claiming rules follow ros2_control.
 from __future__ import annotations
 
 import enum
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,6 +66,7 @@ class RobotHardware:
         self.kp, self.kd, self.kv = np.asarray(kp, float), np.asarray(kd, float), np.asarray(kv, float)
         self.position, self.velocity, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
         self.command = np.zeros(n)
+        self.command_velocity = np.zeros(n)  # velocity feed-forward of position setpoints (trajectories)
         self.mode = np.full(n, int(JointMode.EFFORT), dtype=np.int8)
         self.dirty = True  # modes or gains changed: the world rewrites actuator parameters
 
@@ -80,6 +81,7 @@ class RobotHardware:
     def set_mode(self, idx: np.ndarray, mode: JointMode, command: np.ndarray | float) -> None:
         self.mode[idx] = int(mode)
         self.command[idx] = command
+        self.command_velocity[idx] = 0.0
         self.dirty = True
 
     def set_gains(self, idx: int, *, p: float | None = None, d: float | None = None, v: float | None = None) -> None:
@@ -249,6 +251,7 @@ class JointTrajectoryController(Controller):
     def hold(self) -> None:
         current = self.hw.position[self.idx].copy()
         self.hw.command[self.idx] = current
+        self.hw.command_velocity[self.idx] = 0.0
         self._hold_at(current, self._start)
 
     def _hold_at(self, positions: np.ndarray, time: float) -> None:
@@ -259,6 +262,7 @@ class JointTrajectoryController(Controller):
         arr = _check_vector(values, len(self.idx), f"controller '{self.name}'")
         self._hold_at(np.clip(arr, self.hw.lower[self.idx], self.hw.upper[self.idx]), time)
         self.hw.command[self.idx] = self._pos[0]
+        self.hw.command_velocity[self.idx] = 0.0
 
     def set_trajectory(self, joint_names: Sequence[str], positions: Sequence[Sequence[float]],
                        times_from_start: Sequence[float], velocities: Sequence[Sequence[float]] | None = None,
@@ -306,9 +310,11 @@ class JointTrajectoryController(Controller):
         times, n = self._times, self._times.shape[0]
         if n == 1 or t >= times[-1]:
             self.hw.command[self.idx] = self._pos[-1]
+            self.hw.command_velocity[self.idx] = 0.0
             return
         if t <= times[0]:
             self.hw.command[self.idx] = self._pos[0]
+            self.hw.command_velocity[self.idx] = 0.0
             return
         seg = self._seg
         while seg + 1 < n - 1 and t >= times[seg + 1]:
@@ -323,8 +329,11 @@ class JointTrajectoryController(Controller):
             s2, s3 = s * s, s * s * s
             self.hw.command[self.idx] = ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * v0
                                          + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * v1)
+            self.hw.command_velocity[self.idx] = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * v0
+                                                  + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * v1) / h
         else:
             self.hw.command[self.idx] = p0 + s * (p1 - p0)
+            self.hw.command_velocity[self.idx] = (p1 - p0) / h
 
     @property
     def done(self) -> bool:
@@ -399,6 +408,10 @@ class ControllerManager:
         self.params: dict[str, dict] = cfg["params"]
         self._controllers: dict[str, Controller] = {}
         self._active_varying: tuple[Controller, ...] = ()
+        # Set by the owner (the world): refresh_state() before activations read joint positions,
+        # on_change() after the set of active controllers changed.
+        self.refresh_state: Callable[[], None] | None = None
+        self.on_change: Callable[[], None] | None = None
         self._apply_gains()
 
     def _apply_gains(self) -> None:
@@ -486,6 +499,8 @@ class ControllerManager:
             to_start.append(ctrl)
         if strict and problems:
             raise ControllerError("switch_controllers refused: " + "; ".join(problems))
+        if to_start and self.refresh_state is not None:
+            self.refresh_state()
         for ctrl in to_stop:
             ctrl.deactivate()
             ctrl.state = "inactive"
@@ -494,6 +509,8 @@ class ControllerManager:
             ctrl.state = "active"
         self._active_varying = tuple(c for c in self._controllers.values()
                                      if c.state == "active" and c.time_varying)
+        if self.on_change is not None and (to_start or to_stop):
+            self.on_change()
         return problems
 
     def spawn(self, names: Sequence[str] | None = None, time: float = 0.0) -> list[str]:

@@ -59,10 +59,8 @@ class PackageIndex:
             PackageNotFoundError: the package is in none of the searched places (all listed).
         """
         searched: list[str] = []
-        for source, finder in (("explicit", self._find_explicit), ("extra path", self._find_extra),
-                               ("entry point", self._find_entry_point),
-                               ("AMENT_PREFIX_PATH", self._find_ament),
-                               ("ROS_PACKAGE_PATH", self._find_ros_package_path)):
+        for finder in (self._find_explicit, self._find_extra, self._find_entry_point, self._find_ament,
+                       self._find_ros_package_path):
             found = finder(name, searched)
             if found is not None:
                 return found

@@ -152,6 +152,7 @@ _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 _ROBOT_CONTYPE, _ROBOT_CONAFFINITY = 2, 1
 _WORLD_CONTYPE, _WORLD_CONAFFINITY = 1, 3
 _SERVO_WN = 50.0  # rad/s: natural frequency of the default position servos (critically damped)
+_VELOCITY_GAIN = 1000.0  # 1/s: default velocity servo bandwidth (kv = inertia x this); implicit, so stable
 _BAD_WARNINGS = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                                        mujoco.mjtWarning.mjWARN_BADQVEL))
 _MJ_HINGE, _MJ_SLIDE, _MJ_FREE = (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE),
@@ -205,6 +206,7 @@ class _Entity:
         self.period = 1
         self.countdown = 0
         self.snap_countdown = 0
+        self.ff_scale = np.zeros(0)  # kd/kp of position-mode joints: ctrl = q_d + (kd/kp) qdot_d
         self.js: JointState | None = None
         # resolved by World._bind
         self.root_bid = -1
@@ -586,7 +588,6 @@ class World:
         m, d = self._model, self._data
         mujoco.mj_forward(m, d)
         joints = {j.name: j for j in ent.desc.joints}
-        n = len(ent.actuated)
         full = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, full)
         mass = full[ent.act_dadr, ent.act_dadr]  # joint-space inertia (with armature) at the spawn pose
@@ -594,12 +595,16 @@ class World:
         upper = np.array([joints[j].upper for j in ent.actuated])
         effort = np.array([joints[j].effort for j in ent.actuated])
         velocity = np.array([joints[j].velocity for j in ent.actuated])
+        damping = np.array([joints[j].damping for j in ent.actuated])
         kp, kd = mass * _SERVO_WN ** 2, 2.0 * mass * _SERVO_WN
-        ent.hw = RobotHardware(ent.actuated, lower, upper, effort, velocity, kp, kd, kv=kd.copy())
+        kv = mass * _VELOCITY_GAIN + 20.0 * damping  # stiff enough to dominate joint damping/friction
+        ent.hw = RobotHardware(ent.actuated, lower, upper, effort, velocity, kp, kd, kv=kv)
         self._read_state(ent)
         if config is None:
             config = ent.desc.controllers_yaml if ent.desc.controllers_yaml is not None else _DEFAULT_CONTROLLERS
         ent.cm = ControllerManager(ent.hw, config)
+        ent.cm.refresh_state = lambda: self._read_state(ent)
+        ent.cm.on_change = lambda: self._controllers_changed(ent)
         self._update_period(ent)
         ent.cm.spawn(controllers, time=d.time)
         ent.js = JointState(ent.info.joint_names, np.zeros(len(ent.info.joint_names)),
@@ -629,8 +634,10 @@ class World:
                     gain[0], bias[2] = hw.kv[i], -hw.kv[i]
                 else:
                     gain[0] = 1.0
+            pos = hw.mode == int(JointMode.POSITION)
+            ent.ff_scale = np.where(pos, hw.kd / np.where(hw.kp > 0, hw.kp, 1.0), 0.0)
             hw.dirty = False
-        self._data.ctrl[ent.act_ids] = hw.command
+        self._data.ctrl[ent.act_ids] = hw.command + ent.ff_scale * hw.command_velocity
 
     def delete(self, name: str) -> None:
         """Remove an entity; the others keep their state. Raises EntityError if unknown."""
@@ -818,14 +825,19 @@ class World:
     def controller_manager(self, name: str) -> ControllerManager:
         """The robot's :class:`~multiros.sim.controllers.ControllerManager`.
 
-        After switching controllers through it, call :meth:`controllers_changed`.
+        Load/configure/switch/unload on it directly; the world is told of switches through the
+        manager's hooks. Commands given directly to a controller take effect at the next step.
         """
         return self._robot(name).cm
 
     def controllers_changed(self, name: str) -> None:
-        """Apply controller switches/commands made directly on a robot's ControllerManager."""
-        ent = self._robot(name)
+        """Re-read a robot's active controllers and actuator modes. The ControllerManager's hooks
+        already do this on every switch; calling it again is harmless."""
+        self._controllers_changed(self._robot(name))
+
+    def _controllers_changed(self, ent: _Entity) -> None:
         self._varying = tuple(e for e in self._entities.values() if e.cm is not None and e.cm.time_varying)
+        ent.countdown = 0
         self._write_actuators(ent)
 
     def switch_controllers(self, name: str, activate: Sequence[str] = (), deactivate: Sequence[str] = (),
@@ -842,9 +854,7 @@ class World:
             if cname not in {c.name for c in cm.list_controllers()} and cname in cm.types:
                 cm.load(cname)
                 cm.configure(cname)
-        problems = cm.switch(activate, deactivate, strict=strict, time=self._data.time)
-        self.controllers_changed(name)
-        return problems
+        return cm.switch(activate, deactivate, strict=strict, time=self._data.time)
 
     def set_command(self, name: str, controller: str, command: Sequence[float]) -> None:
         """Send a command vector to a controller ("" = the robot's default command controller).
@@ -909,7 +919,8 @@ class World:
             for ent in varying:
                 if ent.countdown <= 0:
                     ent.cm.update(d.time)
-                    d.ctrl[ent.act_ids] = ent.hw.command
+                    hw = ent.hw
+                    d.ctrl[ent.act_ids] = hw.command + ent.ff_scale * hw.command_velocity
                     ent.countdown = ent.period
                 if ent.countdown < chunk:
                     chunk = ent.countdown

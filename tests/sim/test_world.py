@@ -1,0 +1,305 @@
+"""World: one test per method (spawn, delete, states, joints, frames, step, reset, physics, stability)."""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+from multiros.sim.errors import DescriptionError, EntityError, UnstableSimulationError
+from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope
+
+ARM_XACRO = "package://test_arm_description/urdf/arm.urdf.xacro"
+BALL = "package://test_arm_description/urdf/ball.xml"
+PENDULUM = "package://test_arm_description/urdf/pendulum.xml"
+
+
+def test_spawn_two_robots_in_namespaces(make_world):
+    world = make_world()
+    a = world.spawn("left", ARM_XACRO, pose=([0, -0.5, 0], [1, 0, 0, 0]), namespace="/ns_a",
+                    joint_positions={"joint2": 0.0})
+    b = world.spawn("right", ARM_XACRO, pose=([0, 0.5, 0], [1, 0, 0, 0]), xacro_args={"link_length": "0.3"})
+    assert (a.namespace, b.namespace) == ("/ns_a", "/right")
+    assert a.category == EntityCategory.ROBOT and a.fixed_base
+    assert world.entity_names() == ("left", "right")
+    assert "ee_link" in a.frames and a.joint_names == ("joint1", "joint2", "joint3")
+    np.testing.assert_allclose(world.frame_pose("ee_link", "left")[0], [0, -0.5, 0.5], atol=1e-9)
+    # joint2 starts at the ros2_control initial_value unless given; link_length makes the right arm longer
+    assert world.joint_state("left").position[1] == 0.0
+    assert world.joint_state("right").position[1] == pytest.approx(0.3)
+    assert world.frame_pose("link3", "right")[0][2] != world.frame_pose("link3", "left")[0][2]
+
+
+def test_spawn_rejects_bad_names_and_poses(make_world):
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    with pytest.raises(EntityError, match="already exists"):
+        world.spawn("arm", ARM_XACRO)
+    with pytest.raises(EntityError, match="invalid"):
+        world.spawn("9 bad", ARM_XACRO)
+    with pytest.raises(ValueError, match="zero"):
+        world.spawn("b", BALL, pose=([0, 0, 1], [0, 0, 0, 0]))
+    with pytest.raises(ValueError, match="finite"):
+        world.spawn("b", BALL, pose=([0, np.nan, 1], [1, 0, 0, 0]))
+    with pytest.raises(ValueError, match="outside"):
+        world.spawn("b", ARM_XACRO, joint_positions={"joint2": 3.0})
+    with pytest.raises(DescriptionError):
+        world.spawn("b", "<robot name='x'><link name='a'>")
+    assert world.entity_names() == ("arm",)
+    world.step(5)  # the world still works after the refusals
+
+
+def test_delete_keeps_other_state(make_world):
+    world = make_world()
+    world.spawn("keep", ARM_XACRO)
+    world.spawn("gone", ARM_XACRO, pose=([1, 0, 0], [1, 0, 0, 0]))
+    world.set_command("keep", "arm_controller", [0.4, -0.3, 0.2])
+    world.step(40)  # mid-motion: non-zero velocities
+    before = world.joint_state("keep")
+    q, v, t = before.position.copy(), before.velocity.copy(), world.time
+    assert np.any(np.abs(v) > 1e-3)
+    world.delete("gone")
+    after = world.joint_state("keep")
+    np.testing.assert_array_equal(after.position, q)
+    np.testing.assert_array_equal(after.velocity, v)
+    assert world.time == t and not world.has_entity("gone")
+    with pytest.raises(EntityError):
+        world.delete("gone")
+    world.step(200)
+    np.testing.assert_allclose(world.joint_state("keep").position, [0.4, -0.3, 0.2], atol=5e-3)
+
+
+def test_spawn_keeps_other_state(make_world):
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    world.set_command("arm", "", [0.4, -0.3, 0.2])
+    world.step(30)
+    q = world.joint_state("arm").position.copy()
+    world.spawn("ball", BALL, pose=([0.5, 0, 0.5], [1, 0, 0, 0]))
+    np.testing.assert_array_equal(world.joint_state("arm").position, q)
+
+
+def test_entity_state_floating_object(make_world):
+    world = make_world()
+    info = world.spawn("ball", BALL, pose=([0.2, 0.1, 0.5], [1, 0, 0, 0]))
+    assert info.category == EntityCategory.DYNAMIC_OBJECT and not info.fixed_base
+    world.set_entity_state("ball", position=[1, 2, 3], orientation=[0, 0, 0, 2],
+                           linear_velocity=[0.1, 0, 0], angular_velocity=[0, 0, 1.5])
+    s = world.get_entity_state("ball")
+    np.testing.assert_allclose(s.position, [1, 2, 3])
+    np.testing.assert_allclose(s.orientation, [0, 0, 0, 1])  # normalised
+    np.testing.assert_allclose(s.linear_velocity, [0.1, 0, 0])
+    np.testing.assert_allclose(s.angular_velocity, [0, 0, 1.5], atol=1e-12)
+    world.step(50)
+    assert world.get_entity_state("ball").position[2] < 3  # gravity acts
+    with pytest.raises(ValueError, match="zero"):
+        world.set_entity_state("ball", orientation=[0, 0, 0, 0])
+    with pytest.raises(EntityError):
+        world.get_entity_state("nobody")
+
+
+def test_entity_state_fixed_base_moves_base(make_world):
+    world = make_world()
+    world.spawn("arm", ARM_XACRO, joint_positions={"joint2": 0.0})
+    world.set_entity_state("arm", position=[1, 0, 0.2], orientation=[0.7071068, 0, 0, 0.7071068])
+    s = world.get_entity_state("arm")
+    np.testing.assert_allclose(s.position, [1, 0, 0.2], atol=1e-9)
+    np.testing.assert_allclose(world.frame_pose("ee_link", "arm")[0], [1, 0, 0.7], atol=1e-6)
+    with pytest.raises(ValueError, match="fixed base"):
+        world.set_entity_state("arm", linear_velocity=[1, 0, 0])
+    world.reset(ResetScope.STATE)
+    np.testing.assert_allclose(world.get_entity_state("arm").position, [0, 0, 0], atol=1e-12)
+
+
+def test_static_object(make_world):
+    world = make_world()
+    info = world.spawn("post", BALL, category=EntityCategory.STATIC_OBJECT, pose=([0, 0, 0.3], [1, 0, 0, 0]))
+    assert info.fixed_base
+    world.step(100)
+    np.testing.assert_allclose(world.get_entity_state("post").position, [0, 0, 0.3])
+
+
+def test_bounds(make_world):
+    world = make_world()
+    world.spawn("ball", BALL, pose=([0.2, 0.1, 0.5], [1, 0, 0, 0]))
+    lo, hi = world.bounds("ball")
+    np.testing.assert_allclose(lo, [0.17, 0.07, 0.47], atol=1e-9)
+    np.testing.assert_allclose(hi, [0.23, 0.13, 0.53], atol=1e-9)
+
+
+def test_joint_state_and_names(arm_world):
+    js = arm_world.joint_state("arm")
+    assert js.names == arm_world.joint_names("arm") == ("joint1", "joint2", "joint3")
+    assert js.position.shape == js.velocity.shape == js.effort.shape == (3,)
+
+
+def test_set_joint_positions(arm_world):
+    arm_world.set_joint_positions("arm", ["joint3", "joint1"], [0.5, -1.0])
+    np.testing.assert_allclose(arm_world.joint_state("arm").position, [-1.0, 0.3, 0.5])
+    arm_world.step(100)  # hold=True: the controllers keep the teleported pose
+    np.testing.assert_allclose(arm_world.joint_state("arm").position, [-1.0, 0.3, 0.5], atol=2e-3)
+    with pytest.raises(ValueError, match="outside"):
+        arm_world.set_joint_positions("arm", ["joint2"], [2.5])
+    with pytest.raises(ValueError, match="finite"):
+        arm_world.set_joint_positions("arm", ["joint2"], [np.nan])
+    with pytest.raises(EntityError, match="no joint"):
+        arm_world.set_joint_positions("arm", ["elbow"], [0.0])
+    with pytest.raises(ValueError, match="lengths"):
+        arm_world.set_joint_positions("arm", ["joint1", "joint2"], [0.0])
+
+
+def test_frame_set_survives_recompile(make_world):
+    world = make_world()
+    world.spawn("arm", ARM_XACRO, joint_positions={"joint2": 0.0})
+    fs = world.frame_set(["ee_link", "world", "link2"], "arm")
+    poses = fs.poses()
+    assert poses.shape == (3, 7)
+    np.testing.assert_allclose(poses[0, :3], [0, 0, 0.5], atol=1e-9)
+    np.testing.assert_allclose(poses[1], [0, 0, 0, 1, 0, 0, 0], atol=1e-12)
+    world.spawn("other", ARM_XACRO, pose=([1, 0, 0], [1, 0, 0, 0]), joint_positions={"joint2": 0.0})
+    np.testing.assert_allclose(fs.positions()[0], [0, 0, 0.5], atol=1e-9)
+    with pytest.raises(EntityError, match="known frames"):
+        world.frame_set(["nope"], "arm")
+    full = world.frame_set(["other/ee_link"])
+    np.testing.assert_allclose(full.positions()[0], [1, 0, 0.5], atol=1e-9)
+    world.delete("arm")
+    with pytest.raises(EntityError, match="deleted"):
+        fs.poses()
+
+
+def test_mjcf_site_frame(make_world):
+    world = make_world()
+    world.spawn("pend", PENDULUM, pose=([0, 0, 1], [1, 0, 0, 0]))
+    np.testing.assert_allclose(world.frame_pose("tip", "pend")[0], [0, 0, 0.7], atol=1e-9)
+
+
+def _rollout(world, n=300):
+    world.set_command("arm", "arm_controller", [0.7, -0.4, 0.9])
+    world.step(n // 2)
+    world.set_command("arm", "arm_controller", [-0.2, 0.5, -0.3])
+    world.step(n // 2)
+    js = world.joint_state("arm")
+    return js.position.copy(), js.velocity.copy(), world.time
+
+
+def test_step_is_deterministic(make_world):
+    def fresh():
+        w = make_world()
+        w.spawn("arm", ARM_XACRO, initial=True)
+        w.spawn("ball", BALL, pose=([0.15, 0, 0.9], [1, 0, 0, 0]), initial=True)
+        return w
+
+    a, b = _rollout(fresh()), _rollout(fresh())
+    assert a[0].tobytes() == b[0].tobytes() and a[1].tobytes() == b[1].tobytes() and a[2] == b[2]
+    w = fresh()
+    first = _rollout(w)
+    w.reset()
+    again = _rollout(w)
+    assert first[0].tobytes() == again[0].tobytes() and first[1].tobytes() == again[1].tobytes()
+
+
+def test_time_and_step(arm_world):
+    arm_world.step(0)
+    assert arm_world.time == 0.0
+    arm_world.step(10)
+    assert arm_world.time == pytest.approx(10 * 0.002)
+    with pytest.raises(ValueError):
+        arm_world.step(-1)
+
+
+def test_reset_scopes(make_world):
+    world = make_world()
+    world.spawn("arm", ARM_XACRO, initial=True)
+    world.spawn("ball", BALL, pose=([0.5, 0, 0.5], [1, 0, 0, 0]))
+    world.set_command("arm", "", [0.5, 0.5, 0.5])
+    world.step(100)
+    t = world.time
+    world.reset(ResetScope.TIME)
+    assert world.time == 0.0 and world.joint_state("arm").position[0] > 0.3
+    world.step(10)
+    world.reset(ResetScope.STATE)
+    assert world.time == pytest.approx(10 * 0.002)
+    np.testing.assert_allclose(world.joint_state("arm").position, [0, 0.3, 0])
+    np.testing.assert_allclose(world.get_entity_state("ball").position, [0.5, 0, 0.5])
+    world.step(100)  # controllers hold the reset pose
+    np.testing.assert_allclose(world.joint_state("arm").position, [0, 0.3, 0], atol=2e-3)
+    world.reset(ResetScope.SPAWNED)
+    assert world.entity_names() == ("arm",) and world.time > 0
+    world.spawn("ball", BALL, pose=([0.5, 0, 0.5], [1, 0, 0, 0]))
+    world.step(20)
+    world.reset(ResetScope.DEFAULT)
+    assert world.entity_names() == ("arm",) and world.time == 0.0 and t > 0
+
+
+def test_physics_properties(arm_world):
+    arm_world.timestep = 0.001
+    assert arm_world.timestep == 0.001
+    arm_world.step(10)
+    assert arm_world.time == pytest.approx(0.01)
+    arm_world.gravity = (0, 0, -1.62)
+    np.testing.assert_allclose(arm_world.gravity, [0, 0, -1.62])
+    arm_world.spawn("ball", BALL)  # survives a recompile
+    assert arm_world.timestep == 0.001 and arm_world.gravity[2] == pytest.approx(-1.62)
+    with pytest.raises(ValueError):
+        arm_world.timestep = 0.0
+    with pytest.raises(ValueError):
+        arm_world.gravity = (0, np.inf, 0)
+
+
+def test_unstable_entity_is_contained(make_world):
+    def fresh():
+        w = make_world()
+        w.spawn("arm", ARM_XACRO)
+        w.spawn("pend", PENDULUM, pose=([1, 0, 1], [1, 0, 0, 0]), joint_positions={"swing": 0.8})
+        w.set_command("arm", "", [0.3, 0.2, 0.1])
+        w.step(50)
+        return w
+
+    world, reference = fresh(), fresh()
+    arm = world._entities["arm"]  # white-box: poison the arm's velocity
+    arm_q = world.joint_state("arm").position.copy()
+    world.data.qvel[arm.jnt_dadr[1]] = 1e30
+    with pytest.raises(UnstableSimulationError) as info:
+        world.step(10)
+    reference.step(10)
+    assert info.value.entities == ("arm",)
+    assert np.all(np.isfinite(world.data.qpos)) and np.all(np.isfinite(world.data.qvel))
+    np.testing.assert_allclose(world.joint_state("arm").position, arm_q, atol=1e-4)  # restored, at rest
+    np.testing.assert_allclose(world.joint_state("arm").velocity, 0.0, atol=1e-6)
+    # the pendulum stepped on exactly as in an undisturbed world
+    np.testing.assert_allclose(world.joint_state("pend").position, reference.joint_state("pend").position,
+                               rtol=1e-12, atol=1e-12)
+    assert world.time == reference.time
+    world.step(100)  # and the world keeps running
+    assert np.all(np.isfinite(world.joint_state("arm").position))
+
+
+def test_realtime_runner_paces_and_stops(arm_world):
+    chunks = []
+    done = threading.Event()
+
+    def on_chunk(world):
+        chunks.append(world.time)
+        if len(chunks) >= 5:
+            done.set()
+
+    runner = RealTimeRunner(arm_world, real_time_factor=0.0, chunk_steps=5, on_chunk=on_chunk)
+    runner.start()
+    try:
+        assert done.wait(5.0)
+    finally:
+        runner.stop()
+    assert not runner.running and chunks == sorted(chunks) and arm_world.time >= 5 * 5 * 0.002
+    runner.real_time_factor = 1.0
+    done.clear()
+    chunks.clear()
+    runner.start()
+    try:
+        assert done.wait(5.0)
+        with runner.lock:  # the node's access pattern: hold the lock, the runner waits
+            t = arm_world.time
+            assert arm_world.time == t
+    finally:
+        runner.stop()
+    assert runner.error is None
