@@ -8,9 +8,11 @@ Files:
     ``config/irb120_controllers.yaml``: ros2_control controllers (``arm120_controller`` as in
     FRobs_RL) and per-joint torque-level PID gains.
 
-The ``<ros2_control>`` block names the hardware plugin ``mujoco_ros2_control/MujocoSystem`` and
-points at the controllers file with a hardware parameter
-``controllers_file = package://abb_irb120_description/config/irb120_controllers.yaml``.
+The ``<ros2_control>`` block names the hardware plugin ``mujoco_ros2_control/MujocoSystem``, gives
+initial positions as state-interface ``initial_value`` params, and points at the controllers file
+twice, both as ``package://abb_irb120_description/config/irb120_controllers.yaml`` (never ``$(find ...)``, so
+the xacro processes without package lookup): a hardware param ``controllers_file`` and a
+gz_ros2_control-style ``<gazebo><plugin><parameters>`` element, which multiros' loader reads.
 
 Kinematics, limits and inertials are the ros-industrial irb120_3_58 ones; effort limits (which
 ros-industrial leaves at 0) are sized from the model's gravity and inertia loads with the rated

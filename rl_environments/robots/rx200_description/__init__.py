@@ -9,10 +9,11 @@ Files:
     relative include, so it processes without any package lookup.
     ``config/rx200_controllers.yaml``: ros2_control controllers and per-joint PID gains.
 
-The ``<ros2_control>`` block names the hardware plugin ``mujoco_ros2_control/MujocoSystem`` and
-points at the controllers file with a hardware parameter
-``controllers_file = package://rx200_description/config/rx200_controllers.yaml`` (no Gazebo
-``$(find ...)``), so a simulator resolves it through the package index.
+The ``<ros2_control>`` block names the hardware plugin ``mujoco_ros2_control/MujocoSystem``, gives
+initial positions as state-interface ``initial_value`` params, and points at the controllers file
+twice, both as ``package://rx200_description/config/rx200_controllers.yaml`` (never ``$(find ...)``, so
+the xacro processes without package lookup): a hardware param ``controllers_file`` and a
+gz_ros2_control-style ``<gazebo><plugin><parameters>`` element, which multiros' loader reads.
 
 Kinematics, limits, dynamics and inertials are Interbotix' (joint names unprefixed, damping and
 friction 0.1 on moving joints); the 1 g dummy frames get 1e-6 kg m^2 instead of 0.001. Collision
