@@ -58,7 +58,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         print(f"eval success never reached {args.target}")
     env = uniros.make(args.env_id, **config.env_kwargs)
     try:
-        stats = evaluate(result.model, env, args.eval_episodes, seed=10_000_000 + (config.seed or 0))
+        stats = evaluate(result.model, env, args.eval_episodes, seed=10_000_000 + (config.seed or 0),
+                         normalizer=result.normalizer)
     finally:
         env.close()
     print(f"final evaluation over {args.eval_episodes} episodes: success rate {stats['success_rate']:.2f}, "
@@ -79,8 +80,15 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         return 2
     env = uniros.make(args.env_id, **_env_overrides(args))
     try:
-        model = classes[algo].load(args.model, env=env, device="cpu")
-        stats = evaluate(model, env, args.episodes, seed=args.seed)
+        model = classes[algo].load(args.model, device="cpu")
+        normalizer = None
+        stats_file = Path(args.model).with_suffix(".vecnormalize.pkl")
+        if stats_file.is_file():
+            from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+            normalizer = VecNormalize.load(str(stats_file), DummyVecEnv([lambda: env]))
+            normalizer.training = False
+        stats = evaluate(model, env, args.episodes, seed=args.seed, normalizer=normalizer)
     finally:
         env.close()
     print(f"{args.env_id}: success rate {stats['success_rate']:.2f} over {args.episodes} episodes, "

@@ -46,6 +46,8 @@ class TrainingConfig:
         env_kwargs: keyword arguments for ``uniros.make``.
         eval_freq, eval_episodes: evaluation schedule.
         stop_at_success: stop once this eval success rate is reached (``None``: never).
+        normalize: normalise observations with ``VecNormalize`` (as rl-zoo3 does for FetchReach);
+            the evaluation env uses the training statistics, frozen.
         seed: seed of the algorithm and of the training env's first reset.
         torch_threads: torch CPU threads (1 is fastest for these small networks).
     """
@@ -61,6 +63,7 @@ class TrainingConfig:
     eval_freq: int = 1000
     eval_episodes: int = 20
     stop_at_success: float | None = None
+    normalize: bool = False
     seed: int | None = 0
     torch_threads: int = 1
     source: str = "<defaults>"
@@ -127,6 +130,7 @@ def parse_training_config(data: Mapping[str, Any], source: str = "<mapping>") ->
         eval_freq=int(_require(data, "eval_freq", int, source, 1000)),
         eval_episodes=int(_require(data, "eval_episodes", int, source, 20)),
         stop_at_success=None if stop is None else float(stop),
+        normalize=bool(_require(data, "normalize", bool, source, False)),
         seed=_require(data, "seed", int, source, 0),
         torch_threads=int(_require(data, "torch_threads", int, source, 1)),
         source=source,
@@ -156,6 +160,10 @@ def default_config_for(env_id: str) -> TrainingConfig:
 
 
 # -- building ----------------------------------------------------------------------------------
+def _gamma(config: TrainingConfig) -> float:
+    return float(config.algo_params.get("gamma", 0.99))
+
+
 def _activation(name: str) -> Any:
     import torch.nn as nn
 
@@ -206,14 +214,20 @@ def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
         raise TrainingConfigError(f"{config.source}: {config.algorithm}_params: {exc}") from exc
 
 
-def evaluate(model: Any, env: Any, episodes: int, *, seed: int | None = None) -> dict[str, float]:
-    """Run ``episodes`` deterministic episodes; success = the final ``info["is_success"]``."""
+def evaluate(
+    model: Any, env: Any, episodes: int, *, seed: int | None = None, normalizer: Any = None
+) -> dict[str, float]:
+    """Run ``episodes`` deterministic episodes; success = the final ``info["is_success"]``.
+
+    ``normalizer`` (a ``VecNormalize``) normalises observations as during training.
+    """
     successes, returns, lengths = [], [], []
     for i in range(episodes):
         obs, info = env.reset(seed=None if seed is None or i > 0 else seed)
         done, total, steps = False, 0.0, 0
         while not done:
-            action, _ = model.predict(obs, deterministic=True)
+            policy_obs = obs if normalizer is None else normalizer.normalize_obs(obs)
+            action, _ = model.predict(policy_obs, deterministic=True)
             obs, reward, terminated, truncated, info = env.step(action)
             total += float(reward)
             steps += 1
@@ -245,6 +259,7 @@ class TrainingResult:
     total_steps: int
     train_seconds: float
     model: Any = None
+    normalizer: Any = None
 
 
 def train(
@@ -284,7 +299,7 @@ def train(
                 return True
             clock["train"] += time.perf_counter() - clock["since"]
             seed = None if config.seed is None else config.seed + 10_000 + len(evaluations)
-            stats = evaluate(self.model, eval_env, config.eval_episodes, seed=seed)
+            stats = evaluate(self.model, eval_env, config.eval_episodes, seed=seed, normalizer=normalizer)
             rate = stats["success_rate"]
             evaluations.append((self.num_timesteps, clock["train"], rate))
             if on_eval is not None:
@@ -294,13 +309,22 @@ def train(
             clock["since"] = time.perf_counter()
             return not (config.stop_at_success is not None and rate >= config.stop_at_success)
 
+    normalizer = None
     try:
         env.reset(seed=config.seed)
-        model = build_model(config, env, verbose=verbose)
+        train_env: Any = env
+        if config.normalize:
+            from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+            train_env = normalizer = VecNormalize(DummyVecEnv([lambda: env]), gamma=_gamma(config), norm_reward=False)
+            train_env.seed(config.seed)
+        model = build_model(config, train_env, verbose=verbose)
         model.learn(total_timesteps=config.training_steps, callback=_EvalCallback())
         clock["train"] += time.perf_counter() - clock["since"]
         if save_path is not None:
             model.save(str(save_path))
+            if normalizer is not None:
+                normalizer.save(str(Path(save_path).with_suffix(".vecnormalize.pkl")))
         return TrainingResult(
             evaluations=evaluations,
             steps_to_success=reached["steps"],
@@ -308,6 +332,7 @@ def train(
             total_steps=int(model.num_timesteps),
             train_seconds=clock["train"],
             model=model,
+            normalizer=normalizer,
         )
     finally:
         env.close()
