@@ -150,6 +150,10 @@ class MujocoEnvCore:
             "model_pos_x": "robot_pos_x",
             "model_pos_y": "robot_pos_y",
             "model_pos_z": "robot_pos_z",
+            "model_ori_w": "robot_ori_w",
+            "model_ori_x": "robot_ori_x",
+            "model_ori_y": "robot_ori_y",
+            "model_ori_z": "robot_ori_z",
         }
         given = dict(locals())
         for old, new in renames.items():
