@@ -6,6 +6,7 @@ Each subcommand is a small function taking parsed arguments and returning an exi
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 from collections.abc import Sequence
@@ -50,6 +51,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
         print(f"  steps {steps:6d}  train time {seconds:7.1f} s  eval success {rate:.2f}", flush=True)
 
     result = train(args.env_id, config, target=args.target, on_eval=report, save_path=model_path)
+    # What `uniros eval` needs to rebuild the same env (e.g. ee_action_type changes the action space).
+    model_path.with_suffix(".env.json").write_text(
+        json.dumps({"env_id": args.env_id, "algorithm": config.algorithm, "env_kwargs": config.env_kwargs}, indent=2)
+    )
     print(f"trained {result.total_steps} steps in {result.train_seconds:.1f} s; model saved to {model_path}")
     if result.steps_to_success is not None:
         print(f"first eval success >= {args.target}: {result.steps_to_success} steps, "
@@ -73,14 +78,17 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     import uniros
     from uniros.training import evaluate
 
-    algo = args.algo or Path(args.model).stem.rsplit("_", 1)[-1]
+    saved: dict = {}
+    meta = Path(args.model).with_suffix(".env.json")
+    if meta.is_file():
+        saved = json.loads(meta.read_text())
+    algo = args.algo or saved.get("algorithm") or Path(args.model).stem.rsplit("_", 1)[-1]
     classes = {"sac": sb3.SAC, "td3": sb3.TD3, "ddpg": sb3.DDPG, "ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}
     if algo not in classes:
         print(f"cannot tell the algorithm of {args.model!r}; pass --algo {{{','.join(classes)}}}", file=sys.stderr)
         return 2
-    env = uniros.make(args.env_id, **_env_overrides(args))
+    env = uniros.make(args.env_id, **{**saved.get("env_kwargs", {}), **_env_overrides(args)})
     try:
-        model = classes[algo].load(args.model, device="cpu")
         normalizer = None
         stats_file = Path(args.model).with_suffix(".vecnormalize.pkl")
         if stats_file.is_file():
@@ -88,6 +96,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 
             normalizer = VecNormalize.load(str(stats_file), DummyVecEnv([lambda: env]))
             normalizer.training = False
+        # HER models need an env to rebuild their replay buffer, even for prediction.
+        model = classes[algo].load(args.model, env=normalizer if normalizer is not None else env, device="cpu")
         stats = evaluate(model, env, args.episodes, seed=args.seed, normalizer=normalizer)
     finally:
         env.close()
