@@ -3,8 +3,8 @@
 Why the URDF -> MjSpec conversion is written here instead of using MuJoCo's URDF importer: the
 importer fuses fixed-joint links (end-effector frames vanish), discards visuals, knows nothing of
 ``package://`` and ``<ros2_control>``, and cannot fix degenerate inertias; we need all of those.
-Parsing is done by yourdfpy (no meshes loaded); ``<ros2_control>`` and ``<gazebo>`` tags, which
-yourdfpy ignores, are read with ElementTree.
+Parsing is done by :mod:`multiros.sim.urdf_model` (ElementTree; see there why not yourdfpy), which
+also reads the ``<ros2_control>`` and ``<gazebo>`` tags.
 
 ``$(find pkg)`` in xacro: xacro imports ``ament_index_python.packages.get_package_share_directory``
 lazily inside its ``find`` handler. During our call we put a tiny shim module under that name in
@@ -16,7 +16,6 @@ keeps its substitution arguments and file stack in module globals.
 from __future__ import annotations
 
 import hashlib
-import io
 import os
 import re
 import sys
@@ -32,6 +31,7 @@ import numpy as np
 
 from multiros.sim.errors import DescriptionError, PackageNotFoundError
 from multiros.sim.packages import PackageIndex, default_index
+from multiros.sim.urdf_model import parse_urdf
 
 __all__ = [
     "JointInfo",
@@ -295,19 +295,13 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
                         base_dir: str | Path | None = None, source_name: str = "<string>",
                         default_armature: float = 0.01) -> RobotDescription:
     """Build an MjSpec from URDF text (see the module docstring for what is kept)."""
-    import yourdfpy
-
     index = index or default_index()
     mesh_cache = mesh_cache or MeshCache()
     try:
         xml_root = ET.fromstring(urdf)
     except ET.ParseError as exc:
         raise DescriptionError(f"{source_name}: malformed URDF XML: {exc}", source=source_name) from exc
-    try:
-        robot = yourdfpy.URDF.load(io.BytesIO(urdf.encode()), build_scene_graph=False, load_meshes=False,
-                                   load_collision_meshes=False).robot
-    except Exception as exc:  # yourdfpy/lxml raise assorted errors on bad attributes
-        raise DescriptionError(f"{source_name}: invalid URDF: {exc}", source=source_name) from exc
+    robot = parse_urdf(xml_root, source_name)
     if not robot.links:
         raise DescriptionError(f"{source_name}: URDF has no <link>", source=source_name)
     links = {link.name: link for link in robot.links}
