@@ -40,7 +40,9 @@ class ArmRobot:
         BASE_LINK, EE_LINK: the kinematic chain's ends (URDF link names).
         ARM_CONTROLLER: the group position controller commanding ``ARM_JOINTS``.
         CONTROLLERS: controllers to activate at spawn.
-        NUM_SIM_STEPS: physics steps per env step (lockstep).
+        SIM_TIMESTEP: physics time step in seconds.
+        NUM_SIM_STEPS: physics steps per env step (lockstep). The control period is
+            ``SIM_TIMESTEP * NUM_SIM_STEPS`` (40 ms, Fetch's, by default).
     """
 
     ROBOT_NAME: ClassVar[str]
@@ -54,7 +56,11 @@ class ArmRobot:
     EE_LINK: ClassVar[str]
     ARM_CONTROLLER: ClassVar[str]
     CONTROLLERS: ClassVar[tuple[str, ...]]
-    NUM_SIM_STEPS: ClassVar[int] = 20
+    # 4 ms steps: the position servos of both arms are far inside their explicit-stiffness stability
+    # bound there (dt < 2 sqrt(I / kp) ~ 20 ms with implicit damping), and it halves the physics
+    # cost of a 40 ms control period compared with MuJoCo's 2 ms default.
+    SIM_TIMESTEP: ClassVar[float] = 0.004
+    NUM_SIM_STEPS: ClassVar[int] = 10
 
     @classmethod
     def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -67,6 +73,7 @@ class ArmRobot:
             "controllers_list": list(cls.CONTROLLERS),
             "frames": [cls.EE_LINK],
             "num_sim_steps": cls.NUM_SIM_STEPS,
+            "sim_timestep": cls.SIM_TIMESTEP,
         }
         kwargs.update(overrides)
         return kwargs

@@ -26,7 +26,6 @@ class IRB120Robot(ArmRobot):
     EE_LINK = "flange"
     ARM_CONTROLLER = "arm_position_controller"
     CONTROLLERS = ("joint_state_broadcaster", "arm_position_controller")
-    NUM_SIM_STEPS = 20
 
 
 class ABBIRB120RobotEnv(IRB120Robot, MujocoBaseEnv):

@@ -27,7 +27,6 @@ class RX200Robot(ArmRobot):
     EE_LINK = "rx200/ee_gripper_link"
     ARM_CONTROLLER = "arm_position_controller"
     CONTROLLERS = ("joint_state_broadcaster", "arm_position_controller", "gripper_controller")
-    NUM_SIM_STEPS = 20
 
 
 class RX200RobotEnv(RX200Robot, MujocoBaseEnv):

@@ -3,7 +3,7 @@
 ## Description
 The end effector (``rx200/ee_gripper_link``) must come within ``reach_tolerance`` (2 cm) of a goal
 sampled inside the goal box of ``config/rx200_reach_task_config.yaml``, among points the arm can
-reach. One env step is one lockstep round trip to the simulation node (20 physics steps of 2 ms).
+reach. One env step is one lockstep round trip to the simulation node (10 physics steps of 4 ms).
 
 ## Action space
 ``Box(-1, 1, (5,))``: joint deltas, ``target = joints + action * delta_coeff`` (0.05 rad), clipped
