@@ -18,6 +18,7 @@ Hooks (one canonical set; MultiROS and FRobs_RL spellings are accepted, see ``do
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from collections.abc import Mapping, Sequence
@@ -43,14 +44,21 @@ class ResetError(EnvError):
     """A reset could not bring the robot to its initial pose within the allowed attempts."""
 
 
-def _overrides(obj: object, name: str, base: type) -> bool:
-    """True when ``type(obj)`` defines ``name`` somewhere below ``base`` in its MRO."""
-    for klass in type(obj).__mro__:
+@functools.lru_cache(maxsize=1024)
+def _hook_name(cls: type, base: type, names: tuple[str, ...]) -> str | None:
+    """Which of ``names`` (aliases of one hook) ``cls`` implements below ``base``.
+
+    The most derived class that defines any alias wins, so a task env's MultiROS-named hook is not
+    hidden by a robot env's canonically named one; within one class the canonical name wins.
+    Classes are immutable for this purpose, so the answer is cached per class.
+    """
+    for klass in cls.__mro__:
         if klass is base:
-            return False
-        if name in vars(klass):
-            return True
-    return False
+            return None
+        for name in names:
+            if name in vars(klass):
+                return name
+    return None
 
 
 class MujocoEnvCore:
@@ -392,11 +400,9 @@ class MujocoEnvCore:
 
     # -- hook dispatch ----------------------------------------------------------------------
     def _hook(self, base: type, *names: str) -> Any:
-        """The first of ``names`` a subclass implements (canonical name first), or ``None``."""
-        for name in names:
-            if _overrides(self, name, base):
-                return getattr(self, name)
-        return None
+        """The bound hook a subclass implements under one of ``names`` (see :func:`_hook_name`), or ``None``."""
+        name = _hook_name(type(self), base, names)
+        return None if name is None else getattr(self, name)
 
     def _run_reset_hooks(self, base: type, options: dict[str, Any] | None) -> None:
         ready = self._hook(base, "_check_connection_and_readiness", "_check_subs_and_pubs_connection")

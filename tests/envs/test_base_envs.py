@@ -401,3 +401,17 @@ def test_two_envs_do_not_interfere(make):
         a.step(np.ones(3, np.float32))
     assert b.sim_time == 0.0 or b.sim_time < a.sim_time
     np.testing.assert_allclose(b.joint_positions(JOINTS), HOME, atol=1e-6)
+
+
+def test_task_layer_multiros_hook_is_not_hidden_by_robot_layer_canonical_hook(make):
+    class RobotLayer(MultirosPlainEnv):
+        def _check_if_done(self):  # canonical robot-layer name
+            return False
+
+    class TaskLayer(RobotLayer):
+        def _compute_terminated(self, info=None):  # MultiROS task-layer name, more derived
+            return True
+
+    env = make(TaskLayer)
+    env.reset()
+    assert env.step(np.zeros(3, np.float32))[2] is True

@@ -1,0 +1,147 @@
+"""The in-process registry of one ``Context``: who publishes, subscribes and serves what.
+
+It routes messages and service calls between nodes of the same context directly, with no
+serialization and no thread hop (like rclcpp intra-process communication), whatever the
+transport. The transport adds the wire on top.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from typing import TYPE_CHECKING
+
+from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
+from multiros.ros.qos import DurabilityPolicy, qos_compatible
+
+if TYPE_CHECKING:
+    from multiros.ros.client import Client
+    from multiros.ros.node import Node
+    from multiros.ros.publisher import Publisher
+    from multiros.ros.service import Service
+    from multiros.ros.subscription import Subscription
+
+__all__ = ["LocalRegistry"]
+
+_log = logging.getLogger(__name__)
+
+
+class LocalRegistry:
+    """Entities of one context, indexed by resolved name."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.nodes: list[Node] = []
+        self.publishers: dict[str, list[Publisher]] = {}
+        self.subscriptions: dict[str, list[Subscription]] = {}
+        # name -> first server; read without a lock on the service-call hot path (dict.get is atomic).
+        self.services: dict[str, Service] = {}
+        self._service_lists: dict[str, list[Service]] = {}
+        self.clients: dict[str, list[Client]] = {}
+
+    # -- nodes -------------------------------------------------------------------------------
+    def add_node(self, node: Node) -> None:
+        with self._lock:
+            self.nodes.append(node)
+
+    def remove_node(self, node: Node) -> None:
+        with self._lock:
+            if node in self.nodes:
+                self.nodes.remove(node)
+
+    # -- topics ------------------------------------------------------------------------------
+    def add_publisher(self, pub: Publisher) -> None:
+        with self._lock:
+            self.publishers.setdefault(pub.topic_name, []).append(pub)
+            self._rewire(pub.topic_name)
+
+    def remove_publisher(self, pub: Publisher) -> None:
+        with self._lock:
+            pubs = self.publishers.get(pub.topic_name, [])
+            if pub in pubs:
+                pubs.remove(pub)
+            pub._local_subs = ()
+
+    def add_subscription(self, sub: Subscription) -> None:
+        with self._lock:
+            self.subscriptions.setdefault(sub.topic_name, []).append(sub)
+            self._rewire(sub.topic_name)
+            late = [
+                p for p in self.publishers.get(sub.topic_name, [])
+                if p._tl_cache is not None and sub in p._local_subs
+            ]
+        # A transient-local late joiner gets what each matching publisher still holds.
+        if sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+            for pub in late:
+                for msg in list(pub._tl_cache or ()):
+                    sub._enqueue(msg)
+
+    def remove_subscription(self, sub: Subscription) -> None:
+        with self._lock:
+            subs = self.subscriptions.get(sub.topic_name, [])
+            if sub in subs:
+                subs.remove(sub)
+            self._rewire(sub.topic_name)
+
+    def _rewire(self, topic: str) -> None:
+        subs = self.subscriptions.get(topic, [])
+        for pub in self.publishers.get(topic, []):
+            matched = []
+            for sub in subs:
+                if sub.type_name != pub.type_name:
+                    _log.warning(
+                        "topic '%s': publisher type %s and subscription type %s differ; not connected",
+                        topic, pub.type_name, sub.type_name,
+                    )
+                    continue
+                if qos_compatible(pub.qos_profile, sub.qos_profile):
+                    matched.append(sub)
+            pub._local_subs = tuple(matched)
+
+    # -- services ----------------------------------------------------------------------------
+    def add_service(self, srv: Service) -> None:
+        with self._lock:
+            servers = self._service_lists.setdefault(srv.srv_name, [])
+            servers.append(srv)
+            if len(servers) > 1:
+                _log.warning("service '%s' has %d servers in this context; calls go to the first",
+                             srv.srv_name, len(servers))
+            self.services[srv.srv_name] = servers[0]
+
+    def remove_service(self, srv: Service) -> None:
+        with self._lock:
+            servers = self._service_lists.get(srv.srv_name, [])
+            if srv in servers:
+                servers.remove(srv)
+            if servers:
+                self.services[srv.srv_name] = servers[0]
+            else:
+                self.services.pop(srv.srv_name, None)
+
+    def add_client(self, cli: Client) -> None:
+        with self._lock:
+            self.clients.setdefault(cli.srv_name, []).append(cli)
+
+    def remove_client(self, cli: Client) -> None:
+        with self._lock:
+            clients = self.clients.get(cli.srv_name, [])
+            if cli in clients:
+                clients.remove(cli)
+
+    # -- graph -------------------------------------------------------------------------------
+    def endpoints(self) -> list[Endpoint]:
+        """This context's entities as graph records."""
+        out: list[Endpoint] = []
+        with self._lock:
+            for node in self.nodes:
+                out.append(Endpoint(NODE, node.get_name(), node.get_namespace()))
+            for kind, table in (
+                (PUBLISHER, self.publishers), (SUBSCRIPTION, self.subscriptions),
+                (SERVICE, self._service_lists), (CLIENT, self.clients),
+            ):
+                for name, entities in table.items():
+                    for ent in entities:
+                        node = ent.node
+                        out.append(Endpoint(kind, node.get_name(), node.get_namespace(), name,
+                                            ent.type_name, getattr(ent, "qos_profile", None)))
+        return out

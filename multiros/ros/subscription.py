@@ -1,0 +1,63 @@
+"""``Subscription``: created by ``Node.create_subscription``; callbacks run in the executor."""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from multiros.ros.graph import type_name_of
+from multiros.ros.qos import QoSProfile
+
+if TYPE_CHECKING:
+    from multiros.ros.node import Node
+
+__all__ = ["Subscription"]
+
+
+class Subscription:
+    """Receives messages on one topic into a queue of ``qos_profile.depth`` (oldest dropped).
+
+    The callback runs when an executor spinning the node takes the message, under the node's
+    callback lock. Users should not construct this class; call ``Node.create_subscription``.
+    """
+
+    def __init__(
+        self, node: Node, msg_type: type, topic_name: str, callback: Callable[[Any], None],
+        qos_profile: QoSProfile,
+    ) -> None:
+        self.node = node
+        self.msg_type = msg_type
+        self.type_name = type_name_of(msg_type)
+        self.topic_name = topic_name
+        self.callback = callback
+        self.qos_profile = qos_profile
+        self._queue: deque[Any] = deque(maxlen=qos_profile.queue_size)
+        self._notify = node.context.notify
+        self._wire: Any = None
+        self._destroyed = False
+
+    @property
+    def topic(self) -> str:
+        return self.topic_name
+
+    def _enqueue(self, msg: Any) -> None:
+        # Called by publishers in this process and by transport threads.
+        if self._destroyed:
+            return
+        self._queue.append(msg)
+        self._notify()
+
+    def _take(self) -> tuple[bool, Any]:
+        try:
+            return True, self._queue.popleft()
+        except IndexError:
+            return False, None
+
+    def get_publisher_count(self) -> int:
+        """Publishers on this topic in the graph."""
+        return self.node.count_publishers(self.topic_name)
+
+    def destroy(self) -> None:
+        """Same as ``Node.destroy_subscription(self)``."""
+        self.node.destroy_subscription(self)
