@@ -374,13 +374,13 @@ class Node:
         return self.context.graph().by_node(CLIENT, node_name, node_namespace)
 
     def count_publishers(self, topic_name: str) -> int:
-        return self.context.graph().count(PUBLISHER, self.resolve_topic_name(topic_name, only_expand=True))
+        return self.context.transport.count(PUBLISHER, self.resolve_topic_name(topic_name, only_expand=True))
 
     def count_subscribers(self, topic_name: str) -> int:
-        return self.context.graph().count(SUBSCRIPTION, self.resolve_topic_name(topic_name, only_expand=True))
+        return self.context.transport.count(SUBSCRIPTION, self.resolve_topic_name(topic_name, only_expand=True))
 
     def count_services(self, service_name: str) -> int:
-        return self.context.graph().count(SERVICE, self.resolve_service_name(service_name, only_expand=True))
+        return self.context.transport.count(SERVICE, self.resolve_service_name(service_name, only_expand=True))
 
     def __repr__(self) -> str:
         return f"Node({self.get_fully_qualified_name()!r})"

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
-from multiros.ros.graph import type_name_of
+from multiros.ros.graph import SUBSCRIPTION, type_name_of
 from multiros.ros.qos import DurabilityPolicy, QoSProfile
 
 if TYPE_CHECKING:
@@ -64,7 +64,8 @@ class Publisher:
 
     def get_subscription_count(self) -> int:
         """Subscriptions on this topic in the graph (this process and, with Zenoh, the wire)."""
-        return self.node.count_subscribers(self.topic_name)
+        # topic_name is already resolved; skip re-resolving it (this runs on every lazy publish check).
+        return self.node.context.transport.count(SUBSCRIPTION, self.topic_name)
 
     def destroy(self) -> None:
         """Same as ``Node.destroy_publisher(self)``."""

@@ -129,6 +129,17 @@ class LocalRegistry:
                 clients.remove(cli)
 
     # -- graph -------------------------------------------------------------------------------
+    def count(self, kind: str, name: str) -> int:
+        """Entities of ``kind`` called ``name`` in this context (O(1), no graph listing)."""
+        table = {
+            PUBLISHER: self.publishers, SUBSCRIPTION: self.subscriptions,
+            SERVICE: self._service_lists, CLIENT: self.clients,
+        }.get(kind)
+        if table is None:
+            return sum(1 for e in self.endpoints() if e.kind == kind and e.name == name)
+        with self._lock:
+            return len(table.get(name, ()))
+
     def endpoints(self) -> list[Endpoint]:
         """This context's entities as graph records."""
         out: list[Endpoint] = []

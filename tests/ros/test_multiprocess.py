@@ -17,14 +17,15 @@ from multiros.ros.interfaces import get_message, get_service
 pytestmark = [pytest.mark.slow, pytest.mark.multiprocess]
 
 ROOT = Path(__file__).resolve().parents[2]
+CHILD = Path(__file__).resolve().with_name("zenoh_child.py")
 AddTwoInts = get_service("example_interfaces/srv/AddTwoInts")
 Int64 = get_message("std_msgs/msg/Int64")
 
 
 @pytest.fixture
 def child(zenoh_ctx: ros.Context, router_endpoint: str) -> Iterator[subprocess.Popen]:
-    proc = subprocess.Popen([sys.executable, "-m", "tests.ros.zenoh_child", router_endpoint], cwd=ROOT,
-                            env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+    proc = subprocess.Popen([sys.executable, str(CHILD), router_endpoint], cwd=ROOT,
+                            env={"PATH": "/usr/bin:/bin"},
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         yield proc

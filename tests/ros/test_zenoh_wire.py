@@ -14,7 +14,7 @@ import zenoh
 from multiros import ros
 from multiros.ros.interfaces import get_message, get_service
 from multiros.ros.transport.zenoh import wire
-from tests.ros.rosbags_codec import make_typestore
+from .rosbags_codec import make_typestore
 
 String = get_message("std_msgs/msg/String")
 AddTwoInts = get_service("example_interfaces/srv/AddTwoInts")

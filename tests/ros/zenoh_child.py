@@ -1,5 +1,5 @@
 """Child process for cross-process tests and benchmarks: a node serving /add and /hang and
-echoing /ping to /pong. Run: python -m tests.ros.zenoh_child <router endpoint>. Stopped by PID."""
+echoing /ping to /pong. Run: python tests/ros/zenoh_child.py <router endpoint>. Stopped by PID."""
 
 from __future__ import annotations
 

@@ -73,6 +73,14 @@ class Transport(ABC):
     def add_client(self, cli: Client) -> ClientHandle | None:
         return None
 
+    def count(self, kind: str, name: str) -> int:
+        """How many graph entities of ``kind`` are called ``name``.
+
+        Publishers ask this on every publish-if-anyone-listens check, so transports answer it from
+        an index instead of listing the whole graph.
+        """
+        return sum(1 for e in self.endpoints() if e.kind == kind and e.name == name)
+
     @abstractmethod
     def endpoints(self) -> list[Endpoint]:
         """Every graph entity this transport knows (including this context's own)."""

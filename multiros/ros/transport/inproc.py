@@ -25,3 +25,6 @@ class InprocTransport(Transport):
 
     def endpoints(self) -> list[Endpoint]:
         return self.context.registry.endpoints()
+
+    def count(self, kind: str, name: str) -> int:
+        return self.context.registry.count(kind, name)

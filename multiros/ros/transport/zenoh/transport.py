@@ -69,6 +69,7 @@ class ZenohTransport(Transport):
         self._handles: set[Any] = set()
         self._lock = threading.Lock()
         self._graph: dict[str, Endpoint] = {}
+        self._counts: dict[tuple[str, str], int] = {}  # (kind, name) -> entities in _graph
         self._graph_lock = threading.Lock()
         self._remote_subs: dict[str, int] = {}
         self._servers: dict[str, int] = {}
@@ -186,6 +187,7 @@ class ZenohTransport(Transport):
                 if self._graph.pop(key, None) is None:
                     return
                 delta = -1
+            self._counts[(ep.kind, ep.name)] = self._counts.get((ep.kind, ep.name), 0) + delta
             if ep.kind == SUBSCRIPTION and remote:
                 self._remote_subs[ep.name] = self._remote_subs.get(ep.name, 0) + delta
             elif ep.kind == SERVICE:
@@ -195,6 +197,10 @@ class ZenohTransport(Transport):
     def endpoints(self) -> list[Endpoint]:
         with self._graph_lock:
             return list(self._graph.values())
+
+    def count(self, kind: str, name: str) -> int:
+        with self._graph_lock:
+            return self._counts.get((kind, name), 0)
 
     def has_remote_subscriber(self, topic: str) -> bool:
         return self._remote_subs.get(topic, 0) > 0
