@@ -14,6 +14,7 @@ import zenoh
 from multiros import ros
 from multiros.ros.interfaces import get_message, get_service
 from multiros.ros.transport.zenoh import wire
+
 from .rosbags_codec import make_typestore
 
 String = get_message("std_msgs/msg/String")
