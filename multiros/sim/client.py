@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from multiros.ros.exceptions import ServiceCallError
 from multiros.ros.interfaces import get_message, get_service
 
 _logger = logging.getLogger(__name__)
@@ -201,6 +202,8 @@ class SimulationClient:
                 f"simulation node {self._prefix!r} did not answer {self.service_name(name)} within "
                 f"{timeout:g} s; is the node running (and on the same transport and ROS_DOMAIN_ID)?"
             ) from exc
+        except ServiceCallError as exc:
+            raise SimulationNodeError(f"simulation node {self._prefix!r} failed: {exc}") from exc
 
     def request(self, service: str, /, **fields: Any) -> Any:
         """A new request message for ``service`` (e.g. ``"step_robot"``)."""
