@@ -91,7 +91,8 @@ def test_node_services_across_processes():
         assert name == "rx200" and client.get_entities() == ["rx200"]
         target = np.array([0.4, -0.2, 0.3, 0.1, 0.0])
         state = client.step_robot("rx200", {"arm_position_controller": target}, 500, ["rx200/ee_gripper_link"])
-        q = state.position[[state.names.index(j) for j in ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")]]
+        arm = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
+        q = state.position[[state.names.index(j) for j in arm]]
         assert np.max(np.abs(q - target)) < 0.03
         assert state.frame_positions.shape == (1, 3)
         with pytest.raises(SimulationServiceError):
