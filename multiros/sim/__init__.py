@@ -1,26 +1,10 @@
 """The MuJoCo simulation side of uniros: world, descriptions, controllers, rendering.
 
-Importing this package picks MuJoCo's headless EGL backend (``MUJOCO_GL=egl``) when the user has
-not chosen one and no display exists; MuJoCo reads the variable when it is first imported, so
-this must happen before ``import mujoco``.
+Importing ``multiros`` (which any import of this package does first) picks MuJoCo's headless EGL
+backend when the user has not chosen one and no display exists.
 """
 
-import os as _os
-import sys as _sys
-
-
-def _default_gl_backend() -> None:
-    if _os.environ.get("MUJOCO_GL") or not _sys.platform.startswith("linux"):
-        return
-    if _os.environ.get("DISPLAY") or _os.environ.get("WAYLAND_DISPLAY"):
-        return
-    if "mujoco" not in _sys.modules:
-        _os.environ["MUJOCO_GL"] = "egl"
-
-
-_default_gl_backend()
-
-from multiros.sim.errors import (  # noqa: E402
+from multiros.sim.errors import (
     CommandError,
     ControllerError,
     DescriptionError,

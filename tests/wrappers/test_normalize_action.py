@@ -6,7 +6,8 @@ from gymnasium.utils.env_checker import check_env
 
 from multiros.wrappers import NormalizeActionWrapper
 from multiros.wrappers import normalize_action_wrapper as legacy_module
-from tests.wrappers.toy_envs import BoxEnv
+
+from .toy_envs import BoxEnv
 
 
 def test_multiros_module_path_holds_the_class():

@@ -7,7 +7,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from multiros.wrappers import NormalizeObservationWrapper, NormalizeObservWrapper, TimeLimitWrapper
 from multiros.wrappers import normalize_obs_wrapper as legacy_module
-from tests.wrappers.toy_envs import BoxEnv, ToyGoalEnv
+
+from .toy_envs import BoxEnv, ToyGoalEnv
 
 pytestmark = pytest.mark.filterwarnings("ignore:.*different from the unwrapped")
 

@@ -3,7 +3,8 @@ import pytest
 
 from multiros.wrappers import TimeLimitWrapper
 from multiros.wrappers import time_limit_wrapper as legacy_module
-from tests.wrappers.toy_envs import BoxEnv
+
+from .toy_envs import BoxEnv
 
 ACTION = np.array([0.0, 0.0, 10.0])
 
