@@ -19,7 +19,8 @@ RewardType = Literal["sparse", "dense"]
 
 def goal_distance(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
     """Euclidean distance over the last axis (works for single goals and batches)."""
-    return np.linalg.norm(np.asarray(achieved_goal) - np.asarray(desired_goal), axis=-1)
+    diff = np.asarray(achieved_goal, dtype=np.float64) - np.asarray(desired_goal, dtype=np.float64)
+    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
 
 
 def is_success(achieved_goal: np.ndarray, desired_goal: np.ndarray, tolerance: float) -> np.ndarray:

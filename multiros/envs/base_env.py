@@ -148,9 +148,15 @@ class MujocoGoalEnv(MujocoEnvCore, GoalEnv):
         obs = self._observe()
         info = self.info
         ag, dg = obs["achieved_goal"], obs["desired_goal"]
-        info.setdefault("is_success", self._success(obs, info))
+        success = self._success(obs, info)
+        info.setdefault("is_success", success)
         reward = float(self.compute_reward(ag, dg, info))
-        terminated = bool(self.compute_terminated(ag, dg, info))
+        if type(self).compute_terminated is MujocoGoalEnv.compute_terminated and self._hook(
+            MujocoGoalEnv, "_is_success"
+        ) is not None:
+            terminated = success  # the default compute_terminated is _is_success: already computed
+        else:
+            terminated = bool(self.compute_terminated(ag, dg, info))
         extra = self._hook(MujocoGoalEnv, "_check_if_done")
         if extra is not None:
             terminated = terminated or bool(extra())

@@ -208,6 +208,8 @@ class MujocoEnvCore:
         self._state: RobotState | None = None
         self._frame_index: dict[str, int] = {}
         self._joint_index: dict[str, int] = {}
+        self._select_cache: dict[tuple[str, ...], np.ndarray] = {}
+        self._action_bounds: tuple[Any, np.ndarray, np.ndarray] | None = None
         self._closed = False
         self.info: dict[str, Any] = {}
 
@@ -266,6 +268,7 @@ class MujocoEnvCore:
         state = self.sim.step_robot(self.robot_name, commands, steps, self.frames)
         if self._state is None or state.names != self._state.names:
             self._joint_index = {name: i for i, name in enumerate(state.names)}
+            self._select_cache = {}
         if not self._frame_index:
             self._frame_index = {name: i for i, name in enumerate(self.frames)}
         self._state = state
@@ -298,8 +301,13 @@ class MujocoEnvCore:
     def _select(self, values: np.ndarray, names: Sequence[str] | None) -> np.ndarray:
         if names is None:
             return values.copy()
+        key = tuple(names)
+        idx = self._select_cache.get(key)
+        if idx is not None:
+            return values[idx]
         try:
-            return values[[self._joint_index[n] for n in names]]
+            idx = self._select_cache[key] = np.array([self._joint_index[n] for n in key], dtype=np.intp)
+            return values[idx]
         except KeyError as exc:
             raise EnvError(
                 f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: {self.joint_names}"
@@ -386,17 +394,21 @@ class MujocoEnvCore:
             time.sleep(min(remaining, 0.05))
 
     def _check_action(self, action: Any) -> np.ndarray:
+        """Refuse NaN/infinite values and wrong shapes; clip a Box action into its bounds."""
         space = self.action_space
-        arr = np.asarray(action, dtype=np.float64 if not isinstance(space, spaces.Discrete) else np.int64)
         if isinstance(space, spaces.Box):
+            bounds = self._action_bounds
+            if bounds is None or bounds[0] is not space:  # the space may be replaced after __init__
+                bounds = self._action_bounds = (space, space.low.astype(np.float64), space.high.astype(np.float64))
+            arr = np.asarray(action, dtype=np.float64)
             if arr.shape != space.shape:
                 raise ValueError(f"action shape {arr.shape} does not match the action space {space.shape}")
-            if not np.all(np.isfinite(arr)):
+            if not np.isfinite(arr).all():
                 raise ValueError(f"action contains NaN or infinite values: {arr}")
-            arr = np.clip(arr, space.low, space.high)
-        elif not space.contains(action):
+            return np.minimum(np.maximum(arr, bounds[1]), bounds[2])
+        if not space.contains(action):
             raise ValueError(f"action {action!r} is not in the action space {space}")
-        return arr
+        return np.asarray(action)
 
     # -- hook dispatch ----------------------------------------------------------------------
     def _hook(self, base: type, *names: str) -> Any:

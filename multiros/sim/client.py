@@ -117,13 +117,11 @@ def _time_to_sec(stamp: Any) -> float:
 def _robot_state(response: Any) -> RobotState:
     js = response.joint_state
     poses = response.frame_poses
-    n = len(poses)
-    positions = np.empty((n, 3))
-    orientations = np.empty((n, 4))
-    for i, pose in enumerate(poses):
-        p, q = pose.position, pose.orientation
-        positions[i] = (p.x, p.y, p.z)
-        orientations[i] = (q.w, q.x, q.y, q.z)
+    if poses:
+        positions = np.array([(p.position.x, p.position.y, p.position.z) for p in poses])
+        orientations = np.array([(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z) for p in poses])
+    else:
+        positions, orientations = np.empty((0, 3)), np.empty((0, 4))
     return RobotState(
         sim_time=_time_to_sec(response.sim_time),
         names=tuple(js.name),

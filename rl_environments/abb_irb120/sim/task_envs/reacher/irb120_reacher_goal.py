@@ -72,12 +72,13 @@ class ABBIRB120ReacherGoalEnv(ReachTask, ABBIRB120RobotGoalEnv):
         )
 
     def _get_obs(self) -> dict[str, np.ndarray]:
-        ee = np.clip(self.ee_position(), self.ee_low, self.ee_high)
-        q = np.clip(self.arm_positions(), self.chain.lower, self.chain.upper)
-        obs = np.concatenate([ee, q, self.prev_action])
+        # One clip into the declared bounds covers the flange box and the joint limits.
+        space = self.observation_space["observation"]
+        raw = np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action])
+        obs = np.minimum(np.maximum(raw.astype(np.float32), space.low), space.high)
         return {
-            "observation": obs.astype(np.float32),
-            "achieved_goal": ee.astype(np.float32),
+            "observation": obs,
+            "achieved_goal": obs[:3].copy(),
             "desired_goal": self.goal.astype(np.float32),
         }
 

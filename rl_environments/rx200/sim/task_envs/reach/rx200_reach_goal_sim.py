@@ -77,14 +77,13 @@ class RX200ReacherGoalEnv(ReachTask, RX200RobotGoalEnv):
         )
 
     def _get_obs(self) -> dict[str, np.ndarray]:
-        ee = np.clip(self.ee_position(), self.ee_low, self.ee_high)
-        q = np.clip(self.arm_positions(), self.chain.lower, self.chain.upper)
-        qd = np.clip(self.arm_velocities(), -self.max_vel, self.max_vel)
+        # One clip into the declared bounds covers the EE box, joint limits and velocity bounds.
         space = self.observation_space["observation"]
-        obs = np.clip(np.concatenate([ee, q, self.prev_action, qd]), space.low, space.high)
+        raw = np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action, self.arm_velocities()])
+        obs = np.minimum(np.maximum(raw.astype(np.float32), space.low), space.high)
         return {
-            "observation": obs.astype(np.float32),
-            "achieved_goal": ee.astype(np.float32),
+            "observation": obs,
+            "achieved_goal": obs[:3].copy(),
             "desired_goal": self.goal.astype(np.float32),
         }
 
