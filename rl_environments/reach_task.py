@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from rl_environments.reach import GoalSampler
+from rl_environments.reach import GoalSampler, RewardType, goal_reward, is_success
 
 
 class ReachTask:
@@ -105,3 +105,38 @@ class ReachTask:
         dist = float(np.linalg.norm(vec))
         unit = vec / dist if dist > 1e-9 else np.zeros(3)
         return unit, dist
+
+
+class GoalReachTask(ReachTask):
+    """The goal-conditioned reach task: Dict spaces, observation dict, vectorised reward and success.
+
+    The env sets ``self.reward_type`` and calls :meth:`_setup_goal_spaces` after ``_setup_reach``.
+    """
+
+    reward_type: RewardType
+
+    def _setup_goal_spaces(self, obs_low: np.ndarray, obs_high: np.ndarray) -> None:
+        """``observation`` bounds (its first three values are the EE position) and goal boxes."""
+        obs_low, obs_high = np.asarray(obs_low, np.float32), np.asarray(obs_high, np.float32)
+        self.observation_space = spaces.Dict(
+            {
+                "observation": spaces.Box(obs_low, obs_high, dtype=np.float32),
+                "achieved_goal": spaces.Box(obs_low[:3], obs_high[:3], dtype=np.float32),
+                "desired_goal": spaces.Box(
+                    self.goal_min.astype(np.float32), self.goal_max.astype(np.float32), dtype=np.float32
+                ),
+            }
+        )
+
+    def _goal_obs(self, raw: np.ndarray) -> dict[str, np.ndarray]:
+        """The observation dict from raw values starting with the EE position; one clip into the
+        declared bounds covers the EE box, joint limits and velocity bounds."""
+        space = self.observation_space["observation"]
+        obs = np.minimum(np.maximum(raw.astype(np.float32), space.low), space.high)
+        return {"observation": obs, "achieved_goal": obs[:3].copy(), "desired_goal": self.goal.astype(np.float32)}
+
+    def _compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        return goal_reward(achieved_goal, desired_goal, self.tolerance, self.reward_type)
+
+    def _is_success(self, achieved_goal: Any, desired_goal: Any) -> Any:
+        return is_success(achieved_goal, desired_goal, self.tolerance)

@@ -20,6 +20,7 @@ import numpy as np
 
 from multiros.ros.exceptions import ServiceCallError
 from multiros.ros.interfaces import get_message, get_service
+from multiros.sim.services import CONTROLLER_SERVICES, SIM_SERVICES
 
 _logger = logging.getLogger(__name__)
 
@@ -30,31 +31,6 @@ SimulationState = get_message("simulation_interfaces/msg/SimulationState")
 ControllerCommand = get_message("uniros_interfaces/msg/ControllerCommand")
 Pose = get_message("geometry_msgs/msg/Pose")
 
-_SERVICES: dict[str, str] = {
-    "get_simulator_features": "simulation_interfaces/srv/GetSimulatorFeatures",
-    "spawn_entity": "simulation_interfaces/srv/SpawnEntity",
-    "delete_entity": "simulation_interfaces/srv/DeleteEntity",
-    "get_entities": "simulation_interfaces/srv/GetEntities",
-    "get_entity_state": "simulation_interfaces/srv/GetEntityState",
-    "set_entity_state": "simulation_interfaces/srv/SetEntityState",
-    "get_entities_states": "simulation_interfaces/srv/GetEntitiesStates",
-    "reset_simulation": "simulation_interfaces/srv/ResetSimulation",
-    "get_simulation_state": "simulation_interfaces/srv/GetSimulationState",
-    "set_simulation_state": "simulation_interfaces/srv/SetSimulationState",
-    "step_simulation": "simulation_interfaces/srv/StepSimulation",
-    "step_robot": "uniros_interfaces/srv/StepRobot",
-    "set_robot_joint_state": "uniros_interfaces/srv/SetRobotJointState",
-    "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
-    "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",
-    "render_camera": "uniros_interfaces/srv/RenderCamera",
-}
-_CONTROLLER_SERVICES: dict[str, str] = {
-    "list_controllers": "controller_manager_msgs/srv/ListControllers",
-    "switch_controller": "controller_manager_msgs/srv/SwitchController",
-    "load_controller": "controller_manager_msgs/srv/LoadController",
-    "configure_controller": "controller_manager_msgs/srv/ConfigureController",
-    "unload_controller": "controller_manager_msgs/srv/UnloadController",
-}
 
 _RESULT_NAMES = {
     value: name
@@ -173,7 +149,7 @@ class SimulationClient:
         self._prefix = sim_node.rstrip("/")
         self.timeout_sec = float(timeout_sec)
         self._clients: dict[str, Any] = {}
-        self._types = {name: get_service(type_name) for name, type_name in _SERVICES.items()}
+        self._types = {name: get_service(type_name) for name, type_name in SIM_SERVICES.items()}
 
     @property
     def sim_node(self) -> str:
@@ -296,7 +272,7 @@ class SimulationClient:
         req = self.request("set_simulation_state")
         req.state.state = state
         res = self._call("set_simulation_state", req)
-        already = get_service(_SERVICES["set_simulation_state"]).Response.ALREADY_IN_TARGET_STATE
+        already = get_service(SIM_SERVICES["set_simulation_state"]).Response.ALREADY_IN_TARGET_STATE
         if res.result.result != already:
             _check(self.service_name("set_simulation_state"), res.result)
 
@@ -399,9 +375,9 @@ class SimulationClient:
         service = f"{namespace.rstrip('/')}/controller_manager/{name}"
         client = self._clients.get(service)
         if client is None:
-            client = self._node.create_client(get_service(_CONTROLLER_SERVICES[name]), service)
+            client = self._node.create_client(get_service(CONTROLLER_SERVICES[name]), service)
             self._clients[service] = client
-        request = get_service(_CONTROLLER_SERVICES[name]).Request(**request_fields)
+        request = get_service(CONTROLLER_SERVICES[name]).Request(**request_fields)
         try:
             return client.call(request, timeout_sec=self.timeout_sec)
         except TimeoutError as exc:

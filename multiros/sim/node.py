@@ -39,6 +39,7 @@ from multiros.sim.errors import (
     UnstableSimulationError,
 )
 from multiros.sim.robot_io import RobotInterfaces
+from multiros.sim.services import SIM_SERVICES
 from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
 
 _logger = logging.getLogger(__name__)
@@ -51,27 +52,7 @@ Clock = get_message("rosgraph_msgs/msg/Clock")
 Marker = get_message("visualization_msgs/msg/Marker")
 MarkerArray = get_message("visualization_msgs/msg/MarkerArray")
 
-_SRV = {
-    name: get_service(type_name)
-    for name, type_name in {
-        "get_simulator_features": "simulation_interfaces/srv/GetSimulatorFeatures",
-        "spawn_entity": "simulation_interfaces/srv/SpawnEntity",
-        "delete_entity": "simulation_interfaces/srv/DeleteEntity",
-        "get_entities": "simulation_interfaces/srv/GetEntities",
-        "get_entity_state": "simulation_interfaces/srv/GetEntityState",
-        "set_entity_state": "simulation_interfaces/srv/SetEntityState",
-        "get_entities_states": "simulation_interfaces/srv/GetEntitiesStates",
-        "reset_simulation": "simulation_interfaces/srv/ResetSimulation",
-        "get_simulation_state": "simulation_interfaces/srv/GetSimulationState",
-        "set_simulation_state": "simulation_interfaces/srv/SetSimulationState",
-        "step_simulation": "simulation_interfaces/srv/StepSimulation",
-        "step_robot": "uniros_interfaces/srv/StepRobot",
-        "set_robot_joint_state": "uniros_interfaces/srv/SetRobotJointState",
-        "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
-        "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",
-        "render_camera": "uniros_interfaces/srv/RenderCamera",
-    }.items()
-}
+_SRV = {name: get_service(type_name) for name, type_name in SIM_SERVICES.items()}
 
 OK, NOT_FOUND, INCORRECT_STATE, FAILED = (
     Result.RESULT_OK,

@@ -22,6 +22,7 @@ from multiros.ros.qos import DurabilityPolicy, QoSProfile
 from multiros.sim import convert
 from multiros.sim.controllers import JointTrajectoryController
 from multiros.sim.errors import CommandError, ControllerError
+from multiros.sim.services import CONTROLLER_SERVICES
 
 JointState = get_message("sensor_msgs/msg/JointState")
 String = get_message("std_msgs/msg/String")
@@ -30,11 +31,11 @@ JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
 TFMessage = get_message("tf2_msgs/msg/TFMessage")
 TransformStamped = get_message("geometry_msgs/msg/TransformStamped")
 ControllerState = get_message("controller_manager_msgs/msg/ControllerState")
-ListControllers = get_service("controller_manager_msgs/srv/ListControllers")
-LoadController = get_service("controller_manager_msgs/srv/LoadController")
-ConfigureController = get_service("controller_manager_msgs/srv/ConfigureController")
-SwitchController = get_service("controller_manager_msgs/srv/SwitchController")
-UnloadController = get_service("controller_manager_msgs/srv/UnloadController")
+ListControllers = get_service(CONTROLLER_SERVICES["list_controllers"])
+LoadController = get_service(CONTROLLER_SERVICES["load_controller"])
+ConfigureController = get_service(CONTROLLER_SERVICES["configure_controller"])
+SwitchController = get_service(CONTROLLER_SERVICES["switch_controller"])
+UnloadController = get_service(CONTROLLER_SERVICES["unload_controller"])
 
 _LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 

@@ -21,16 +21,11 @@ from typing import Any
 
 from multiros.ros.exceptions import ServiceTimeoutError
 from multiros.ros.interfaces import get_message, get_service
+from multiros.sim.services import CONTROLLER_SERVICES
 
 _logger = logging.getLogger(__name__)
 
-_SERVICES = {
-    "list_controllers": "controller_manager_msgs/srv/ListControllers",
-    "load_controller": "controller_manager_msgs/srv/LoadController",
-    "configure_controller": "controller_manager_msgs/srv/ConfigureController",
-    "switch_controller": "controller_manager_msgs/srv/SwitchController",
-    "unload_controller": "controller_manager_msgs/srv/UnloadController",
-}
+_SERVICES = CONTROLLER_SERVICES
 BEST_EFFORT, STRICT = 1, 2
 Duration = get_message("builtin_interfaces/msg/Duration")
 

@@ -33,8 +33,17 @@ def load_irb120_reacher_config(name: str | Path = "irb120_reacher_task_config.ya
     return load_task_config(name, IRB120_REACHER_SCHEMA, section="irb120")
 
 
-def goal_box(cfg: dict[str, Any]) -> tuple[Any, Any]:
-    """The goal box with ``min_goal_height`` applied."""
+def irb120_reach_settings(cfg: dict[str, Any]) -> dict[str, Any]:
+    """``ReachTask._setup_reach`` arguments from an IRB120 reacher config (joint deltas; the goal
+    box with ``min_goal_height`` applied)."""
     low = list(cfg["position_goal_min"])
     low[2] = max(low[2], cfg["min_goal_height"])
-    return low, list(cfg["position_goal_max"])
+    return {
+        "delta_action": True,
+        "ee_action_type": False,
+        "delta_coeff": cfg["max_joint_delta"],
+        "ee_delta_coeff": 0.0,
+        "tolerance": cfg["tolerance_goal_pos"],
+        "goal_min": low,
+        "goal_max": list(cfg["position_goal_max"]),
+    }

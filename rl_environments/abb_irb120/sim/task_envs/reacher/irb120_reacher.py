@@ -29,7 +29,7 @@ import numpy as np
 from gymnasium import spaces
 
 from rl_environments.abb_irb120.sim.robot_envs.irb120_robot_sim import ABBIRB120RobotEnv
-from rl_environments.abb_irb120.sim.task_envs.reacher.config import goal_box, load_irb120_reacher_config
+from rl_environments.abb_irb120.sim.task_envs.reacher.config import irb120_reach_settings, load_irb120_reacher_config
 from rl_environments.reach_task import ReachTask
 
 
@@ -44,17 +44,7 @@ class ABBIRB120ReacherEnv(ReachTask, ABBIRB120RobotEnv):
     def __init__(self, config_file: str = "irb120_reacher_task_config.yaml", **kwargs: Any) -> None:
         cfg = load_irb120_reacher_config(config_file)
         super().__init__(**kwargs)
-        low, high = goal_box(cfg)
-        self._setup_reach(
-            cfg,
-            delta_action=True,
-            ee_action_type=False,
-            delta_coeff=cfg["max_joint_delta"],
-            ee_delta_coeff=0.0,
-            tolerance=cfg["tolerance_goal_pos"],
-            goal_min=np.asarray(low),
-            goal_max=np.asarray(high),
-        )
+        self._setup_reach(cfg, **irb120_reach_settings(cfg))
         obs_low = np.concatenate([-np.ones(3), self.goal_min, self.chain.lower])
         obs_high = np.concatenate([np.ones(3), self.goal_max, self.chain.upper])
         self.observation_space = spaces.Box(obs_low.astype(np.float32), obs_high.astype(np.float32), dtype=np.float32)

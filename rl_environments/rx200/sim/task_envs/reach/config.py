@@ -30,3 +30,16 @@ RX200_REACH_SCHEMA = {
 def load_rx200_reach_config(name: str | Path = "rx200_reach_task_config.yaml") -> dict[str, Any]:
     """Load and check the RX200 reach config (keys under ``rx200:``)."""
     return load_task_config(name, RX200_REACH_SCHEMA, section="rx200")
+
+
+def rx200_reach_settings(cfg: dict[str, Any], *, delta_action: bool, ee_action_type: bool) -> dict[str, Any]:
+    """``ReachTask._setup_reach`` arguments from an RX200 reach config."""
+    return {
+        "delta_action": delta_action,
+        "ee_action_type": ee_action_type,
+        "delta_coeff": cfg["delta_coeff"],
+        "ee_delta_coeff": cfg["ee_delta_coeff"],
+        "tolerance": cfg["reach_tolerance"],
+        "goal_min": cfg["position_goal_min"],
+        "goal_max": cfg["position_goal_max"],
+    }

@@ -21,15 +21,14 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 
-from rl_environments.reach import goal_reward, is_success, parse_reward_type
-from rl_environments.reach_task import ReachTask
+from rl_environments.reach import parse_reward_type
+from rl_environments.reach_task import GoalReachTask
 from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotGoalEnv
-from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
+from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config, rx200_reach_settings
 
 
-class RX200ReacherGoalEnv(ReachTask, RX200RobotGoalEnv):
+class RX200ReacherGoalEnv(GoalReachTask, RX200RobotGoalEnv):
     """RX200 reach task, goal-conditioned (see the module docstring).
 
     Args:
@@ -51,44 +50,16 @@ class RX200ReacherGoalEnv(ReachTask, RX200RobotGoalEnv):
         cfg = load_rx200_reach_config(config_file)
         self.reward_type = parse_reward_type(reward_type)
         super().__init__(**kwargs)
-        self._setup_reach(
-            cfg,
-            delta_action=delta_action,
-            ee_action_type=ee_action_type,
-            delta_coeff=cfg["delta_coeff"],
-            ee_delta_coeff=cfg["ee_delta_coeff"],
-            tolerance=cfg["reach_tolerance"],
-            goal_min=np.asarray(cfg["position_goal_min"]),
-            goal_max=np.asarray(cfg["position_goal_max"]),
-        )
-        self.ee_low = (np.asarray(cfg["position_ee_min"]) + self.base_position).astype(np.float32)
-        self.ee_high = (np.asarray(cfg["position_ee_max"]) + self.base_position).astype(np.float32)
-        self.max_vel = float(cfg["max_joint_vel"])
-        low = np.concatenate([self.ee_low, self.chain.lower, self.action_space.low, -self.max_vel * np.ones(5)])
-        high = np.concatenate([self.ee_high, self.chain.upper, self.action_space.high, self.max_vel * np.ones(5)])
-        self.observation_space = spaces.Dict(
-            {
-                "observation": spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32),
-                "achieved_goal": spaces.Box(self.ee_low, self.ee_high, dtype=np.float32),
-                "desired_goal": spaces.Box(
-                    self.goal_min.astype(np.float32), self.goal_max.astype(np.float32), dtype=np.float32
-                ),
-            }
+        self._setup_reach(cfg, **rx200_reach_settings(cfg, delta_action=delta_action, ee_action_type=ee_action_type))
+        ee_low = np.asarray(cfg["position_ee_min"]) + self.base_position
+        ee_high = np.asarray(cfg["position_ee_max"]) + self.base_position
+        vel = cfg["max_joint_vel"] * np.ones(5)
+        self._setup_goal_spaces(
+            np.concatenate([ee_low, self.chain.lower, self.action_space.low, -vel]),
+            np.concatenate([ee_high, self.chain.upper, self.action_space.high, vel]),
         )
 
     def _get_obs(self) -> dict[str, np.ndarray]:
-        # One clip into the declared bounds covers the EE box, joint limits and velocity bounds.
-        space = self.observation_space["observation"]
-        raw = np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action, self.arm_velocities()])
-        obs = np.minimum(np.maximum(raw.astype(np.float32), space.low), space.high)
-        return {
-            "observation": obs,
-            "achieved_goal": obs[:3].copy(),
-            "desired_goal": self.goal.astype(np.float32),
-        }
-
-    def _compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
-        return goal_reward(achieved_goal, desired_goal, self.tolerance, self.reward_type)
-
-    def _is_success(self, achieved_goal: Any, desired_goal: Any) -> Any:
-        return is_success(achieved_goal, desired_goal, self.tolerance)
+        return self._goal_obs(
+            np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action, self.arm_velocities()])
+        )

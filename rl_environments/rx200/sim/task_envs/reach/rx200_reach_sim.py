@@ -36,7 +36,7 @@ from gymnasium import spaces
 from rl_environments.reach import goal_reward, parse_reward_type
 from rl_environments.reach_task import ReachTask
 from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotEnv
-from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
+from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config, rx200_reach_settings
 
 
 class RX200ReacherEnv(ReachTask, RX200RobotEnv):
@@ -64,16 +64,7 @@ class RX200ReacherEnv(ReachTask, RX200RobotEnv):
         self.reward_type = parse_reward_type(reward_type)
         self.simple_dense_reward = bool(simple_dense_reward)
         super().__init__(**kwargs)
-        self._setup_reach(
-            cfg,
-            delta_action=delta_action,
-            ee_action_type=ee_action_type,
-            delta_coeff=cfg["delta_coeff"],
-            ee_delta_coeff=cfg["ee_delta_coeff"],
-            tolerance=cfg["reach_tolerance"],
-            goal_min=np.asarray(cfg["position_goal_min"]),
-            goal_max=np.asarray(cfg["position_goal_max"]),
-        )
+        self._setup_reach(cfg, **rx200_reach_settings(cfg, delta_action=delta_action, ee_action_type=ee_action_type))
         self.ee_low = np.asarray(cfg["position_ee_min"]) + self.base_position
         self.ee_high = np.asarray(cfg["position_ee_max"]) + self.base_position
         self.max_vel = float(cfg["max_joint_vel"])
