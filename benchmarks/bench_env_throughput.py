@@ -75,10 +75,13 @@ def main() -> None:
 
     fetch = statistics.median(rates["FetchReach-v4"])
     print()
-    print(f"{'case':42s} {'steps/s (median)':>16s} {'x FetchReach-v4':>16s} {'make->obs s':>12s}")
+    print(f"{'case':42s} {'steps/s (median)':>16s} {'x FetchReach-v4':>16s} {'make->obs s':>12s} {'cold':>6s}")
     for name in cases:
         med = statistics.median(rates[name])
-        print(f"{name:42s} {med:16.0f} {med / fetch:16.2f} {statistics.median(startup[name]):12.2f}")
+        warm = statistics.median(startup[name][1:] or startup[name])
+        print(f"{name:42s} {med:16.0f} {med / fetch:16.2f} {warm:12.2f} {startup[name][0]:6.2f}")
+    print("make->obs: median over rounds after the first; cold: the first round (imports, xacro, model "
+          "compile, child start). Run this script in a fresh process for the cold figure of the first case.")
 
 
 if __name__ == "__main__":
