@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from multiros.utils.ros_markers import goal_marker
 from rl_environments.reach import GoalSampler, RewardType, goal_reward, is_success
 
 
@@ -78,6 +79,18 @@ class ReachTask:
     def _set_episode_init_params(self) -> None:
         self.goal = self.goal_sampler.sample(self.np_random)  # type: ignore[attr-defined]
         self.prev_action = np.zeros(self.action_space.shape, dtype=np.float64)
+        self._show_goal()
+
+    def _show_goal(self) -> None:
+        """A sphere of the tolerance's size at the goal, for rendered images, the viewer and RViz.
+
+        Published once per episode (never from ``compute_reward``, which HER calls on batches).
+        """
+        marker = getattr(self, "_goal_marker", None)
+        if marker is None:
+            self._goal_marker = goal_marker(self.node, self.goal, diameter=2 * self.tolerance)  # type: ignore[attr-defined]
+        else:
+            marker.update(position=self.goal)
 
     def _set_action(self, action: np.ndarray) -> None:
         current = self.arm_positions()  # type: ignore[attr-defined]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -243,3 +245,28 @@ def test_same_seed_same_trajectory(make):
         return np.array(rows)
 
     assert run().tobytes() == run().tobytes()
+
+
+@pytest.mark.slow
+def test_rgb_array_rendering_shows_the_goal_marker(make):
+    env = make("RX200ReacherGoalSim-v0", render_mode="rgb_array", render_width=160, render_height=120).unwrapped
+    env.reset(seed=0)
+    first = env.render()
+    assert first.shape == (120, 160, 3) and first.dtype == np.uint8 and first.std() > 0
+    env.reset(seed=1)  # a new goal moves the green marker
+    node = env._connection.sim_node
+    deadline = time.monotonic() + 5
+    while node._renderer is None or "goal/0" not in node._renderer.markers:
+        assert time.monotonic() < deadline, "the goal marker never reached the node"
+        time.sleep(0.01)
+    moved = env.render()
+    assert np.abs(moved.astype(int) - first.astype(int)).sum() > 0
+
+
+def test_human_rendering_without_a_display_is_refused_clearly(make, monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    env = make("RX200ReacherGoalSim-v0", render_mode="human")
+    env.reset(seed=0)
+    with pytest.raises(Exception, match="display"):
+        env.render()
