@@ -247,18 +247,28 @@ def test_same_seed_same_trajectory(make):
     assert run().tobytes() == run().tobytes()
 
 
+def _wait_for_goal_marker(env, timeout: float = 5.0) -> None:
+    """The node draws markers from its topic thread: wait until it shows the current goal."""
+    node = env._connection.sim_node
+    deadline = time.monotonic() + timeout
+    while True:
+        renderer = node._renderer
+        marker = None if renderer is None else renderer.markers.get("goal/0")
+        if marker is not None and np.allclose(marker.position, env.goal):
+            return
+        assert time.monotonic() < deadline, "the goal marker never reached the node"
+        time.sleep(0.01)
+
+
 @pytest.mark.slow
 def test_rgb_array_rendering_shows_the_goal_marker(make):
     env = make("RX200ReacherGoalSim-v0", render_mode="rgb_array", render_width=160, render_height=120).unwrapped
     env.reset(seed=0)
+    _wait_for_goal_marker(env)
     first = env.render()
     assert first.shape == (120, 160, 3) and first.dtype == np.uint8 and first.std() > 0
     env.reset(seed=1)  # a new goal moves the green marker
-    node = env._connection.sim_node
-    deadline = time.monotonic() + 5
-    while node._renderer is None or "goal/0" not in node._renderer.markers:
-        assert time.monotonic() < deadline, "the goal marker never reached the node"
-        time.sleep(0.01)
+    _wait_for_goal_marker(env)
     moved = env.render()
     assert np.abs(moved.astype(int) - first.astype(int)).sum() > 0
 
