@@ -12,7 +12,7 @@ Every call has a timeout. A result code other than ``RESULT_OK`` raises
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -20,7 +20,13 @@ import numpy as np
 
 from multiros.ros.exceptions import ServiceCallError
 from multiros.ros.interfaces import get_message, get_service
-from multiros.sim.services import CONTROLLER_SERVICES, SIM_SERVICES
+from multiros.sim.controller_client import (
+    BEST_EFFORT,
+    STRICT,
+    ControllerManagerClient,
+    ControllerManagerError,
+)
+from multiros.sim.services import SIM_SERVICES
 
 _logger = logging.getLogger(__name__)
 
@@ -149,6 +155,7 @@ class SimulationClient:
         self._prefix = sim_node.rstrip("/")
         self.timeout_sec = float(timeout_sec)
         self._clients: dict[str, Any] = {}
+        self._controller_managers: dict[str, ControllerManagerClient] = {}
         self._types = {name: get_service(type_name) for name, type_name in SIM_SERVICES.items()}
 
     @property
@@ -371,21 +378,32 @@ class SimulationClient:
         return image_to_array(res.image)
 
     # -- controller manager (per robot namespace) ---------------------------------------------
-    def _controller_call(self, namespace: str, name: str, request_fields: dict[str, Any]) -> Any:
-        service = f"{namespace.rstrip('/')}/controller_manager/{name}"
-        client = self._clients.get(service)
-        if client is None:
-            client = self._node.create_client(get_service(CONTROLLER_SERVICES[name]), service)
-            self._clients[service] = client
-        request = get_service(CONTROLLER_SERVICES[name]).Request(**request_fields)
+    def controller_manager(self, namespace: str) -> ControllerManagerClient:
+        """The (cached) client of the controller manager of the robot in ``namespace``."""
+        cm = self._controller_managers.get(namespace)
+        if cm is None:
+            cm = self._controller_managers[namespace] = ControllerManagerClient(
+                self._node, namespace, timeout_sec=self.timeout_sec
+            )
+        return cm
+
+    def _managed(self, namespace: str, action: Callable[[ControllerManagerClient], Any]) -> Any:
+        """Run a controller-manager call, reporting failures as this client's errors."""
+        cm = self.controller_manager(namespace)
         try:
-            return client.call(request, timeout_sec=self.timeout_sec)
-        except TimeoutError as exc:
-            raise SimulationNodeError(f"{service} did not answer within {self.timeout_sec:g} s") from exc
+            return action(cm)
+        except ControllerManagerError as exc:
+            if isinstance(exc.__cause__, TimeoutError):
+                raise SimulationNodeError(str(exc)) from exc
+            raise SimulationServiceError(
+                cm.service_name("switch_controller"), Result.RESULT_OPERATION_FAILED, str(exc)
+            ) from exc
+        except ServiceCallError as exc:
+            raise SimulationNodeError(f"controller manager {namespace!r} failed: {exc}") from exc
 
     def list_controllers(self, namespace: str) -> list[Any]:
-        """``controller_manager_msgs/ControllerState`` of every controller of the robot in ``namespace``."""
-        return list(self._controller_call(namespace, "list_controllers", {}).controller)
+        """Every controller of the robot in ``namespace`` (name, state, type, claimed interfaces)."""
+        return self._managed(namespace, lambda cm: cm.list_controllers())
 
     def switch_controllers(
         self, namespace: str, activate: Sequence[str] = (), deactivate: Sequence[str] = (), strict: bool = True
@@ -395,21 +413,12 @@ class SimulationClient:
         Raises:
             SimulationServiceError: the controller manager refused the switch.
         """
-        req = {"activate_controllers": list(activate), "deactivate_controllers": list(deactivate),
-               "strictness": 2 if strict else 1}
-        if not self._controller_call(namespace, "switch_controller", req).ok:
-            raise SimulationServiceError(
-                f"{namespace.rstrip('/')}/controller_manager/switch_controller", Result.RESULT_OPERATION_FAILED,
-                f"refused activate={list(activate)} deactivate={list(deactivate)} (see the node's log)",
-            )
+        strictness = STRICT if strict else BEST_EFFORT
+        self._managed(namespace, lambda cm: cm.switch(activate, deactivate, strictness=strictness))
 
     def reset_controllers(self, namespace: str, names: Sequence[str] | None = None) -> None:
         """Restart controllers (deactivate, then activate): they drop their state and hold the current pose."""
-        if names is None:
-            names = [c.name for c in self.list_controllers(namespace) if c.state == "active"]
-        if names:
-            self.switch_controllers(namespace, deactivate=names)
-            self.switch_controllers(namespace, activate=names)
+        self._managed(namespace, lambda cm: cm.reset(names))
 
     def close(self) -> None:
         """Destroy the clients this object created."""
@@ -419,3 +428,6 @@ class SimulationClient:
             except Exception:  # the node may already be gone
                 _logger.debug("destroy_client failed", exc_info=True)
         self._clients.clear()
+        for cm in self._controller_managers.values():
+            cm.close()
+        self._controller_managers.clear()

@@ -415,3 +415,17 @@ def test_task_layer_multiros_hook_is_not_hidden_by_robot_layer_canonical_hook(ma
     env = make(TaskLayer)
     env.reset()
     assert env.step(np.zeros(3, np.float32))[2] is True
+
+
+def test_reset_controllers_restarts_them_on_reset(make):
+    env = make(CanonicalGoalEnv, reset_controllers=True)
+    env.reset(seed=0)
+    env.step(np.ones(3, np.float32))
+    env.reset()
+    states = {c.name: c.state for c in env.sim.list_controllers(env.namespace)}
+    assert states == {"joint_state_broadcaster": "active", "arm_position_controller": "active"}
+    np.testing.assert_allclose(env.joint_positions(JOINTS), HOME, atol=1e-6)
+    from multiros.sim.client import SimulationServiceError
+
+    with pytest.raises(SimulationServiceError, match="refused"):
+        env.sim.switch_controllers(env.namespace, activate=["no_such_controller"])
