@@ -213,7 +213,7 @@ class MujocoEnvCore:
         self._closed = False
         self.info: dict[str, Any] = {}
 
-        from multiros.sim.launch import connect  # the sim layer sits above envs (DESIGN §2)
+        from multiros.sim.launch import connect, local_description_dirs  # the sim layer sits above envs (DESIGN §2)
 
         self._connection = connect(
             sim_mode,
@@ -221,6 +221,8 @@ class MujocoEnvCore:
             transport=transport,
             gui=gui,
             timeout_sec=self.timeout_sec,
+            trusted_paths=local_description_dirs(given["robot_model_xml"], given["controllers_file"])
+            if spawn_robot else (),
         )
         try:
             self.node = self._connection.node

@@ -8,6 +8,14 @@
 * :func:`main` is the ``uniros-sim`` command (also ``python -m multiros.sim.launch``).
 
 Readiness is signalled, never slept for: a child process is ready when its services answer.
+
+Isolation (``process`` mode): the env's context starts a **private Zenoh router** on a free
+loopback port and the child node joins only that router, so several owners on one machine (scripts,
+vector envs, SB3's ``SubprocVecEnv`` workers, test suites) never see each other's nodes, whatever
+router or ``ROS_DOMAIN_ID`` the user's shell points at. The child watches its owner and exits within
+about a second of the owner's death, whatever signal ended it. ``isolated=False`` joins the user's
+graph instead (router and domain from the environment), for a child that ROS tools should see.
+``existing`` mode and ``uniros-sim`` keep the ROS conventions: a named node on the user's domain.
 """
 
 from __future__ import annotations
@@ -18,6 +26,7 @@ import itertools
 import logging
 import os
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -28,11 +37,18 @@ from typing import Any
 from urllib.parse import urlencode
 
 from multiros.ros import Context, Node
+from multiros.ros.exceptions import TransportError
 from multiros.sim.client import DEFAULT_NODE_NAME, SimulationClient, SimulationNodeError
 
 _logger = logging.getLogger(__name__)
 _env_ids = itertools.count()
 _children: weakref.WeakSet[subprocess.Popen] = weakref.WeakSet()
+
+#: Environment variables that point a Zenoh context at a shared graph; a private context ignores them.
+_SHARED_GRAPH_VARS = ("UNIROS_ZENOH_ROUTER", "ZENOH_SESSION_CONFIG_URI", "ZENOH_ROUTER_CONFIG_URI",
+                      "ZENOH_CONFIG_OVERRIDE", "ZENOH_ROUTER_CHECK_ATTEMPTS")
+#: How often a child node checks that its owner is alive (seconds).
+OWNER_POLL_SEC = 0.2
 
 
 def _stop_children_at_exit() -> None:
@@ -179,6 +195,8 @@ def connect(
     real_time_factor: float = 1.0,
     timestep: float | None = None,
     context: Context | None = None,
+    isolated: bool = True,
+    trusted_paths: Sequence[str | os.PathLike[str]] = (),
 ) -> SimulationConnection:
     """Reach a simulation node and return a :class:`SimulationConnection`.
 
@@ -191,6 +209,12 @@ def connect(
         timeout_sec: how long to wait for the node to become ready.
         paused, real_time_factor, timestep: start-up options of a node this call starts.
         context: join this context instead of creating one (the caller then owns its shutdown).
+        isolated: ``process`` mode only: give the child a private Zenoh router on a free loopback
+            port (the default), so no other process on the machine sees it or is seen by it.
+            ``False`` joins the graph the environment names (``UNIROS_ZENOH_ROUTER``,
+            ``ROS_DOMAIN_ID``, ``ZENOH_*``); pick a ``node_name`` nobody else uses then.
+        trusted_paths: directories (besides the package roots) from which a node this call starts
+            may read description files, e.g. the folder of your own robot's URDF.
     """
     if mode not in ("composed", "process", "existing"):
         raise ValueError(f"sim_mode {mode!r} is not one of 'composed', 'process', 'existing'")
@@ -198,18 +222,25 @@ def connect(
         raise ValueError(f"sim_mode {mode!r} needs a wire transport; use transport='zenoh'")
     transport = transport or ("inproc" if mode == "composed" else "zenoh")
     owns = context is None
-    ctx = context if context is not None else Context(transport=transport).init()
+    if context is not None:
+        ctx = context
+    elif mode == "process" and isolated:
+        ctx = private_context()
+    else:
+        ctx = Context(transport=transport).init()
     sim_node = None
     process = None
     node = None
     try:
         if mode == "composed":
             sim_node = compose(
-                node_name, context=ctx, paused=paused, real_time_factor=real_time_factor, timestep=timestep, gui=gui
+                node_name, context=ctx, paused=paused, real_time_factor=real_time_factor, timestep=timestep, gui=gui,
+                **_trust_kwargs(trusted_paths),
             )
         elif mode == "process":
             process = _spawn_child(ctx, node_name, gui=gui, paused=paused, real_time_factor=real_time_factor,
-                                   timestep=timestep)
+                                   timestep=timestep, private=isolated and context is None,
+                                   trusted_paths=trusted_paths)
         node = Node(f"uniros_env_{os.getpid()}_{next(_env_ids)}", context=ctx)
         client = SimulationClient(node, "/" + node_name.lstrip("/"), timeout_sec=timeout_sec)
         if mode != "composed":
@@ -227,18 +258,77 @@ def connect(
         raise
 
 
+def _trust_kwargs(trusted_paths: Sequence[str | os.PathLike[str]]) -> dict[str, Any]:
+    return {"trusted_paths": [os.fspath(p) for p in trusted_paths]} if trusted_paths else {}
+
+
+def local_description_dirs(*locations: str | os.PathLike[str] | None) -> list[str]:
+    """Folders of the local files among ``locations`` (not ``package://`` URIs, not XML text).
+
+    A node started for an env may read description files only from package roots and from
+    folders it is told to trust: these are the folders of the user's own robot and controller files.
+    """
+    dirs: list[str] = []
+    for location in locations:
+        if location is None:
+            continue
+        text = os.fspath(location).strip()
+        if not text or text.startswith("<") or "://" in text and not text.startswith("file://"):
+            continue
+        path = text[len("file://"):] if text.startswith("file://") else text
+        path = path.split("?", 1)[0]
+        folder = os.path.dirname(os.path.realpath(path))
+        if os.path.isfile(os.path.realpath(path)) and folder not in dirs:
+            dirs.append(folder)
+    return dirs
+
+
+def free_loopback_endpoint() -> str:
+    """A Zenoh TCP endpoint on a port of 127.0.0.1 that is free right now."""
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
+
+
+def private_context(attempts: int = 5) -> Context:
+    """A Zenoh context with its own router on a free loopback port, deaf to the shared graph.
+
+    The ``ZENOH_*`` and ``UNIROS_ZENOH_ROUTER`` variables are ignored, so a user's multi-host set-up
+    never leaks into it. A port taken between probing and binding is retried on another port.
+
+    Raises:
+        TransportError: no router could be started in ``attempts`` tries.
+    """
+    env = {k: v for k, v in os.environ.items() if k not in _SHARED_GRAPH_VARS}
+    last: Exception | None = None
+    for _ in range(max(1, attempts)):
+        ctx = Context(transport="zenoh", env=env, router="embedded", router_endpoint=free_loopback_endpoint())
+        try:
+            return ctx.init()
+        except TransportError as exc:  # port taken meanwhile: another port
+            last = exc
+    raise TransportError(f"could not start a private Zenoh router on loopback after {attempts} tries: {last}")
+
+
 def _spawn_child(
-    ctx: Context, node_name: str, *, gui: bool, paused: bool, real_time_factor: float, timestep: float | None
+    ctx: Context, node_name: str, *, gui: bool, paused: bool, real_time_factor: float, timestep: float | None,
+    private: bool = False, trusted_paths: Sequence[str | os.PathLike[str]] = (),
 ) -> subprocess.Popen:
     argv = [sys.executable, "-m", "multiros.sim.launch", "--name", node_name.lstrip("/"), "--transport", "zenoh",
-            "--real-time-factor", str(real_time_factor)]
+            "--real-time-factor", str(real_time_factor), "--owner-pid", str(os.getpid())]
     if not paused:
         argv.append("--play")
     if gui:
         argv.append("--gui")
     if timestep is not None:
         argv += ["--timestep", str(timestep)]
+    for path in trusted_paths:
+        argv += ["--trust-path", os.fspath(path)]
     env = dict(os.environ)
+    if private:
+        for key in _SHARED_GRAPH_VARS:
+            env.pop(key, None)
+        argv += ["--router", "none"]
     env.update(_child_environment(ctx))
     proc = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL)
     _children.add(proc)
@@ -248,10 +338,38 @@ def _spawn_child(
 def _child_environment(ctx: Context) -> dict[str, str]:
     """Environment variables that make a child process join ``ctx``'s ROS graph."""
     env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": "zenoh"}
-    endpoint = ctx.transport_options.get("router_endpoint")
+    endpoint = ctx.transport_options.get("router_endpoint") or ctx.env.get("UNIROS_ZENOH_ROUTER")
     if endpoint:
         env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
     return env
+
+
+def _watch_owner(owner_pid: int, stop: threading.Event) -> threading.Thread:
+    """Set ``stop`` once the owner process is gone (or this process was re-parented away from it)."""
+
+    watch_parent = os.getppid() == owner_pid  # started by the owner itself: re-parenting means it died
+
+    def alive() -> bool:
+        if watch_parent and os.getppid() != owner_pid:
+            return False
+        try:
+            os.kill(owner_pid, 0)
+        except ProcessLookupError:
+            return False
+        except PermissionError:
+            return True
+        return True
+
+    def watch() -> None:
+        while not stop.wait(OWNER_POLL_SEC):
+            if not alive():
+                _logger.warning("owner process %d is gone: shutting down", owner_pid)
+                stop.set()
+                return
+
+    thread = threading.Thread(target=watch, name="uniros-sim-owner-watch", daemon=True)
+    thread.start()
+    return thread
 
 
 def robot_resource(
@@ -309,39 +427,79 @@ def robot_resource(
     return uri, ""
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """``uniros-sim``: run the simulation node standalone until interrupted."""
-    parser = argparse.ArgumentParser(prog="uniros-sim", description="Run the uniros MuJoCo simulation node.")
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="uniros-sim",
+        description="Run the uniros MuJoCo simulation node. It reports ready (a log line, and its services "
+                    "start answering) only once every --robot is spawned.",
+    )
     parser.add_argument("--name", default=DEFAULT_NODE_NAME, help="node name (default: %(default)s)")
     parser.add_argument("--namespace", default="", help="node namespace")
     parser.add_argument("--transport", default="zenoh", choices=["zenoh", "inproc"], help="ROS transport")
     parser.add_argument("--robot", action="append", default=[],
-                        help="spawn a robot: NAME=URI[?xacro_arg=value...] (repeatable)")
+                        help="spawn a robot at launch: NAME=URI[?xacro_arg=value...] (repeatable); "
+                             "ResetSimulation with SCOPE_ALL brings it back")
     parser.add_argument("--play", action="store_true", help="start playing in real time instead of paused")
     parser.add_argument("--real-time-factor", type=float, default=1.0,
                         help="speed when playing: 1.0 = wall clock, <= 0 = as fast as possible")
     parser.add_argument("--timestep", type=float, help="physics time step in seconds")
     parser.add_argument("--gui", action="store_true", help="open the interactive MuJoCo viewer")
+    parser.add_argument("--router", default=None,
+                        help="Zenoh router: 'auto' (default: use the one at $UNIROS_ZENOH_ROUTER or "
+                             "tcp/127.0.0.1:7447, start one there if none listens), 'embedded', 'none', "
+                             "or an endpoint such as tcp/127.0.0.1:7448")
+    parser.add_argument("--trust-path", action="append", default=[], metavar="DIR",
+                        help="a directory besides the package roots from which spawn requests may read "
+                             "description files (repeatable)")
+    parser.add_argument("--allow-xacro-strings", action="store_true",
+                        help="run xacro on descriptions that arrive as request strings (xacro evaluates "
+                             "Python expressions: only on a trusted network)")
+    parser.add_argument("--owner-pid", type=int, default=None,
+                        help="exit when this process is gone (set by envs that start the node)")
     parser.add_argument("--log-level", default="INFO")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``uniros-sim``: run the simulation node standalone until interrupted."""
+    parser = _parser()
     opts = parser.parse_args(argv)
     logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    robots = []
+    for spec in opts.robot:
+        name, sep, uri = spec.partition("=")
+        if not sep or not name:
+            parser.error(f"--robot {spec!r} must look like NAME=URI")
+        robots.append((name, uri))
 
-    ctx = Context(transport=opts.transport).init()
+    transport_options: dict[str, Any] = {}
+    if opts.router:
+        transport_options["router"] = opts.router
+    ctx = Context(transport=opts.transport, **(transport_options if opts.transport == "zenoh" else {})).init()
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
+    if opts.owner_pid is not None:
+        _watch_owner(opts.owner_pid, stop)
+    node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
+    if opts.allow_xacro_strings:
+        node_options["allow_xacro_strings"] = True
     node = None
     try:
         node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,
-                       real_time_factor=opts.real_time_factor, timestep=opts.timestep, gui=opts.gui)
-        for spec in opts.robot:
-            name, sep, uri = spec.partition("=")
-            if not sep:
-                parser.error(f"--robot {spec!r} must look like NAME=URI")
+                       real_time_factor=opts.real_time_factor, timestep=opts.timestep, gui=opts.gui,
+                       serve=False, **node_options)
+        for name, uri in robots:
             node.spawn_from_cli(name, uri)
-        _logger.info("simulation node /%s ready (transport %s)", opts.name, opts.transport)
+        node.world.mark_launched()
+        node.start_serving()
+        _logger.info("simulation node %s ready (transport %s, robots: %s)", node.get_fully_qualified_name(),
+                     opts.transport, ", ".join(n for n, _ in robots) or "none")
         while not stop.wait(0.5):
             pass
+    except RuntimeError as exc:  # a robot could not be spawned: say why, exit non-zero
+        _logger.error("%s", exc)
+        return 1
     finally:
         if node is not None:
             node.destroy_node()

@@ -1,0 +1,241 @@
+"""Isolation: process-mode nodes are private to their owner, die with it, and never meet another graph.
+
+Every process a test starts is stopped by PID in a ``finally``; every router listens on a free
+loopback port. The "shared graph" of these tests is the one the suite's conftest set up (a private
+port and a non-zero domain), standing in for a user's default router and domain.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from multiros import ros
+from multiros.sim.client import SimulationClient
+from multiros.sim.launch import connect, free_loopback_endpoint, local_description_dirs, private_context
+
+pytestmark = [pytest.mark.multiprocess]
+
+RX200 = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _wait_gone(pid: int, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while _alive(pid):
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        proc.kill()
+    proc.wait(timeout=10)
+
+
+@contextlib.contextmanager
+def _uniros_sim(*args: str, endpoint: str) -> Iterator[subprocess.Popen]:
+    """``uniros-sim`` in a child process with a router of its own at ``endpoint``."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "multiros.sim.launch", "--router", endpoint, "--log-level", "WARNING", *args],
+        stdin=subprocess.DEVNULL,
+    )
+    try:
+        yield proc
+    finally:
+        _stop(proc)
+
+
+@contextlib.contextmanager
+def _client_on(endpoint: str, node_name: str = "mujoco_sim") -> Iterator[SimulationClient]:
+    with ros.Context(transport="zenoh", env={}, router="none", router_endpoint=endpoint) as ctx:
+        node = ros.Node("isolation_probe", context=ctx)
+        client = SimulationClient(node, "/" + node_name, timeout_sec=10.0)
+        try:
+            yield client
+        finally:
+            client.close()
+            node.destroy_node()
+
+
+def test_the_suite_never_uses_the_default_router_or_domain():
+    endpoint = os.environ["UNIROS_ZENOH_ROUTER"]
+    assert not endpoint.endswith(":7447")
+    assert int(os.environ["ROS_DOMAIN_ID"]) != 0
+    ctx = ros.Context(transport="zenoh")
+    assert ctx.domain_id != 0
+
+
+def test_private_context_has_its_own_router_and_ignores_shared_settings(monkeypatch):
+    monkeypatch.setenv("ZENOH_CONFIG_OVERRIDE", "connect/endpoints=[\"tcp/127.0.0.1:7447\"]")
+    ctx = private_context()
+    try:
+        endpoint = ctx.transport_options["router_endpoint"]
+        assert endpoint.startswith("tcp/127.0.0.1:") and endpoint != os.environ["UNIROS_ZENOH_ROUTER"]
+        assert "ZENOH_CONFIG_OVERRIDE" not in ctx.env
+    finally:
+        ctx.try_shutdown()
+
+
+def test_local_description_dirs_names_folders_of_local_files_only(tmp_path):
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text("<robot name='r'/>")
+    assert local_description_dirs(str(urdf), None) == [str(tmp_path.resolve())]
+    assert local_description_dirs(f"file://{urdf}?a=b") == [str(tmp_path.resolve())]
+    assert local_description_dirs("package://rx200_description/urdf/rx200.urdf.xacro", "<robot/>", None) == []
+    assert local_description_dirs(str(tmp_path / "missing.urdf")) == []
+
+
+@pytest.mark.slow
+def test_process_mode_nodes_of_one_owner_never_meet_and_ignore_a_shared_node():
+    """Two process-mode nodes at once plus a node on the shared graph: each spawn of 'rx200'
+    lands in its own world (this collided with 'an entity named rx200 exists' before)."""
+    shared = os.environ["UNIROS_ZENOH_ROUTER"]
+    with _uniros_sim("--robot", f"rx200={RX200}", endpoint=shared) as decoy:
+        a = connect("process", timeout_sec=30.0)
+        b = connect("process", timeout_sec=30.0)
+        try:
+            assert {a.pid, b.pid, decoy.pid} == {a.pid, b.pid, decoy.pid} and len({a.pid, b.pid}) == 2
+            for conn in (a, b):
+                assert conn.context.transport_options["router_endpoint"] != shared
+                assert conn.client.get_entities() == []
+                assert conn.client.spawn_entity("rx200", uri=RX200) == "rx200"
+            a.client.reset_simulation()
+            assert b.client.get_entities() == ["rx200"]
+        finally:
+            a.close()
+            b.close()
+        with _client_on(shared) as client:
+            client.wait_until_ready(timeout_sec=20.0)
+            assert client.get_entities() == ["rx200"]  # the decoy saw none of it
+
+
+_OWNER = textwrap.dedent("""
+    import sys
+    from multiros.sim.launch import connect
+    conn = connect("process", timeout_sec=30.0)
+    print(conn.pid, flush=True)
+    sys.stdin.read()  # until the test kills us
+""")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
+def test_child_node_dies_with_its_owner_whatever_the_signal(sig):
+    owner = subprocess.Popen([sys.executable, "-c", _OWNER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                             text=True)
+    child_pid = None
+    try:
+        line = owner.stdout.readline()
+        assert line.strip().isdigit(), f"owner printed {line!r}"
+        child_pid = int(line)
+        assert _alive(child_pid)
+        owner.send_signal(sig)
+        owner.wait(timeout=10)
+        assert _wait_gone(child_pid, timeout=5.0), f"child {child_pid} outlived its owner ({sig.name})"
+    finally:
+        _stop(owner)
+        if child_pid is not None and _alive(child_pid):
+            os.kill(child_pid, signal.SIGKILL)
+
+
+@pytest.mark.slow
+def test_uniros_sim_answers_only_once_its_robots_are_spawned():
+    endpoint = free_loopback_endpoint()
+    with _uniros_sim("--robot", f"rx200={RX200}", endpoint=endpoint):
+        with _client_on(endpoint) as client:
+            client.wait_until_ready(timeout_sec=30.0)
+            # The very first answer already knows the robot (it said "no robot 'rx200'" before).
+            assert client.get_entities() == ["rx200"]
+
+
+def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
+    endpoint = free_loopback_endpoint()
+    proc = subprocess.run(
+        [sys.executable, "-m", "multiros.sim.launch", "--router", endpoint,
+         "--robot", "arm=package://no_such_package/robot.urdf"],
+        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+    )
+    assert proc.returncode == 1
+    assert "no_such_package" in proc.stderr
+
+
+def test_uniros_sim_help_mentions_isolation_options():
+    proc = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--help"], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0
+    for flag in ("--router", "--trust-path", "--allow-xacro-strings", "--owner-pid"):
+        assert flag in proc.stdout
+
+
+_WORKER = textwrap.dedent("""
+    import sys
+    import uniros
+    env = uniros.make("RX200ReacherGoalSim-v0", sim_mode="process", timeout_sec=60.0)
+    try:
+        env.reset(seed=int(sys.argv[1]))
+        for _ in range(20):
+            env.step(env.action_space.sample())
+        print("ok", env.unwrapped._connection.pid, flush=True)
+    finally:
+        env.close()
+""")
+
+
+@pytest.mark.slow
+def test_four_processes_make_process_mode_envs_at_once():
+    procs = [subprocess.Popen([sys.executable, "-c", _WORKER, str(i)], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in range(4)]
+    try:
+        outs = [p.communicate(timeout=240) for p in procs]
+    finally:
+        for p in procs:
+            _stop(p)
+    for p, (out, err) in zip(procs, outs):
+        assert p.returncode == 0, err[-2000:]
+        assert out.startswith("ok ")
+    assert len({out.split()[1] for out, _ in outs}) == 4
+
+
+@pytest.mark.slow
+def test_make_vec_and_subproc_vec_env_with_process_mode():
+    import uniros
+
+    vec = uniros.make_vec("RX200ReacherSim-v0", num_envs=2, sim_mode="process")
+    try:
+        vec.reset(seed=0)
+        for _ in range(5):
+            vec.step(vec.action_space.sample())
+    finally:
+        vec.close()
+
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    sub = SubprocVecEnv([lambda: uniros.make("RX200ReacherSim-v0", sim_mode="process", timeout_sec=60.0)] * 2)
+    try:
+        sub.reset()
+        for _ in range(5):
+            sub.step([sub.action_space.sample() for _ in range(2)])
+    finally:
+        sub.close()
