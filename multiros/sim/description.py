@@ -102,6 +102,8 @@ class RobotDescription:
             with MuJoCo's world body and becomes body ``world_urdf``).
         ros2_control: joints of the ``<ros2_control>`` tag (empty if absent).
         controllers_yaml: controller YAML referenced by a ``<gazebo><plugin><parameters>`` tag.
+        free_root: the MJCF root body had a free joint: the entity is free-floating (the joint is
+            taken out of ``spec``; the world adds its own when it spawns the entity).
     """
 
     name: str
@@ -115,6 +117,7 @@ class RobotDescription:
     ros2_control: tuple[Ros2ControlJoint, ...] = ()
     controllers_yaml: Path | None = None
     link_bodies: dict[str, str] = field(default_factory=dict)
+    free_root: bool = False
 
     def body_name(self, link: str) -> str:
         """MuJoCo body name of a link (differs only for a link called ``world``)."""
@@ -533,7 +536,9 @@ def _parse_gazebo_parameters(root: ET.Element, index: PackageIndex, source: str)
 def mjcf_to_description(source: str | Path, *, source_name: str | None = None) -> RobotDescription:
     """Load an MJCF file or string. Its ``<actuator>`` elements are removed (the controllers add
     their own) and each body gets a site of the same name. The worldbody must have exactly one
-    child body (the root); wrap several bodies in one if needed."""
+    child body (the root); wrap several bodies in one if needed. A free joint on the root
+    (``<freejoint/>``) makes the description free-floating (``free_root``); an unnamed root body is
+    called ``base_link``."""
     is_text = isinstance(source, str) and source.lstrip().startswith("<")
     name = source_name or ("<string>" if is_text else str(source))
     try:
@@ -549,6 +554,15 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None) -
                                f"put the model under one root body", source=name)
     for act in list(spec.actuators):
         spec.delete(act)
+    root = roots[0]
+    if not root.name:
+        taken = {b.name for b in spec.bodies}
+        root.name = next((n for n in ("base_link", "root_body") if n not in taken), "uniros_root_body")
+    # MuJoCo allows a free joint only on a top-level body, i.e. the root here: record it and take it
+    # out, so the world's own free joint (with the spawn pose) is the only one.
+    free = [j for j in root.joints if int(j.type) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    for j in free:
+        spec.delete(j)
     joints: list[JointInfo] = []
     for j in spec.joints:
         jtype = int(j.type)
@@ -571,4 +585,4 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None) -
             if spec.site(body.name) is None:
                 body.add_site(name=body.name, size=[0.005, 0.005, 0.005], group=4)
     return RobotDescription(name=spec.modelname or "mjcf", format="mjcf", spec=spec, source=name, text=text,
-                            root=roots[0].name, joints=tuple(joints), links=tuple(links))
+                            root=root.name, joints=tuple(joints), links=tuple(links), free_root=bool(free))

@@ -2,9 +2,12 @@
 
 Each entity is attached to one ``MjSpec`` under the name prefix ``"<name>/"``: a fixed-base robot
 or static object hangs below a mocap body called ``<name>`` (so its base pose can be set without a
-recompile); a floating entity's root body gets a free joint. Spawning and deleting recompile with
-``MjSpec.recompile``, which carries the other entities' state over by name; ids and addresses are
-then resolved again, once, and the step path uses only preallocated index arrays.
+recompile); a floating entity's root body gets a free joint (an MJCF root's own free joint is
+taken out by the description loader and replaced by this one, placed at the spawn pose). Spawning
+and deleting recompile with ``MjSpec.recompile``, which carries the other entities' state over by
+name; ids and addresses are then resolved again, once, and the step path uses only preallocated
+index arrays. The entities spawned with ``initial=True`` (or marked by ``World.mark_launched``)
+form the launched world, which ``reset(ResetScope.ALL)`` spawns again from their recorded recipes.
 
 Collision filtering follows Gazebo's default (``self_collide`` false): robot geoms use
 ``contype=2, conaffinity=1``, everything else ``contype=1, conaffinity=3``, so robots touch the
@@ -17,6 +20,7 @@ access; :class:`RealTimeRunner` holds its lock while it steps, and the node take
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import math
 import re
@@ -200,6 +204,7 @@ class _Entity:
         self.prefix = f"{info.name}/"
         self.spawn_pos, self.spawn_quat = pose
         self.initial_q = initial_q
+        self.recipe: dict = {}  # World.spawn keyword arguments that re-create this entity identically
         self.actuated = desc.actuated_joints if info.category == EntityCategory.ROBOT else ()
         self.hw: RobotHardware | None = None
         self.cm: ControllerManager | None = None
@@ -315,6 +320,7 @@ class World:
         self.index = package_index or default_index()
         self.mesh_cache = MeshCache(mesh_cache)
         self._entities: dict[str, _Entity] = {}
+        self._launched: dict[str, dict] = {}  # the launched world: spawn recipes, in spawn order
         self._frame_sets: weakref.WeakSet[FrameSet] = weakref.WeakSet()
         self._callbacks: list[Callable[[], None]] = []
         self._spec = self._base_spec()
@@ -418,8 +424,9 @@ class World:
             category: default ROBOT for descriptions with joints, DYNAMIC_OBJECT for a floating
                 body without joints, STATIC_OBJECT for a fixed one.
             xacro_args: ``$(arg ...)`` values for xacro.
-            floating: give the root a free joint (default: False for robots and static objects,
-                True for objects without joints).
+            floating: give the root a free joint (default: True for MJCF whose root body has a
+                free joint and for objects without joints, False for other robots and static objects).
+                A free entity's pose is the free joint's; its base is never welded.
             joint_positions: initial joint positions by joint name (also the reset state); default
                 the ``<ros2_control>`` ``initial_value``, else 0 clamped into the limits.
             controllers: controllers to load and activate (default: all the YAML defines, in order,
@@ -427,8 +434,10 @@ class World:
             controllers_yaml: ros2_control YAML (path or parsed mapping); default: the file the
                 description references (``<gazebo><plugin><parameters>``), else a joint state
                 broadcaster plus a ``position_controller`` (JointGroupPositionController) on all joints.
-            gravity_compensation: compensate gravity on the robot's bodies (default from options).
-            initial: part of the initial world: kept by ``reset(ResetScope.SPAWNED)``.
+            gravity_compensation: compensate gravity on the bodies of a fixed-base robot (default
+                from options; free-floating entities always feel gravity).
+            initial: part of the launched world: kept by ``reset(ResetScope.SPAWNED)``, spawned
+                again as now by ``reset(ResetScope.ALL)`` (see :meth:`mark_launched`).
 
         Returns:
             The new entity's :class:`EntityInfo`.
@@ -456,7 +465,8 @@ class World:
                 EntityCategory.STATIC_OBJECT if floating is False else EntityCategory.DYNAMIC_OBJECT)
         category = EntityCategory(category)
         if floating is None:
-            floating = category in (EntityCategory.DYNAMIC_OBJECT, EntityCategory.OBJECT) and not desc.joints
+            floating = desc.free_root or (
+                category in (EntityCategory.DYNAMIC_OBJECT, EntityCategory.OBJECT) and not desc.joints)
         if category == EntityCategory.STATIC_OBJECT:
             floating = False
         initial_q = self._initial_joint_positions(name, desc, joint_positions)
@@ -468,7 +478,7 @@ class World:
                           controllers_yaml=desc.controllers_yaml, description=desc.text)
         ent = _Entity(info, desc, (pos, quat), floating, initial_q)
         gravcomp = self.options.gravity_compensation if gravity_compensation is None else gravity_compensation
-        added = self._add_to_spec(ent, gravcomp and category == EntityCategory.ROBOT)
+        added = self._add_to_spec(ent, gravcomp and category == EntityCategory.ROBOT and not floating)
         self._entities[name] = ent
         try:
             self._recompile()
@@ -486,7 +496,38 @@ class World:
         except Exception:
             self.delete(name)
             raise
+        ent.recipe = {"description": desc, "pose": (pos.copy(), quat.copy()), "namespace": info.namespace,
+                      "category": category, "floating": floating,
+                      "joint_positions": dict(joint_positions) if joint_positions else None,
+                      "controllers": list(controllers) if controllers is not None else None,
+                      "controllers_yaml": controllers_yaml, "gravity_compensation": bool(gravcomp)}
+        if initial:
+            self._launched.pop(name, None)
+            self._launched[name] = ent.recipe
         return info
+
+    def mark_launched(self, names: Sequence[str] | None = None) -> tuple[str, ...]:
+        """Make entities part of the launched world (default: every entity present now).
+
+        ``reset(ResetScope.ALL)`` deletes every entity and spawns the launched ones again, in their
+        spawn order, exactly as they were spawned (pose, initial joint positions, controllers);
+        ``reset(ResetScope.SPAWNED)`` keeps them. Equivalent to spawning with ``initial=True``.
+        Returns the names marked.
+
+        Raises:
+            EntityError: an unknown entity.
+        """
+        chosen = list(self._entities) if names is None else list(names)
+        ents = [self._get(n) for n in chosen]
+        for ent in sorted(ents, key=lambda e: list(self._entities).index(e.name)):
+            ent.info = dataclasses.replace(ent.info, initial=True)
+            self._launched.pop(ent.name, None)
+            self._launched[ent.name] = ent.recipe
+        return tuple(chosen)
+
+    def launched_entities(self) -> tuple[str, ...]:
+        """Names of the launched world's entities (what ``reset(ResetScope.ALL)`` brings back)."""
+        return tuple(self._launched)
 
     def _initial_joint_positions(self, name: str, desc: RobotDescription,
                                  given: Mapping[str, float] | None) -> dict[str, float]:
@@ -1007,15 +1048,32 @@ class World:
     def _sync_warn_counts(self) -> None:
         self._warn_counts = np.array([self._data.warning[w].number for w in _BAD_WARNINGS])
 
-    def reset(self, scope: int = ResetScope.ALL) -> None:
-        """Reset by ``ResetSimulation`` scope bits: TIME (time to 0), STATE (every entity back to
-        its spawn state, controllers holding it), SPAWNED (delete non-initial entities);
-        DEFAULT/ALL = all three."""
+    def reset(self, scope: int = ResetScope.ALL) -> tuple[str, ...]:
+        """Reset by ``ResetSimulation`` scope bits.
+
+        * ``ALL`` (255) and ``DEFAULT`` (0): as if the world was closed and launched again: every
+          entity is deleted, time and all physics state go back to zero, and the launched world
+          (entities spawned with ``initial=True`` or marked by :meth:`mark_launched`) is spawned
+          again from what was recorded at its spawn: pose, initial joint positions, controllers
+          loaded and active as then. Deleted launched entities come back; physics properties set
+          since (time step, gravity) are kept.
+        * Any other combination of ``TIME`` (time to 0), ``STATE`` (every entity back to its
+          spawn pose and joint positions at rest; active controllers hold that state) and
+          ``SPAWNED`` (delete the entities that are not launched ones).
+
+        Returns:
+            The names of the entities created anew (``ALL`` only; empty otherwise): objects held
+            for them (controller managers, ROS interfaces) must be fetched again.
+
+        Raises:
+            ValueError: unknown scope bits.
+        """
         scope = int(scope)
-        if scope == int(ResetScope.DEFAULT):
-            scope = int(ResetScope.ALL)
         if scope & ~int(ResetScope.ALL):
-            raise ValueError(f"reset scope {scope} has unknown bits")
+            raise ValueError(f"reset scope {scope} has unknown bits; use 1 (time), 2 (state), 4 (spawned), "
+                             f"a combination, or 255 (all)")
+        if scope in (int(ResetScope.DEFAULT), int(ResetScope.ALL)):
+            return self._relaunch()
         if scope & ResetScope.SPAWNED:
             doomed = [n for n, e in self._entities.items() if not e.info.initial]
             for n in doomed:
@@ -1041,6 +1099,19 @@ class World:
                     self._read_state(ent)
                     ent.cm.hold(d.time)
                     self._write_actuators(ent)
+        return ()
+
+    def _relaunch(self) -> tuple[str, ...]:
+        for ent in self._entities.values():
+            self._remove_from_spec(ent)
+        self._entities.clear()
+        self._recompile()
+        mujoco.mj_resetData(self._model, self._data)
+        self._sync_warn_counts()
+        for name, recipe in list(self._launched.items()):
+            self.spawn(name, initial=True, **recipe)
+        mujoco.mj_forward(self._model, self._data)
+        return tuple(self._launched)
 
     # ------------------------------------------------------------------ physics properties
     @property
