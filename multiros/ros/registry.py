@@ -11,7 +11,7 @@ import logging
 import threading
 from typing import TYPE_CHECKING
 
-from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
+from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint, type_name_of
 from multiros.ros.qos import DurabilityPolicy, qos_compatible
 
 if TYPE_CHECKING:
@@ -21,9 +21,22 @@ if TYPE_CHECKING:
     from multiros.ros.service import Service
     from multiros.ros.subscription import Subscription
 
-__all__ = ["LocalRegistry"]
+__all__ = ["LocalRegistry", "service_type_key"]
 
 _log = logging.getLogger(__name__)
+
+
+def service_type_key(srv_type: object) -> str:
+    """What a client and a server of one name must share to be connected.
+
+    For interface types the RIHS01 type hash, as in the Zenoh key, so the variants of one service
+    from different ROS distributions stay apart in-process too; for any other class its name.
+    """
+    if getattr(srv_type, "_registry", None) is not None and hasattr(srv_type, "Request"):
+        from multiros.ros.interfaces import type_hash
+
+        return type_hash(srv_type)
+    return type_name_of(srv_type)
 
 
 class LocalRegistry:
@@ -34,8 +47,9 @@ class LocalRegistry:
         self.nodes: list[Node] = []
         self.publishers: dict[str, list[Publisher]] = {}
         self.subscriptions: dict[str, list[Subscription]] = {}
-        # name -> first server; read without a lock on the service-call hot path (dict.get is atomic).
-        self.services: dict[str, Service] = {}
+        # (name, type key) -> first server; read without a lock on the service-call hot path
+        # (dict.get is atomic). Variants of one service (one per type hash) live side by side.
+        self.services: dict[tuple[str, str], Service] = {}
         self._service_lists: dict[str, list[Service]] = {}
         self.clients: dict[str, list[Client]] = {}
 
@@ -100,23 +114,27 @@ class LocalRegistry:
 
     # -- services ----------------------------------------------------------------------------
     def add_service(self, srv: Service) -> None:
+        key = (srv.srv_name, service_type_key(srv.srv_type))
         with self._lock:
             servers = self._service_lists.setdefault(srv.srv_name, [])
             servers.append(srv)
-            if len(servers) > 1:
-                _log.warning("service '%s' has %d servers in this context; calls go to the first",
-                             srv.srv_name, len(servers))
-            self.services[srv.srv_name] = servers[0]
+            same = [s for s in servers if (s.srv_name, service_type_key(s.srv_type)) == key]
+            if len(same) > 1:
+                _log.warning("service '%s' (%s) has %d servers in this context; calls go to the first",
+                             srv.srv_name, srv.type_name, len(same))
+            self.services[key] = same[0]
 
     def remove_service(self, srv: Service) -> None:
+        key = (srv.srv_name, service_type_key(srv.srv_type))
         with self._lock:
             servers = self._service_lists.get(srv.srv_name, [])
             if srv in servers:
                 servers.remove(srv)
-            if servers:
-                self.services[srv.srv_name] = servers[0]
+            same = [s for s in servers if (s.srv_name, service_type_key(s.srv_type)) == key]
+            if same:
+                self.services[key] = same[0]
             else:
-                self.services.pop(srv.srv_name, None)
+                self.services.pop(key, None)
 
     def add_client(self, cli: Client) -> None:
         with self._lock:

@@ -225,8 +225,10 @@ class SimulationClient:
         ``orientation`` is a ``(w, x, y, z)`` quaternion. Returns the entity's unique name.
         """
         req = self.request("spawn_entity", name=name, allow_renaming=allow_renaming, entity_namespace=namespace)
-        req.entity_resource.uri = uri
-        req.entity_resource.resource_string = resource_string
+        # Rolling: a Resource field; Jazzy/Kilted (simulation_interfaces 1.x): top-level fields.
+        resource = getattr(req, "entity_resource", req)
+        resource.uri = uri
+        resource.resource_string = resource_string
         req.initial_pose.header.frame_id = "world"
         req.initial_pose.pose = make_pose(position, orientation)
         res = self._call("spawn_entity", req, timeout_sec)
@@ -255,8 +257,14 @@ class SimulationClient:
     def set_entity_pose(
         self, name: str, position: Sequence[float], orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0)
     ) -> None:
-        """Teleport an entity to a world pose (``orientation`` as ``(w, x, y, z)``)."""
-        req = self.request("set_entity_state", entity=name, set_pose=True)
+        """Teleport an entity to a world pose (``orientation`` as ``(w, x, y, z)``).
+
+        With Jazzy/Kilted definitions (``ROS_DISTRO``) the request has no ``set_pose`` flag and sets
+        the whole state, so the entity also stops (zero twist); with Rolling's only the pose is set.
+        """
+        req = self.request("set_entity_state", entity=name)
+        if hasattr(req, "set_pose"):
+            req.set_pose = True
         req.state.header.frame_id = "world"
         req.state.pose = make_pose(position, orientation)
         res = self._call("set_entity_state", req)

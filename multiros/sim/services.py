@@ -5,6 +5,7 @@ from __future__ import annotations
 # Name under the node (``~/<name>``) -> service type.
 SIM_SERVICES: dict[str, str] = {
     "get_simulator_features": "simulation_interfaces/srv/GetSimulatorFeatures",
+    "get_spawnables": "simulation_interfaces/srv/GetSpawnables",
     "spawn_entity": "simulation_interfaces/srv/SpawnEntity",
     "delete_entity": "simulation_interfaces/srv/DeleteEntity",
     "get_entities": "simulation_interfaces/srv/GetEntities",

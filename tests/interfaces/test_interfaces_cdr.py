@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import random
+import re
 
 import numpy as np
 import pytest
@@ -18,7 +19,6 @@ from multiros.ros.interfaces import (
     list_types,
     serialize_message,
 )
-from multiros.ros.interfaces.registry import DEFINITIONS_ROOT
 
 JAZZY = get_typestore(Stores.ROS2_JAZZY)
 COMMON = [n for n in list_types("msg") if n in JAZZY.fielddefs]
@@ -42,17 +42,20 @@ def _service_messages() -> list[str]:
 SERVICE_MESSAGES = _service_messages()
 
 
-def _oracle_store():
-    """rosbags typestore holding Jazzy plus every shipped type, parsed by rosbags' own parser."""
-    store = get_typestore(Stores.ROS2_JAZZY)
+def _oracle_store(registry=None, store=None):
+    """rosbags typestore holding Jazzy plus every type of ``registry`` (default: the default one),
+    parsed by rosbags' own parser from the same definition files."""
+    registry = registry or default_registry()
+    store = store or get_typestore(Stores.ROS2_JAZZY)
     types = {}
-    for path in sorted(DEFINITIONS_ROOT.glob("*/*/*")):
+    for full in registry.list_types():
+        path = registry.definition_file(full)
         pkg, kind, text = path.parent.parent.name, path.parent.name, path.read_text()
         name = f"{pkg}/{kind}/{path.stem}"
         if kind == "msg" and name not in store.fielddefs:
             types.update(get_types_from_msg(text, name))
         elif kind in ("srv", "action"):
-            parts = [p for p in ("\n" + text + "\n").split("\n---\n")]
+            parts = re.split(r"^---[ \t]*$", text, flags=re.M)
             suffixes = ("_Request", "_Response") if kind == "srv" else ("_Goal", "_Result", "_Feedback")
             for part, suffix in zip(parts, suffixes):
                 # rosbags resolves relative names only for pkg/msg/ names: parse as msg, then rename

@@ -97,7 +97,7 @@ def test_spawn_refuses_bad_input_with_the_standard_code(sim, request_fields, res
     node, client, _ = sim
     req = SpawnEntity.Request(**request_fields)
     for key, value in resource.items():
-        setattr(req.entity_resource, key, value)
+        setattr(getattr(req, "entity_resource", req), key, value)  # Rolling: Resource; Jazzy: top level
     res = _raw(client, "spawn_entity", req)
     assert res.result.result == getattr(SpawnEntity.Response, code_name), res.result.error_message
     assert res.result.error_message
@@ -107,7 +107,7 @@ def test_spawn_refuses_bad_input_with_the_standard_code(sim, request_fields, res
 def test_spawn_refuses_zero_quaternion(sim):
     node, client, _ = sim
     req = SpawnEntity.Request(name="arm")
-    req.entity_resource.uri = ARM_URI
+    getattr(req, "entity_resource", req).uri = ARM_URI
     q = req.initial_pose.pose.orientation
     q.x = q.y = q.z = q.w = 0.0
     res = _raw(client, "spawn_entity", req)

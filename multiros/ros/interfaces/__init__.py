@@ -11,8 +11,10 @@ rclpy-shaped helpers::
     from multiros.ros.interfaces import sensor_msgs, simulation_interfaces
     sensor_msgs.msg.JointState; simulation_interfaces.srv.StepSimulation.Request
 
-Definitions ship as ``.msg``/``.srv``/``.action`` text in ``multiros/ros/definitions`` (ROS 2 Jazzy);
-classes and codecs are generated on first use. Value representation: see :mod:`._classgen`.
+Definitions ship as ``.msg``/``.srv``/``.action`` text per ROS 2 distribution (Jazzy, Kilted,
+Rolling; Humble's too). The functions here use the distribution of ``ROS_DISTRO`` (Jazzy when unset);
+``registry_for("rolling").service_class(...)`` gives another distribution's types. Classes and codecs
+are generated on first use. Value representation: see :mod:`._classgen`.
 """
 
 from __future__ import annotations
@@ -24,11 +26,24 @@ from .errors import (
     InterfaceDefinitionError,
     InterfaceError,
     UnknownTypeError,
+    UnsupportedDistroError,
 )
-from .registry import TypeRegistry, default_registry, normalize_name
+from .registry import (
+    DEFAULT_DISTRO,
+    SHIPPED_DISTROS,
+    SUPPORTED_DISTROS,
+    TypeRegistry,
+    default_distro,
+    default_registry,
+    normalize_name,
+    registry_for,
+)
 from .typehash import type_description, type_hash
 
 __all__ = [
+    "DEFAULT_DISTRO",
+    "SHIPPED_DISTROS",
+    "SUPPORTED_DISTROS",
     "DeserializationError",
     "FieldError",
     "FieldValueError",
@@ -36,7 +51,9 @@ __all__ = [
     "InterfaceError",
     "TypeRegistry",
     "UnknownTypeError",
+    "UnsupportedDistroError",
     "dds_type_name",
+    "default_distro",
     "default_registry",
     "deserialize_message",
     "get_action",
@@ -45,6 +62,7 @@ __all__ = [
     "is_message",
     "list_types",
     "normalize_name",
+    "registry_for",
     "serialize_message",
     "type_description",
     "type_hash",
@@ -139,7 +157,13 @@ def dds_type_name(type_name: str) -> str:
     (``example_interfaces::srv::dds_::AddTwoInts_``); ``pkg/srv/X_Request`` and ``pkg/srv/X_Response``
     give the request and response variants.
     """
-    full = default_registry().resolve(type_name)
+    try:
+        full = default_registry().resolve(type_name)
+    except UnknownTypeError:
+        pkg, kind, name = normalize_name(type_name)  # a full name of another distribution's type
+        if kind is None:
+            raise
+        full = f"{pkg}/{kind}/{name}"
     pkg, kind, name = full.split("/")
     return f"{pkg}::{kind}::dds_::{name}_"
 

@@ -14,6 +14,7 @@ __all__ = [
     "InterfaceDefinitionError",
     "InterfaceError",
     "UnknownTypeError",
+    "UnsupportedDistroError",
 ]
 
 
@@ -71,3 +72,7 @@ class DeserializationError(InterfaceError, ValueError):
         self.reason = reason
         where = f"{type_name}.{field}" if field else type_name
         super().__init__(f"cannot deserialize {where}: {reason}")
+
+
+class UnsupportedDistroError(InterfaceError, ValueError):
+    """A ROS 2 distribution (``ROS_DISTRO`` or an argument) whose definitions or wire uniros lacks."""

@@ -1,26 +1,55 @@
 """Find interface definitions, parse them on first use and build classes and codecs lazily.
 
-A :class:`TypeRegistry` reads ``<root>/<package>/{msg,srv,action}/<Name>.<ext>`` files. The default
-registry (:func:`default_registry`) reads the definitions shipped in ``multiros/ros/definitions``;
-its content never changes after loading, so sharing it between nodes and envs is safe. Create your
-own ``TypeRegistry(roots=[...])`` to add packages.
+A :class:`TypeRegistry` reads ``<root>/<package>/{msg,srv,action}/<Name>.<ext>`` files.
+
+Definitions ship per ROS 2 distribution: the packages whose release differs between distributions
+(``simulation_interfaces``, ``controller_manager_msgs``, ``control_msgs``) in
+``multiros/ros/distros/<distro>/``, the others in ``multiros/ros/definitions/``.
+:func:`registry_for` gives one registry per distribution; :func:`default_registry` is the one of
+``ROS_DISTRO`` (Jazzy when unset), chosen once per process. Registries never change after loading,
+so sharing them between nodes and envs is safe. Shipped registries share one class per definition:
+a type whose definition is the same in two distributions (``std_msgs/msg/Header``,
+``simulation_interfaces/msg/Result``, ...) is the same Python class in both. Create your own
+``TypeRegistry(roots=[...])`` to add packages.
 """
 
 from __future__ import annotations
 
 import difflib
+import hashlib
+import os
 import threading
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from . import _cdrgen
 from ._classgen import build_message_class
-from .errors import UnknownTypeError
+from .errors import UnknownTypeError, UnsupportedDistroError
 from .idl import ActionSpec, MessageSpec, ServiceSpec, parse_action, parse_message, parse_service
 
-__all__ = ["DEFINITIONS_ROOT", "TypeRegistry", "default_registry", "normalize_name"]
+__all__ = [
+    "DEFAULT_DISTRO",
+    "DEFINITIONS_ROOT",
+    "DISTROS_ROOT",
+    "SHIPPED_DISTROS",
+    "SUPPORTED_DISTROS",
+    "TypeRegistry",
+    "default_distro",
+    "default_registry",
+    "distro_roots",
+    "normalize_name",
+    "registry_for",
+]
 
 DEFINITIONS_ROOT = Path(__file__).resolve().parent.parent / "definitions"
+DISTROS_ROOT = Path(__file__).resolve().parent.parent / "distros"
+#: The distribution used when ``ROS_DISTRO`` is unset.
+DEFAULT_DISTRO = "jazzy"
+#: Distributions whose wire (rmw_zenoh keys with RIHS01 type hashes) uniros speaks.
+SUPPORTED_DISTROS: tuple[str, ...] = ("jazzy", "kilted", "rolling")
+#: Distributions whose definitions ship; Humble's rmw_zenoh has no type hashes, so its peers are
+#: not reachable, but its definitions can still be loaded (``registry_for("humble")``).
+SHIPPED_DISTROS: tuple[str, ...] = ("humble", *SUPPORTED_DISTROS)
 _EXT = {"msg": ".msg", "srv": ".srv", "action": ".action"}
 _SERVICE_PARTS = ("_Request", "_Response", "_Event")
 _ACTION_PARTS = ("_Goal", "_Result", "_Feedback", "_FeedbackMessage")
@@ -42,12 +71,21 @@ class TypeRegistry:
     """Interface definitions from one or more roots, with lazily built classes and codecs.
 
     Args:
-        roots: Directories holding ``<package>/{msg,srv,action}/`` folders. Default: the shipped ones.
-            A package found in several roots is taken from the first.
+        roots: Directories holding ``<package>/{msg,srv,action}/`` folders. Default: the shipped ones
+            of :data:`DEFAULT_DISTRO` (``distro_roots("jazzy")``). A package found in several roots
+            is taken from the first.
+
+    Attributes:
+        distro: The ROS 2 distribution of a registry from :func:`registry_for`, else ``None``.
     """
 
-    def __init__(self, roots: Iterable[str | Path] | None = None) -> None:
-        self._roots = [DEFINITIONS_ROOT] if roots is None else [Path(r) for r in roots]
+    def __init__(self, roots: Iterable[str | Path] | None = None, *, _distro: str | None = None,
+                 _pool: dict | None = None) -> None:
+        self._roots = distro_roots(DEFAULT_DISTRO) if roots is None else [Path(r) for r in roots]
+        self.distro = _distro
+        # Shared by the shipped registries: (name, definition signature) -> class.
+        self._pool = _pool
+        self._signatures: dict[str, str] = {}
         self._files: dict[str, Path] = {}
         for root in self._roots:
             for path in sorted(root.glob("*/*/*")):
@@ -62,6 +100,16 @@ class TypeRegistry:
         self._service_classes: dict[str, type] = {}
         self._action_classes: dict[str, type] = {}
         self._codecs: dict[tuple, Callable] = {}
+
+    @property
+    def roots(self) -> list[Path]:
+        """The definition roots, in lookup order."""
+        return list(self._roots)
+
+    def definition_file(self, name: str) -> Path:
+        """The ``.msg``/``.srv``/``.action`` file defining ``name`` (derived names: their source file)."""
+        full = self.resolve(name)
+        return self._files[full if full in self._files else self._derived_file(full)]
 
     # -- names ----------------------------------------------------------------------------------
     def packages(self) -> list[str]:
@@ -180,11 +228,33 @@ class TypeRegistry:
         with self._lock:
             cls = self._classes.get(spec.name)
             if cls is None:
-                cls = build_message_class(spec, self.message_class)
-                cls._registry = self
+                key = None if self._pool is None else ("msg", spec.name, self._signature(spec.name))
+                cls = None if key is None else self._pool.get(key)
+                if cls is None:
+                    cls = build_message_class(spec, self.message_class)
+                    cls._registry = self
+                    if key is not None:
+                        cls = self._pool.setdefault(key, cls)
                 self._classes[spec.name] = cls
             self._classes[name] = cls
         return cls
+
+    def _signature(self, name: str) -> str:
+        """Digest of a message's definition and of every type it references (comments excluded).
+
+        Two registries giving a type the same signature define it identically, constants and
+        defaults included, so they can share its class.
+        """
+        sig = self._signatures.get(name)
+        if sig is None:
+            spec = self.message_spec(name)
+            parts = [repr(spec)]
+            for f in spec.fields:
+                if f.type.is_nested and f.type.base != name:
+                    parts.append(self._signature(f.type.base))
+            sig = hashlib.sha256("\n".join(parts).encode()).hexdigest()
+            self._signatures[name] = sig
+        return sig
 
     def service_class(self, name: str) -> type:
         """A class with ``Request``, ``Response``, ``Event`` and ``_type``, like rclpy's service types."""
@@ -193,15 +263,24 @@ class TypeRegistry:
             return cls
         spec = self.service_spec(name)
         with self._lock:
+            key = None
+            if self._pool is not None:
+                key = ("srv", spec.name, self._signature(spec.request.name), self._signature(spec.response.name))
+                cls = self._pool.get(key)
+                if cls is not None:
+                    self._service_classes[name] = self._service_classes[spec.name] = cls
+                    return cls
             pkg, kind, base = spec.name.split("/")
             cls = type(base, (), {
-                "__slots__": (), "_type": spec.name, "_spec": spec,
+                "__slots__": (), "_type": spec.name, "_spec": spec, "_registry": self,
                 "__module__": f"multiros.ros.interfaces.{pkg}.{kind}",
                 "__doc__": f"ROS 2 service ``{spec.name}`` (generated).",
                 "Request": self.message_class(spec.request.name),
                 "Response": self.message_class(spec.response.name),
                 "Event": self.message_class(spec.event.name),
             })
+            if key is not None:
+                cls = self._pool.setdefault(key, cls)
             self._service_classes[name] = self._service_classes[spec.name] = cls
         return cls
 
@@ -220,7 +299,7 @@ class TypeRegistry:
                 "FeedbackMessage": self.message_class(spec.feedback_message.name),
             })
             cls = type(base, (), {
-                "__slots__": (), "_type": spec.name, "_spec": spec, "Impl": impl,
+                "__slots__": (), "_type": spec.name, "_spec": spec, "Impl": impl, "_registry": self,
                 "__module__": f"multiros.ros.interfaces.{pkg}.{kind}",
                 "__doc__": f"ROS 2 action ``{spec.name}`` (generated).",
                 "Goal": self.message_class(spec.goal.name),
@@ -263,14 +342,69 @@ class TypeRegistry:
         return fn
 
 
+def distro_roots(distro: str) -> list[Path]:
+    """Definition roots of a shipped distribution: its own packages first, then the common ones."""
+    return [DISTROS_ROOT / _check_distro(distro, SHIPPED_DISTROS), DEFINITIONS_ROOT]
+
+
+def _check_distro(distro: object, allowed: tuple[str, ...], source: str = "distribution") -> str:
+    name = distro.strip().lower() if isinstance(distro, str) else distro
+    if name not in allowed:
+        hint = ""
+        if name == "humble":
+            hint = (" Humble's rmw_zenoh puts no type hashes in its keys, so uniros cannot reach Humble "
+                    "peers;")
+        raise UnsupportedDistroError(
+            f"{source} {distro!r} is not supported;{hint} supported: {', '.join(allowed)} "
+            f"(default {DEFAULT_DISTRO} when ROS_DISTRO is unset)"
+        )
+    return name  # type: ignore[return-value]
+
+
+_REGISTRIES: dict[str, TypeRegistry] = {}
+_REGISTRIES_LOCK = threading.Lock()
+_POOL: dict[tuple, type] = {}
 _DEFAULT: list[TypeRegistry] = []
 _DEFAULT_LOCK = threading.Lock()
 
 
+def registry_for(distro: str) -> TypeRegistry:
+    """The registry of one distribution's definitions (created on first call, then shared).
+
+    Args:
+        distro: ``jazzy``, ``kilted``, ``rolling`` (:data:`SUPPORTED_DISTROS`) or ``humble``.
+
+    Raises:
+        UnsupportedDistroError: no definitions ship for ``distro``; the message names the shipped ones.
+    """
+    name = _check_distro(distro, SHIPPED_DISTROS)
+    reg = _REGISTRIES.get(name)
+    if reg is None:
+        with _REGISTRIES_LOCK:
+            reg = _REGISTRIES.get(name)
+            if reg is None:
+                reg = _REGISTRIES[name] = TypeRegistry(distro_roots(name), _distro=name, _pool=_POOL)
+    return reg
+
+
+def default_distro() -> str:
+    """The distribution ROS would use: ``ROS_DISTRO`` if set (and supported), else Jazzy.
+
+    Raises:
+        UnsupportedDistroError: ``ROS_DISTRO`` names a distribution uniros does not speak; the message
+            names the supported ones.
+    """
+    value = os.environ.get("ROS_DISTRO", "").strip()
+    if not value:
+        return DEFAULT_DISTRO
+    return _check_distro(value, SUPPORTED_DISTROS, "ROS_DISTRO")
+
+
 def default_registry() -> TypeRegistry:
-    """The registry of the definitions shipped with multiros (created on first call)."""
+    """The registry of :func:`default_distro`, chosen on the first call and kept for the process."""
     if not _DEFAULT:
+        reg = registry_for(default_distro())
         with _DEFAULT_LOCK:
             if not _DEFAULT:
-                _DEFAULT.append(TypeRegistry())
+                _DEFAULT.append(reg)
     return _DEFAULT[0]

@@ -108,13 +108,25 @@ def type_description(type_name: str, registry: TypeRegistry | None = None) -> di
     }
 
 
-def type_hash(type_name: str, registry: TypeRegistry | None = None) -> str:
+def type_hash(type_name: str | type, registry: TypeRegistry | None = None) -> str:
     """``RIHS01_<64 hex>`` of a message, service or action, as rosidl computes it.
 
     Args:
         type_name: ``pkg/msg/Name``, ``pkg/srv/Name``, ``pkg/action/Name`` (or ``pkg/Name``: message
-            first, then service, then action).
-        registry: Where to look types up; default: the shipped definitions.
+            first, then service, then action), or a generated class (hashed with the registry, so
+            the distribution, that made it).
+        registry: Where to look types up; default: the class's registry, else the default one.
     """
-    desc = type_description(type_name, registry)
-    return "RIHS01_" + hashlib.sha256(json.dumps(desc).encode()).hexdigest()
+    if not isinstance(type_name, str):
+        cls = type_name
+        type_name = getattr(cls, "_type", None)
+        if not isinstance(type_name, str):
+            raise TypeError(f"type_hash needs a type name or a generated interface class, got {cls!r}")
+        registry = registry or getattr(cls, "_registry", None)
+    reg = registry or default_registry()
+    cache = reg.__dict__.setdefault("_hash_cache", {})
+    found = cache.get(type_name)
+    if found is None:
+        desc = type_description(type_name, reg)
+        found = cache[type_name] = "RIHS01_" + hashlib.sha256(json.dumps(desc).encode()).hexdigest()
+    return found

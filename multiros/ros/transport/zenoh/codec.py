@@ -47,5 +47,14 @@ class InterfacesCodec:
     def type_hash(self, type_name: str) -> str:
         return self._itf.type_hash(type_name)
 
+    def type_hash_of(self, ros_type: type) -> str:
+        """Hash of a generated class, with the definitions (distribution) it was made from.
+
+        Optional in a codec: the transport falls back to ``type_hash(type_name)`` without it.
+        """
+        if getattr(ros_type, "_registry", None) is None:
+            return self._itf.type_hash(ros_type._type)
+        return self._itf.type_hash(ros_type)
+
     def dds_type_name(self, type_name: str) -> str:
         return self._itf.dds_type_name(type_name)
