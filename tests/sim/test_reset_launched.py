@@ -225,3 +225,42 @@ def test_node_stopped_state_relaunches(sim):
     client.set_simulation_state(SimulationState.STATE_STOPPED)
     assert client.get_entities() == ["arm"]
     assert client.step_robot("arm", steps=0).sim_time == 0.0
+
+
+@pytest.mark.slow
+def test_over_zenoh_the_respawned_robot_answers(index, tmp_path):
+    """Two Zenoh sessions on a private router: after SCOPE_ALL the peer reaches the re-created
+    controller-manager services and receives the re-created joint_states."""
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    with Context(transport="zenoh", env={}, router_endpoint=endpoint) as node_ctx, \
+            Context(transport="zenoh", env={}, router="none", router_endpoint=endpoint) as peer_ctx:
+        world = World(WorldOptions(), package_index=index, mesh_cache=tmp_path / "meshes")
+        node = SimulationNode("mujoco_sim", world=world, context=node_ctx)
+        node.spawn_from_cli("arm", ARM_URI)
+        node.mark_launched()
+        user = Node("tester", context=peer_ctx)
+        client = SimulationClient(user, "/mujoco_sim", timeout_sec=5.0)
+        client.wait_until_ready(timeout_sec=10.0)
+        client.spawn_entity("later", uri=FREE_BOX, position=(0.4, 0, 0.3))
+        _to_trajectory_controller(client)
+        client.reset_simulation(255)
+        assert client.get_entities() == ["arm"]
+        assert _states(client, "/arm") == {"joint_state_broadcaster": "active", "arm_position_controller": "active"}
+        _to_trajectory_controller(client)
+        assert node.world.controller_manager("arm").get("arm_controller").state == "active"
+        JointState = get_message("sensor_msgs/msg/JointState")
+        received = []
+        user.create_subscription(JointState, "/arm/joint_states", received.append, 10)
+        executor = SingleThreadedExecutor(context=peer_ctx)
+        executor.add_node(user)
+        deadline = time.monotonic() + 10.0
+        while not received and time.monotonic() < deadline:
+            client.step_simulation(10)
+            executor.spin_once(timeout_sec=0.05)
+        assert received, "joint_states of the respawned robot did not arrive over Zenoh"
+        client.close()
+        node.destroy_node()
