@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError
 from multiros.ros.graph import type_name_of
 from multiros.ros.qos import QoSProfile
+from multiros.ros.registry import service_type_key
 from multiros.ros.task import Future
 
 if TYPE_CHECKING:
@@ -33,6 +34,8 @@ class Client:
         self.srv_name = srv_name
         self.qos_profile = qos_profile
         self._services = node.context.registry.services
+        # In-process servers match on name and type hash, as on the Zenoh wire.
+        self._key = (srv_name, service_type_key(srv_type))
         self._wire: Any = None  # transport handle: call(), call_async(), service_is_ready(), close()
 
     @property
@@ -41,7 +44,7 @@ class Client:
 
     def service_is_ready(self) -> bool:
         """Whether a server is known (in this context or, with Zenoh, in the graph)."""
-        if self.srv_name in self._services:
+        if self._key in self._services:
             return True
         wire = self._wire
         return wire is not None and wire.service_is_ready()
@@ -62,34 +65,45 @@ class Client:
                 (a ``TimeoutError``).
             ServiceCallError: the server raised or replied with an error, or went away.
         """
-        srv = self._services.get(self.srv_name)
+        srv = self._services.get(self._key)
         if srv is not None:
-            return srv._call(request)
+            return srv._call_wait(request, self._timeout(timeout_sec))
         return self._call_remote(request, timeout_sec)
 
+    def _timeout(self, timeout_sec: float | None) -> float:
+        return self.context.default_timeout_sec if timeout_sec is None else float(timeout_sec)
+
     def _call_remote(self, request: Any, timeout_sec: float | None) -> Any:
-        timeout = self.context.default_timeout_sec if timeout_sec is None else float(timeout_sec)
+        timeout = self._timeout(timeout_sec)
         start = time.monotonic()
         if not self.wait_for_service(timeout):
             raise ServiceTimeoutError(self.srv_name, timeout, "no server available")
-        srv = self._services.get(self.srv_name)
-        if srv is not None:
-            return srv._call(request)
         remaining = max(0.0, timeout - (time.monotonic() - start))
+        srv = self._services.get(self._key)
+        if srv is not None:
+            return srv._call_wait(request, remaining)
         return self._wire.call(request, remaining, timeout)
 
-    def call_async(self, request: Any) -> Future:
+    def call_async(self, request: Any, *, timeout_sec: float | None = None) -> Future:
         """Send the request and return a ``Future`` for the response.
 
-        With a server in the same context the future is already done when this returns.
+        With a server in the same context the future is already done when this returns (unless
+        the server defers its response). ``timeout_sec`` bounds a call over the wire (default:
+        the context's ``default_timeout_sec``); the future then fails with ``ServiceTimeoutError``.
         """
         future = Future(self.context.notify)
-        srv = self._services.get(self.srv_name)
+        srv = self._services.get(self._key)
         if srv is not None:
             try:
-                future.set_result(srv._call(request))
+                response = srv._call(request)
             except ServiceCallError as exc:
                 future.set_exception(exc)
+                return future
+            if isinstance(response, Future):
+                name = self.srv_name
+                response.add_done_callback(lambda done: _chain(done, future, name))
+            else:
+                future.set_result(response)
             return future
         wire = self._wire
         if wire is None:
@@ -97,7 +111,7 @@ class Client:
                 ServiceCallError(self.srv_name, "no server available in this context; call wait_for_service() first")
             )
             return future
-        wire.call_async(request, future, self.context.default_timeout_sec)
+        wire.call_async(request, future, self._timeout(timeout_sec))
         return future
 
     def remove_pending_request(self, future: Future) -> None:
@@ -113,3 +127,14 @@ class Client:
 
     def __exit__(self, *exc: object) -> None:
         self.destroy()
+
+
+def _chain(source: Future, target: Future, name: str) -> None:
+    """Complete ``target`` as ``source`` completed (a deferred in-process response)."""
+    exc = source.exception()
+    if exc is not None:
+        target.set_exception(exc)
+    elif source.cancelled():
+        target.set_exception(ServiceCallError(name, "the server gave up on the request"))
+    else:
+        target.set_result(source.result())

@@ -90,6 +90,7 @@ class Node:
         self.services: list[Service] = []
         self.clients: list[Client] = []
         self.timers: list[Timer] = []
+        self.waitables: list[Any] = []  # action servers and clients (anything with destroy())
         self._destroyed = False
 
         fqn = self.get_fully_qualified_name()
@@ -254,10 +255,25 @@ class Node:
         timer.destroy()
         return True
 
+    def add_waitable(self, waitable: Any) -> None:
+        """Own ``waitable`` (an action server or client): ``destroy_node`` destroys it first."""
+        if waitable not in self.waitables:
+            self.waitables.append(waitable)
+
+    def remove_waitable(self, waitable: Any) -> None:
+        if waitable in self.waitables:
+            self.waitables.remove(waitable)
+
     def destroy_node(self) -> None:
         """Destroy every entity of this node and remove it from the graph."""
         if self._destroyed:
             return
+        for waitable in list(self.waitables):
+            try:
+                waitable.destroy()
+            except Exception:  # noqa: BLE001 - destroying the node must finish
+                self._logger.exception("destroying %r failed", waitable)
+        self.waitables.clear()
         for pub in list(self.publishers):
             self.destroy_publisher(pub)
         for sub in list(self.subscriptions):

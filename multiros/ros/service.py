@@ -5,6 +5,11 @@ the caller's thread (no queue, no serialization, no copy of the request); a call
 the wire runs it on the transport's receive thread and replies from there. Either way the
 node's callback lock is held, so a node's callbacks never run concurrently. Services therefore
 answer without anyone spinning the server node.
+
+Deferred responses: a callback may return a ``Future`` instead of the response (the action
+server's ``get_result`` does, to answer when the goal ends). The node lock is released at once;
+the reply goes out when the future completes (an in-process caller waits on it, within its
+timeout; over Zenoh the query is kept open and answered then).
 """
 
 from __future__ import annotations
@@ -12,9 +17,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from multiros.ros.exceptions import ServiceCallError
+from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError
 from multiros.ros.graph import type_name_of
 from multiros.ros.qos import QoSProfile
+from multiros.ros.task import Future
 
 if TYPE_CHECKING:
     from multiros.ros.node import Node
@@ -44,7 +50,10 @@ class Service:
         return self.srv_name
 
     def _call(self, request: Any) -> Any:
-        """Run the callback under the node lock; wrap its failures in ``ServiceCallError``."""
+        """Run the callback under the node lock; wrap its failures in ``ServiceCallError``.
+
+        Returns the response, or a ``Future`` of it when the callback deferred its answer.
+        """
         with self._lock:
             try:
                 response = self.callback(request, self._response_cls())
@@ -55,6 +64,20 @@ class Service:
         if response is None:
             raise ServiceCallError(self.srv_name, "the service callback returned None; it must return the response")
         return response
+
+    def _call_wait(self, request: Any, timeout_sec: float) -> Any:
+        """``_call`` that waits up to ``timeout_sec`` for a deferred response.
+
+        Raises:
+            ServiceTimeoutError: a deferred response did not come in time.
+            ServiceCallError: the callback failed.
+        """
+        response = self._call(request)
+        if not isinstance(response, Future):
+            return response
+        if not response.wait(timeout_sec):
+            raise ServiceTimeoutError(self.srv_name, timeout_sec, "the deferred response did not come")
+        return response.result()
 
     def destroy(self) -> None:
         """Same as ``Node.destroy_service(self)``."""

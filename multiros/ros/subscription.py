@@ -48,6 +48,27 @@ class Subscription:
         self._queue.append(msg)
         self._notify()
 
+    def _deliver_directly(self) -> None:
+        """Run the callback in the delivering thread instead of queueing it for an executor.
+
+        Action clients use this so feedback and status need no spinning (as service replies
+        need none). The callback runs without the node lock; it must be short and thread-safe.
+        """
+        self._enqueue = self._run_now  # type: ignore[method-assign]  # shadows the queueing method
+        while True:
+            ok, msg = self._take()
+            if not ok:
+                break
+            self._run_now(msg)
+
+    def _run_now(self, msg: Any) -> None:
+        if self._destroyed:
+            return
+        try:
+            self.callback(msg)
+        except Exception:  # noqa: BLE001 - a transport thread must survive a failing callback
+            self.node.get_logger().exception("subscription callback on '%s' raised", self.topic_name)
+
     def _take(self) -> tuple[bool, Any]:
         try:
             return True, self._queue.popleft()

@@ -65,3 +65,67 @@ def test_interpreter_exits_without_explicit_shutdown(router_endpoint: str) -> No
     finally:
         proc.kill()
         proc.wait(10)
+
+
+# -- multi-host settings -------------------------------------------------------------------------
+def test_multi_host_settings_from_env_and_options(tmp_path) -> None:
+    from multiros.ros.transport.zenoh.config import router_config
+
+    ca, cert, key, acl = (tmp_path / n for n in ("ca.pem", "cert.pem", "key.pem", "acl.json5"))
+    for f in (ca, cert, key):
+        f.write_text("-----BEGIN CERTIFICATE-----\n")
+    acl.write_text('{enabled: true, default_permission: "deny", rules: [], subjects: [], policies: []}')
+    env = {"UNIROS_ZENOH_CONNECT": "tcp/10.231.0.1:7447, tls/robot.local:7448",
+           "UNIROS_ZENOH_ROUTER_LISTEN": "tcp/0.0.0.0:7447", "UNIROS_ZENOH_ROUTER_CONNECT": "tcp/10.0.0.9:7447",
+           "UNIROS_ZENOH_TLS_ROOT_CA": str(ca), "UNIROS_ZENOH_TLS_CERT": str(cert),
+           "UNIROS_ZENOH_TLS_KEY": str(key), "UNIROS_ZENOH_USER": "ros", "UNIROS_ZENOH_PASSWORD": "secret",
+           "UNIROS_ZENOH_ACCESS_CONTROL": str(acl)}
+    s = ZenohSettings.from_options({"router_endpoint": "tcp/127.0.0.1:7"}, env)
+    cfg = session_config(s)
+    assert cfg.get_json("connect/endpoints") == (
+        '["tcp/127.0.0.1:7","tcp/10.231.0.1:7447","tls/robot.local:7448"]')
+    assert cfg.get_json("listen/endpoints") == '["tcp/127.0.0.1:0"]'  # loopback unless asked
+    assert cfg.get_json("transport/auth/usrpwd/user") == '"ros"'
+    assert str(ca) in cfg.get_json("transport/link/tls/root_ca_certificate")
+    rcfg = router_config(s)
+    assert rcfg.get_json("listen/endpoints") == '["tcp/127.0.0.1:7","tcp/0.0.0.0:7447"]'
+    assert rcfg.get_json("connect/endpoints") == '["tcp/10.0.0.9:7447"]'
+    assert "deny" in rcfg.get_json("access_control")
+    # Options win over variables; a single listen endpoint may be a string.
+    s = ZenohSettings.from_options({"listen": "tcp/10.1.2.3:0", "connect": []}, {"UNIROS_ZENOH_LISTEN": "x"})
+    assert s.listen == ("tcp/10.1.2.3:0",) and s.network.connect == ()
+
+
+@pytest.mark.parametrize(("env", "message"), [
+    ({"UNIROS_ZENOH_CONNECT": "10.0.0.1:7447"}, "UNIROS_ZENOH_CONNECT: '10.0.0.1:7447' is not a Zenoh endpoint"),
+    ({"UNIROS_ZENOH_ROUTER_LISTEN": "tcp/0.0.0.0"}, "<protocol>/<host>:<port>"),
+    ({"UNIROS_ZENOH_LISTEN": "http/a:1"}, "UNIROS_ZENOH_LISTEN"),
+    ({"UNIROS_ZENOH_TLS_ROOT_CA": "/nonexistent/ca.pem"}, "does not exist"),
+    ({"UNIROS_ZENOH_USER": "ros"}, "both UNIROS_ZENOH_USER and UNIROS_ZENOH_PASSWORD"),
+    ({"UNIROS_ZENOH_CONNECT": "tls/a:1"}, "UNIROS_ZENOH_TLS_ROOT_CA"),
+    ({"UNIROS_ZENOH_TLS_MTLS": "maybe"}, "use 1 or 0"),
+])
+def test_multi_host_settings_are_validated(env, message) -> None:
+    with pytest.raises(ros.TransportError, match=message):
+        ZenohSettings.from_options({}, env)
+
+
+def test_wrong_password_cannot_reach_a_router(tmp_path, router_endpoint: str) -> None:
+    users = tmp_path / "users.txt"
+    users.write_text("robot:right-password\n")
+    server_env = {"UNIROS_ZENOH_USER": "robot", "UNIROS_ZENOH_PASSWORD": "right-password",
+                  "UNIROS_ZENOH_AUTH_DICTIONARY": str(users)}
+    with ros.Context(transport="zenoh", env=server_env, router="embedded", router_endpoint=router_endpoint):
+        # router="auto": a router listens there, so the session must connect to it (and cannot).
+        bad = ros.Context(transport="zenoh", router_endpoint=router_endpoint, router_wait_sec=1.0,
+                          env={"UNIROS_ZENOH_USER": "robot", "UNIROS_ZENOH_PASSWORD": "wrong",
+                               "ZENOH_ROUTER_CHECK_ATTEMPTS": "1"})
+        with pytest.raises(ros.TransportError, match="no Zenoh router reachable.*user and password"):
+            bad.init()
+        nobody = ros.Context(transport="zenoh", router_endpoint=router_endpoint,
+                             router_wait_sec=1.0, env={"ZENOH_ROUTER_CHECK_ATTEMPTS": "1"})
+        with pytest.raises(ros.TransportError, match="no Zenoh router reachable"):
+            nobody.init()
+        good = ros.Context(transport="zenoh", router_endpoint=router_endpoint, env=server_env)
+        with good:
+            assert good.transport.session.info.routers_zid()

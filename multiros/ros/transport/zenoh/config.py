@@ -9,12 +9,13 @@ Environment variables honoured as rmw_zenoh documents them (read once, by the ``
   the check; ``0`` means "forever" in rmw_zenoh and is capped here at ``MAX_CHECK_ATTEMPTS``
   because every wait has a bound).
 
-Ours: ``UNIROS_ZENOH_ROUTER`` (router endpoint, default ``tcp/127.0.0.1:7447``).
+Ours: ``UNIROS_ZENOH_ROUTER`` (router endpoint, default ``tcp/127.0.0.1:7447``), and the
+multi-host settings of ``network.py`` (``UNIROS_ZENOH_CONNECT``, ``UNIROS_ZENOH_ROUTER_LISTEN``,
+TLS, user/password, access control). Our settings apply on top of a config file too.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import socket
 import time
@@ -25,9 +26,11 @@ from typing import Any
 import zenoh
 
 from multiros.ros.exceptions import TransportError
+from multiros.ros.transport.zenoh.network import NETWORK_ENV_VARS, NETWORK_OPTIONS, NetworkSettings
 from multiros.ros.transport.zenoh.wire import ATTACHMENT_LEGACY, ATTACHMENT_V2
 
-__all__ = ["ZenohSettings", "session_config", "router_config", "router_listening", "DEFAULT_ROUTER_ENDPOINT"]
+__all__ = ["ZenohSettings", "session_config", "router_config", "router_listening", "DEFAULT_ROUTER_ENDPOINT",
+           "ENV_VARS"]
 
 _log = logging.getLogger(__name__)
 
@@ -35,6 +38,9 @@ DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
 ROUTER_ENV = "UNIROS_ZENOH_ROUTER"
 MAX_CHECK_ATTEMPTS = 60
 _ROUTER_MODES = ("auto", "embedded", "none")
+#: Every environment variable the Zenoh transport reads (a private context must ignore them all).
+ENV_VARS = (ROUTER_ENV, "ZENOH_SESSION_CONFIG_URI", "ZENOH_ROUTER_CONFIG_URI", "ZENOH_CONFIG_OVERRIDE",
+            "ZENOH_ROUTER_CHECK_ATTEMPTS", *NETWORK_ENV_VARS)
 
 
 @dataclass(frozen=True)
@@ -46,16 +52,16 @@ class ZenohSettings:
             listens), ``"embedded"`` (always start one), ``"none"`` (never start one), or an
             endpoint (``"tcp/127.0.0.1:7448"``, meaning ``"auto"`` at that endpoint).
         router_endpoint: where the router listens.
-        listen: this session's listen endpoint (loopback by default).
         attachment_format: ``"v2"`` (33 bytes, rmw_zenoh >= 0.2.4) or ``"legacy"``.
-        lazy_publish: serialize and put volatile messages only while a remote subscription
-            token for the topic exists (transient-local ones are always put, for the cache).
+        lazy_publish: serialize and put volatile messages only while Zenoh reports a matching
+            subscriber in another session (a ROS node or any Zenoh tool; transient-local ones are
+            always put, for the cache).
         router_wait_sec: how long to wait for the session to connect to the router.
+        network: multi-host settings (extra endpoints, TLS, authentication, access control).
     """
 
     router: str = "auto"
     router_endpoint: str = DEFAULT_ROUTER_ENDPOINT
-    listen: str = "tcp/127.0.0.1:0"
     attachment_format: str = ATTACHMENT_V2
     lazy_publish: bool = True
     router_wait_sec: float = 5.0
@@ -63,6 +69,12 @@ class ZenohSettings:
     session_config_uri: str | None = None
     router_config_uri: str | None = None
     config_override: str | None = None
+    network: NetworkSettings = NetworkSettings()
+
+    @property
+    def listen(self) -> tuple[str, ...]:
+        """The session's listen endpoints."""
+        return self.network.listen
 
     @classmethod
     def from_options(cls, options: Mapping[str, Any], env: Mapping[str, str]) -> ZenohSettings:
@@ -71,8 +83,8 @@ class ZenohSettings:
         Raises:
             TransportError: an option or variable has an invalid value.
         """
-        known = {"router", "router_endpoint", "listen", "attachment_format", "lazy_publish", "router_wait_sec",
-                 "codec"}
+        known = {"router", "router_endpoint", "attachment_format", "lazy_publish", "router_wait_sec",
+                 "codec", *NETWORK_OPTIONS}
         unknown = set(options) - known
         if unknown:
             raise TransportError(f"unknown zenoh transport option(s) {sorted(unknown)}; known: {sorted(known)}")
@@ -94,7 +106,6 @@ class ZenohSettings:
         return cls(
             router=router,
             router_endpoint=str(endpoint),
-            listen=str(options.get("listen", "tcp/127.0.0.1:0")),
             attachment_format=fmt,
             lazy_publish=bool(options.get("lazy_publish", True)),
             router_wait_sec=float(options.get("router_wait_sec", 5.0)),
@@ -102,6 +113,7 @@ class ZenohSettings:
             session_config_uri=env.get("ZENOH_SESSION_CONFIG_URI") or None,
             router_config_uri=env.get("ZENOH_ROUTER_CONFIG_URI") or None,
             config_override=env.get("ZENOH_CONFIG_OVERRIDE") or None,
+            network=NetworkSettings.from_options(options, env),
         )
 
 
@@ -127,30 +139,33 @@ def _from_file(path: str, what: str) -> zenoh.Config:
 
 def session_config(settings: ZenohSettings) -> zenoh.Config:
     """The session config: rmw_zenoh's defaults (peer mode, connect to the router, no multicast
-    scouting) but listening on loopback only, unless ``ZENOH_SESSION_CONFIG_URI`` gives a file."""
-    if settings.session_config_uri:
+    scouting) but listening on loopback only, unless ``ZENOH_SESSION_CONFIG_URI`` gives a file;
+    then the multi-host settings, then ``ZENOH_CONFIG_OVERRIDE``."""
+    defaults = not settings.session_config_uri
+    if not defaults:
         config = _from_file(settings.session_config_uri, "ZENOH_SESSION_CONFIG_URI")
     else:
         config = zenoh.Config()
         config.insert_json5("mode", '"peer"')
-        config.insert_json5("connect/endpoints", json.dumps([settings.router_endpoint]))
-        config.insert_json5("listen/endpoints", json.dumps([settings.listen]))
         config.insert_json5("scouting/multicast/enabled", "false")
         config.insert_json5("scouting/gossip/enabled", "true")
+    settings.network.apply_to_session(config, settings.router_endpoint, defaults=defaults)
     _apply_override(config, settings.config_override)
     return config
 
 
 def router_config(settings: ZenohSettings) -> zenoh.Config:
-    """The embedded router's config: router mode listening on ``router_endpoint`` only."""
-    if settings.router_config_uri:
+    """The embedded router's config: router mode listening on ``router_endpoint`` (plus
+    ``router_listen``), connecting to ``router_connect``; a ``ZENOH_ROUTER_CONFIG_URI`` file
+    replaces these defaults."""
+    defaults = not settings.router_config_uri
+    if not defaults:
         config = _from_file(settings.router_config_uri, "ZENOH_ROUTER_CONFIG_URI")
     else:
         config = zenoh.Config()
         config.insert_json5("mode", '"router"')
-        config.insert_json5("listen/endpoints", json.dumps([settings.router_endpoint]))
-        config.insert_json5("connect/endpoints", "[]")
         config.insert_json5("scouting/multicast/enabled", "false")
+    settings.network.apply_to_router(config, settings.router_endpoint, defaults=defaults)
     _apply_override(config, settings.config_override)
     return config
 

@@ -27,6 +27,7 @@ import zenoh.ext as zext
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError, TransportError
 from multiros.ros.graph import CLIENT, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
 from multiros.ros.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from multiros.ros.task import Future
 from multiros.ros.transport.base import Transport
 from multiros.ros.transport.zenoh import wire
 from multiros.ros.transport.zenoh.codec import Codec, InterfacesCodec
@@ -44,7 +45,6 @@ if TYPE_CHECKING:
     from multiros.ros.publisher import Publisher
     from multiros.ros.service import Service
     from multiros.ros.subscription import Subscription
-    from multiros.ros.task import Future
 
 __all__ = ["ZenohTransport"]
 
@@ -71,7 +71,6 @@ class ZenohTransport(Transport):
         self._graph: dict[str, Endpoint] = {}
         self._counts: dict[tuple[str, str], int] = {}  # (kind, name) -> entities in _graph
         self._graph_lock = threading.Lock()
-        self._remote_subs: dict[str, int] = {}
         self._servers: dict[str, int] = {}
         self._lv_sub: Any = None
         self._closed = False
@@ -129,9 +128,12 @@ class ZenohTransport(Transport):
         deadline = time.monotonic() + self.settings.router_wait_sec
         while not self.session.info.routers_zid():
             if time.monotonic() > deadline:
+                hint = ("; TLS or user/password authentication is configured: check the CA, certificates, "
+                        "user and password (UNIROS_ZENOH_TLS_*, UNIROS_ZENOH_USER/PASSWORD)"
+                        if self.settings.network.secured else "")
                 raise TransportError(
                     f"no Zenoh router reachable at {self.settings.router_endpoint} after "
-                    f"{self.settings.router_wait_sec:.1f} s: start one (rmw_zenohd) or use router='auto'"
+                    f"{self.settings.router_wait_sec:.1f} s: start one (rmw_zenohd) or use router='auto'{hint}"
                 )
             time.sleep(0.005)
 
@@ -176,7 +178,6 @@ class ZenohTransport(Transport):
         ep = wire.parse_token(key)
         if ep is None:
             return
-        remote = ep.origin != self.zid
         with self._graph_lock:
             if sample.kind == zenoh.SampleKind.PUT:
                 if key in self._graph:
@@ -188,9 +189,7 @@ class ZenohTransport(Transport):
                     return
                 delta = -1
             self._counts[(ep.kind, ep.name)] = self._counts.get((ep.kind, ep.name), 0) + delta
-            if ep.kind == SUBSCRIPTION and remote:
-                self._remote_subs[ep.name] = self._remote_subs.get(ep.name, 0) + delta
-            elif ep.kind == SERVICE:
+            if ep.kind == SERVICE:
                 self._servers[ep.name] = self._servers.get(ep.name, 0) + delta
         self.context.notify()
 
@@ -202,19 +201,20 @@ class ZenohTransport(Transport):
         with self._graph_lock:
             return self._counts.get((kind, name), 0)
 
-    def has_remote_subscriber(self, topic: str) -> bool:
-        return self._remote_subs.get(topic, 0) > 0
-
     def has_server(self, name: str) -> bool:
         return self._servers.get(name, 0) > 0
 
     # -- entities ----------------------------------------------------------------------------
-    def _names(self, type_name: str, what: str) -> tuple[str, str]:
+    def _names(self, type_name: str, what: str, ros_type: Any = None) -> tuple[str, str]:
         if "/" not in type_name or type_name.count("/") != 2:
             raise TransportError(
                 f"{what}: type {type_name!r} has no ROS type name; the zenoh transport needs interface "
                 "types from multiros.ros.interfaces (classes with _type = 'pkg/msg/Name')"
             )
+        # A codec that can hash a class hashes it with its own distribution's definitions.
+        hash_of = getattr(self.codec, "type_hash_of", None)
+        if hash_of is not None and ros_type is not None:
+            return self.codec.dds_type_name(type_name), hash_of(ros_type)
         return self.codec.dds_type_name(type_name), self.codec.type_hash(type_name)
 
     def _enclave(self) -> str:
@@ -233,23 +233,23 @@ class ZenohTransport(Transport):
         )
 
     def add_publisher(self, pub: Publisher) -> _PublisherHandle:
-        dds, hsh = self._names(pub.type_name, f"publisher on '{pub.topic_name}'")
+        dds, hsh = self._names(pub.type_name, f"publisher on '{pub.topic_name}'", pub.msg_type)
         token = self._endpoint_key(pub.node, PUBLISHER, pub.topic_name, dds, hsh, pub.qos_profile)
         return self._track(_PublisherHandle(self, pub, wire.topic_key(self.domain_id, pub.topic_name, dds, hsh), token))
 
     def add_subscription(self, sub: Subscription) -> _SubscriptionHandle:
-        dds, hsh = self._names(sub.type_name, f"subscription on '{sub.topic_name}'")
+        dds, hsh = self._names(sub.type_name, f"subscription on '{sub.topic_name}'", sub.msg_type)
         token = self._endpoint_key(sub.node, SUBSCRIPTION, sub.topic_name, dds, hsh, sub.qos_profile)
         key = wire.topic_key(self.domain_id, sub.topic_name, dds, hsh)
         return self._track(_SubscriptionHandle(self, sub, key, token))
 
     def add_service(self, srv: Service) -> _ServiceHandle:
-        dds, hsh = self._names(srv.type_name, f"service '{srv.srv_name}'")
+        dds, hsh = self._names(srv.type_name, f"service '{srv.srv_name}'", srv.srv_type)
         token = self._endpoint_key(srv.node, SERVICE, srv.srv_name, dds, hsh, srv.qos_profile)
         return self._track(_ServiceHandle(self, srv, wire.topic_key(self.domain_id, srv.srv_name, dds, hsh), token))
 
     def add_client(self, cli: Client) -> _ClientHandle:
-        dds, hsh = self._names(cli.type_name, f"client of '{cli.srv_name}'")
+        dds, hsh = self._names(cli.type_name, f"client of '{cli.srv_name}'", cli.srv_type)
         token = self._endpoint_key(cli.node, CLIENT, cli.srv_name, dds, hsh, cli.qos_profile)
         return self._track(_ClientHandle(self, cli, wire.topic_key(self.domain_id, cli.srv_name, dds, hsh), token))
 
@@ -329,24 +329,47 @@ class _PublisherHandle(_Token):
                 sample_miss_detection=zext.MissDetectionConfig(sporadic_heartbeat=0.5) if reliable else None,
             )
         else:
-            self._pub = session.declare_publisher(key, congestion_control=congestion, reliability=reliability)
+            # Only other sessions: this context's own subscriptions get messages from the registry.
+            self._pub = session.declare_publisher(key, congestion_control=congestion, reliability=reliability,
+                                                  allowed_destination=zenoh.Locality.REMOTE)
+        self._lazy = transport.settings.lazy_publish and not self._transient
+        self._matching = True
+        self._listener: Any = None
+        if self._lazy:
+            # Zenoh tells the publisher whether any subscriber matches its key (a ROS node or a
+            # plain Zenoh tool alike); serialize and put only then. Listener first, then the
+            # current status, so no change is missed in between.
+            self._listener = self._pub.declare_matching_listener(_direct_callback(self._on_matching))
+            self._matching = bool(self._pub.matching_status.matching)
         super().__init__(transport, token_key)
         self.key = key
         self.topic = pub.topic_name
         self._seq = itertools.count(1)
         self._fmt = transport.settings.attachment_format
-        self._lazy = transport.settings.lazy_publish and not self._transient
         self._codec = transport.codec
 
+    def _on_matching(self, status: Any) -> None:
+        self._matching = bool(status.matching)
+
     def publish(self, msg: Any) -> None:
-        if self._closed or (self._lazy and not self.transport.has_remote_subscriber(self.topic)):
+        if self._closed or not self._matching:
             return
         payload = self._codec.serialize(msg)
         att = wire.encode_attachment(next(self._seq), time.time_ns(), self.gid, self._fmt)
         self._pub.put(payload, attachment=att)
 
     def _undeclare(self) -> None:
+        if self._listener is not None:
+            self._listener.undeclare()
         self._pub.undeclare()
+
+
+def _direct_callback(fn: Any) -> Any:
+    """Run ``fn`` on Zenoh's own thread (no extra Python thread per listener) where supported."""
+    try:
+        return zenoh.handlers.Callback(fn, indirect=False)
+    except TypeError:  # pragma: no cover - zenoh-python without the (unstable) indirect flag
+        return fn
 
 
 class _SubscriptionHandle(_Token):
@@ -401,16 +424,16 @@ class _ServiceHandle(_Token):
     def _on_query(self, query: zenoh.Query) -> None:
         # Dropping the query sends Zenoh's final reply; do it explicitly, because a traceback
         # kept alive elsewhere (a log handler holding the exception) would otherwise keep the
-        # query, and the caller, waiting until its timeout.
+        # query, and the caller, waiting until its timeout. A deferred answer drops it later.
+        deferred = False
         try:
-            self._answer(query)
+            deferred = self._answer(query)
         finally:
-            try:
-                query.drop()
-            except Exception:  # noqa: BLE001
-                pass
+            if not deferred:
+                _drop(query)
 
-    def _answer(self, query: zenoh.Query) -> None:
+    def _answer(self, query: zenoh.Query) -> bool:
+        """Answer ``query``; ``True`` when the answer was deferred (the query stays open)."""
         name = self._srv.srv_name
         try:
             att_bytes = query.attachment
@@ -424,13 +447,38 @@ class _ServiceHandle(_Token):
         except Exception as exc:  # noqa: BLE001 - garbage from the wire must not kill the node
             _log.warning("service '%s': dropped a malformed request: %s: %s", name, type(exc).__name__, str(exc))
             _reply_err(query, f"service '{name}': malformed request: {exc}")
-            return
+            return False
         try:
             response = self._srv._call(request)
-            data = self._codec.serialize(response)
         except Exception as exc:  # noqa: BLE001
             _log.warning("%s", str(exc))
             _reply_err(query, getattr(exc, "detail", f"{type(exc).__name__}: {exc}"))
+            return False
+        if isinstance(response, Future):
+            def finish(done: Future) -> None:
+                try:
+                    exc = done.exception()
+                    if done.cancelled():
+                        _reply_err(query, f"service '{name}': the server gave up on the request")
+                    elif exc is not None:
+                        _reply_err(query, getattr(exc, "detail", f"{type(exc).__name__}: {exc}"))
+                    else:
+                        self._reply(query, done.result(), att)
+                finally:
+                    _drop(query)
+
+            response.add_done_callback(finish)
+            return True
+        self._reply(query, response, att)
+        return False
+
+    def _reply(self, query: zenoh.Query, response: Any, att: wire.Attachment) -> None:
+        name = self._srv.srv_name
+        try:
+            data = self._codec.serialize(response)
+        except Exception as exc:  # noqa: BLE001
+            _log.warning("service '%s': could not serialize the response: %s", name, exc)
+            _reply_err(query, f"service '{name}': bad response: {type(exc).__name__}: {exc}")
             return
         reply_att = wire.encode_attachment(att.sequence_number, time.time_ns(), att.source_gid, self._fmt)
         try:
@@ -440,6 +488,13 @@ class _ServiceHandle(_Token):
 
     def _undeclare(self) -> None:
         self._queryable.undeclare()
+
+
+def _drop(query: zenoh.Query) -> None:
+    try:
+        query.drop()
+    except Exception:  # noqa: BLE001
+        pass
 
 
 def _reply_err(query: zenoh.Query, text: str) -> None:
