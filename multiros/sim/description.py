@@ -11,25 +11,39 @@ lazily inside its ``find`` handler. During our call we put a tiny shim module un
 ``sys.modules`` that answers from our :class:`PackageIndex`, and remove it afterwards (a real
 ``ament_index_python`` is restored if one was loaded). A lock serialises xacro calls because xacro
 keeps its substitution arguments and file stack in module globals.
+
+Trust: a description that arrives in a service request is data, never a program. With a
+:class:`SourcePolicy` (the simulation node passes one for every request), description *text* is
+parsed as URDF or MJCF only (xacro evaluates Python in ``${...}``, so xacro text is refused unless
+the policy allows it), and every file the text or URI names (the description itself, meshes,
+MJCF includes and asset files, controller YAML) must resolve inside the package index's roots or
+the policy's trusted paths. Files found there are trusted: xacro runs on them and their own
+references are followed. Every description, trusted or not, is checked against
+:class:`~multiros.sim.limits.DescriptionLimits` (sizes, counts, depth, finite and bounded numbers)
+before it reaches a world.
 """
 
 from __future__ import annotations
 
 import hashlib
+import math
 import os
+import posixpath
 import re
 import sys
 import threading
 import types
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import unquote
 
 import mujoco
 import numpy as np
 
 from multiros.sim.errors import DescriptionError, PackageNotFoundError
+from multiros.sim.limits import MAX_XACRO_ARG_CHARS, MAX_XACRO_ARGS, DescriptionLimits
 from multiros.sim.packages import PackageIndex, default_index
 from multiros.sim.urdf_model import parse_urdf
 
@@ -38,6 +52,8 @@ __all__ = [
     "Ros2ControlJoint",
     "RobotDescription",
     "MeshCache",
+    "SourcePolicy",
+    "UnsupportedFormatError",
     "xacro_to_urdf",
     "load_description",
     "urdf_to_description",
@@ -47,7 +63,84 @@ __all__ = [
 MIN_MASS = 1e-3  # kg, for links without (or with a degenerate) inertial
 MIN_INERTIA = 1e-6  # kg m^2, smallest principal moment kept
 _DIRECT_MESH_FORMATS = {".stl", ".obj"}
+_XACRO_NAMESPACE = "http://www.ros.org/wiki/xacro"
+_XACRO_ARG_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]*$")
 _xacro_lock = threading.Lock()
+
+
+class UnsupportedFormatError(DescriptionError):
+    """The description's format is not accepted from this source (xacro text in a request)."""
+
+
+# ---------------------------------------------------------------------------------------- trust
+@dataclass(frozen=True)
+class SourcePolicy:
+    """What a description from an untrusted source (a service request) may use.
+
+    Attributes:
+        trusted_paths: directories, besides the package index's roots, whose files a plain path
+            or ``file://`` URI may name (e.g. the directory of a user's own robot file).
+        allow_xacro_text: run xacro on description text. xacro evaluates Python in ``${...}``:
+            allow it only when every peer that can reach the node is trusted.
+    """
+
+    trusted_paths: tuple[Path, ...] = ()
+    allow_xacro_text: bool = False
+
+    @classmethod
+    def create(cls, trusted_paths: Iterable[str | Path] = (), allow_xacro_text: bool = False) -> SourcePolicy:
+        """A policy with ``trusted_paths`` made absolute (``~`` expanded)."""
+        return cls(tuple(Path(p).expanduser().absolute() for p in trusted_paths), bool(allow_xacro_text))
+
+    def resolve(self, uri: str | Path, index: PackageIndex, base_dir: str | Path | None = None, *,
+                what: str = "file") -> Path:
+        """Resolve ``uri`` like :meth:`PackageIndex.resolve_uri`, refusing anything outside the roots.
+
+        ``package://pkg/rel`` must stay inside the package (no ``..`` out of it; links the package
+        itself holds are followed). A plain path or ``file://`` URI must resolve (symlinks and
+        ``..`` resolved) inside a package root of ``index`` or a trusted path. Existence is not
+        checked, so a refusal tells nothing about the file.
+
+        Raises:
+            DescriptionError: the location is refused; PackageNotFoundError: unknown package.
+        """
+        text = str(uri)
+        if "\x00" in text:
+            raise DescriptionError(f"{what} location contains a NUL character", source="<request>")
+        if text.startswith("package://"):
+            pkg, _, rel = text[len("package://"):].partition("/")
+            rel = unquote(rel)
+            norm = posixpath.normpath(rel) if rel else "."
+            if rel.startswith("/") or norm == ".." or norm.startswith("../"):
+                raise DescriptionError(f"{what} '{text}' leaves its package; package:// paths must stay inside "
+                                       f"the package", source="<request>")
+            return index.find_package_share(pkg) / ("" if norm == "." else norm)
+        path = index.resolve_uri(text, base_dir if base_dir is not None else Path.cwd())
+        real = Path(os.path.realpath(path))
+        for root in (*index.package_roots(), *self.trusted_paths):
+            real_root = Path(os.path.realpath(root))
+            if real == real_root or real_root in real.parents:
+                return real
+        raise DescriptionError(
+            f"{what} '{text}' is outside the node's package roots and trusted paths; name it with a "
+            f"package:// URI, or start the node with its directory in trusted_paths", source="<request>")
+
+    def check_xacro_args(self, args: Mapping[str, str]) -> None:
+        """Refuse xacro arguments that could inject substitutions, or too many / too long ones."""
+        if len(args) > MAX_XACRO_ARGS:
+            raise DescriptionError(f"{len(args)} xacro arguments; at most {MAX_XACRO_ARGS} are accepted",
+                                   source="<request>")
+        for key, value in args.items():
+            key, value = str(key), str(value)
+            if not _XACRO_ARG_NAME.match(key):
+                raise DescriptionError(f"xacro argument name {key[:64]!r} is invalid (letters, digits, '_', '.', '-')",
+                                       source="<request>")
+            if len(value) > MAX_XACRO_ARG_CHARS:
+                raise DescriptionError(f"xacro argument {key!r} is {len(value)} characters long; at most "
+                                       f"{MAX_XACRO_ARG_CHARS} are accepted", source="<request>")
+            if "$(" in value or "${" in value or any(ord(c) < 32 for c in value):
+                raise DescriptionError(f"xacro argument {key!r} contains '$(', '${{' or a control character; "
+                                       f"substitutions are not accepted in arguments", source="<request>")
 
 
 @dataclass(frozen=True)
@@ -253,36 +346,69 @@ def _find_cause(exc: BaseException, kind: type) -> BaseException | None:
 # ---------------------------------------------------------------------------------------- entry point
 def load_description(source: str | Path, *, args: Mapping[str, str] | None = None,
                      index: PackageIndex | None = None, mesh_cache: MeshCache | None = None,
-                     default_armature: float = 0.01, base_dir: str | Path | None = None) -> RobotDescription:
+                     default_armature: float = 0.01, base_dir: str | Path | None = None,
+                     policy: SourcePolicy | None = None, limits: DescriptionLimits | None = None) -> RobotDescription:
     """Load a URDF, xacro or MJCF description from a path/URI or an XML string.
 
     The format is taken from the root element (``<robot>`` = URDF/xacro, ``<mujoco>`` = MJCF);
     files are run through xacro when their name ends in ``.xacro`` or they use the xacro namespace.
 
+    Args:
+        policy: the source is untrusted (a service request): see :class:`SourcePolicy`. ``None``
+            trusts the caller (a local user's own files and strings).
+        limits: size and value bounds (defaults: the module constants of :mod:`multiros.sim.limits`).
+
     Raises:
-        DescriptionError: unreadable, malformed or unsupported input, or missing meshes/packages.
+        DescriptionError: unreadable, malformed, refused or out-of-bounds input, or missing
+            meshes/packages (``missing_assets``). UnsupportedFormatError: xacro text the policy refuses.
     """
     index = index or default_index()
+    limits = limits or DescriptionLimits()
     text_input = isinstance(source, str) and source.lstrip().startswith("<")
+    if policy is not None and args:
+        policy.check_xacro_args(args)
     if text_input:
         text, name, directory = source, "<string>", Path(base_dir) if base_dir else Path.cwd()
     else:
-        path = index.resolve_uri(source, base_dir)
+        path = (policy.resolve(source, index, base_dir, what="description") if policy is not None
+                else index.resolve_uri(source, base_dir))
         name, directory = str(path), path.parent
         if not path.is_file():
             raise DescriptionError(f"description file '{source}' not found (resolved to {path})",
                                    source=name, missing_assets=True)
+        if path.stat().st_size > 4 * limits.max_chars:
+            raise DescriptionError(f"{name}: {path.stat().st_size} bytes; descriptions are limited to "
+                                   f"{limits.max_chars} characters", source=name)
         text = path.read_text(errors="replace")
+    untrusted = text_input and policy is not None
+    _check_text(text, name, limits, untrusted)
     root_tag = _root_tag(text, name)
     if root_tag == "mujoco":
-        return mjcf_to_description(text if text_input else Path(name), source_name=name)
+        return mjcf_to_description(text if text_input else Path(name), source_name=name,
+                                   policy=policy if untrusted else None, limits=limits, index=index)
     if root_tag != "robot":
         raise DescriptionError(f"{name}: unsupported root element <{root_tag}>; expected <robot> (URDF/xacro) "
                                f"or <mujoco> (MJCF)", source=name)
-    if name.endswith(".xacro") or "xacro" in text[:4000] and "http://www.ros.org/wiki/xacro" in text:
+    if untrusted and _XACRO_NAMESPACE in text and not policy.allow_xacro_text:
+        raise UnsupportedFormatError(
+            f"{name}: xacro text is not evaluated when it arrives in a request (xacro runs Python); expand it "
+            f"on your side (multiros.sim.launch.robot_resource does), send a package:// URI of the file, or "
+            f"start the node with allow_xacro_strings=True if every peer is trusted", source=name)
+    if name.endswith(".xacro") or "xacro" in text[:4000] and _XACRO_NAMESPACE in text:
         text = xacro_to_urdf(text if text_input else Path(name), args, index=index, base_dir=directory)
+        _check_text(text, name, limits, False)
     return urdf_to_description(text, index=index, mesh_cache=mesh_cache, base_dir=directory,
-                               source_name=name, default_armature=default_armature)
+                               source_name=name, default_armature=default_armature,
+                               policy=policy if untrusted else None, limits=limits)
+
+
+def _check_text(text: str, name: str, limits: DescriptionLimits, untrusted: bool) -> None:
+    if len(text) > limits.max_chars:
+        raise DescriptionError(f"{name}: the description is {len(text)} characters long; the limit is "
+                               f"{limits.max_chars}", source=name)
+    if untrusted and ("<!DOCTYPE" in text or "<!ENTITY" in text):
+        raise DescriptionError(f"{name}: DOCTYPE and ENTITY declarations are not accepted in a request's "
+                               f"description", source=name)
 
 
 def _root_tag(text: str, name: str) -> str:
@@ -296,19 +422,28 @@ def _root_tag(text: str, name: str) -> str:
 # ---------------------------------------------------------------------------------------- URDF
 def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_cache: MeshCache | None = None,
                         base_dir: str | Path | None = None, source_name: str = "<string>",
-                        default_armature: float = 0.01) -> RobotDescription:
-    """Build an MjSpec from URDF text (see the module docstring for what is kept)."""
+                        default_armature: float = 0.01, policy: SourcePolicy | None = None,
+                        limits: DescriptionLimits | None = None) -> RobotDescription:
+    """Build an MjSpec from URDF text (see the module docstring for what is kept).
+
+    ``policy`` (untrusted text) restricts the mesh and controller files the text may name;
+    ``limits`` bounds sizes, counts, depth and numbers.
+    """
     index = index or default_index()
     mesh_cache = mesh_cache or MeshCache()
+    limits = limits or DescriptionLimits()
     try:
         xml_root = ET.fromstring(urdf)
     except ET.ParseError as exc:
         raise DescriptionError(f"{source_name}: malformed URDF XML: {exc}", source=source_name) from exc
-    robot = parse_urdf(xml_root, source_name)
+    robot = parse_urdf(xml_root, source_name, limits)
     if not robot.links:
         raise DescriptionError(f"{source_name}: URDF has no <link>", source=source_name)
     links = {link.name: link for link in robot.links}
-    children = {}
+    if len(links) != len(robot.links):
+        raise DescriptionError(f"{source_name}: two links have the same name", source=source_name)
+    children: dict[str, list] = {}
+    parent_joint: dict[str, str] = {}
     for joint in robot.joints:
         for end in (joint.parent, joint.child):
             if end not in links:
@@ -317,22 +452,36 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
         if joint.type in ("floating", "planar"):
             raise DescriptionError(f"{source_name}: joint '{joint.name}' of type '{joint.type}' is not supported",
                                    source=source_name)
+        if joint.child in parent_joint:
+            raise DescriptionError(f"{source_name}: link '{joint.child}' is the child of joints "
+                                   f"'{parent_joint[joint.child]}' and '{joint.name}'; a URDF must form a tree",
+                                   source=source_name)
+        parent_joint[joint.child] = joint.name
         children.setdefault(joint.parent, []).append(joint)
-    roots = [n for n in links if n not in {j.child for j in robot.joints}]
+    roots = [n for n in links if n not in parent_joint]
     if len(roots) != 1:
-        raise DescriptionError(f"{source_name}: URDF must form one tree, found roots {roots}", source=source_name)
+        raise DescriptionError(f"{source_name}: URDF must form one tree, found roots {roots[:10]}", source=source_name)
     colors = {m.name: m.color.rgba for m in robot.materials if m.color is not None}
 
     spec = mujoco.MjSpec()
     spec.modelname = robot.name or "robot"
     spec.compiler.degree = False
     spec.compiler.inertiafromgeom = int(mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE)
-    ctx = _UrdfBuild(spec, index, mesh_cache, Path(base_dir) if base_dir else Path.cwd(), source_name, colors)
+    ctx = _UrdfBuild(spec, index, mesh_cache, Path(base_dir) if base_dir else Path.cwd(), source_name, colors,
+                     policy, limits)
     joint_infos: list[JointInfo] = []
 
     link_bodies = {"world": "world_urdf"} if "world" in links else {}
 
-    def build(link_name: str, parent_body, joint) -> None:
+    # Depth-first, parents before children, siblings in file order; iterative, so a long chain
+    # meets the depth limit instead of Python's recursion limit.
+    stack: list[tuple[str, object, object, int]] = [(roots[0], spec.worldbody, None, 1)]
+    built = 0
+    while stack:
+        link_name, parent_body, joint, depth = stack.pop()
+        if depth > limits.max_depth:
+            raise DescriptionError(f"{source_name}: the link tree is deeper than {limits.max_depth} links (at link "
+                                   f"'{link_name}'); the node's description limits refuse it", source=source_name)
         body_name = link_bodies.get(link_name, link_name)
         if joint is None:
             body = parent_body.add_body(name=body_name)
@@ -342,24 +491,28 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
             if joint.type in ("revolute", "continuous", "prismatic"):
                 joint_infos.append(ctx.add_joint(body, joint, default_armature))
         ctx.fill_link(body, links[link_name])
-        for child in children.get(link_name, []):
-            build(child.child, body, child)
-
-    build(roots[0], spec.worldbody, None)
-    rc_joints = _parse_ros2_control(xml_root)
+        built += 1
+        for child in reversed(children.get(link_name, [])):
+            stack.append((child.child, body, child, depth + 1))
+    if built != len(links):
+        raise DescriptionError(f"{source_name}: {len(links) - built} link(s) are not connected to the root "
+                               f"'{roots[0]}' (a cycle of joints?)", source=source_name)
+    rc_joints = _parse_ros2_control(xml_root, source_name)
     return RobotDescription(name=spec.modelname, format="urdf", spec=spec, source=source_name, text=urdf,
                             root=roots[0], joints=tuple(joint_infos), links=tuple(links),
                             ros2_control=rc_joints, link_bodies=link_bodies,
-                            controllers_yaml=_parse_gazebo_parameters(xml_root, index, source_name))
+                            controllers_yaml=_parse_gazebo_parameters(xml_root, index, source_name, policy))
 
 
 class _UrdfBuild:
     """Per-conversion state: mesh assets, materials, naming."""
 
-    def __init__(self, spec, index, mesh_cache, base_dir, source, colors) -> None:
+    def __init__(self, spec, index, mesh_cache, base_dir, source, colors, policy, limits) -> None:
         self.spec, self.index, self.cache, self.base_dir = spec, index, mesh_cache, base_dir
         self.source, self.colors = source, colors
+        self.policy, self.limits = policy, limits
         self.meshes: dict[tuple[str, tuple], str] = {}
+        self.vertices = 0
 
     def add_joint(self, body, joint, default_armature: float) -> JointInfo:
         axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
@@ -451,18 +604,55 @@ class _UrdfBuild:
         if key in self.meshes:
             return self.meshes[key]
         try:
-            path = self.index.resolve_uri(mesh.filename, self.base_dir)
+            if self.policy is not None:
+                path = self.policy.resolve(mesh.filename, self.index, self.base_dir, what="mesh")
+            else:
+                path = self.index.resolve_uri(mesh.filename, self.base_dir)
         except PackageNotFoundError as exc:
             raise DescriptionError(f"{self.source}: mesh '{mesh.filename}' not found: {exc}",
                                    source=self.source, missing_assets=True) from exc
+        except DescriptionError as exc:
+            raise DescriptionError(f"{self.source}: {exc}", source=self.source) from exc
         if not path.is_file():
             raise DescriptionError(f"{self.source}: mesh '{mesh.filename}' not found; searched: {path}",
                                    source=self.source, missing_assets=True)
+        self.vertices += _check_mesh_file(path, self.limits, self.source)
+        if self.vertices > self.limits.max_mesh_vertices:
+            raise DescriptionError(f"{self.source}: the meshes have more than {self.limits.max_mesh_vertices} "
+                                   f"vertices in all (the node's description limits)", source=self.source)
         usable = self.cache.usable_path(path, source=self.source)
         name = f"mesh{len(self.meshes)}_{re.sub(r'[^A-Za-z0-9_]', '_', path.stem)}"
         self.spec.add_mesh(name=name, file=str(usable.resolve()), scale=list(scale))
         self.meshes[key] = name
         return name
+
+
+def _check_mesh_file(path: Path, limits: DescriptionLimits, source: str) -> int:
+    """Refuse a mesh file over the byte or vertex limit; return its (estimated) vertex count.
+
+    Counted without parsing: binary STL from its triangle count (3 vertices each), ASCII STL and
+    OBJ by their ``vertex``/``v`` lines; other formats by size only (trimesh converts them).
+    """
+    size = path.stat().st_size
+    if size > limits.max_mesh_bytes:
+        raise DescriptionError(f"{source}: mesh '{path.name}' is {size} bytes; the limit is {limits.max_mesh_bytes}",
+                               source=source)
+    suffix = path.suffix.lower()
+    vertices = 0
+    if suffix == ".stl":
+        with path.open("rb") as f:
+            head = f.read(84)
+            if head[:5].lower() == b"solid" and b"facet" in f.read(4096):
+                vertices = path.read_bytes().count(b"vertex")
+            elif len(head) == 84:
+                vertices = 3 * int.from_bytes(head[80:84], "little")
+    elif suffix == ".obj":
+        with path.open("rb") as f:
+            vertices = sum(1 for line in f if line.startswith(b"v "))
+    if vertices > limits.max_mesh_vertices:
+        raise DescriptionError(f"{source}: mesh '{path.name}' has {vertices} vertices; the limit is "
+                               f"{limits.max_mesh_vertices}", source=source)
+    return vertices
 
 
 def _fix_inertia(mass: float, tensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -498,7 +688,7 @@ def _mat_to_pos_quat(matrix: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]
     return matrix[:3, 3].copy(), _mat_to_quat(matrix[:3, :3])
 
 
-def _parse_ros2_control(root: ET.Element) -> tuple[Ros2ControlJoint, ...]:
+def _parse_ros2_control(root: ET.Element, source: str = "<string>") -> tuple[Ros2ControlJoint, ...]:
     joints: list[Ros2ControlJoint] = []
     for tag in root.iter("ros2_control"):
         for j in tag.findall("joint"):
@@ -511,6 +701,10 @@ def _parse_ros2_control(root: ET.Element) -> tuple[Ros2ControlJoint, ...]:
                                 initial = float(param.text.strip())
                             except ValueError:
                                 initial = None
+                            if initial is not None and not math.isfinite(initial):
+                                raise DescriptionError(f"{source}: ros2_control joint '{j.get('name', '')}' "
+                                                       f"initial_value {param.text.strip()!r} is not finite",
+                                                       source=source)
             joints.append(Ros2ControlJoint(
                 name=j.get("name", ""),
                 command_interfaces=tuple(c.get("name", "") for c in j.findall("command_interface")),
@@ -519,12 +713,15 @@ def _parse_ros2_control(root: ET.Element) -> tuple[Ros2ControlJoint, ...]:
     return tuple(joints)
 
 
-def _parse_gazebo_parameters(root: ET.Element, index: PackageIndex, source: str) -> Path | None:
+def _parse_gazebo_parameters(root: ET.Element, index: PackageIndex, source: str,
+                             policy: SourcePolicy | None = None) -> Path | None:
     for plugin in root.iter("plugin"):
         for param in plugin.iter("parameters"):
             text = (param.text or "").strip()
             if text.endswith((".yaml", ".yml")):
                 try:
+                    if policy is not None:
+                        return policy.resolve(text, index, what="controllers file")
                     return index.resolve_uri(text)
                 except PackageNotFoundError as exc:
                     raise DescriptionError(f"{source}: controllers file '{text}': {exc}", source=source,
@@ -533,20 +730,29 @@ def _parse_gazebo_parameters(root: ET.Element, index: PackageIndex, source: str)
 
 
 # ---------------------------------------------------------------------------------------- MJCF
-def mjcf_to_description(source: str | Path, *, source_name: str | None = None) -> RobotDescription:
+def mjcf_to_description(source: str | Path, *, source_name: str | None = None, policy: SourcePolicy | None = None,
+                        limits: DescriptionLimits | None = None, index: PackageIndex | None = None) -> RobotDescription:
     """Load an MJCF file or string. Its ``<actuator>`` elements are removed (the controllers add
     their own) and each body gets a site of the same name. The worldbody must have exactly one
     child body (the root); wrap several bodies in one if needed. A free joint on the root
     (``<freejoint/>``) makes the description free-floating (``free_root``); an unnamed root body is
-    called ``base_link``."""
+    called ``base_link``. ``policy`` (untrusted text) and ``limits``: see :func:`load_description`."""
     is_text = isinstance(source, str) and source.lstrip().startswith("<")
     name = source_name or ("<string>" if is_text else str(source))
+    limits = limits or DescriptionLimits()
+    if is_text:
+        _screen_mjcf_text(source, name, limits, policy, index or default_index())
     try:
         spec = mujoco.MjSpec.from_string(source) if is_text else mujoco.MjSpec.from_file(str(source))
-        spec.compile()  # validate now, to report the file's own errors with its name
+        if policy is not None:
+            _check_mjcf_files(spec, name, policy, index or default_index(), limits)
+        model = spec.compile()  # validate now, to report the file's own errors with its name
+    except DescriptionError:
+        raise
     except Exception as exc:
         raise DescriptionError(f"{name}: invalid MJCF: {exc}", source=name,
                                missing_assets="resource not found" in str(exc).lower()) from exc
+    check_model(model, name, limits)
     text = source if is_text else Path(source).read_text(errors="replace")
     roots = list(spec.worldbody.bodies)
     if len(roots) != 1:
@@ -586,3 +792,189 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None) -
                 body.add_site(name=body.name, size=[0.005, 0.005, 0.005], group=4)
     return RobotDescription(name=spec.modelname or "mjcf", format="mjcf", spec=spec, source=name, text=text,
                             root=root.name, joints=tuple(joints), links=tuple(links), free_root=bool(free))
+
+
+# ---------------------------------------------------------------------------------------- MJCF checks
+# Elements a request's MJCF may not use: generators whose output is not bounded by the text
+# (replicate, composite, flexcomp), plugins, other models (model, attach) and user data blocks
+# (custom numeric/text/tuple, sized by an attribute). Files in the package roots may use them.
+_MJCF_REFUSED_ELEMENTS = frozenset({"replicate", "composite", "flexcomp", "flex", "deformable", "extension", "plugin",
+                                    "instance", "model", "attach", "custom", "numeric", "tuple"})
+_MJCF_FILE_ELEMENTS = frozenset({"include", "mesh", "texture", "hfield", "skin"})
+_MJCF_MAX_MEMORY = 1 << 30  # bytes of <size memory=...> in a request
+_MEMORY_SUFFIX = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40, "P": 1 << 50, "E": 1 << 60}
+
+
+def _screen_mjcf_text(text: str, name: str, limits: DescriptionLimits, policy: SourcePolicy | None,
+                      index: PackageIndex) -> None:
+    """Check MJCF text before MuJoCo parses it: element count and nesting depth (always); for a
+    request (``policy``): refused elements, generated texture/height-field/memory sizes and the
+    files named by ``<include>`` and the compiler's directories."""
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise DescriptionError(f"{name}: malformed MJCF XML: {exc}", source=name) from exc
+    count = 0
+    stack: list[tuple[ET.Element, int]] = [(root, 1)]
+    while stack:  # iterative: a deep nesting meets the limit, not Python's recursion limit
+        elem, depth = stack.pop()
+        count += 1
+        if count > limits.max_xml_elements:
+            raise DescriptionError(f"{name}: more than {limits.max_xml_elements} XML elements (the node's "
+                                   f"description limits)", source=name)
+        if depth > limits.max_depth + 8:  # body nesting plus <mujoco><worldbody> and a few wrappers
+            raise DescriptionError(f"{name}: XML elements nested deeper than {limits.max_depth + 8} (the node's "
+                                   f"description limits)", source=name)
+        if policy is not None:
+            _screen_mjcf_element(elem, name, limits, policy, index)
+        stack.extend((child, depth + 1) for child in elem)
+
+
+def _screen_mjcf_element(elem: ET.Element, name: str, limits: DescriptionLimits, policy: SourcePolicy,
+                         index: PackageIndex) -> None:
+    tag = elem.tag if isinstance(elem.tag, str) else ""
+    label = f"{name}: <{tag}{' name=' + repr(elem.get('name')) if elem.get('name') else ''}>"
+    if tag in _MJCF_REFUSED_ELEMENTS:
+        raise DescriptionError(f"{label} is not accepted in a request's MJCF (generators, plugins, models and "
+                               f"custom data are not); put the model in a package and spawn it by package:// URI",
+                               source=name)
+    for attr in elem.attrib:
+        if attr.startswith("file") and tag not in _MJCF_FILE_ELEMENTS:
+            raise DescriptionError(f"{label} attribute '{attr}' is not accepted in a request", source=name)
+    if tag == "include" and elem.get("file") is not None:
+        policy.resolve(elem.get("file", ""), index, what="MJCF include")
+    if tag == "compiler":
+        for attr in ("meshdir", "texturedir", "assetdir"):
+            if elem.get(attr):
+                policy.resolve(elem.get(attr, ""), index, what=f"MJCF compiler {attr}")
+    if tag == "mesh" and elem.get("builtin") is not None:
+        raise DescriptionError(f"{label}: builtin (generated) meshes are not accepted in a request", source=name)
+    if tag == "texture":
+        pixels = _int_attr(elem, "width", label) * _int_attr(elem, "height", label)
+        if pixels > limits.max_texture_pixels:
+            raise DescriptionError(f"{label}: {pixels} pixels; at most {limits.max_texture_pixels} are accepted",
+                                   source=name)
+    if tag == "hfield":
+        cells = _int_attr(elem, "nrow", label) * _int_attr(elem, "ncol", label)
+        if cells > limits.max_texture_pixels:
+            raise DescriptionError(f"{label}: {cells} cells; at most {limits.max_texture_pixels} are accepted",
+                                   source=name)
+    if tag == "size":
+        for attr in ("memory", "nstack"):
+            if elem.get(attr) is not None and _memory_bytes(elem.get(attr, ""), label) > _MJCF_MAX_MEMORY:
+                raise DescriptionError(f"{label} {attr}={elem.get(attr)!r} asks for more than {_MJCF_MAX_MEMORY} "
+                                       f"bytes; not accepted in a request", source=name)
+
+
+def _int_attr(elem: ET.Element, attr: str, label: str) -> int:
+    text = elem.get(attr)
+    if text is None:
+        return 1
+    try:
+        value = int(text.strip())
+    except ValueError:
+        raise DescriptionError(f"{label} {attr}={text!r} is not an integer", source=label) from None
+    return abs(value)
+
+
+def _memory_bytes(text: str, label: str) -> int:
+    match = re.fullmatch(r"\s*(-?\d+)\s*([KMGTPE]?)\s*", text, flags=re.I)
+    if not match:
+        raise DescriptionError(f"{label} memory size {text!r} is not a number with an optional K/M/G suffix",
+                               source=label)
+    return abs(int(match.group(1))) * _MEMORY_SUFFIX[match.group(2).upper()]
+
+
+def _mjcf_asset_path(spec: mujoco.MjSpec, directory: str, file: str) -> str:
+    """The path MuJoCo opens for an asset ``file`` with compiler directory ``directory``."""
+    if os.path.isabs(file):
+        return file
+    if os.path.isabs(directory):
+        return os.path.join(directory, file)
+    return os.path.join(spec.modelfiledir or os.getcwd(), directory, file)
+
+
+def _check_mjcf_files(spec: mujoco.MjSpec, name: str, policy: SourcePolicy, index: PackageIndex,
+                      limits: DescriptionLimits) -> None:
+    """Every asset file of a parsed request MJCF (included parts too) must be inside the roots;
+    mesh files within the size limits. Runs before compilation, which is when MuJoCo reads them."""
+    files: list[tuple[str, str, str]] = []  # (kind, directory, file)
+    files += [("mesh", spec.meshdir, m.file) for m in spec.meshes if m.file]
+    files += [("skin", spec.meshdir, s.file) for s in spec.skins if s.file]
+    files += [("hfield", spec.meshdir, h.file) for h in spec.hfields if h.file]
+    for tex in spec.textures:
+        files += [("texture", spec.texturedir, f) for f in (tex.file, *tex.cubefiles) if f]
+    vertices = 0
+    for kind, directory, file in files:
+        path = policy.resolve(_mjcf_asset_path(spec, directory, file), index, what=f"MJCF {kind} file")
+        if kind == "mesh" and path.is_file():
+            vertices += _check_mesh_file(path, limits, name)
+    if vertices > limits.max_mesh_vertices:
+        raise DescriptionError(f"{name}: the meshes have more than {limits.max_mesh_vertices} vertices in all",
+                               source=name)
+
+
+_OBJ_PREFIXES = (("body_", mujoco.mjtObj.mjOBJ_BODY, "nbody"), ("geom_", mujoco.mjtObj.mjOBJ_GEOM, "ngeom"),
+                 ("jnt_", mujoco.mjtObj.mjOBJ_JOINT, "njnt"), ("site_", mujoco.mjtObj.mjOBJ_SITE, "nsite"),
+                 ("cam_", mujoco.mjtObj.mjOBJ_CAMERA, "ncam"), ("light_", mujoco.mjtObj.mjOBJ_LIGHT, "nlight"),
+                 ("mesh_", mujoco.mjtObj.mjOBJ_MESH, "nmesh"), ("mat_", mujoco.mjtObj.mjOBJ_MATERIAL, "nmat"),
+                 ("tendon_", mujoco.mjtObj.mjOBJ_TENDON, "ntendon"), ("eq_", mujoco.mjtObj.mjOBJ_EQUALITY, "neq"),
+                 ("sensor_", mujoco.mjtObj.mjOBJ_SENSOR, "nsensor"), ("pair_", mujoco.mjtObj.mjOBJ_PAIR, "npair"),
+                 ("actuator_", mujoco.mjtObj.mjOBJ_ACTUATOR, "nu"), ("key_", mujoco.mjtObj.mjOBJ_KEY, "nkey"))
+
+
+def _element(model: mujoco.MjModel, field_name: str, row: int) -> str:
+    """``"geom 'arm/box' (geom_size)"``-style label of a row of a model array."""
+    if field_name.startswith("dof_") and row < model.nv:
+        field_name, row = "jnt_" + field_name, int(model.dof_jntid[row])
+    for prefix, obj, count in _OBJ_PREFIXES:
+        if field_name.startswith(prefix) and row < getattr(model, count):
+            label = mujoco.mj_id2name(model, int(obj), row) or f"#{row}"
+            kind = prefix.rstrip("_").replace("jnt", "joint").replace("cam", "camera").replace("mat", "material")
+            return f"{kind} '{label}'"
+    return f"row {row}"
+
+
+def check_model(model: mujoco.MjModel, name: str, limits: DescriptionLimits | None = None) -> None:
+    """Check a compiled description model: counts, tree depth, every real number finite, and
+    positions, sizes, masses, inertias, joint ranges and joint parameters within ``limits``.
+
+    Raises:
+        DescriptionError: naming the element (body/geom/joint name) and the model field.
+    """
+    limits = limits or DescriptionLimits()
+    for what, count, most in (("bodies", model.nbody - 1, limits.max_bodies),
+                              ("joints", model.njnt, limits.max_joints), ("geoms", model.ngeom, limits.max_geoms),
+                              ("mesh vertices", model.nmeshvert, limits.max_mesh_vertices)):
+        if count > most:
+            raise DescriptionError(f"{name}: {count} {what}; the node's description limits allow {most}", source=name)
+    depth = np.zeros(model.nbody, dtype=int)
+    for b in range(1, model.nbody):  # a parent's id is always lower than its child's
+        depth[b] = depth[model.body_parentid[b]] + 1
+    if model.nbody > 1 and depth.max() > limits.max_depth:
+        raise DescriptionError(f"{name}: the body tree is {depth.max()} bodies deep; the node's description limits "
+                               f"allow {limits.max_depth}", source=name)
+    for attr in dir(model):
+        if attr.startswith("_"):
+            continue
+        try:
+            value = getattr(model, attr)
+        except Exception:  # some properties raise for models without the feature
+            continue
+        if isinstance(value, np.ndarray) and value.dtype.kind == "f" and value.size and not np.all(np.isfinite(value)):
+            row = int(np.argwhere(~np.isfinite(value))[0][0])
+            raise DescriptionError(f"{name}: {_element(model, attr, row)} has a value that is not finite ({attr})",
+                                   source=name)
+    pmax, jmax = limits.max_position, limits.max_joint_parameter
+    bounds = (("body_pos", -pmax, pmax), ("body_ipos", -pmax, pmax), ("geom_pos", -pmax, pmax),
+              ("site_pos", -pmax, pmax), ("geom_size", 0.0, limits.max_size), ("body_mass", 0.0, limits.max_mass),
+              ("body_inertia", 0.0, limits.max_inertia), ("jnt_range", -pmax, pmax), ("jnt_stiffness", 0.0, jmax),
+              ("dof_damping", 0.0, jmax), ("dof_frictionloss", 0.0, jmax), ("dof_armature", 0.0, jmax))
+    for attr, low, high in bounds:
+        value = np.asarray(getattr(model, attr))
+        bad = np.argwhere((value < low) | (value > high))
+        if bad.size:
+            row = int(bad[0][0])
+            shown = np.asarray(value[row]).tolist()
+            raise DescriptionError(f"{name}: {_element(model, attr, row)} {attr.split('_', 1)[1]} {shown} is outside "
+                                   f"[{low:g}, {high:g}] (the node's description limits)", source=name)

@@ -14,6 +14,7 @@ __all__ = [
     "CommandError",
     "ControllerError",
     "UnstableSimulationError",
+    "StepInterruptedError",
     "RenderError",
 ]
 
@@ -68,6 +69,18 @@ class UnstableSimulationError(SimError):
     def __init__(self, message: str, *, entities: tuple[str, ...]) -> None:
         super().__init__(message)
         self.entities = entities
+
+
+class StepInterruptedError(SimError):
+    """A long step call stopped early because the simulation node is shutting down.
+
+    Attributes:
+        steps_done: physics steps completed before the stop (they stay done).
+    """
+
+    def __init__(self, message: str, *, steps_done: int) -> None:
+        super().__init__(message)
+        self.steps_done = steps_done
 
 
 class RenderError(SimError):

@@ -11,6 +11,11 @@ Search order for ``find_package_share(name)``:
    style) or named ``<pkg>``.
 
 ``ament_index_python`` is not used because it is not on PyPI and only knows (3).
+
+Package names are checked (letters, digits, ``_``, ``-``, ``.``; not ``.`` or ``..``): a name comes
+from a ``package://`` URI that may have arrived in a service request, and ``package://../x``
+must not walk out of a search directory. :meth:`PackageIndex.package_roots` lists the directories
+the index searches: the simulation node reads files of a request only from inside them.
 """
 
 from __future__ import annotations
@@ -24,12 +29,13 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
-from multiros.sim.errors import PackageNotFoundError
+from multiros.sim.errors import DescriptionError, PackageNotFoundError
 
 __all__ = ["ENTRY_POINT_GROUP", "PackageIndex", "default_index"]
 
 ENTRY_POINT_GROUP = "uniros.description_packages"
 _MAX_WALK_DEPTH = 4  # ROS_PACKAGE_PATH dirs are crawled like rospack, but not forever
+_VALID_PACKAGE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_.-]*$")
 
 
 class PackageIndex:
@@ -57,7 +63,11 @@ class PackageIndex:
 
         Raises:
             PackageNotFoundError: the package is in none of the searched places (all listed).
+            DescriptionError: ``name`` is not a valid package name.
         """
+        if not _VALID_PACKAGE.match(name) or name in (".", ".."):
+            raise DescriptionError(f"{name[:100]!r} is not a valid ROS package name (letters, digits, '_', '-', '.')",
+                                   source="package://")
         searched: list[str] = []
         for finder in (self._find_explicit, self._find_extra, self._find_entry_point, self._find_ament,
                        self._find_ros_package_path):
@@ -69,6 +79,22 @@ class PackageIndex:
             f"package '{name}' not found; searched: {where}. Install a Python package registering it "
             f"in the '{ENTRY_POINT_GROUP}' entry-point group, or add its parent directory to "
             f"ROS_PACKAGE_PATH or to the index's extra paths.", package=name)
+
+    def package_roots(self) -> tuple[Path, ...]:
+        """Every directory this index finds packages in (absolute, not resolved; may not exist):
+        the explicit packages, the extra paths, the entry points' package directories,
+        ``<AMENT_PREFIX_PATH entry>/share`` and the ``ROS_PACKAGE_PATH`` entries."""
+        roots: list[Path] = [*self._explicit.values(), *self._extra]
+        if self._use_entry_points:
+            for ep in entry_points(group=ENTRY_POINT_GROUP):
+                root = _python_package_dir(ep.value)
+                if root is not None:
+                    roots.append(root.absolute())
+        ament = filter(None, self._env("AMENT_PREFIX_PATH").split(os.pathsep))
+        ros = filter(None, self._env("ROS_PACKAGE_PATH").split(os.pathsep))
+        roots += [Path(p).absolute() / "share" for p in ament]
+        roots += [Path(p).expanduser().absolute() for p in ros]
+        return tuple(dict.fromkeys(roots))
 
     def resolve_uri(self, uri: str | Path, base_dir: str | Path | None = None) -> Path:
         """Resolve ``package://pkg/rel``, ``file:///abs`` or a plain (possibly relative) path.

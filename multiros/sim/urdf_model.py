@@ -6,8 +6,10 @@ the description builder needs only the elements below. yourdfpy stays the refere
 tests, and trimesh is still used, lazily, for mesh conversion.
 
 Records mirror yourdfpy's attribute names (``robot.links[i].inertial.origin`` is a 4x4 matrix,
-``joint.limit.lower``, ``visual.geometry.box.size``, ...). Malformed numbers raise
-:class:`~multiros.sim.errors.DescriptionError` naming the element.
+``joint.limit.lower``, ``visual.geometry.box.size``, ...). Malformed numbers, numbers that are
+not finite and numbers outside the bounds of :class:`~multiros.sim.limits.DescriptionLimits`
+(positions, sizes, masses, inertias, joint limits and parameters) raise
+:class:`~multiros.sim.errors.DescriptionError` naming the element and the attribute.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from multiros.sim.errors import DescriptionError
+from multiros.sim.limits import DescriptionLimits
 
 __all__ = ["Robot", "parse_urdf"]
 
@@ -138,8 +141,9 @@ _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "pla
 
 
 class _Reader:
-    def __init__(self, source: str) -> None:
+    def __init__(self, source: str, limits: DescriptionLimits) -> None:
         self.source = source
+        self.limits = limits
 
     def fail(self, what: str) -> DescriptionError:
         return DescriptionError(f"{self.source}: invalid URDF: {what}", source=self.source)
@@ -155,22 +159,35 @@ class _Reader:
             raise self.fail(f"{what} {text!r} is not {n} numbers") from None
         if values.shape != (n,):
             raise self.fail(f"{what} {text!r} is not {n} numbers")
+        if not np.all(np.isfinite(values)):
+            raise self.fail(f"{what} {text!r} is not finite")
         return values
+
+    def bounded(self, values: np.ndarray | float, low: float, high: float, what: str) -> None:
+        """Raise unless every value is within ``[low, high]``."""
+        arr = np.asarray(values, dtype=float)
+        if not (np.all(arr >= low) and np.all(arr <= high)):
+            shown = arr.tolist() if arr.ndim else float(arr)
+            raise self.fail(f"{what} {shown} is outside [{low:g}, {high:g}]")
 
     def number(self, elem: ET.Element, attr: str, what: str, default: float | None = None) -> float | None:
         text = elem.get(attr)
         if text is None:
             return default
         try:
-            return float(text)
+            value = float(text)
         except ValueError:
             raise self.fail(f"{what} {attr}={text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise self.fail(f"{what} {attr}={text!r} is not finite")
+        return value
 
     def origin(self, elem: ET.Element | None, what: str) -> np.ndarray:
         tf = np.eye(4)
         if elem is None:
             return tf
         xyz = self.floats(elem.get("xyz"), 3, f"{what} origin xyz", (0.0, 0.0, 0.0))
+        self.bounded(xyz, -self.limits.max_position, self.limits.max_position, f"{what} origin xyz")
         r, p, y = self.floats(elem.get("rpy"), 3, f"{what} origin rpy", (0.0, 0.0, 0.0))
         cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
         tf[:3, :3] = [
@@ -187,25 +204,32 @@ class _Reader:
         color = elem.find("color")
         rgba = None
         if color is not None:
-            rgba = Color(self.floats(color.get("rgba"), 4, f"material {elem.get('name')!r} color rgba"))
+            what = f"material {elem.get('name')!r} color rgba"
+            rgba = Color(self.floats(color.get("rgba"), 4, what))
+            self.bounded(rgba.rgba, 0.0, 1.0, what)
         return Material(elem.get("name"), rgba)
 
     def geometry(self, elem: ET.Element | None, what: str) -> Geometry | None:
         if elem is None:
             return None
         geo = Geometry()
+        size_max = self.limits.max_size
         if (box := elem.find("box")) is not None:
             geo.box = Box(self.floats(box.get("size"), 3, f"{what} box size"))
+            self.bounded(geo.box.size, 0.0, size_max, f"{what} box size")
         elif (cyl := elem.find("cylinder")) is not None:
             radius = self.number(cyl, "radius", f"{what} cylinder")
             length = self.number(cyl, "length", f"{what} cylinder")
             if radius is None or length is None:
                 raise self.fail(f"{what} cylinder needs radius and length")
+            self.bounded(radius, 0.0, size_max, f"{what} cylinder radius")
+            self.bounded(length, 0.0, size_max, f"{what} cylinder length")
             geo.cylinder = Cylinder(radius, length)
         elif (sph := elem.find("sphere")) is not None:
             radius = self.number(sph, "radius", f"{what} sphere")
             if radius is None:
                 raise self.fail(f"{what} sphere needs a radius")
+            self.bounded(radius, 0.0, size_max, f"{what} sphere radius")
             geo.sphere = Sphere(radius)
         elif (mesh := elem.find("mesh")) is not None:
             filename = mesh.get("filename")
@@ -213,6 +237,8 @@ class _Reader:
                 raise self.fail(f"{what} mesh has no filename")
             scale = mesh.get("scale")
             geo.mesh = Mesh(filename, None if scale is None else self.floats(scale, 3, f"{what} mesh scale"))
+            if geo.mesh.scale is not None:
+                self.bounded(geo.mesh.scale, -size_max, size_max, f"{what} mesh scale")
         return geo
 
     def link(self, elem: ET.Element) -> Link:
@@ -223,10 +249,15 @@ class _Reader:
         if (ine := elem.find("inertial")) is not None:
             mass_elem = ine.find("mass")
             mass = self.number(mass_elem, "value", f"link {name!r} mass", 0.0) if mass_elem is not None else 0.0
+            self.bounded(mass, 0.0, self.limits.max_mass, f"link {name!r} mass value")
             tensor = np.zeros((3, 3))
             if (inertia := ine.find("inertia")) is not None:
                 v = {k: self.number(inertia, k, f"link {name!r} inertia", 0.0) for k in
                      ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+                lim = self.limits.max_inertia
+                for key, value in v.items():
+                    self.bounded(value, 0.0 if key in ("ixx", "iyy", "izz") else -lim, lim,
+                                 f"link {name!r} inertia {key}")
                 tensor = np.array([[v["ixx"], v["ixy"], v["ixz"]],
                                    [v["ixy"], v["iyy"], v["iyz"]],
                                    [v["ixz"], v["iyz"], v["izz"]]], dtype=float)
@@ -260,30 +291,53 @@ class _Reader:
             what = f"joint {name!r} limit"
             limit = Limit(self.number(lim, "lower", what), self.number(lim, "upper", what),
                           self.number(lim, "effort", what), self.number(lim, "velocity", what))
+            pmax, jmax = self.limits.max_position, self.limits.max_joint_parameter
+            for attr in ("lower", "upper"):
+                if getattr(limit, attr) is not None:
+                    self.bounded(getattr(limit, attr), -pmax, pmax, f"{what} {attr}")
+            for attr in ("effort", "velocity"):
+                if getattr(limit, attr) is not None:
+                    self.bounded(getattr(limit, attr), 0.0, jmax, f"{what} {attr}")
+            if limit.lower is not None and limit.upper is not None and limit.lower > limit.upper:
+                raise self.fail(f"{what} lower {limit.lower:g} > upper {limit.upper:g}; limits must be ordered")
         elif jtype in ("revolute", "prismatic"):
             raise self.fail(f"{jtype} joint {name!r} needs a <limit>")
         dynamics = None
         if (dyn := elem.find("dynamics")) is not None:
             what = f"joint {name!r} dynamics"
             dynamics = Dynamics(self.number(dyn, "damping", what), self.number(dyn, "friction", what))
+            for attr in ("damping", "friction"):
+                if getattr(dynamics, attr) is not None:
+                    self.bounded(getattr(dynamics, attr), 0.0, self.limits.max_joint_parameter, f"{what} {attr}")
         mimic = None
         if (mim := elem.find("mimic")) is not None:
             what = f"joint {name!r} mimic"
             mimic = Mimic(mim.get("joint", ""), self.number(mim, "multiplier", what, 1.0),
                           self.number(mim, "offset", what, 0.0))
+            pmax = self.limits.max_position
+            self.bounded([mimic.multiplier, mimic.offset], -pmax, pmax, f"{what} multiplier/offset")
         return Joint(name, jtype, parent.get("link"), child.get("link"),
                      self.origin(elem.find("origin"), f"joint {name!r}"), axis, limit, dynamics, mimic)
 
 
-def parse_urdf(root: ET.Element, source: str = "<string>") -> Robot:
+def parse_urdf(root: ET.Element, source: str = "<string>", limits: DescriptionLimits | None = None) -> Robot:
     """Read a parsed ``<robot>`` element.
 
     Raises:
-        DescriptionError: the root is not ``<robot>``, or an element is malformed.
+        DescriptionError: the root is not ``<robot>``, an element is malformed, a number is not
+            finite or out of bounds, or there are more links, joints or geoms than ``limits`` allow.
     """
-    reader = _Reader(source)
+    limits = limits or DescriptionLimits()
+    reader = _Reader(source, limits)
     if root.tag != "robot":
         raise reader.fail(f"root element is <{root.tag}>, expected <robot>")
+    counts = {"links": (len(root.findall("link")), limits.max_bodies),
+              "joints": (len(root.findall("joint")), limits.max_joints),
+              "geoms": (len(root.findall("link/visual")) + len(root.findall("link/collision")), limits.max_geoms)}
+    for what, (count, most) in counts.items():
+        if count > most:
+            raise DescriptionError(f"{source}: too many {what}: {count} > {most} (the node's description limits)",
+                                   source=source)
     materials = [m for m in (reader.material(e) for e in root.findall("material")) if m is not None]
     return Robot(
         name=root.get("name", ""),

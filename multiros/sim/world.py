@@ -36,7 +36,14 @@ import numpy as np
 
 from multiros.sim.controllers import ControllerManager, JointMode, RobotHardware
 from multiros.sim.description import MeshCache, RobotDescription, load_description
-from multiros.sim.errors import ControllerError, DescriptionError, EntityError, UnstableSimulationError
+from multiros.sim.errors import (
+    ControllerError,
+    DescriptionError,
+    EntityError,
+    StepInterruptedError,
+    UnstableSimulationError,
+)
+from multiros.sim.limits import STEP_CHUNK
 from multiros.sim.packages import PackageIndex, default_index
 
 __all__ = [
@@ -930,15 +937,36 @@ class World:
         """Simulation time in seconds."""
         return float(self._data.time)
 
-    def step(self, n: int = 1) -> None:
+    def step(self, n: int = 1, *, should_stop: Callable[[], bool] | None = None) -> None:
         """Advance ``n`` physics steps; controllers update at their rate within the steps.
+
+        Args:
+            n: physics steps.
+            should_stop: with more than ``limits.STEP_CHUNK`` steps, they run in chunks of that
+                many (bit-identical to one call) and ``should_stop()`` is asked before each chunk;
+                True stops the call there (the node passes its shutdown flag).
 
         Raises:
             UnstableSimulationError: physics diverged; the named entities were restored to the
-                state they had before this call (their velocities zeroed), the others continue.
+                state they had before this call (before the chunk, when chunked), their velocities
+                zeroed, the others continue.
+            StepInterruptedError: ``should_stop()`` returned True; ``steps_done`` steps were done.
         """
         if n < 0:
             raise ValueError(f"step count must be >= 0, got {n}")
+        if should_stop is None or n <= STEP_CHUNK:
+            self._step(n)
+            return
+        done = 0
+        while done < n:
+            if should_stop():
+                raise StepInterruptedError(f"stepping stopped after {done} of {n} steps (shutting down)",
+                                           steps_done=done)
+            chunk = min(STEP_CHUNK, n - done)
+            self._step(chunk)
+            done += chunk
+
+    def _step(self, n: int) -> None:
         if n == 0:
             return
         m, d = self._model, self._data

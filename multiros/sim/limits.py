@@ -1,0 +1,81 @@
+"""Bounds on what a description and a request may ask of the simulation node.
+
+A description is data, and every number in it reaches MuJoCo; one NaN, or a box a billion metres
+wide, makes every other entity's physics diverge. The bounds below are generous for real robots
+(a 100-tonne link, a 100 m geom, 1,000 links) and small enough that nothing built within them
+poisons the world or keeps the node busy for long. Change them per node with
+``SimulationNode(description_limits=DescriptionLimits(...), max_steps_per_call=...)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+__all__ = [
+    "DescriptionLimits",
+    "MAX_DESCRIPTION_CHARS",
+    "MAX_BODIES",
+    "MAX_JOINTS",
+    "MAX_GEOMS",
+    "MAX_TREE_DEPTH",
+    "MAX_XML_ELEMENTS",
+    "MAX_POSITION",
+    "MAX_SIZE",
+    "MAX_MASS",
+    "MAX_INERTIA",
+    "MAX_JOINT_PARAMETER",
+    "MAX_MESH_BYTES",
+    "MAX_MESH_VERTICES",
+    "MAX_TEXTURE_PIXELS",
+    "MAX_XACRO_ARGS",
+    "MAX_XACRO_ARG_CHARS",
+    "MAX_STEPS_PER_CALL",
+    "STEP_CHUNK",
+]
+
+MAX_DESCRIPTION_CHARS = 4_000_000  # characters of URDF/MJCF text (after xacro); real robots: < 500 k
+MAX_BODIES = 1_000  # links (URDF) or bodies (MJCF) of one description
+MAX_JOINTS = 1_000
+MAX_GEOMS = 5_000  # visual + collision geoms
+MAX_TREE_DEPTH = 200  # longest chain root -> leaf; real arms < 20, long cables ~ 100
+MAX_XML_ELEMENTS = 100_000  # XML elements of a description text
+MAX_POSITION = 1e3  # m (and rad): every coordinate of an origin/position, every joint limit
+MAX_SIZE = 1e2  # m: geom sizes (box edges, radii, lengths, mesh extents), mesh scale factors
+MAX_MASS = 1e5  # kg per link/body
+MAX_INERTIA = 1e5  # kg m^2 per inertia tensor entry
+MAX_JOINT_PARAMETER = 1e6  # damping, friction, effort, velocity, armature, stiffness
+MAX_MESH_BYTES = 64 * 1024 * 1024  # bytes of one mesh file
+MAX_MESH_VERTICES = 1_000_000  # vertices of one mesh file, and of all meshes of a description
+MAX_TEXTURE_PIXELS = 4096 * 4096  # pixels of a generated (builtin) MJCF texture
+MAX_XACRO_ARGS = 32  # xacro arguments in a SpawnEntity URI query
+MAX_XACRO_ARG_CHARS = 256  # characters of one xacro argument value
+
+# Steps per StepSimulation / StepRobot call. One physics step of a 6-DoF arm takes 10-20 us here
+# (2 cores, no GPU), a busy scene with several robots and contacts 50-100 us: 100,000 steps are
+# 200 s of simulated time at the default 2 ms time step and keep the node busy 1-10 s at most.
+MAX_STEPS_PER_CALL = 100_000
+# Steps run in chunks of this many; between chunks the node checks whether it is shutting down.
+STEP_CHUNK = 1_000
+
+
+@dataclass(frozen=True)
+class DescriptionLimits:
+    """Size and value bounds checked on every description before it reaches the world.
+
+    Attributes mirror the module constants of the same (upper-case) names; see there for units.
+    """
+
+    max_chars: int = MAX_DESCRIPTION_CHARS
+    max_bodies: int = MAX_BODIES
+    max_joints: int = MAX_JOINTS
+    max_geoms: int = MAX_GEOMS
+    max_depth: int = MAX_TREE_DEPTH
+    max_xml_elements: int = MAX_XML_ELEMENTS
+    max_position: float = MAX_POSITION
+    max_size: float = MAX_SIZE
+    max_mass: float = MAX_MASS
+    max_inertia: float = MAX_INERTIA
+    max_joint_parameter: float = MAX_JOINT_PARAMETER
+    max_mesh_bytes: int = MAX_MESH_BYTES
+    max_mesh_vertices: int = MAX_MESH_VERTICES
+    max_texture_pixels: int = MAX_TEXTURE_PIXELS
