@@ -6,11 +6,7 @@ importer fuses fixed-joint links (end-effector frames vanish), discards visuals,
 Parsing is done by :mod:`multiros.sim.urdf_model` (ElementTree; see there why not yourdfpy), which
 also reads the ``<ros2_control>`` and ``<gazebo>`` tags.
 
-``$(find pkg)`` in xacro: xacro imports ``ament_index_python.packages.get_package_share_directory``
-lazily inside its ``find`` handler. During our call we put a tiny shim module under that name in
-``sys.modules`` that answers from our :class:`PackageIndex`, and remove it afterwards (a real
-``ament_index_python`` is restored if one was loaded). A lock serialises xacro calls because xacro
-keeps its substitution arguments and file stack in module globals.
+xacro runs in :mod:`multiros.sim.xacro_runner` (``xacro_to_urdf`` is re-exported here).
 
 Trust: a description that arrives in a service request is data, never a program. With a
 :class:`SourcePolicy` (the simulation node passes one for every request), description *text* is
@@ -20,7 +16,7 @@ MJCF includes and asset files, controller YAML) must resolve inside the package 
 the policy's trusted paths. Files found there are trusted: xacro runs on them and their own
 references are followed. Every description, trusted or not, is checked against
 :class:`~multiros.sim.limits.DescriptionLimits` (sizes, counts, depth, finite and bounded numbers)
-before it reaches a world.
+before it reaches a world. The checks live in :mod:`multiros.sim.trust`.
 """
 
 from __future__ import annotations
@@ -28,24 +24,29 @@ from __future__ import annotations
 import hashlib
 import math
 import os
-import posixpath
 import re
-import sys
 import threading
-import types
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from urllib.parse import unquote
 
 import mujoco
 import numpy as np
 
 from multiros.sim.errors import DescriptionError, PackageNotFoundError
-from multiros.sim.limits import MAX_XACRO_ARG_CHARS, MAX_XACRO_ARGS, DescriptionLimits
+from multiros.sim.limits import DescriptionLimits
 from multiros.sim.packages import PackageIndex, default_index
+from multiros.sim.trust import (
+    SourcePolicy,
+    UnsupportedFormatError,
+    check_mesh_file,
+    check_mjcf_files,
+    check_model,
+    screen_mjcf_text,
+)
 from multiros.sim.urdf_model import parse_urdf
+from multiros.sim.xacro_runner import xacro_to_urdf
 
 __all__ = [
     "JointInfo",
@@ -64,83 +65,6 @@ MIN_MASS = 1e-3  # kg, for links without (or with a degenerate) inertial
 MIN_INERTIA = 1e-6  # kg m^2, smallest principal moment kept
 _DIRECT_MESH_FORMATS = {".stl", ".obj"}
 _XACRO_NAMESPACE = "http://www.ros.org/wiki/xacro"
-_XACRO_ARG_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_.-]*$")
-_xacro_lock = threading.Lock()
-
-
-class UnsupportedFormatError(DescriptionError):
-    """The description's format is not accepted from this source (xacro text in a request)."""
-
-
-# ---------------------------------------------------------------------------------------- trust
-@dataclass(frozen=True)
-class SourcePolicy:
-    """What a description from an untrusted source (a service request) may use.
-
-    Attributes:
-        trusted_paths: directories, besides the package index's roots, whose files a plain path
-            or ``file://`` URI may name (e.g. the directory of a user's own robot file).
-        allow_xacro_text: run xacro on description text. xacro evaluates Python in ``${...}``:
-            allow it only when every peer that can reach the node is trusted.
-    """
-
-    trusted_paths: tuple[Path, ...] = ()
-    allow_xacro_text: bool = False
-
-    @classmethod
-    def create(cls, trusted_paths: Iterable[str | Path] = (), allow_xacro_text: bool = False) -> SourcePolicy:
-        """A policy with ``trusted_paths`` made absolute (``~`` expanded)."""
-        return cls(tuple(Path(p).expanduser().absolute() for p in trusted_paths), bool(allow_xacro_text))
-
-    def resolve(self, uri: str | Path, index: PackageIndex, base_dir: str | Path | None = None, *,
-                what: str = "file") -> Path:
-        """Resolve ``uri`` like :meth:`PackageIndex.resolve_uri`, refusing anything outside the roots.
-
-        ``package://pkg/rel`` must stay inside the package (no ``..`` out of it; links the package
-        itself holds are followed). A plain path or ``file://`` URI must resolve (symlinks and
-        ``..`` resolved) inside a package root of ``index`` or a trusted path. Existence is not
-        checked, so a refusal tells nothing about the file.
-
-        Raises:
-            DescriptionError: the location is refused; PackageNotFoundError: unknown package.
-        """
-        text = str(uri)
-        if "\x00" in text:
-            raise DescriptionError(f"{what} location contains a NUL character", source="<request>")
-        if text.startswith("package://"):
-            pkg, _, rel = text[len("package://"):].partition("/")
-            rel = unquote(rel)
-            norm = posixpath.normpath(rel) if rel else "."
-            if rel.startswith("/") or norm == ".." or norm.startswith("../"):
-                raise DescriptionError(f"{what} '{text}' leaves its package; package:// paths must stay inside "
-                                       f"the package", source="<request>")
-            return index.find_package_share(pkg) / ("" if norm == "." else norm)
-        path = index.resolve_uri(text, base_dir if base_dir is not None else Path.cwd())
-        real = Path(os.path.realpath(path))
-        for root in (*index.package_roots(), *self.trusted_paths):
-            real_root = Path(os.path.realpath(root))
-            if real == real_root or real_root in real.parents:
-                return real
-        raise DescriptionError(
-            f"{what} '{text}' is outside the node's package roots and trusted paths; name it with a "
-            f"package:// URI, or start the node with its directory in trusted_paths", source="<request>")
-
-    def check_xacro_args(self, args: Mapping[str, str]) -> None:
-        """Refuse xacro arguments that could inject substitutions, or too many / too long ones."""
-        if len(args) > MAX_XACRO_ARGS:
-            raise DescriptionError(f"{len(args)} xacro arguments; at most {MAX_XACRO_ARGS} are accepted",
-                                   source="<request>")
-        for key, value in args.items():
-            key, value = str(key), str(value)
-            if not _XACRO_ARG_NAME.match(key):
-                raise DescriptionError(f"xacro argument name {key[:64]!r} is invalid (letters, digits, '_', '.', '-')",
-                                       source="<request>")
-            if len(value) > MAX_XACRO_ARG_CHARS:
-                raise DescriptionError(f"xacro argument {key!r} is {len(value)} characters long; at most "
-                                       f"{MAX_XACRO_ARG_CHARS} are accepted", source="<request>")
-            if "$(" in value or "${" in value or any(ord(c) < 32 for c in value):
-                raise DescriptionError(f"xacro argument {key!r} contains '$(', '${{' or a control character; "
-                                       f"substitutions are not accepted in arguments", source="<request>")
 
 
 @dataclass(frozen=True)
@@ -263,84 +187,6 @@ class MeshCache:
                 f"{source}: mesh '{path}' could not be converted to STL ({exc}); convert it to STL or OBJ",
                 source=source) from exc
         return out
-
-
-# ---------------------------------------------------------------------------------------- xacro
-def _ament_shim(index: PackageIndex) -> tuple[types.ModuleType, types.ModuleType]:
-    top = types.ModuleType("ament_index_python")
-    pkgs = types.ModuleType("ament_index_python.packages")
-
-    def get_package_share_directory(package_name: str, print_warning: bool = True) -> str:
-        return str(index.find_package_share(package_name))
-
-    pkgs.get_package_share_directory = get_package_share_directory
-    pkgs.PackageNotFoundError = PackageNotFoundError
-    top.packages = pkgs
-    top.get_package_share_directory = get_package_share_directory
-    return top, pkgs
-
-
-def xacro_to_urdf(source: str | Path, args: Mapping[str, str] | None = None, *,
-                  index: PackageIndex | None = None, base_dir: str | Path | None = None) -> str:
-    """Run xacro on a file path or an XML string and return the URDF text.
-
-    Args:
-        source: a path to a ``.xacro``/``.urdf`` file, or the XML text itself (starts with ``<``).
-        args: ``$(arg name)`` values.
-        index: package index for ``$(find pkg)`` (default index otherwise).
-        base_dir: directory for relative ``xacro:include`` in a string (default: current directory).
-
-    Raises:
-        DescriptionError: xacro failed (message names the file and xacro's reason).
-    """
-    import xacro
-
-    index = index or default_index()
-    mappings = {str(k): str(v) for k, v in (args or {}).items()}
-    is_text = isinstance(source, str) and source.lstrip().startswith("<")
-    name = "<string>" if is_text else str(source)
-    if not is_text and not Path(source).is_file():
-        raise DescriptionError(f"xacro file '{source}' not found", source=name)
-    top, pkgs = _ament_shim(index)
-    with _xacro_lock:
-        saved = {k: sys.modules.get(k) for k in ("ament_index_python", "ament_index_python.packages")}
-        sys.modules["ament_index_python"], sys.modules["ament_index_python.packages"] = top, pkgs
-        try:
-            if is_text:
-                base = Path(base_dir) if base_dir is not None else Path.cwd()
-                xacro.init_stacks(str(base / "__string__.xacro"))
-                doc = xacro.parse(source)
-                xacro.process_doc(doc, mappings=mappings)
-            else:
-                doc = xacro.process_file(str(source), mappings=mappings)
-            return doc.toprettyxml(indent="  ")
-        except PackageNotFoundError as exc:
-            raise DescriptionError(f"xacro {name}: {exc}", source=name, missing_assets=True) from exc
-        except Exception as exc:  # xacro raises XacroException, ExpatError, NameError, KeyError, ...
-            missing = _find_cause(exc, PackageNotFoundError)
-            if missing is not None:
-                raise DescriptionError(f"xacro {name}: {missing}", source=name, missing_assets=True) from exc
-            detail = str(exc) or type(exc).__name__
-            if isinstance(exc, KeyError):
-                detail = f"undefined argument {exc}; pass it in xacro args"
-            raise DescriptionError(f"xacro {name} failed: {detail}", source=name) from exc
-        finally:
-            for key, module in saved.items():
-                if module is None:
-                    sys.modules.pop(key, None)
-                else:
-                    sys.modules[key] = module
-            xacro.init_stacks(None)
-
-
-def _find_cause(exc: BaseException, kind: type) -> BaseException | None:
-    seen = set()
-    while exc is not None and id(exc) not in seen:
-        if isinstance(exc, kind):
-            return exc
-        seen.add(id(exc))
-        exc = getattr(exc, "exc", None) or exc.__cause__ or exc.__context__
-    return None
 
 
 # ---------------------------------------------------------------------------------------- entry point
@@ -616,7 +462,7 @@ class _UrdfBuild:
         if not path.is_file():
             raise DescriptionError(f"{self.source}: mesh '{mesh.filename}' not found; searched: {path}",
                                    source=self.source, missing_assets=True)
-        self.vertices += _check_mesh_file(path, self.limits, self.source)
+        self.vertices += check_mesh_file(path, self.limits, self.source)
         if self.vertices > self.limits.max_mesh_vertices:
             raise DescriptionError(f"{self.source}: the meshes have more than {self.limits.max_mesh_vertices} "
                                    f"vertices in all (the node's description limits)", source=self.source)
@@ -625,34 +471,6 @@ class _UrdfBuild:
         self.spec.add_mesh(name=name, file=str(usable.resolve()), scale=list(scale))
         self.meshes[key] = name
         return name
-
-
-def _check_mesh_file(path: Path, limits: DescriptionLimits, source: str) -> int:
-    """Refuse a mesh file over the byte or vertex limit; return its (estimated) vertex count.
-
-    Counted without parsing: binary STL from its triangle count (3 vertices each), ASCII STL and
-    OBJ by their ``vertex``/``v`` lines; other formats by size only (trimesh converts them).
-    """
-    size = path.stat().st_size
-    if size > limits.max_mesh_bytes:
-        raise DescriptionError(f"{source}: mesh '{path.name}' is {size} bytes; the limit is {limits.max_mesh_bytes}",
-                               source=source)
-    suffix = path.suffix.lower()
-    vertices = 0
-    if suffix == ".stl":
-        with path.open("rb") as f:
-            head = f.read(84)
-            if head[:5].lower() == b"solid" and b"facet" in f.read(4096):
-                vertices = path.read_bytes().count(b"vertex")
-            elif len(head) == 84:
-                vertices = 3 * int.from_bytes(head[80:84], "little")
-    elif suffix == ".obj":
-        with path.open("rb") as f:
-            vertices = sum(1 for line in f if line.startswith(b"v "))
-    if vertices > limits.max_mesh_vertices:
-        raise DescriptionError(f"{source}: mesh '{path.name}' has {vertices} vertices; the limit is "
-                               f"{limits.max_mesh_vertices}", source=source)
-    return vertices
 
 
 def _fix_inertia(mass: float, tensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -741,11 +559,11 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None, p
     name = source_name or ("<string>" if is_text else str(source))
     limits = limits or DescriptionLimits()
     if is_text:
-        _screen_mjcf_text(source, name, limits, policy, index or default_index())
+        screen_mjcf_text(source, name, limits, policy, index or default_index())
     try:
         spec = mujoco.MjSpec.from_string(source) if is_text else mujoco.MjSpec.from_file(str(source))
         if policy is not None:
-            _check_mjcf_files(spec, name, policy, index or default_index(), limits)
+            check_mjcf_files(spec, name, policy, index or default_index(), limits)
         model = spec.compile()  # validate now, to report the file's own errors with its name
     except DescriptionError:
         raise
@@ -792,189 +610,3 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None, p
                 body.add_site(name=body.name, size=[0.005, 0.005, 0.005], group=4)
     return RobotDescription(name=spec.modelname or "mjcf", format="mjcf", spec=spec, source=name, text=text,
                             root=root.name, joints=tuple(joints), links=tuple(links), free_root=bool(free))
-
-
-# ---------------------------------------------------------------------------------------- MJCF checks
-# Elements a request's MJCF may not use: generators whose output is not bounded by the text
-# (replicate, composite, flexcomp), plugins, other models (model, attach) and user data blocks
-# (custom numeric/text/tuple, sized by an attribute). Files in the package roots may use them.
-_MJCF_REFUSED_ELEMENTS = frozenset({"replicate", "composite", "flexcomp", "flex", "deformable", "extension", "plugin",
-                                    "instance", "model", "attach", "custom", "numeric", "tuple"})
-_MJCF_FILE_ELEMENTS = frozenset({"include", "mesh", "texture", "hfield", "skin"})
-_MJCF_MAX_MEMORY = 1 << 30  # bytes of <size memory=...> in a request
-_MEMORY_SUFFIX = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40, "P": 1 << 50, "E": 1 << 60}
-
-
-def _screen_mjcf_text(text: str, name: str, limits: DescriptionLimits, policy: SourcePolicy | None,
-                      index: PackageIndex) -> None:
-    """Check MJCF text before MuJoCo parses it: element count and nesting depth (always); for a
-    request (``policy``): refused elements, generated texture/height-field/memory sizes and the
-    files named by ``<include>`` and the compiler's directories."""
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise DescriptionError(f"{name}: malformed MJCF XML: {exc}", source=name) from exc
-    count = 0
-    stack: list[tuple[ET.Element, int]] = [(root, 1)]
-    while stack:  # iterative: a deep nesting meets the limit, not Python's recursion limit
-        elem, depth = stack.pop()
-        count += 1
-        if count > limits.max_xml_elements:
-            raise DescriptionError(f"{name}: more than {limits.max_xml_elements} XML elements (the node's "
-                                   f"description limits)", source=name)
-        if depth > limits.max_depth + 8:  # body nesting plus <mujoco><worldbody> and a few wrappers
-            raise DescriptionError(f"{name}: XML elements nested deeper than {limits.max_depth + 8} (the node's "
-                                   f"description limits)", source=name)
-        if policy is not None:
-            _screen_mjcf_element(elem, name, limits, policy, index)
-        stack.extend((child, depth + 1) for child in elem)
-
-
-def _screen_mjcf_element(elem: ET.Element, name: str, limits: DescriptionLimits, policy: SourcePolicy,
-                         index: PackageIndex) -> None:
-    tag = elem.tag if isinstance(elem.tag, str) else ""
-    label = f"{name}: <{tag}{' name=' + repr(elem.get('name')) if elem.get('name') else ''}>"
-    if tag in _MJCF_REFUSED_ELEMENTS:
-        raise DescriptionError(f"{label} is not accepted in a request's MJCF (generators, plugins, models and "
-                               f"custom data are not); put the model in a package and spawn it by package:// URI",
-                               source=name)
-    for attr in elem.attrib:
-        if attr.startswith("file") and tag not in _MJCF_FILE_ELEMENTS:
-            raise DescriptionError(f"{label} attribute '{attr}' is not accepted in a request", source=name)
-    if tag == "include" and elem.get("file") is not None:
-        policy.resolve(elem.get("file", ""), index, what="MJCF include")
-    if tag == "compiler":
-        for attr in ("meshdir", "texturedir", "assetdir"):
-            if elem.get(attr):
-                policy.resolve(elem.get(attr, ""), index, what=f"MJCF compiler {attr}")
-    if tag == "mesh" and elem.get("builtin") is not None:
-        raise DescriptionError(f"{label}: builtin (generated) meshes are not accepted in a request", source=name)
-    if tag == "texture":
-        pixels = _int_attr(elem, "width", label) * _int_attr(elem, "height", label)
-        if pixels > limits.max_texture_pixels:
-            raise DescriptionError(f"{label}: {pixels} pixels; at most {limits.max_texture_pixels} are accepted",
-                                   source=name)
-    if tag == "hfield":
-        cells = _int_attr(elem, "nrow", label) * _int_attr(elem, "ncol", label)
-        if cells > limits.max_texture_pixels:
-            raise DescriptionError(f"{label}: {cells} cells; at most {limits.max_texture_pixels} are accepted",
-                                   source=name)
-    if tag == "size":
-        for attr in ("memory", "nstack"):
-            if elem.get(attr) is not None and _memory_bytes(elem.get(attr, ""), label) > _MJCF_MAX_MEMORY:
-                raise DescriptionError(f"{label} {attr}={elem.get(attr)!r} asks for more than {_MJCF_MAX_MEMORY} "
-                                       f"bytes; not accepted in a request", source=name)
-
-
-def _int_attr(elem: ET.Element, attr: str, label: str) -> int:
-    text = elem.get(attr)
-    if text is None:
-        return 1
-    try:
-        value = int(text.strip())
-    except ValueError:
-        raise DescriptionError(f"{label} {attr}={text!r} is not an integer", source=label) from None
-    return abs(value)
-
-
-def _memory_bytes(text: str, label: str) -> int:
-    match = re.fullmatch(r"\s*(-?\d+)\s*([KMGTPE]?)\s*", text, flags=re.I)
-    if not match:
-        raise DescriptionError(f"{label} memory size {text!r} is not a number with an optional K/M/G suffix",
-                               source=label)
-    return abs(int(match.group(1))) * _MEMORY_SUFFIX[match.group(2).upper()]
-
-
-def _mjcf_asset_path(spec: mujoco.MjSpec, directory: str, file: str) -> str:
-    """The path MuJoCo opens for an asset ``file`` with compiler directory ``directory``."""
-    if os.path.isabs(file):
-        return file
-    if os.path.isabs(directory):
-        return os.path.join(directory, file)
-    return os.path.join(spec.modelfiledir or os.getcwd(), directory, file)
-
-
-def _check_mjcf_files(spec: mujoco.MjSpec, name: str, policy: SourcePolicy, index: PackageIndex,
-                      limits: DescriptionLimits) -> None:
-    """Every asset file of a parsed request MJCF (included parts too) must be inside the roots;
-    mesh files within the size limits. Runs before compilation, which is when MuJoCo reads them."""
-    files: list[tuple[str, str, str]] = []  # (kind, directory, file)
-    files += [("mesh", spec.meshdir, m.file) for m in spec.meshes if m.file]
-    files += [("skin", spec.meshdir, s.file) for s in spec.skins if s.file]
-    files += [("hfield", spec.meshdir, h.file) for h in spec.hfields if h.file]
-    for tex in spec.textures:
-        files += [("texture", spec.texturedir, f) for f in (tex.file, *tex.cubefiles) if f]
-    vertices = 0
-    for kind, directory, file in files:
-        path = policy.resolve(_mjcf_asset_path(spec, directory, file), index, what=f"MJCF {kind} file")
-        if kind == "mesh" and path.is_file():
-            vertices += _check_mesh_file(path, limits, name)
-    if vertices > limits.max_mesh_vertices:
-        raise DescriptionError(f"{name}: the meshes have more than {limits.max_mesh_vertices} vertices in all",
-                               source=name)
-
-
-_OBJ_PREFIXES = (("body_", mujoco.mjtObj.mjOBJ_BODY, "nbody"), ("geom_", mujoco.mjtObj.mjOBJ_GEOM, "ngeom"),
-                 ("jnt_", mujoco.mjtObj.mjOBJ_JOINT, "njnt"), ("site_", mujoco.mjtObj.mjOBJ_SITE, "nsite"),
-                 ("cam_", mujoco.mjtObj.mjOBJ_CAMERA, "ncam"), ("light_", mujoco.mjtObj.mjOBJ_LIGHT, "nlight"),
-                 ("mesh_", mujoco.mjtObj.mjOBJ_MESH, "nmesh"), ("mat_", mujoco.mjtObj.mjOBJ_MATERIAL, "nmat"),
-                 ("tendon_", mujoco.mjtObj.mjOBJ_TENDON, "ntendon"), ("eq_", mujoco.mjtObj.mjOBJ_EQUALITY, "neq"),
-                 ("sensor_", mujoco.mjtObj.mjOBJ_SENSOR, "nsensor"), ("pair_", mujoco.mjtObj.mjOBJ_PAIR, "npair"),
-                 ("actuator_", mujoco.mjtObj.mjOBJ_ACTUATOR, "nu"), ("key_", mujoco.mjtObj.mjOBJ_KEY, "nkey"))
-
-
-def _element(model: mujoco.MjModel, field_name: str, row: int) -> str:
-    """``"geom 'arm/box' (geom_size)"``-style label of a row of a model array."""
-    if field_name.startswith("dof_") and row < model.nv:
-        field_name, row = "jnt_" + field_name, int(model.dof_jntid[row])
-    for prefix, obj, count in _OBJ_PREFIXES:
-        if field_name.startswith(prefix) and row < getattr(model, count):
-            label = mujoco.mj_id2name(model, int(obj), row) or f"#{row}"
-            kind = prefix.rstrip("_").replace("jnt", "joint").replace("cam", "camera").replace("mat", "material")
-            return f"{kind} '{label}'"
-    return f"row {row}"
-
-
-def check_model(model: mujoco.MjModel, name: str, limits: DescriptionLimits | None = None) -> None:
-    """Check a compiled description model: counts, tree depth, every real number finite, and
-    positions, sizes, masses, inertias, joint ranges and joint parameters within ``limits``.
-
-    Raises:
-        DescriptionError: naming the element (body/geom/joint name) and the model field.
-    """
-    limits = limits or DescriptionLimits()
-    for what, count, most in (("bodies", model.nbody - 1, limits.max_bodies),
-                              ("joints", model.njnt, limits.max_joints), ("geoms", model.ngeom, limits.max_geoms),
-                              ("mesh vertices", model.nmeshvert, limits.max_mesh_vertices)):
-        if count > most:
-            raise DescriptionError(f"{name}: {count} {what}; the node's description limits allow {most}", source=name)
-    depth = np.zeros(model.nbody, dtype=int)
-    for b in range(1, model.nbody):  # a parent's id is always lower than its child's
-        depth[b] = depth[model.body_parentid[b]] + 1
-    if model.nbody > 1 and depth.max() > limits.max_depth:
-        raise DescriptionError(f"{name}: the body tree is {depth.max()} bodies deep; the node's description limits "
-                               f"allow {limits.max_depth}", source=name)
-    for attr in dir(model):
-        if attr.startswith("_"):
-            continue
-        try:
-            value = getattr(model, attr)
-        except Exception:  # some properties raise for models without the feature
-            continue
-        if isinstance(value, np.ndarray) and value.dtype.kind == "f" and value.size and not np.all(np.isfinite(value)):
-            row = int(np.argwhere(~np.isfinite(value))[0][0])
-            raise DescriptionError(f"{name}: {_element(model, attr, row)} has a value that is not finite ({attr})",
-                                   source=name)
-    pmax, jmax = limits.max_position, limits.max_joint_parameter
-    bounds = (("body_pos", -pmax, pmax), ("body_ipos", -pmax, pmax), ("geom_pos", -pmax, pmax),
-              ("site_pos", -pmax, pmax), ("geom_size", 0.0, limits.max_size), ("body_mass", 0.0, limits.max_mass),
-              ("body_inertia", 0.0, limits.max_inertia), ("jnt_range", -pmax, pmax), ("jnt_stiffness", 0.0, jmax),
-              ("dof_damping", 0.0, jmax), ("dof_frictionloss", 0.0, jmax), ("dof_armature", 0.0, jmax))
-    for attr, low, high in bounds:
-        value = np.asarray(getattr(model, attr))
-        bad = np.argwhere((value < low) | (value > high))
-        if bad.size:
-            row = int(bad[0][0])
-            shown = np.asarray(value[row]).tolist()
-            raise DescriptionError(f"{name}: {_element(model, attr, row)} {attr.split('_', 1)[1]} {shown} is outside "
-                                   f"[{low:g}, {high:g}] (the node's description limits)", source=name)
