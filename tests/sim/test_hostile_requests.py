@@ -438,3 +438,14 @@ def test_xacro_strings_run_only_with_the_opt_in(tmp_path):
     desc = load_description(text, index=index, policy=SourcePolicy(allow_xacro_text=True))
     assert desc.links == ("b",)
     assert load_description(text, index=index).links == ("b",)  # a local caller is trusted
+
+
+def test_robot_resource_expands_xacro_text_client_side():
+    from multiros.sim.launch import robot_resource
+
+    text = ('<robot name="x" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:property name="n" value="b"/>'
+            '<link name="${n}"/></robot>')
+    uri, out = robot_resource(robot_model_xml=text)
+    assert uri == "" and "xacro" not in out and 'name="b"' in out
+    uri, out = robot_resource(robot_model_xml=text, controllers_list=["a"])
+    assert uri == "string:?__controllers=a" and "xacro" not in out
