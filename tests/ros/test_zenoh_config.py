@@ -129,3 +129,37 @@ def test_wrong_password_cannot_reach_a_router(tmp_path, router_endpoint: str) ->
         good = ros.Context(transport="zenoh", router_endpoint=router_endpoint, env=server_env)
         with good:
             assert good.transport.session.info.routers_zid()
+
+
+def _make_ca_and_cert(folder, name: str) -> tuple[str, str, str]:
+    """A throw-away CA and a certificate for localhost/127.0.0.1 signed by it (needs openssl)."""
+    import shutil
+    import subprocess
+
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl is not installed: cannot make test certificates")
+    run = lambda *a: subprocess.run(["openssl", *a], check=True, capture_output=True, timeout=60)  # noqa: E731
+    ca, ca_key, key, csr, cert = (str(folder / f"{name}-{n}")
+                                  for n in ("ca.pem", "ca.key", "key.pem", "csr", "cert.pem"))
+    run("req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", ca_key, "-out", ca, "-days", "2",
+        "-subj", f"/CN={name}-ca")
+    run("req", "-newkey", "rsa:2048", "-nodes", "-keyout", key, "-out", csr, "-subj", "/CN=localhost")
+    ext = folder / f"{name}-ext.cnf"
+    ext.write_text("subjectAltName=DNS:localhost,IP:127.0.0.1\n")
+    run("x509", "-req", "-in", csr, "-CA", ca, "-CAkey", ca_key, "-CAcreateserial", "-out", cert, "-days", "2",
+        "-extfile", str(ext))
+    return ca, cert, key
+
+
+def test_tls_router_accepts_only_peers_trusting_its_ca(tmp_path, router_endpoint: str) -> None:
+    ca, cert, key = _make_ca_and_cert(tmp_path, "good")
+    other_ca, _, _ = _make_ca_and_cert(tmp_path, "other")
+    endpoint = router_endpoint.replace("tcp/127.0.0.1", "tls/localhost")
+    tls = {"UNIROS_ZENOH_TLS_ROOT_CA": ca, "UNIROS_ZENOH_TLS_CERT": cert, "UNIROS_ZENOH_TLS_KEY": key}
+    with ros.Context(transport="zenoh", env=tls, router="embedded", router_endpoint=endpoint):
+        with ros.Context(transport="zenoh", env={"UNIROS_ZENOH_TLS_ROOT_CA": ca}, router_endpoint=endpoint) as ok:
+            assert ok.transport.session.info.routers_zid()
+        wrong = ros.Context(transport="zenoh", env={"UNIROS_ZENOH_TLS_ROOT_CA": other_ca}, router_endpoint=endpoint,
+                            router_wait_sec=1.0)
+        with pytest.raises(ros.TransportError, match="check the CA"):
+            wrong.init()
