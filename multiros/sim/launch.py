@@ -278,9 +278,20 @@ def local_description_dirs(*locations: str | os.PathLike[str] | None) -> list[st
         path = text[len("file://"):] if text.startswith("file://") else text
         path = path.split("?", 1)[0]
         folder = os.path.dirname(os.path.realpath(path))
-        if os.path.isfile(os.path.realpath(path)) and folder not in dirs:
-            dirs.append(folder)
+        if not os.path.isfile(os.path.realpath(path)) or folder in dirs:
+            continue
+        if folder in _too_broad_to_trust():
+            raise ValueError(
+                f"the robot file {path!r} sits directly in {folder!r}; trusting that folder would let spawn "
+                "requests read all of it: move the description into a folder (or a ROS package) of its own"
+            )
+        dirs.append(folder)
     return dirs
+
+
+def _too_broad_to_trust() -> set[str]:
+    """Folders a node must never trust whole (computed per call: ``$HOME`` may change)."""
+    return {os.path.realpath(p) for p in ("/", os.path.expanduser("~"), "/tmp", "/home", "/root")}
 
 
 def free_loopback_endpoint() -> str:
@@ -385,7 +396,8 @@ def robot_resource(
     """The ``(uri, resource_string)`` pair of a ``SpawnEntity`` request for an env's robot.
 
     A file or ``package://`` location becomes the URI (xacro arguments as its query, which the
-    node passes to xacro); XML text becomes the resource string. ``controllers_file`` and
+    node passes to xacro); XML text becomes the resource string, xacro text expanded here first (the
+    node does not run xacro on request text). ``controllers_file`` and
     ``controllers_list`` travel as the reserved query keys ``__controllers_file`` and
     ``__controllers``.
     """
@@ -411,16 +423,18 @@ def robot_resource(
     if controllers_list:
         args["__controllers"] = ",".join(controllers_list)
     if robot_model_xml.lstrip().startswith("<"):
-        if args:
+        # xacro text runs here, in the user's own (trusted) process: the node refuses to run xacro
+        # on a request's text, since xacro evaluates Python.
+        plain = {k: v for k, v in args.items() if not k.startswith("__")}
+        text = robot_model_xml
+        if plain or "http://www.ros.org/wiki/xacro" in text:
             from multiros.sim.description import xacro_to_urdf
 
-            plain = {k: v for k, v in args.items() if not k.startswith("__")}
-            text = xacro_to_urdf(robot_model_xml, plain) if plain else robot_model_xml
-            reserved = {k: v for k, v in args.items() if k.startswith("__")}
-            if reserved:
-                return "string:?" + urlencode(reserved), text
-            return "", text
-        return "", robot_model_xml
+            text = xacro_to_urdf(robot_model_xml, plain)
+        reserved = {k: v for k, v in args.items() if k.startswith("__")}
+        if reserved:
+            return "string:?" + urlencode(reserved), text
+        return "", text
     uri = robot_model_xml
     if args:
         uri += ("&" if "?" in uri else "?") + urlencode(args)
@@ -454,6 +468,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--allow-xacro-strings", action="store_true",
                         help="run xacro on descriptions that arrive as request strings (xacro evaluates "
                              "Python expressions: only on a trusted network)")
+    parser.add_argument("--max-steps-per-call", type=int, default=None, metavar="N",
+                        help="largest step count one StepSimulation/StepRobot request may ask for "
+                             "(default 100000); larger requests are refused")
     parser.add_argument("--owner-pid", type=int, default=None,
                         help="exit when this process is gone (set by envs that start the node)")
     parser.add_argument("--log-level", default="INFO")
@@ -484,6 +501,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True
+    if opts.max_steps_per_call is not None:
+        if opts.max_steps_per_call < 1:
+            parser.error("--max-steps-per-call must be a positive integer")
+        node_options["max_steps_per_call"] = opts.max_steps_per_call
     node = None
     try:
         node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,
@@ -491,7 +512,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                        serve=False, **node_options)
         for name, uri in robots:
             node.spawn_from_cli(name, uri)
-        node.world.mark_launched()
+        node.mark_launched()
         node.start_serving()
         _logger.info("simulation node %s ready (transport %s, robots: %s)", node.get_fully_qualified_name(),
                      opts.transport, ", ".join(n for n, _ in robots) or "none")

@@ -16,28 +16,33 @@ controller command topics; ``/tf``.
 
 from __future__ import annotations
 
+import functools
 import logging
 import re
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 
-from multiros.ros import Node
+from multiros.ros import Node, ParameterDescriptor
 from multiros.ros.executors import SingleThreadedExecutor
-from multiros.ros.interfaces import get_message, get_service
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
+from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
+from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import (
     CommandError,
     ControllerError,
     DescriptionError,
     EntityError,
     RenderError,
+    StepInterruptedError,
     UnstableSimulationError,
 )
+from multiros.sim.limits import MAX_STEPS_PER_CALL, DescriptionLimits
 from multiros.sim.robot_io import RobotInterfaces
 from multiros.sim.services import SIM_SERVICES
 from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
@@ -52,6 +57,7 @@ Clock = get_message("rosgraph_msgs/msg/Clock")
 Marker = get_message("visualization_msgs/msg/Marker")
 MarkerArray = get_message("visualization_msgs/msg/MarkerArray")
 
+# The native (Rolling) variants; Jazzy/Kilted peers are served through multiros.sim.distro_adapters.
 _SRV = {name: get_service(type_name) for name, type_name in SIM_SERVICES.items()}
 
 OK, NOT_FOUND, INCORRECT_STATE, FAILED = (
@@ -61,6 +67,8 @@ OK, NOT_FOUND, INCORRECT_STATE, FAILED = (
     Result.RESULT_OPERATION_FAILED,
 )
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_MAX_FRAMES = 1024  # frames per StepRobot request
+_MAX_FRAME_SETS = 64  # cached frame lists (a new list per call must not grow memory without end)
 _NAMESPACE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
 
 _FEATURES = [
@@ -68,6 +76,7 @@ _FEATURES = [
     SimulatorFeatures.DELETING,
     SimulatorFeatures.ENTITY_CATEGORIES,
     SimulatorFeatures.SPAWNING_RESOURCE_STRING,
+    SimulatorFeatures.SPAWNABLES,
     SimulatorFeatures.ENTITY_STATE_GETTING,
     SimulatorFeatures.ENTITY_STATE_SETTING,
     SimulatorFeatures.SIMULATION_RESET,
@@ -92,6 +101,25 @@ def _ok(result: Any) -> None:
     result.error_message = ""
 
 
+def _guarded(handler: Callable[[Any, Any, Any], Any]) -> Callable[[Any, Any, Any], Any]:
+    """An unexpected exception in a service handler becomes RESULT_OPERATION_FAILED with a
+    message (and a log entry), never a traceback to the caller or a dead node."""
+
+    @functools.wraps(handler)
+    def guarded(self: Any, request: Any, response: Any) -> Any:
+        try:
+            return handler(self, request, response)
+        except Exception as exc:  # the handler's own errors are mapped inside; this is the safety net
+            _logger.exception("%s failed unexpectedly", handler.__name__.removeprefix("_srv_"))
+            result = getattr(response, "result", None)
+            if result is not None:
+                detail = f"{type(exc).__name__}: {exc}"
+                _fail(result, FAILED, f"{handler.__name__.removeprefix('_srv_')} failed unexpectedly: {detail[:400]}")
+            return response
+
+    return guarded
+
+
 class SimulationNode(Node):
     """The MuJoCo simulation node.
 
@@ -102,9 +130,22 @@ class SimulationNode(Node):
         real_time_factor: speed of the ``STATE_PLAYING`` mode (1.0 = wall clock, <= 0 = as fast as
             possible).
         paused: start paused (lockstep, the default for training) rather than playing.
+        serve: create the simulation services now. ``False`` holds them back until
+            :meth:`start_serving`, so a launcher can spawn its robots first and never answer a
+            request about a world that is not ready.
         spin_topics: run this node's topic callbacks (controller commands, markers) in a background
             executor thread. Services never need it: they are answered on the caller's or the
             transport's thread. Turn it off when you spin the node yourself.
+        allow_xacro_strings: run xacro on description text that arrives in a SpawnEntity request.
+            Off by default: xacro evaluates Python in ``${...}``, so any peer that reaches the node
+            could run code as the node's user. Turn it on only when every peer is trusted.
+        trusted_paths: directories (besides the package index's roots) whose files a request may
+            name by plain path or ``file://`` URI, e.g. the directory of your own robot file.
+        max_steps_per_call: most physics steps one StepSimulation/StepRobot call may ask for
+            (default :data:`multiros.sim.limits.MAX_STEPS_PER_CALL`; also the read-only ROS
+            parameter ``max_steps_per_call``, so ``--ros-args -p max_steps_per_call:=N`` works).
+        description_limits: size and value bounds of spawned descriptions (default
+            :class:`~multiros.sim.limits.DescriptionLimits`).
         **node_kwargs: passed to :class:`multiros.ros.Node` (``context``, ``namespace``, ...).
     """
 
@@ -117,9 +158,24 @@ class SimulationNode(Node):
         real_time_factor: float = 1.0,
         paused: bool = True,
         spin_topics: bool = True,
+        serve: bool = True,
+        allow_xacro_strings: bool = False,
+        trusted_paths: Sequence[str | Path] = (),
+        max_steps_per_call: int = MAX_STEPS_PER_CALL,
+        description_limits: DescriptionLimits | None = None,
         **node_kwargs: Any,
     ) -> None:
         super().__init__(node_name, **node_kwargs)
+        self._stopping = threading.Event()  # set first by destroy_node: long step calls stop at the next chunk
+        self.source_policy = SourcePolicy.create(trusted_paths, allow_xacro_strings)
+        self.description_limits = description_limits or DescriptionLimits()
+        steps = self.declare_parameter(
+            "max_steps_per_call", int(max_steps_per_call),
+            ParameterDescriptor(read_only=True, description="most physics steps per StepSimulation/StepRobot call"),
+        ).value
+        if not isinstance(steps, int) or steps < 1:
+            raise ValueError(f"max_steps_per_call must be an integer >= 1, got {steps!r}")
+        self.max_steps_per_call = steps
         self._executor: Any = None
         self._spin_thread: threading.Thread | None = None
         self.world = world if world is not None else World(options)
@@ -139,9 +195,9 @@ class SimulationNode(Node):
             self.create_subscription(MarkerArray, "/visualization_marker_array",
                                      lambda msg: [self._on_marker(m) for m in msg.markers], 10),
         ]
-        self._services = [
-            self.create_service(_SRV[name], f"~/{name}", getattr(self, f"_srv_{name}")) for name in _SRV
-        ]
+        self._services: list[Any] = []
+        if serve:
+            self.start_serving()
         for name in self.world.entity_names():
             self._attach_robot(name)
         if not paused:
@@ -151,6 +207,15 @@ class SimulationNode(Node):
             self._executor.add_node(self)
             self._spin_thread = threading.Thread(target=self._executor.spin, name=f"{node_name}-topics", daemon=True)
             self._spin_thread.start()
+
+    def start_serving(self) -> None:
+        """Create the simulation services (once); until then the node answers no service call."""
+        if self._services:
+            return
+        self._services = [  # every served distribution's variant of each (multiros.sim.distro_adapters)
+            srv for name, type_name in SIM_SERVICES.items()
+            for srv in create_services(self, type_name, f"~/{name}", getattr(self, f"_srv_{name}"))
+        ]
 
     # -- helpers ----------------------------------------------------------------------------
     def _locked(self, fn: Callable[[], None]) -> None:
@@ -196,15 +261,17 @@ class SimulationNode(Node):
             self._runner.stop()
         if state == SimulationState.STATE_STOPPED:
             with self.lock:
-                self.world.reset(ResetScope.ALL)
-                self._sync_robots()
+                self._sync_robots(self.world.reset(ResetScope.ALL))
         self._state = state
 
-    def _sync_robots(self) -> None:
-        """Drop interfaces of robots a reset removed."""
+    def _sync_robots(self, respawned: tuple[str, ...] = ()) -> None:
+        """Drop interfaces of robots a reset removed; re-create those of entities it spawned anew."""
         for name in list(self._robots):
-            if not self.world.has_entity(name):
+            if not self.world.has_entity(name) or name in respawned:
                 self._detach_robot(name)
+        for name in respawned:
+            if self.world.has_entity(name):
+                self._attach_robot(name)
 
     # -- simulation_interfaces ---------------------------------------------------------------
     def _srv_get_simulator_features(self, request: Any, response: Any) -> Any:
@@ -217,7 +284,29 @@ class SimulationNode(Node):
         )
         return response
 
+    def _srv_get_spawnables(self, request: Any, response: Any) -> Any:
+        if len(request.sources) > 0:
+            _fail(response.result, Result.RESULT_FEATURE_UNSUPPORTED,
+                  "additional sources are not searched; spawnables come from the installed description packages")
+            return response
+        from multiros.sim.spawnables import list_spawnables
+
+        Spawnable = get_message("simulation_interfaces/msg/Spawnable")
+        items = []
+        for uri, text in list_spawnables(self.world.index):
+            item = Spawnable(description=text)
+            item.entity_resource.uri = uri
+            items.append(item)
+        response.spawnables = items
+        _ok(response.result)
+        return response
+
+    @_guarded
     def _srv_spawn_entity(self, request: Any, response: Any) -> Any:
+        return self._spawn(request, response, self.source_policy)
+
+    def _spawn(self, request: Any, response: Any, policy: SourcePolicy | None) -> Any:
+        """SpawnEntity. ``policy`` None trusts the request (the node's own command line)."""
         res = response.result
         uri, text = request.entity_resource.uri, request.entity_resource.resource_string
         if not uri and not text:
@@ -238,6 +327,12 @@ class SimulationNode(Node):
         if problem:
             _fail(res, response.INVALID_POSE, problem)
             return response
+        limits = self.description_limits
+        if len(uri) > 8192 or len(text) > limits.max_chars:
+            what = "entity_resource.uri" if len(uri) > 8192 else "entity_resource.resource_string"
+            most = 8192 if len(uri) > 8192 else limits.max_chars
+            _fail(res, response.RESOURCE_PARSE_ERROR, f"{what} is longer than {most} characters (the node's limit)")
+            return response
         description: str = text
         args: dict[str, str] = {}
         if uri:
@@ -248,14 +343,27 @@ class SimulationNode(Node):
             if parts.scheme != "string":  # "string:?opts" = options for the resource_string
                 description = uri
         controllers_yaml: Any = args.pop("__controllers_file", None)
-        if controllers_yaml:
-            try:
-                controllers_yaml = self.world.index.resolve_uri(controllers_yaml)
-            except DescriptionError as exc:
-                _fail(res, response.MISSING_ASSETS, f"controllers file: {exc}")
-                return response
         controllers = [c for c in args.pop("__controllers", "").split(",") if c] or None
-        xacro_args = args or None
+        try:
+            if controllers_yaml:
+                controllers_yaml = (policy.resolve(controllers_yaml, self.world.index, what="controllers file")
+                                    if policy is not None else self.world.index.resolve_uri(controllers_yaml))
+            # Parsed outside the world: a refused or out-of-bounds description never touches it.
+            desc = load_description(description, args=args or None, index=self.world.index,
+                                    mesh_cache=self.world.mesh_cache,
+                                    default_armature=self.world.options.default_armature, policy=policy,
+                                    limits=limits)
+        except UnsupportedFormatError as exc:
+            _fail(res, response.UNSUPPORTED_FORMAT, str(exc))
+            return response
+        except DescriptionError as exc:
+            code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
+            _fail(res, code, str(exc))
+            return response
+        except (RecursionError, MemoryError) as exc:
+            _fail(res, response.RESOURCE_PARSE_ERROR, f"the description is too large or too deep to load "
+                  f"({type(exc).__name__}); see the node's description limits")
+            return response
         with self.lock:
             name = self._entity_name(request.name, request.allow_renaming, response)
             if name is None:
@@ -263,10 +371,9 @@ class SimulationNode(Node):
             try:
                 info = self.world.spawn(
                     name,
-                    description,
+                    desc,
                     pose=(position, quat),
                     namespace=namespace or None,
-                    xacro_args=xacro_args,
                     controllers=controllers,
                     controllers_yaml=controllers_yaml,
                 )
@@ -419,10 +526,16 @@ class SimulationNode(Node):
         return response
 
     def _srv_reset_simulation(self, request: Any, response: Any) -> Any:
-        scope = int(request.scope) or int(ResetScope.ALL)
+        # SCOPE_DEFAULT (0) and SCOPE_ALL (255): the launched world comes back (World.reset).
+        scope = int(request.scope)
         with self.lock:
-            self.world.reset(scope)
-            self._sync_robots()
+            try:
+                respawned = self.world.reset(scope)
+            except (DescriptionError, EntityError, ControllerError, ValueError) as exc:
+                self._sync_robots(self.world.entity_names())
+                _fail(response.result, FAILED, f"reset (scope {scope}) could not re-create the launched world: {exc}")
+                return response
+            self._sync_robots(respawned)
             for robot in self._robots.values():
                 robot.on_reset()
         _ok(response.result)
@@ -450,14 +563,29 @@ class SimulationNode(Node):
         _ok(response.result)
         return response
 
+    def _too_many_steps(self, steps: int, result: Any) -> bool:
+        if steps <= self.max_steps_per_call:
+            return False
+        _fail(result, FAILED, f"steps={steps} exceeds this node's max_steps_per_call ({self.max_steps_per_call}); "
+              f"split the call, or start the node with a larger max_steps_per_call")
+        return True
+
+    def _step_world(self, steps: int) -> None:
+        """Step in chunks that stop when the node shuts down (lock held by the caller)."""
+        self.world.step(steps, should_stop=self._stopping.is_set)
+
+    @_guarded
     def _srv_step_simulation(self, request: Any, response: Any) -> Any:
+        steps = int(request.steps)
+        if self._too_many_steps(steps, response.result):
+            return response
         if self._state != SimulationState.STATE_PAUSED:
             _fail(response.result, FAILED, "StepSimulation needs a paused simulation; pause it first")
             return response
         with self.lock:
             try:
-                self.world.step(int(request.steps))
-            except UnstableSimulationError as exc:
+                self._step_world(steps)
+            except (UnstableSimulationError, StepInterruptedError) as exc:
                 _fail(response.result, FAILED, str(exc))
                 return response
             self._after_step()
@@ -465,9 +593,15 @@ class SimulationNode(Node):
         return response
 
     # -- uniros_interfaces ------------------------------------------------------------------
+    @_guarded
     def _srv_step_robot(self, request: Any, response: Any) -> Any:
         res = response.result
         steps = int(request.steps)
+        if self._too_many_steps(steps, res):
+            return response
+        if len(request.frames) > _MAX_FRAMES:
+            _fail(res, response.UNKNOWN_FRAME, f"{len(request.frames)} frames requested; at most {_MAX_FRAMES}")
+            return response
         if steps > 0 and self._state != SimulationState.STATE_PAUSED:
             _fail(res, INCORRECT_STATE, "StepRobot with steps > 0 needs a paused simulation (lockstep mode)")
             return response
@@ -497,12 +631,17 @@ class SimulationNode(Node):
                     except EntityError as exc:
                         _fail(res, response.UNKNOWN_FRAME, str(exc))
                         return response
+                    if len(self._frame_sets) >= _MAX_FRAME_SETS:  # distinct frame lists are not unbounded memory
+                        self._frame_sets.clear()
                     self._frame_sets[key] = frame_set
             if steps > 0:
                 try:
-                    self.world.step(steps)
+                    self._step_world(steps)
                 except UnstableSimulationError as exc:
                     _fail(res, response.UNSTABLE, str(exc))
+                    return response
+                except StepInterruptedError as exc:
+                    _fail(res, FAILED, str(exc))
                     return response
                 self._after_step()
             robot.fill_joint_state(response.joint_state)
@@ -597,16 +736,25 @@ class SimulationNode(Node):
     def spawn_from_cli(self, name: str, uri: str) -> str:
         """Spawn ``NAME=URI`` from the command line through the SpawnEntity service logic.
 
+        The command line is the node owner's: its URI may name any file the user can read and
+        xacro runs on it (the source policy applies to requests only); the limits still apply.
+
         Raises:
             RuntimeError: the spawn failed (the message is the service's error message).
         """
         srv = _SRV["spawn_entity"]
         request = srv.Request(name=name)
         request.entity_resource.uri = uri
-        response = self._srv_spawn_entity(request, srv.Response())
+        response = self._spawn(request, srv.Response(), None)
         if response.result.result != OK:
             raise RuntimeError(f"cannot spawn {name!r} from {uri!r}: {response.result.error_message}")
         return response.entity_name
+
+    def mark_launched(self, names: tuple[str, ...] | list[str] | None = None) -> tuple[str, ...]:
+        """Record entities (default: all present now) as the launched world, which
+        ``ResetSimulation`` with ``SCOPE_ALL``/``SCOPE_DEFAULT`` restores (see :meth:`World.mark_launched`)."""
+        with self.lock:
+            return self.world.mark_launched(names)
 
     def open_viewer(self) -> None:
         """Open the interactive MuJoCo viewer on this node's world (needs a display)."""
@@ -618,7 +766,8 @@ class SimulationNode(Node):
     # -- lifecycle --------------------------------------------------------------------------
     def destroy_node(self) -> None:
         """Stop real-time physics and the topic thread, drop the per-robot interfaces and the renderer,
-        destroy the node."""
+        destroy the node. A step call in progress stops at its next chunk."""
+        self._stopping.set()
         self._runner.stop()
         if self._executor is not None:
             self._executor.shutdown()

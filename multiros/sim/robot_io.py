@@ -17,10 +17,10 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from multiros.ros.interfaces import get_message, get_service
 from multiros.ros.qos import DurabilityPolicy, QoSProfile
 from multiros.sim import convert
 from multiros.sim.controllers import JointTrajectoryController
+from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import CommandError, ControllerError
 from multiros.sim.services import CONTROLLER_SERVICES
 
@@ -66,12 +66,12 @@ class RobotInterfaces:
         self._description_pub.publish(String(data=info.description))
         self._command_subs: dict[str, Any] = {}
         cm = f"{ns}/controller_manager"
-        self._services = [
-            node.create_service(ListControllers, f"{cm}/list_controllers", self._list),
-            node.create_service(LoadController, f"{cm}/load_controller", self._load),
-            node.create_service(ConfigureController, f"{cm}/configure_controller", self._configure),
-            node.create_service(SwitchController, f"{cm}/switch_controller", self._switch),
-            node.create_service(UnloadController, f"{cm}/unload_controller", self._unload),
+        handlers = {"list_controllers": self._list, "load_controller": self._load,
+                    "configure_controller": self._configure, "switch_controller": self._switch,
+                    "unload_controller": self._unload}
+        self._services = [  # every served distribution's variant (multiros.sim.distro_adapters)
+            srv for name, type_name in CONTROLLER_SERVICES.items()
+            for srv in create_services(node, type_name, f"{cm}/{name}", handlers[name])
         ]
         for controller in world.controller_manager(info.name).list_controllers():
             self._subscribe_commands(controller.name)
@@ -176,6 +176,8 @@ class RobotInterfaces:
             except ControllerError as exc:
                 self.node.get_logger().warning("%s/controller_manager: %s", self.ns, exc)
                 response.ok = False
+                if hasattr(response, "message"):  # SwitchController since ros2_control 4 (Jazzy)
+                    response.message = str(exc)
         return response
 
     def _load(self, request: Any, response: Any) -> Any:

@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from collections.abc import Iterator
@@ -25,6 +26,8 @@ from multiros.sim.launch import connect, free_loopback_endpoint, local_descripti
 pytestmark = [pytest.mark.multiprocess]
 
 RX200 = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
+# Children run outside the checkout so they import the installed package, as a user's scripts do.
+_CWD = tempfile.gettempdir()
 
 
 def _alive(pid: int) -> bool:
@@ -59,7 +62,7 @@ def _uniros_sim(*args: str, endpoint: str) -> Iterator[subprocess.Popen]:
     """``uniros-sim`` in a child process with a router of its own at ``endpoint``."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "multiros.sim.launch", "--router", endpoint, "--log-level", "WARNING", *args],
-        stdin=subprocess.DEVNULL,
+        stdin=subprocess.DEVNULL, cwd=_CWD,
     )
     try:
         yield proc
@@ -69,7 +72,8 @@ def _uniros_sim(*args: str, endpoint: str) -> Iterator[subprocess.Popen]:
 
 @contextlib.contextmanager
 def _client_on(endpoint: str, node_name: str = "mujoco_sim") -> Iterator[SimulationClient]:
-    with ros.Context(transport="zenoh", env={}, router="none", router_endpoint=endpoint) as ctx:
+    env = {"ROS_DOMAIN_ID": os.environ["ROS_DOMAIN_ID"]}  # the domain uniros-sim inherited
+    with ros.Context(transport="zenoh", env=env, router="none", router_endpoint=endpoint) as ctx:
         node = ros.Node("isolation_probe", context=ctx)
         client = SimulationClient(node, "/" + node_name, timeout_sec=10.0)
         try:
@@ -144,7 +148,7 @@ _OWNER = textwrap.dedent("""
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGTERM])
 def test_child_node_dies_with_its_owner_whatever_the_signal(sig):
     owner = subprocess.Popen([sys.executable, "-c", _OWNER], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                             text=True)
+                             text=True, cwd=_CWD)
     child_pid = None
     try:
         line = owner.stdout.readline()
@@ -163,11 +167,10 @@ def test_child_node_dies_with_its_owner_whatever_the_signal(sig):
 @pytest.mark.slow
 def test_uniros_sim_answers_only_once_its_robots_are_spawned():
     endpoint = free_loopback_endpoint()
-    with _uniros_sim("--robot", f"rx200={RX200}", endpoint=endpoint):
-        with _client_on(endpoint) as client:
-            client.wait_until_ready(timeout_sec=30.0)
-            # The very first answer already knows the robot (it said "no robot 'rx200'" before).
-            assert client.get_entities() == ["rx200"]
+    with _uniros_sim("--robot", f"rx200={RX200}", endpoint=endpoint), _client_on(endpoint) as client:
+        client.wait_until_ready(timeout_sec=30.0)
+        # The very first answer already knows the robot (it said "no robot 'rx200'" before).
+        assert client.get_entities() == ["rx200"]
 
 
 def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
@@ -175,7 +178,7 @@ def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
     proc = subprocess.run(
         [sys.executable, "-m", "multiros.sim.launch", "--router", endpoint,
          "--robot", "arm=package://no_such_package/robot.urdf"],
-        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60, cwd=_CWD,
     )
     assert proc.returncode == 1
     assert "no_such_package" in proc.stderr
@@ -183,7 +186,7 @@ def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
 
 def test_uniros_sim_help_mentions_isolation_options():
     proc = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--help"], capture_output=True, text=True,
-                          timeout=60)
+                          timeout=60, cwd=_CWD)
     assert proc.returncode == 0
     for flag in ("--router", "--trust-path", "--allow-xacro-strings", "--owner-pid"):
         assert flag in proc.stdout
@@ -206,7 +209,8 @@ _WORKER = textwrap.dedent("""
 @pytest.mark.slow
 def test_four_processes_make_process_mode_envs_at_once():
     procs = [subprocess.Popen([sys.executable, "-c", _WORKER, str(i)], stdin=subprocess.DEVNULL,
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for i in range(4)]
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=_CWD)
+             for i in range(4)]
     try:
         outs = [p.communicate(timeout=240) for p in procs]
     finally:
@@ -239,3 +243,11 @@ def test_make_vec_and_subproc_vec_env_with_process_mode():
             sub.step([sub.action_space.sample() for _ in range(2)])
     finally:
         sub.close()
+
+
+def test_a_robot_file_directly_in_home_is_not_a_folder_to_trust(tmp_path, monkeypatch):
+    monkeypatch.setenv("HOME", str(tmp_path))
+    urdf = tmp_path / "robot.urdf"
+    urdf.write_text("<robot name='r'/>")
+    with pytest.raises(ValueError, match="folder .* of its own"):
+        local_description_dirs(str(urdf))
