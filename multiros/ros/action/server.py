@@ -511,9 +511,10 @@ class ActionServer:
             _log.debug("action '%s': feedback not published", self._name, exc_info=True)
 
     # -- teardown ----------------------------------------------------------------------------
-    def destroy(self) -> None:
+    def destroy(self, timeout_sec: float = _JOIN_ON_DESTROY_SEC) -> None:
         """Stop serving: running goals are canceled (they see ``is_cancel_requested``) and get
-        ``_JOIN_ON_DESTROY_SEC`` to end; clients still waiting for a result get an error."""
+        ``timeout_sec`` to end (0: do not wait, e.g. while holding a lock their threads need);
+        clients still waiting for a result get an error."""
         if self._destroyed:
             return
         with self._lock:
@@ -525,8 +526,8 @@ class ActionServer:
                 except RuntimeError:
                     pass  # it finished meanwhile
         self._destroyed = True
-        deadline = time.monotonic() + _JOIN_ON_DESTROY_SEC
-        for goal in goals:
+        deadline = time.monotonic() + max(0.0, timeout_sec)
+        for goal in goals if timeout_sec > 0 else ():
             thread = goal.handle._thread
             if thread is not None and thread is not threading.current_thread():
                 thread.join(max(0.0, deadline - time.monotonic()))

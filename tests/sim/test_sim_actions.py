@@ -1,0 +1,230 @@
+"""Actions of the simulation node: FollowJointTrajectory per trajectory controller, SimulateSteps."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from multiros.ros import Context, Node
+from multiros.ros.action import (
+    STATUS_ABORTED,
+    STATUS_CANCELED,
+    STATUS_SUCCEEDED,
+    ActionClient,
+    get_action_names_and_types,
+)
+from multiros.ros.interfaces import get_action, get_message
+from multiros.sim.client import SimulationClient
+from multiros.sim.launch import free_loopback_endpoint
+from multiros.sim.node import SimulationNode
+from multiros.sim.world import World, WorldOptions
+
+ARM_XACRO = "package://test_arm_description/urdf/arm.urdf.xacro"
+ARM_URI = f"{ARM_XACRO}?__controllers=joint_state_broadcaster,arm_controller"
+JOINTS = ["joint1", "joint2", "joint3"]
+FollowJointTrajectory = get_action("control_msgs/action/FollowJointTrajectory")
+SimulateSteps = get_action("simulation_interfaces/action/SimulateSteps")
+Point = get_message("trajectory_msgs/msg/JointTrajectoryPoint")
+Tolerance = get_message("control_msgs/msg/JointTolerance")
+SimulationState = get_message("simulation_interfaces/msg/SimulationState")
+FJT = FollowJointTrajectory.Result
+ACTION = "/arm/arm_controller/follow_joint_trajectory"
+
+
+def _sim(index, tmp_path, transport: str = "inproc", endpoint: str | None = None, **node_kwargs):
+    options = {"router_endpoint": endpoint} if transport == "zenoh" else {}
+    ctx = Context(transport=transport, env={}, **options).init()
+    world = World(WorldOptions(), package_index=index, mesh_cache=tmp_path / "meshes")
+    node = SimulationNode("mujoco_sim", world=world, context=ctx, **node_kwargs)
+    return ctx, node
+
+
+@pytest.fixture
+def sim(index, tmp_path):
+    ctx, node = _sim(index, tmp_path)
+    user = Node("tester", context=ctx)
+    client = SimulationClient(user, "/mujoco_sim", timeout_sec=5.0)
+    client.spawn_entity("arm", uri=ARM_URI, namespace="/arm")
+    yield node, client, user
+    client.close()
+    ctx.try_shutdown()
+
+
+def _goal(positions, seconds: float, *, goal_tol: float = 0.0, goal_time: float = 0.0, path_tol: float = 0.0,
+          joints=JOINTS):
+    goal = FollowJointTrajectory.Goal()
+    goal.trajectory.joint_names = list(joints)
+    point = Point(positions=np.asarray(positions, dtype=float))
+    point.time_from_start.sec = int(seconds)
+    point.time_from_start.nanosec = int(round((seconds % 1) * 1e9))
+    goal.trajectory.points = [point]
+    if goal_tol:
+        goal.goal_tolerance = [Tolerance(name=j, position=goal_tol) for j in joints]
+    if path_tol:
+        goal.path_tolerance = [Tolerance(name=j, position=path_tol) for j in joints]
+    goal.goal_time_tolerance.sec = int(goal_time)
+    goal.goal_time_tolerance.nanosec = int(round((goal_time % 1) * 1e9))
+    return goal
+
+
+def _step_until(client: SimulationClient, future, steps: int = 50, limit: int = 200):
+    """Step the paused simulation until ``future`` is done (each call advances sim time)."""
+    for _ in range(limit):
+        if future.done():
+            return future.result()
+        client.step_robot("arm", steps=steps)
+    raise AssertionError("the goal did not finish while the simulation advanced")
+
+
+def _positions(client: SimulationClient) -> np.ndarray:
+    state = client.step_robot("arm", steps=0)
+    return state.position[[state.names.index(j) for j in JOINTS]]
+
+
+def _send(action: ActionClient, goal, feedback=None):
+    sent = action.send_goal_async(goal, feedback_callback=feedback)
+    assert sent.wait(5.0)
+    return sent.result()
+
+
+def test_follow_joint_trajectory_reaches_the_goal_with_feedback(sim):
+    node, client, user = sim
+    assert (ACTION, ["control_msgs/action/FollowJointTrajectory"]) in get_action_names_and_types(user)
+    action = ActionClient(user, FollowJointTrajectory, ACTION)
+    assert action.wait_for_server(5.0)
+    feedback = []
+    handle = _send(action, _goal([0.3, 0.2, 0.1], 0.4, goal_tol=0.03, goal_time=1.0), feedback.append)
+    assert handle.accepted
+    response = _step_until(client, handle.get_result_async())
+    assert response.status == STATUS_SUCCEEDED and response.result.error_code == FJT.SUCCESSFUL
+    assert np.max(np.abs(_positions(client) - [0.3, 0.2, 0.1])) < 0.03
+    assert feedback, "no feedback while the trajectory ran"
+    fb = feedback[-1].feedback
+    assert list(fb.joint_names) == JOINTS and len(fb.actual.positions) == 3
+    assert np.allclose(fb.error.positions, np.asarray(fb.desired.positions) - np.asarray(fb.actual.positions))
+    assert fb.header.stamp.sec > 0 or fb.header.stamp.nanosec > 0
+
+
+@pytest.mark.parametrize("bad", ["joints", "empty", "nan", "past"])
+def test_bad_goals_are_rejected(sim, bad):
+    node, client, user = sim
+    action = ActionClient(user, FollowJointTrajectory, ACTION)
+    goal = _goal([0.1, 0.1, 0.1], 0.2)
+    if bad == "joints":
+        goal = _goal([0.1, 0.1], 0.2, joints=["joint1", "nope"])
+    elif bad == "empty":
+        goal.trajectory.points = []
+    elif bad == "nan":
+        goal.trajectory.points[0].positions = np.array([0.1, np.nan, 0.1])
+    else:
+        client.step_robot("arm", steps=500)  # sim time ~1 s
+        goal.trajectory.header.stamp.nanosec = 1000  # started long ago, ended at 0.2 s
+    assert not _send(action, goal).accepted
+    assert _send(action, _goal([0.1, 0.1, 0.1], 0.2)).accepted  # the server still serves
+
+
+def test_tolerances_abort_with_control_msgs_codes(sim):
+    node, client, user = sim
+    action = ActionClient(user, FollowJointTrajectory, ACTION)
+    # Goal tolerance: nobody tracks to 1e-9 rad; 10 ms of goal time, then GOAL_TOLERANCE_VIOLATED.
+    handle = _send(action, _goal([0.3, -0.2, 0.2], 0.2, goal_tol=1e-9, goal_time=0.01))
+    response = _step_until(client, handle.get_result_async(), steps=20)
+    assert response.status == STATUS_ABORTED and response.result.error_code == FJT.GOAL_TOLERANCE_VIOLATED
+    assert "from its goal" in response.result.error_string
+    # Path tolerance: a fast move cannot stay within 1e-6 rad of the desired path.
+    handle = _send(action, _goal([-0.3, 0.3, -0.2], 0.3, path_tol=1e-6))
+    response = _step_until(client, handle.get_result_async(), steps=5)
+    assert response.status == STATUS_ABORTED and response.result.error_code == FJT.PATH_TOLERANCE_VIOLATED
+
+
+def test_cancel_stops_at_the_current_position_and_new_goal_preempts(sim):
+    node, client, user = sim
+    action = ActionClient(user, FollowJointTrajectory, ACTION)
+    start = _positions(client)
+    handle = _send(action, _goal([0.6, 0.5, 0.4], 4.0))
+    client.step_robot("arm", steps=300)  # part of the way
+    cancel = handle.cancel_goal(timeout_sec=5.0)
+    assert cancel.return_code == 0
+    response = _step_until(client, handle.get_result_async(), steps=10)
+    assert response.status == STATUS_CANCELED
+    stopped = _positions(client)
+    assert np.max(np.abs(stopped - start)) > 0.01  # it had moved
+    client.step_robot("arm", steps=1000)  # 2 s more: it holds, it does not go on to the goal
+    assert np.max(np.abs(_positions(client) - stopped)) < 0.02
+    # A new goal preempts the running one.
+    first = _send(action, _goal([0.2, 0.2, 0.2], 3.0))
+    client.step_robot("arm", steps=50)
+    second = _send(action, _goal([-0.2, 0.1, 0.0], 0.5))
+    result = _step_until(client, first.get_result_async(), steps=10)
+    assert result.status == STATUS_ABORTED and result.result.error_code == FJT.INVALID_GOAL
+    assert "preempted" in result.result.error_string
+    assert _step_until(client, second.get_result_async()).status == STATUS_SUCCEEDED
+
+
+def test_unloading_the_controller_removes_its_action(sim):
+    node, client, user = sim
+    action = ActionClient(user, FollowJointTrajectory, ACTION)
+    handle = _send(action, _goal([0.2, 0.2, 0.2], 3.0))
+    client.switch_controllers("/arm", deactivate=["arm_controller"])
+    response = _step_until(client, handle.get_result_async(), steps=10)
+    assert response.status == STATUS_ABORTED  # the controller stopped following it
+    assert not _send(action, _goal([0.1, 0.1, 0.1], 0.2)).accepted  # inactive controller
+    client.delete_entity("arm")
+    assert not action.server_is_ready()
+
+
+def test_simulate_steps_action(sim):
+    node, client, user = sim
+    action = ActionClient(user, SimulateSteps, "/mujoco_sim/simulate_steps")
+    assert action.wait_for_server(5.0)
+    t0 = node.world.time
+    feedback = []
+    response = action.send_goal(SimulateSteps.Goal(steps=300), feedback_callback=feedback.append, timeout_sec=10.0)
+    assert response.status == STATUS_SUCCEEDED and response.result.result.result == 1  # RESULT_OK
+    assert node.world.time == pytest.approx(t0 + 300 * node.world.timestep)
+    assert feedback[-1].feedback.completed_steps == 300 and feedback[-1].feedback.remaining_steps == 0
+    # Beyond max_steps_per_call, or not paused: OPERATION_FAILED.
+    response = action.send_goal(SimulateSteps.Goal(steps=node.max_steps_per_call + 1), timeout_sec=5.0)
+    assert response.status == STATUS_ABORTED and response.result.result.result == 4
+    assert "max_steps_per_call" in response.result.result.error_message
+    client.set_simulation_state(SimulationState.STATE_PLAYING)
+    response = action.send_goal(SimulateSteps.Goal(steps=10), timeout_sec=5.0)
+    assert response.status == STATUS_ABORTED and "paused" in response.result.result.error_message
+    client.set_simulation_state(SimulationState.STATE_PAUSED)
+    # Cancel a long run.
+    handle = _send(action, SimulateSteps.Goal(steps=node.max_steps_per_call))
+    deadline = time.monotonic() + 5.0
+    while handle.status != 2 and time.monotonic() < deadline:  # EXECUTING
+        time.sleep(0.005)
+    handle.cancel_goal(timeout_sec=5.0)
+    response = handle.get_result(timeout_sec=10.0)
+    assert response.status == STATUS_CANCELED and "canceled after" in response.result.result.error_message
+
+
+@pytest.mark.slow
+def test_follow_joint_trajectory_over_zenoh(index, tmp_path):
+    router_endpoint = free_loopback_endpoint()
+    ctx, node = _sim(index, tmp_path, "zenoh", router_endpoint)
+    other = Context(transport="zenoh", env={}, router="none", router_endpoint=router_endpoint).init()
+    try:
+        user = Node("remote", context=other)
+        client = SimulationClient(user, "/mujoco_sim", timeout_sec=10.0)
+        client.wait_until_ready(10.0)
+        client.spawn_entity("arm", uri=ARM_URI, namespace="/arm")
+        action = ActionClient(user, FollowJointTrajectory, ACTION)
+        assert action.wait_for_server(10.0)
+        feedback = []
+        handle = _send(action, _goal([0.25, 0.1, -0.1], 0.3, goal_tol=0.03, goal_time=1.0), feedback.append)
+        assert handle.accepted
+        response = _step_until(client, handle.get_result_async())
+        assert response.status == STATUS_SUCCEEDED and response.result.error_code == FJT.SUCCESSFUL
+        deadline = time.monotonic() + 5.0
+        while not feedback and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert feedback
+        client.close()
+    finally:
+        other.shutdown()
+        ctx.try_shutdown()
