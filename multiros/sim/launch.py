@@ -44,9 +44,9 @@ _logger = logging.getLogger(__name__)
 _env_ids = itertools.count()
 _children: weakref.WeakSet[subprocess.Popen] = weakref.WeakSet()
 
-#: Environment variables that point a Zenoh context at a shared graph; a private context ignores them.
-_SHARED_GRAPH_VARS = ("UNIROS_ZENOH_ROUTER", "ZENOH_SESSION_CONFIG_URI", "ZENOH_ROUTER_CONFIG_URI",
-                      "ZENOH_CONFIG_OVERRIDE", "ZENOH_ROUTER_CHECK_ATTEMPTS")
+#: Prefixes of the environment variables that point a Zenoh context at a shared graph (router,
+#: session files, overrides, endpoints, credentials); a private context and its child ignore them all.
+_SHARED_GRAPH_PREFIXES = ("ZENOH_", "UNIROS_ZENOH_")
 #: How often a child node checks that its owner is alive (seconds).
 OWNER_POLL_SEC = 0.2
 
@@ -310,7 +310,7 @@ def private_context(attempts: int = 5) -> Context:
     Raises:
         TransportError: no router could be started in ``attempts`` tries.
     """
-    env = {k: v for k, v in os.environ.items() if k not in _SHARED_GRAPH_VARS}
+    env = {k: v for k, v in os.environ.items() if not k.startswith(_SHARED_GRAPH_PREFIXES)}
     last: Exception | None = None
     for _ in range(max(1, attempts)):
         ctx = Context(transport="zenoh", env=env, router="embedded", router_endpoint=free_loopback_endpoint())
@@ -337,8 +337,7 @@ def _spawn_child(
         argv += ["--trust-path", os.fspath(path)]
     env = dict(os.environ)
     if private:
-        for key in _SHARED_GRAPH_VARS:
-            env.pop(key, None)
+        env = {k: v for k, v in env.items() if not k.startswith(_SHARED_GRAPH_PREFIXES)}
         argv += ["--router", "none"]
     env.update(_child_environment(ctx))
     proc = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL)

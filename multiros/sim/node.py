@@ -31,6 +31,7 @@ from multiros.ros import Node, ParameterDescriptor
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
+from multiros.sim.actions import SimulateStepsAction
 from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import (
@@ -216,6 +217,7 @@ class SimulationNode(Node):
             srv for name, type_name in SIM_SERVICES.items()
             for srv in create_services(self, type_name, f"~/{name}", getattr(self, f"_srv_{name}"))
         ]
+        self._simulate_steps = SimulateStepsAction(self)  # ~/simulate_steps (multiros.sim.actions)
 
     # -- helpers ----------------------------------------------------------------------------
     def _locked(self, fn: Callable[[], None]) -> None:

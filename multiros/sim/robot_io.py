@@ -19,6 +19,7 @@ from typing import Any
 
 from multiros.ros.qos import DurabilityPolicy, QoSProfile
 from multiros.sim import convert
+from multiros.sim.actions import TrajectoryActions
 from multiros.sim.controllers import JointTrajectoryController
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import CommandError, ControllerError
@@ -65,6 +66,7 @@ class RobotInterfaces:
         self._description_pub = node.create_publisher(String, f"{ns}/robot_description", _LATCHED)
         self._description_pub.publish(String(data=info.description))
         self._command_subs: dict[str, Any] = {}
+        self._actions = TrajectoryActions(node, world, info.name, ns, lock)  # follow_joint_trajectory
         cm = f"{ns}/controller_manager"
         handlers = {"list_controllers": self._list, "load_controller": self._load,
                     "configure_controller": self._configure, "switch_controller": self._switch,
@@ -89,6 +91,7 @@ class RobotInterfaces:
 
     def publish_state(self) -> None:
         """Publish ``joint_states`` and ``/tf`` if anyone listens (caller holds the lock)."""
+        self._actions.on_step()
         if self._joint_pub.get_subscription_count() > 0:
             self._joint_pub.publish(self.fill_joint_state(JointState()))
         if self._frames is not None and self._tf_pub.get_subscription_count() > 0:
@@ -116,6 +119,7 @@ class RobotInterfaces:
         if not ctrl.command_interfaces:
             return
         if isinstance(ctrl, JointTrajectoryController):
+            self._actions.add(controller, ctrl)
             sub = self.node.create_subscription(
                 JointTrajectory, f"{self.ns}/{controller}/joint_trajectory",
                 lambda msg, c=controller: self._on_trajectory(c, msg), 10,
@@ -128,6 +132,7 @@ class RobotInterfaces:
         self._command_subs[controller] = sub
 
     def _unsubscribe_commands(self, controller: str) -> None:
+        self._actions.remove(controller)
         sub = self._command_subs.pop(controller, None)
         if sub is not None:
             self.node.destroy_subscription(sub)
@@ -207,7 +212,8 @@ class RobotInterfaces:
 
     # -- teardown ---------------------------------------------------------------------------
     def destroy(self) -> None:
-        """Destroy every publisher, subscription and service of this robot."""
+        """Destroy every publisher, subscription, service and action of this robot."""
+        self._actions.destroy()
         for name in list(self._command_subs):
             self._unsubscribe_commands(name)
         for srv in self._services:
