@@ -4,7 +4,6 @@ wait longer than one request's timeout; plain Zenoh subscribers get our messages
 
 from __future__ import annotations
 
-import json
 import random
 import struct
 import threading
@@ -12,6 +11,7 @@ import time
 
 import pytest
 import zenoh
+from raw_zenoh import open_peer_session
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from multiros import ros
@@ -56,12 +56,7 @@ def _store():
 
 
 def _session(endpoint: str) -> zenoh.Session:
-    config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-    config.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(config)
+    return open_peer_session(endpoint)
 
 
 def _wait(predicate, timeout: float = 5.0) -> bool:

@@ -3,13 +3,13 @@ intra-process shortcut, transient local, fuzzing, and a foreign rmw_zenoh peer."
 
 from __future__ import annotations
 
-import json
 import os
 import struct
 import time
 
 import pytest
 import zenoh
+from raw_zenoh import open_peer_session
 
 from multiros import ros
 from multiros.ros.interfaces import get_message, get_service
@@ -155,12 +155,7 @@ def test_server_error_is_reported_by_name(zenoh_ctx: ros.Context, zenoh_peer_ctx
 
 # -- a foreign rmw_zenoh peer: raw eclipse-zenoh + rosbags CDR -----------------------------
 def _foreign_session(endpoint: str) -> zenoh.Session:
-    config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
-    config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-    config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-    config.insert_json5("scouting/multicast/enabled", "false")
-    return zenoh.open(config)
+    return open_peer_session(endpoint)
 
 
 def _wait(predicate, timeout: float = 5.0) -> bool:

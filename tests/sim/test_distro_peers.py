@@ -8,7 +8,6 @@ reach the node too, each getting its own classes back.
 
 from __future__ import annotations
 
-import json
 import re
 import socket
 import struct
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
+from raw_zenoh import open_peer_session
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -93,12 +93,7 @@ class Peer:
 
     def __init__(self, distro: str, endpoint: str) -> None:
         self.store = _peer_store(distro)
-        config = zenoh.Config()
-        config.insert_json5("mode", '"peer"')
-        config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-        config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-        config.insert_json5("scouting/multicast/enabled", "false")
-        self.session = zenoh.open(config)
+        self.session = open_peer_session(endpoint)
         self.seq = 0
 
     def key(self, name: str, srv: str) -> str:

@@ -8,7 +8,6 @@ entities spawned before must keep a bit-identical state.
 
 from __future__ import annotations
 
-import json
 import os
 import socket
 import struct
@@ -19,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
+from raw_zenoh import open_peer_session
 
 from multiros.ros import Context
 from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
@@ -58,12 +58,7 @@ class RawPeer:
     """A foreign rmw_zenoh client: a zenoh session, our CDR serializer, rmw_zenoh's key and attachment."""
 
     def __init__(self, endpoint: str) -> None:
-        config = zenoh.Config()
-        config.insert_json5("mode", '"peer"')
-        config.insert_json5("connect/endpoints", json.dumps([endpoint]))
-        config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
-        config.insert_json5("scouting/multicast/enabled", "false")
-        self.session = zenoh.open(config)
+        self.session = open_peer_session(endpoint)
         self.seq = 0
 
     def request(self, service: str, **fields):
