@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import os
 import random
-import re
 import subprocess
 import sys
 
 import pytest
 from interfaces_factory import to_rosbags
-from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags_types import parts_types, service_types, store_of
 
 from multiros.ros.interfaces import (
     DEFAULT_DISTRO,
@@ -40,44 +39,21 @@ VERSIONS = {  # package.xml versions of the releases (reference/interfaces_by_di
 }
 
 
-def _char_to_uint8(desc):
-    if desc[0] == Nodetype.BASE and desc[1][0] == "char":
-        return (Nodetype.BASE, ("uint8", desc[1][1]))
-    if desc[0] in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-        return (desc[0], (_char_to_uint8(desc[1][0]), desc[1][1]))
-    return desc
-
-
 def _oracle(distro: str):
     """rosbags store of one distribution's registry: every definition file parsed by rosbags itself,
     ``char`` mapped to uint8 as rosidl does, plus the service, event and action structs."""
     reg = registry_for(distro)
     types: dict = {}
     for full in reg.list_types():
-        path = reg.definition_file(full)
-        pkg, kind, base = full.split("/")
-        text = path.read_text()
+        text = reg.definition_file(full).read_text()
+        kind = full.split("/")[1]
         if kind == "msg":
             types.update(get_types_from_msg(text, full))
-            continue
-        parts = re.split(r"^---[ \t]*$", text, flags=re.M)
-        suffixes = ("_Request", "_Response") if kind == "srv" else ("_Goal", "_Result", "_Feedback")
-        for part, suffix in zip(parts, suffixes):
-            # rosbags resolves relative names only for pkg/msg/ names: parse as msg, then rename
-            parsed = get_types_from_msg(part, f"{pkg}/msg/{base}{suffix}")
-            types.update({k.replace(f"{pkg}/msg/{base}{suffix}", f"{full}{suffix}"): v for k, v in parsed.items()})
-    for srv in reg.list_types("srv"):
-        types[f"{srv}_Event"] = ([], [
-            ("info", (Nodetype.NAME, "service_msgs/msg/ServiceEventInfo")),
-            ("request", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{srv}_Request"), 1))),
-            ("response", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{srv}_Response"), 1))),
-        ])
-        types[srv] = ([], [("request_message", (Nodetype.NAME, f"{srv}_Request")),
-                           ("response_message", (Nodetype.NAME, f"{srv}_Response")),
-                           ("event_message", (Nodetype.NAME, f"{srv}_Event"))])
-    store = get_typestore(Stores.EMPTY)
-    store.register({n: (c, [(f, _char_to_uint8(d)) for f, d in fields]) for n, (c, fields) in types.items()})
-    return store
+        elif kind == "srv":
+            types.update(service_types(full, text))
+        else:
+            types.update(parts_types(full, text, ("_Goal", "_Result", "_Feedback")))
+    return store_of(types)
 
 
 ORACLES = {d: _oracle(d) for d in SHIPPED_DISTROS}

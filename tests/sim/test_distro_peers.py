@@ -8,7 +8,6 @@ reach the node too, each getting its own classes back.
 
 from __future__ import annotations
 
-import re
 import socket
 import struct
 import time
@@ -20,6 +19,7 @@ import zenoh
 from raw_zenoh import open_peer_session
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+from rosbags_types import service_types, store_of
 
 from multiros.ros import Context, Node
 from multiros.ros.interfaces import SUPPORTED_DISTROS, registry_for, type_hash
@@ -50,14 +50,6 @@ def _free_endpoint() -> str:
         return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
-def _char_to_uint8(desc):
-    if desc[0] == Nodetype.BASE and desc[1][0] == "char":
-        return (Nodetype.BASE, ("uint8", desc[1][1]))
-    if desc[0] in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-        return (desc[0], (_char_to_uint8(desc[1][0]), desc[1][1]))
-    return desc
-
-
 def _peer_store(distro: str):
     """rosbags' own typestore plus the distribution's release files, read straight from disk."""
     base = get_typestore(Stores.ROS2_JAZZY)
@@ -69,23 +61,8 @@ def _peer_store(distro: str):
                 types.update(get_types_from_msg(path.read_text(), name))
     for srv in PEER_SERVICES.values():
         pkg, _, base_name = srv.split("/")
-        text = (DISTROS_ROOT / distro / pkg / "srv" / f"{base_name}.srv").read_text()
-        parts = re.split(r"^---[ \t]*$", text, flags=re.M)
-        for part, suffix in zip(parts, ("_Request", "_Response")):
-            # rosbags resolves relative names only for pkg/msg/ names: parse as msg, then rename
-            parsed = get_types_from_msg(part, f"{pkg}/msg/{base_name}{suffix}")
-            types.update({k.replace(f"{pkg}/msg/{base_name}{suffix}", f"{srv}{suffix}"): v for k, v in parsed.items()})
-        types[f"{srv}_Event"] = ([], [
-            ("info", (Nodetype.NAME, "service_msgs/msg/ServiceEventInfo")),
-            ("request", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{srv}_Request"), 1))),
-            ("response", (Nodetype.SEQUENCE, ((Nodetype.NAME, f"{srv}_Response"), 1))),
-        ])
-        types[srv] = ([], [("request_message", (Nodetype.NAME, f"{srv}_Request")),
-                           ("response_message", (Nodetype.NAME, f"{srv}_Response")),
-                           ("event_message", (Nodetype.NAME, f"{srv}_Event"))])
-    store = get_typestore(Stores.EMPTY)
-    store.register({n: (c, [(f, _char_to_uint8(d)) for f, d in fields]) for n, (c, fields) in types.items()})
-    return store
+        types.update(service_types(srv, (DISTROS_ROOT / distro / pkg / "srv" / f"{base_name}.srv").read_text()))
+    return store_of(types)
 
 
 class Peer:
