@@ -40,7 +40,15 @@ def test_interface_definitions_are_installed():
     root = resources.files("multiros.ros.definitions")
     for pkg, kind, name in [
         ("sensor_msgs", "msg", "JointState.msg"),
-        ("simulation_interfaces", "srv", "StepSimulation.srv"),
+        ("action_msgs", "srv", "CancelGoal.srv"),
         ("uniros_interfaces", "srv", "StepRobot.srv"),
     ]:
         assert root.joinpath(pkg, kind, name).is_file(), f"{pkg}/{kind}/{name} not installed"
+    distros = resources.files("multiros.ros").joinpath("distros")
+    for distro in ("humble", "jazzy", "kilted", "rolling"):
+        for pkg, kind, name in [
+            ("simulation_interfaces", "srv", "StepSimulation.srv"),
+            ("controller_manager_msgs", "srv", "SwitchController.srv"),
+        ]:
+            assert distros.joinpath(distro, pkg, kind, name).is_file(), f"{distro}/{pkg}/{kind}/{name} not installed"
+        assert distros.joinpath(distro, "simulation_interfaces", "package.xml").is_file()

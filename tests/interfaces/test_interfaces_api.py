@@ -100,13 +100,17 @@ def test_list_types_and_required_packages() -> None:
     assert set(list_types("srv")) <= names
 
 
-def test_simulation_interfaces_complete() -> None:
-    from multiros.ros.interfaces.registry import DEFINITIONS_ROOT
+@pytest.mark.parametrize("distro", ["jazzy", "kilted", "rolling"])
+def test_simulation_interfaces_complete(distro: str) -> None:
+    from multiros.ros.interfaces.registry import DISTROS_ROOT, registry_for
 
-    reference = DEFINITIONS_ROOT / "simulation_interfaces"
+    reference = DISTROS_ROOT / distro / "simulation_interfaces"
     shipped = {p.relative_to(reference).as_posix() for p in reference.rglob("*.*")
                if p.suffix in (".msg", ".srv", ".action")}
-    assert len(shipped) == 38
+    assert len(shipped) == 38  # 17 msg, 20 srv, 1 action in every release since 1.5
+    registry = registry_for(distro)
     for path in shipped:
         kind, file = path.split("/")
-        assert type_hash(f"simulation_interfaces/{kind}/{file.rsplit('.', 1)[0]}").startswith("RIHS01_")
+        name = f"simulation_interfaces/{kind}/{file.rsplit('.', 1)[0]}"
+        assert registry.definition_file(name) == reference / path
+        assert type_hash(name, registry).startswith("RIHS01_")
