@@ -172,6 +172,12 @@ def test_uniros_sim_answers_only_once_its_robots_are_spawned():
         client.wait_until_ready(timeout_sec=30.0)
         # The very first answer already knows the robot (it said "no robot 'rx200'" before).
         assert client.get_entities() == ["rx200"]
+        # The launched robot is the launched world: SCOPE_ALL (and the default scope 0) bring it back.
+        client.spawn_entity("second", uri=RX200.replace("robot_name=rx200", "robot_name=second"))
+        for scope in (255, 0):
+            client.delete_entity("rx200")
+            client.reset_simulation(scope)
+            assert client.get_entities() == ["rx200"]
 
 
 def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
