@@ -1,8 +1,11 @@
 """The MuJoCo simulation node: a ROS 2 node serving ``simulation_interfaces`` over a :class:`World`.
 
 Service callbacks stay thin: decode the request, call one ``World`` method under the node's lock,
-encode the reply with the standard result code. Per-robot topics and controller-manager services
-live in :mod:`multiros.sim.robot_io`.
+encode the reply with the standard result code. The larger handlers live beside this module:
+SpawnEntity in :mod:`multiros.sim.node_spawn`, StepSimulation and StepRobot in
+:mod:`multiros.sim.node_stepping`, the result helpers in :mod:`multiros.sim.node_results`.
+Per-robot topics and controller-manager services live in :mod:`multiros.sim.robot_io`, the
+actions in :mod:`multiros.sim.actions`.
 
 Services (``~`` = this node, default ``/mujoco_sim``):
 ``~/get_simulator_features``, ``~/spawn_entity``, ``~/delete_entity``, ``~/get_entities``,
@@ -16,14 +19,11 @@ controller command topics; ``/tf``.
 
 from __future__ import annotations
 
-import functools
-import logging
 import re
 import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qsl, urlsplit
 
 import numpy as np
 
@@ -32,25 +32,17 @@ from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
 from multiros.sim.actions import SimulateStepsAction
-from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
+from multiros.sim.description import SourcePolicy
 from multiros.sim.distro_adapters import create_services, get_message, get_service
-from multiros.sim.errors import (
-    CommandError,
-    ControllerError,
-    DescriptionError,
-    EntityError,
-    RenderError,
-    StepInterruptedError,
-    UnstableSimulationError,
-)
+from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError
 from multiros.sim.limits import MAX_STEPS_PER_CALL, DescriptionLimits
+from multiros.sim.node_results import FAILED, NOT_FOUND, OK, Result, fail, guarded, ok
+from multiros.sim.node_spawn import spawn_entity
+from multiros.sim.node_stepping import FrameSetCache, step_robot, step_simulation
 from multiros.sim.robot_io import RobotInterfaces
 from multiros.sim.services import SIM_SERVICES
 from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
 
-_logger = logging.getLogger(__name__)
-
-Result = get_message("simulation_interfaces/msg/Result")
 SimulationState = get_message("simulation_interfaces/msg/SimulationState")
 SimulatorFeatures = get_message("simulation_interfaces/msg/SimulatorFeatures")
 EntityStateMsg = get_message("simulation_interfaces/msg/EntityState")
@@ -60,17 +52,6 @@ MarkerArray = get_message("visualization_msgs/msg/MarkerArray")
 
 # The native (Rolling) variants; Jazzy/Kilted peers are served through multiros.sim.distro_adapters.
 _SRV = {name: get_service(type_name) for name, type_name in SIM_SERVICES.items()}
-
-OK, NOT_FOUND, INCORRECT_STATE, FAILED = (
-    Result.RESULT_OK,
-    Result.RESULT_NOT_FOUND,
-    Result.RESULT_INCORRECT_STATE,
-    Result.RESULT_OPERATION_FAILED,
-)
-_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_MAX_FRAMES = 1024  # frames per StepRobot request
-_MAX_FRAME_SETS = 64  # cached frame lists (a new list per call must not grow memory without end)
-_NAMESPACE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
 
 _FEATURES = [
     SimulatorFeatures.SPAWNING,
@@ -90,35 +71,6 @@ _FEATURES = [
     SimulatorFeatures.STEP_SIMULATION_SINGLE,
     SimulatorFeatures.STEP_SIMULATION_MULTIPLE,
 ]
-
-
-def _fail(result: Any, code: int, message: str) -> None:
-    result.result = code
-    result.error_message = message
-
-
-def _ok(result: Any) -> None:
-    result.result = OK
-    result.error_message = ""
-
-
-def _guarded(handler: Callable[[Any, Any, Any], Any]) -> Callable[[Any, Any, Any], Any]:
-    """An unexpected exception in a service handler becomes RESULT_OPERATION_FAILED with a
-    message (and a log entry), never a traceback to the caller or a dead node."""
-
-    @functools.wraps(handler)
-    def guarded(self: Any, request: Any, response: Any) -> Any:
-        try:
-            return handler(self, request, response)
-        except Exception as exc:  # the handler's own errors are mapped inside; this is the safety net
-            _logger.exception("%s failed unexpectedly", handler.__name__.removeprefix("_srv_"))
-            result = getattr(response, "result", None)
-            if result is not None:
-                detail = f"{type(exc).__name__}: {exc}"
-                _fail(result, FAILED, f"{handler.__name__.removeprefix('_srv_')} failed unexpectedly: {detail[:400]}")
-            return response
-
-    return guarded
 
 
 class SimulationNode(Node):
@@ -187,7 +139,7 @@ class SimulationNode(Node):
         self.lock = self._runner.lock
         self._state = SimulationState.STATE_PAUSED
         self._robots: dict[str, RobotInterfaces] = {}
-        self._frame_sets: dict[tuple[str, tuple[str, ...]], Any] = {}
+        self._frame_sets = FrameSetCache()  # StepRobot's frame sets
         self._renderer: Any = None
         self._viewer: Any = None
         self._clock_pub = self.create_publisher(Clock, "/clock", qos_profile_clock)
@@ -248,8 +200,7 @@ class SimulationNode(Node):
         robot = self._robots.pop(name, None)
         if robot is not None:
             robot.destroy()
-        for key in [k for k in self._frame_sets if k[0] == name]:
-            del self._frame_sets[key]
+        self._frame_sets.forget(name)
 
     @property
     def simulation_state(self) -> int:
@@ -288,7 +239,7 @@ class SimulationNode(Node):
 
     def _srv_get_spawnables(self, request: Any, response: Any) -> Any:
         if len(request.sources) > 0:
-            _fail(response.result, Result.RESULT_FEATURE_UNSUPPORTED,
+            fail(response.result, Result.RESULT_FEATURE_UNSUPPORTED,
                   "additional sources are not searched; spawnables come from the installed description packages")
             return response
         from multiros.sim.spawnables import list_spawnables
@@ -300,152 +251,35 @@ class SimulationNode(Node):
             item.entity_resource.uri = uri
             items.append(item)
         response.spawnables = items
-        _ok(response.result)
+        ok(response.result)
         return response
 
-    @_guarded
+    @guarded
     def _srv_spawn_entity(self, request: Any, response: Any) -> Any:
-        return self._spawn(request, response, self.source_policy)
-
-    def _spawn(self, request: Any, response: Any, policy: SourcePolicy | None) -> Any:
-        """SpawnEntity. ``policy`` None trusts the request (the node's own command line)."""
-        res = response.result
-        uri, text = request.entity_resource.uri, request.entity_resource.resource_string
-        if not uri and not text:
-            _fail(res, response.NO_RESOURCE, "both entity_resource.uri and resource_string are empty")
-            return response
-        namespace = request.entity_namespace
-        if namespace and not _NAMESPACE.match(namespace if namespace.startswith("/") else "/" + namespace):
-            _fail(res, response.NAMESPACE_INVALID, f"namespace {namespace!r} is not a valid ROS namespace")
-            return response
-        frame = request.initial_pose.header.frame_id
-        if frame not in ("", "world"):
-            _fail(res, FAILED, f"initial_pose frame {frame!r} is not supported; use 'world' (or empty)")
-            return response
-        position, quat = convert.pose_to_arrays(request.initial_pose.pose)
-        problem = convert.validate_quaternion(quat) or (
-            None if np.all(np.isfinite(position)) else f"position {position.tolist()} is not finite"
-        )
-        if problem:
-            _fail(res, response.INVALID_POSE, problem)
-            return response
-        limits = self.description_limits
-        if len(uri) > 8192 or len(text) > limits.max_chars:
-            what = "entity_resource.uri" if len(uri) > 8192 else "entity_resource.resource_string"
-            most = 8192 if len(uri) > 8192 else limits.max_chars
-            _fail(res, response.RESOURCE_PARSE_ERROR, f"{what} is longer than {most} characters (the node's limit)")
-            return response
-        description: str = text
-        args: dict[str, str] = {}
-        if uri:
-            parts = urlsplit(uri)
-            if parts.query:
-                args = dict(parse_qsl(parts.query, keep_blank_values=True))
-                uri = parts._replace(query="").geturl()
-            if parts.scheme != "string":  # "string:?opts" = options for the resource_string
-                description = uri
-        controllers_yaml: Any = args.pop("__controllers_file", None)
-        controllers = [c for c in args.pop("__controllers", "").split(",") if c] or None
-        try:
-            if controllers_yaml:
-                controllers_yaml = (policy.resolve(controllers_yaml, self.world.index, what="controllers file")
-                                    if policy is not None else self.world.index.resolve_uri(controllers_yaml))
-            # Parsed outside the world: a refused or out-of-bounds description never touches it.
-            desc = load_description(description, args=args or None, index=self.world.index,
-                                    mesh_cache=self.world.mesh_cache,
-                                    default_armature=self.world.options.default_armature, policy=policy,
-                                    limits=limits)
-        except UnsupportedFormatError as exc:
-            _fail(res, response.UNSUPPORTED_FORMAT, str(exc))
-            return response
-        except DescriptionError as exc:
-            code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
-            _fail(res, code, str(exc))
-            return response
-        except (RecursionError, MemoryError) as exc:
-            _fail(res, response.RESOURCE_PARSE_ERROR, f"the description is too large or too deep to load "
-                  f"({type(exc).__name__}); see the node's description limits")
-            return response
-        with self.lock:
-            name = self._entity_name(request.name, request.allow_renaming, response)
-            if name is None:
-                return response
-            try:
-                info = self.world.spawn(
-                    name,
-                    desc,
-                    pose=(position, quat),
-                    namespace=namespace or None,
-                    controllers=controllers,
-                    controllers_yaml=controllers_yaml,
-                )
-            except DescriptionError as exc:
-                code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
-                _fail(res, code, str(exc))
-                return response
-            except EntityError as exc:
-                _fail(res, response.NAME_INVALID, str(exc))
-                return response
-            except ControllerError as exc:
-                _fail(res, FAILED, f"controllers of {name!r}: {exc}")
-                return response
-            except ValueError as exc:
-                _fail(res, response.INVALID_POSE, str(exc))
-                return response
-            try:
-                self._attach_robot(info.name)
-            except Exception as exc:
-                self.world.delete(info.name)
-                _fail(res, FAILED, f"spawned {info.name!r} but could not create its ROS interfaces: {exc}")
-                return response
-        response.entity_name = info.name
-        _ok(res)
-        return response
-
-    def _entity_name(self, name: str, allow_renaming: bool, response: Any) -> str | None:
-        res = response.result
-        if name and not _NAME.match(name):
-            if not allow_renaming:
-                _fail(res, response.NAME_INVALID, f"entity name {name!r} must match [A-Za-z_][A-Za-z0-9_]*")
-                return None
-            name = re.sub(r"[^A-Za-z0-9_]", "_", name) or "entity"
-        if not name:
-            if not allow_renaming:
-                _fail(res, response.NAME_INVALID, "entity name is empty and allow_renaming is false")
-                return None
-            name = "entity"
-        if self.world.has_entity(name):
-            if not allow_renaming:
-                _fail(res, response.NAME_NOT_UNIQUE, f"an entity named {name!r} exists; pick another name")
-                return None
-            base, i = name, 1
-            while self.world.has_entity(f"{base}_{i}"):
-                i += 1
-            name = f"{base}_{i}"
-        return name
+        return spawn_entity(self, request, response, self.source_policy)
 
     def _srv_delete_entity(self, request: Any, response: Any) -> Any:
         with self.lock:
             if not self.world.has_entity(request.entity):
                 known = list(self.world.entity_names())
-                _fail(response.result, NOT_FOUND, f"no entity {request.entity!r}; entities: {known}")
+                fail(response.result, NOT_FOUND, f"no entity {request.entity!r}; entities: {known}")
                 return response
             self._detach_robot(request.entity)
             self.world.delete(request.entity)
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _filtered_entities(self, filters: Any, result: Any) -> list[str] | None:
         try:
             pattern = re.compile(filters.filter) if filters.filter else None
         except re.error as exc:
-            _fail(result, FAILED, f"filter {filters.filter!r} is not a valid regular expression: {exc}")
+            fail(result, FAILED, f"filter {filters.filter!r} is not a valid regular expression: {exc}")
             return None
         if len(filters.tags.tags) > 0:
-            _fail(result, Result.RESULT_FEATURE_UNSUPPORTED, "entity tags are not supported")
+            fail(result, Result.RESULT_FEATURE_UNSUPPORTED, "entity tags are not supported")
             return None
         if filters.bounds.type != 0 or len(filters.bounds.points) > 0:
-            _fail(result, Result.RESULT_FEATURE_UNSUPPORTED, "bounds filters are not supported")
+            fail(result, Result.RESULT_FEATURE_UNSUPPORTED, "bounds filters are not supported")
             return None
         categories = {int(c.category) for c in filters.categories}
         names = []
@@ -462,7 +296,7 @@ class SimulationNode(Node):
             names = self._filtered_entities(request.filters, response.result)
         if names is not None:
             response.entities = names
-            _ok(response.result)
+            ok(response.result)
         return response
 
     def _entity_state(self, name: str) -> Any:
@@ -479,10 +313,10 @@ class SimulationNode(Node):
     def _srv_get_entity_state(self, request: Any, response: Any) -> Any:
         with self.lock:
             if not self.world.has_entity(request.entity):
-                _fail(response.result, NOT_FOUND, f"no entity {request.entity!r}")
+                fail(response.result, NOT_FOUND, f"no entity {request.entity!r}")
                 return response
             response.state = self._entity_state(request.entity)
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _srv_get_entities_states(self, request: Any, response: Any) -> Any:
@@ -492,21 +326,21 @@ class SimulationNode(Node):
                 return response
             response.entities = names
             response.states = [self._entity_state(n) for n in names]
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _srv_set_entity_state(self, request: Any, response: Any) -> Any:
         res = response.result
         frame = request.state.header.frame_id
         if frame not in ("", "world"):
-            _fail(res, FAILED, f"frame {frame!r} is not supported; use 'world' (or empty)")
+            fail(res, FAILED, f"frame {frame!r} is not supported; use 'world' (or empty)")
             return response
         kwargs: dict[str, Any] = {}
         if request.set_pose:
             position, quat = convert.pose_to_arrays(request.state.pose)
             problem = convert.validate_quaternion(quat)
             if problem or not np.all(np.isfinite(position)):
-                _fail(res, response.INVALID_POSE, problem or f"position {position.tolist()} is not finite")
+                fail(res, response.INVALID_POSE, problem or f"position {position.tolist()} is not finite")
                 return response
             kwargs.update(position=position, orientation=quat)
         if request.set_twist:
@@ -517,14 +351,14 @@ class SimulationNode(Node):
             )
         with self.lock:
             if not self.world.has_entity(request.entity):
-                _fail(res, NOT_FOUND, f"no entity {request.entity!r}")
+                fail(res, NOT_FOUND, f"no entity {request.entity!r}")
                 return response
             try:
                 self.world.set_entity_state(request.entity, **kwargs)
             except ValueError as exc:
-                _fail(res, FAILED, str(exc))
+                fail(res, FAILED, str(exc))
                 return response
-        _ok(res)
+        ok(res)
         return response
 
     def _srv_reset_simulation(self, request: Any, response: Any) -> Any:
@@ -535,130 +369,55 @@ class SimulationNode(Node):
                 respawned = self.world.reset(scope)
             except (DescriptionError, EntityError, ControllerError, ValueError) as exc:
                 self._sync_robots(self.world.entity_names())
-                _fail(response.result, FAILED, f"reset (scope {scope}) could not re-create the launched world: {exc}")
+                fail(response.result, FAILED, f"reset (scope {scope}) could not re-create the launched world: {exc}")
                 return response
             self._sync_robots(respawned)
             for robot in self._robots.values():
                 robot.on_reset()
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _srv_get_simulation_state(self, request: Any, response: Any) -> Any:
         response.state.state = self._state
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _srv_set_simulation_state(self, request: Any, response: Any) -> Any:
         target = int(request.state.state)
         valid = (SimulationState.STATE_STOPPED, SimulationState.STATE_PLAYING, SimulationState.STATE_PAUSED)
         if target not in valid:
-            _fail(response.result, response.INCORRECT_TRANSITION, f"state {target} cannot be set on this node")
+            fail(response.result, response.INCORRECT_TRANSITION, f"state {target} cannot be set on this node")
             return response
         if target == self._state:
-            _fail(response.result, response.ALREADY_IN_TARGET_STATE, "already in the requested state")
+            fail(response.result, response.ALREADY_IN_TARGET_STATE, "already in the requested state")
             return response
         if target == SimulationState.STATE_PAUSED and self._state == SimulationState.STATE_STOPPED:
             # The standard allows pausing a stopped simulation: start it paused.
             self._state = SimulationState.STATE_PAUSED
         else:
             self._set_state(target)
-        _ok(response.result)
+        ok(response.result)
         return response
-
-    def _too_many_steps(self, steps: int, result: Any) -> bool:
-        if steps <= self.max_steps_per_call:
-            return False
-        _fail(result, FAILED, f"steps={steps} exceeds this node's max_steps_per_call ({self.max_steps_per_call}); "
-              f"split the call, or start the node with a larger max_steps_per_call")
-        return True
 
     def _step_world(self, steps: int) -> None:
         """Step in chunks that stop when the node shuts down (lock held by the caller)."""
         self.world.step(steps, should_stop=self._stopping.is_set)
 
-    @_guarded
+    @guarded
     def _srv_step_simulation(self, request: Any, response: Any) -> Any:
-        steps = int(request.steps)
-        if self._too_many_steps(steps, response.result):
-            return response
-        if self._state != SimulationState.STATE_PAUSED:
-            _fail(response.result, FAILED, "StepSimulation needs a paused simulation; pause it first")
-            return response
-        with self.lock:
-            try:
-                self._step_world(steps)
-            except (UnstableSimulationError, StepInterruptedError) as exc:
-                _fail(response.result, FAILED, str(exc))
-                return response
-            self._after_step()
-        _ok(response.result)
-        return response
+        return step_simulation(self, request, response)
 
     # -- uniros_interfaces ------------------------------------------------------------------
-    @_guarded
+    @guarded
     def _srv_step_robot(self, request: Any, response: Any) -> Any:
-        res = response.result
-        steps = int(request.steps)
-        if self._too_many_steps(steps, res):
-            return response
-        if len(request.frames) > _MAX_FRAMES:
-            _fail(res, response.UNKNOWN_FRAME, f"{len(request.frames)} frames requested; at most {_MAX_FRAMES}")
-            return response
-        if steps > 0 and self._state != SimulationState.STATE_PAUSED:
-            _fail(res, INCORRECT_STATE, "StepRobot with steps > 0 needs a paused simulation (lockstep mode)")
-            return response
-        entity = request.entity
-        with self.lock:
-            robot = self._robots.get(entity)
-            if robot is None:
-                _fail(res, NOT_FOUND, f"no robot {entity!r}; robots: {list(self._robots)}")
-                return response
-            try:
-                for command in request.commands:
-                    self.world.set_command(entity, command.controller, command.command)
-            except CommandError as exc:
-                _fail(res, response.BAD_COMMAND, str(exc))
-                return response
-            except ControllerError as exc:
-                _fail(res, response.UNKNOWN_CONTROLLER, str(exc))
-                return response
-            frames = tuple(request.frames)
-            frame_set = None
-            if frames:
-                key = (entity, frames)
-                frame_set = self._frame_sets.get(key)
-                if frame_set is None:
-                    try:
-                        frame_set = self.world.frame_set(frames, entity)
-                    except EntityError as exc:
-                        _fail(res, response.UNKNOWN_FRAME, str(exc))
-                        return response
-                    if len(self._frame_sets) >= _MAX_FRAME_SETS:  # distinct frame lists are not unbounded memory
-                        self._frame_sets.clear()
-                    self._frame_sets[key] = frame_set
-            if steps > 0:
-                try:
-                    self._step_world(steps)
-                except UnstableSimulationError as exc:
-                    _fail(res, response.UNSTABLE, str(exc))
-                    return response
-                except StepInterruptedError as exc:
-                    _fail(res, FAILED, str(exc))
-                    return response
-                self._after_step()
-            robot.fill_joint_state(response.joint_state)
-            response.sim_time = convert.time_msg(self.world.time)
-            if frame_set is not None:
-                response.frame_poses = [convert.pose_from_row(row) for row in frame_set.poses()]
-        _ok(res)
-        return response
+        return step_robot(self, request, response)
 
     def _srv_set_robot_joint_state(self, request: Any, response: Any) -> Any:
         js = request.joint_state
         with self.lock:
             robot = self._robots.get(request.entity)
             if robot is None:
-                _fail(response.result, NOT_FOUND, f"no robot {request.entity!r}; robots: {list(self._robots)}")
+                fail(response.result, NOT_FOUND, f"no robot {request.entity!r}; robots: {list(self._robots)}")
                 return response
             velocities = js.velocity if len(js.velocity) else None
             try:
@@ -666,14 +425,14 @@ class SimulationNode(Node):
                     request.entity, list(js.name), js.position, velocities, hold=request.hold
                 )
             except EntityError as exc:
-                _fail(response.result, response.UNKNOWN_JOINT, str(exc))
+                fail(response.result, response.UNKNOWN_JOINT, str(exc))
                 return response
             except ValueError as exc:
-                _fail(response.result, response.BAD_VALUE, str(exc))
+                fail(response.result, response.BAD_VALUE, str(exc))
                 return response
             robot.fill_joint_state(response.joint_state)
             response.sim_time = convert.time_msg(self.world.time)
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _srv_get_physics_properties(self, request: Any, response: Any) -> Any:
@@ -682,19 +441,19 @@ class SimulationNode(Node):
             response.real_time_factor = float(self._runner.real_time_factor)
             g = self.world.gravity
             response.gravity.x, response.gravity.y, response.gravity.z = (float(v) for v in g)
-        _ok(response.result)
+        ok(response.result)
         return response
 
     def _srv_set_physics_properties(self, request: Any, response: Any) -> Any:
         if request.set_time_step and not (np.isfinite(request.time_step) and request.time_step > 0):
-            _fail(response.result, FAILED, f"time_step must be > 0 seconds, got {request.time_step}")
+            fail(response.result, FAILED, f"time_step must be > 0 seconds, got {request.time_step}")
             return response
         g = request.gravity
         if request.set_gravity and not np.all(np.isfinite([g.x, g.y, g.z])):
-            _fail(response.result, FAILED, "gravity must be finite")
+            fail(response.result, FAILED, "gravity must be finite")
             return response
         if request.set_real_time_factor and not np.isfinite(request.real_time_factor):
-            _fail(response.result, FAILED, "real_time_factor must be finite (<= 0 = as fast as possible)")
+            fail(response.result, FAILED, "real_time_factor must be finite (<= 0 = as fast as possible)")
             return response
         with self.lock:
             if request.set_time_step:
@@ -729,9 +488,9 @@ class SimulationNode(Node):
             try:
                 render_image_msgs(self._get_renderer(), request, response, self.world.time)
             except (RenderError, EntityError, ValueError) as exc:
-                _fail(response.result, FAILED, str(exc))
+                fail(response.result, FAILED, str(exc))
                 return response
-        _ok(response.result)
+        ok(response.result)
         return response
 
     # -- conveniences for the launcher -------------------------------------------------------
@@ -747,7 +506,7 @@ class SimulationNode(Node):
         srv = _SRV["spawn_entity"]
         request = srv.Request(name=name)
         request.entity_resource.uri = uri
-        response = self._spawn(request, srv.Response(), None)
+        response = spawn_entity(self, request, srv.Response(), None)
         if response.result.result != OK:
             raise RuntimeError(f"cannot spawn {name!r} from {uri!r}: {response.result.error_message}")
         return response.entity_name

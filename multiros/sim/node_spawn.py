@@ -1,0 +1,149 @@
+"""SpawnEntity handling of the simulation node: request checks, URI options, the source policy.
+
+:func:`spawn_entity` validates the request (resource, namespace, pose, sizes), splits the URI's
+query into xacro arguments and the node's own options (``__controllers``,
+``__controllers_file``), loads the description outside the world under the node's
+:class:`~multiros.sim.description.SourcePolicy` and limits, and only then spawns it under the
+node's lock and attaches the robot's ROS interfaces. :func:`entity_name` picks the name
+(``allow_renaming``).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import TYPE_CHECKING, Any
+from urllib.parse import parse_qsl, urlsplit
+
+import numpy as np
+
+from multiros.sim import convert
+from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
+from multiros.sim.errors import ControllerError, DescriptionError, EntityError
+from multiros.sim.node_results import FAILED, fail, ok
+
+if TYPE_CHECKING:
+    from multiros.sim.node import SimulationNode
+    from multiros.sim.world import World
+
+_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+_NAMESPACE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
+_MAX_URI = 8192  # characters of entity_resource.uri
+
+
+def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: SourcePolicy | None) -> Any:
+    """SpawnEntity on ``node``. ``policy`` None trusts the request (the node's own command line)."""
+    res = response.result
+    uri, text = request.entity_resource.uri, request.entity_resource.resource_string
+    if not uri and not text:
+        fail(res, response.NO_RESOURCE, "both entity_resource.uri and resource_string are empty")
+        return response
+    namespace = request.entity_namespace
+    if namespace and not _NAMESPACE.match(namespace if namespace.startswith("/") else "/" + namespace):
+        fail(res, response.NAMESPACE_INVALID, f"namespace {namespace!r} is not a valid ROS namespace")
+        return response
+    frame = request.initial_pose.header.frame_id
+    if frame not in ("", "world"):
+        fail(res, FAILED, f"initial_pose frame {frame!r} is not supported; use 'world' (or empty)")
+        return response
+    position, quat = convert.pose_to_arrays(request.initial_pose.pose)
+    problem = convert.validate_quaternion(quat) or (
+        None if np.all(np.isfinite(position)) else f"position {position.tolist()} is not finite"
+    )
+    if problem:
+        fail(res, response.INVALID_POSE, problem)
+        return response
+    limits = node.description_limits
+    if len(uri) > _MAX_URI or len(text) > limits.max_chars:
+        what = "entity_resource.uri" if len(uri) > _MAX_URI else "entity_resource.resource_string"
+        most = _MAX_URI if len(uri) > _MAX_URI else limits.max_chars
+        fail(res, response.RESOURCE_PARSE_ERROR, f"{what} is longer than {most} characters (the node's limit)")
+        return response
+    description: str = text
+    args: dict[str, str] = {}
+    if uri:
+        parts = urlsplit(uri)
+        if parts.query:
+            args = dict(parse_qsl(parts.query, keep_blank_values=True))
+            uri = parts._replace(query="").geturl()
+        if parts.scheme != "string":  # "string:?opts" = options for the resource_string
+            description = uri
+    controllers_yaml: Any = args.pop("__controllers_file", None)
+    controllers = [c for c in args.pop("__controllers", "").split(",") if c] or None
+    try:
+        if controllers_yaml:
+            controllers_yaml = (policy.resolve(controllers_yaml, node.world.index, what="controllers file")
+                                if policy is not None else node.world.index.resolve_uri(controllers_yaml))
+        # Parsed outside the world: a refused or out-of-bounds description never touches it.
+        desc = load_description(description, args=args or None, index=node.world.index,
+                                mesh_cache=node.world.mesh_cache,
+                                default_armature=node.world.options.default_armature, policy=policy,
+                                limits=limits)
+    except UnsupportedFormatError as exc:
+        fail(res, response.UNSUPPORTED_FORMAT, str(exc))
+        return response
+    except DescriptionError as exc:
+        code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
+        fail(res, code, str(exc))
+        return response
+    except (RecursionError, MemoryError) as exc:
+        fail(res, response.RESOURCE_PARSE_ERROR, f"the description is too large or too deep to load "
+              f"({type(exc).__name__}); see the node's description limits")
+        return response
+    with node.lock:
+        name = entity_name(node.world, request.name, request.allow_renaming, response)
+        if name is None:
+            return response
+        try:
+            info = node.world.spawn(
+                name,
+                desc,
+                pose=(position, quat),
+                namespace=namespace or None,
+                controllers=controllers,
+                controllers_yaml=controllers_yaml,
+            )
+        except DescriptionError as exc:
+            code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
+            fail(res, code, str(exc))
+            return response
+        except EntityError as exc:
+            fail(res, response.NAME_INVALID, str(exc))
+            return response
+        except ControllerError as exc:
+            fail(res, FAILED, f"controllers of {name!r}: {exc}")
+            return response
+        except ValueError as exc:
+            fail(res, response.INVALID_POSE, str(exc))
+            return response
+        try:
+            node._attach_robot(info.name)
+        except Exception as exc:
+            node.world.delete(info.name)
+            fail(res, FAILED, f"spawned {info.name!r} but could not create its ROS interfaces: {exc}")
+            return response
+    response.entity_name = info.name
+    ok(res)
+    return response
+
+def entity_name(world: World, name: str, allow_renaming: bool, response: Any) -> str | None:
+    """The name to spawn under (renamed when allowed), or None with the reply's result set."""
+    res = response.result
+    if name and not _NAME.match(name):
+        if not allow_renaming:
+            fail(res, response.NAME_INVALID, f"entity name {name!r} must match [A-Za-z_][A-Za-z0-9_]*")
+            return None
+        name = re.sub(r"[^A-Za-z0-9_]", "_", name) or "entity"
+    if not name:
+        if not allow_renaming:
+            fail(res, response.NAME_INVALID, "entity name is empty and allow_renaming is false")
+            return None
+        name = "entity"
+    if world.has_entity(name):
+        if not allow_renaming:
+            fail(res, response.NAME_NOT_UNIQUE, f"an entity named {name!r} exists; pick another name")
+            return None
+        base, i = name, 1
+        while world.has_entity(f"{base}_{i}"):
+            i += 1
+        name = f"{base}_{i}"
+    return name

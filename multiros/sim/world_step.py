@@ -1,0 +1,182 @@
+"""Stepping the MuJoCo world, and recovering from a diverging entity.
+
+:class:`WorldStepping` is a mixin of :class:`~multiros.sim.world.World` holding ``time``,
+``step`` and their internals. A step call snapshots the integration state, writes every robot's
+actuator commands, then advances in chunks bounded by the next controller update of each
+time-varying robot. When MuJoCo reports a bad qpos/qvel/qacc, :meth:`WorldStepping._recover`
+replays the call one physics step at a time from the snapshot (deterministic), restores the entity
+that diverges to its pre-call state at rest, lets the others complete the call, and raises
+:class:`~multiros.sim.errors.UnstableSimulationError` naming the culprits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from multiros.sim.errors import StepInterruptedError, UnstableSimulationError
+from multiros.sim.limits import STEP_CHUNK
+from multiros.sim.world_model import apply_initial, read_state, write_actuators
+from multiros.sim.world_types import EntityRecord
+
+_BAD_WARNINGS = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
+                                       mujoco.mjtWarning.mjWARN_BADQVEL))
+
+
+class WorldStepping:
+    """Stepping and divergence recovery of :class:`~multiros.sim.world.World` (a mixin: the world
+    owns the attributes below and calls :meth:`_sync_warn_counts` after each compile)."""
+
+    _model: mujoco.MjModel
+    _data: mujoco.MjData
+    _entities: dict[str, EntityRecord]
+    _varying: tuple[EntityRecord, ...]  # robots whose controllers change commands over time
+    _snap: np.ndarray  # integration state at the start of the current step call
+    _state_spec: int
+    _warn_counts: np.ndarray
+
+    @property
+    def time(self) -> float:
+        """Simulation time in seconds."""
+        return float(self._data.time)
+
+    def step(self, n: int = 1, *, should_stop: Callable[[], bool] | None = None) -> None:
+        """Advance ``n`` physics steps; controllers update at their rate within the steps.
+
+        Args:
+            n: physics steps.
+            should_stop: with more than ``limits.STEP_CHUNK`` steps, they run in chunks of that
+                many (bit-identical to one call) and ``should_stop()`` is asked before each chunk;
+                True stops the call there (the node passes its shutdown flag).
+
+        Raises:
+            UnstableSimulationError: physics diverged; the named entities were restored to the
+                state they had before this call (before the chunk, when chunked), their velocities
+                zeroed, the others continue.
+            StepInterruptedError: ``should_stop()`` returned True; ``steps_done`` steps were done.
+        """
+        if n < 0:
+            raise ValueError(f"step count must be >= 0, got {n}")
+        if should_stop is None or n <= STEP_CHUNK:
+            self._step(n)
+            return
+        done = 0
+        while done < n:
+            if should_stop():
+                raise StepInterruptedError(f"stepping stopped after {done} of {n} steps (shutting down)",
+                                           steps_done=done)
+            chunk = min(STEP_CHUNK, n - done)
+            self._step(chunk)
+            done += chunk
+
+    def _step(self, n: int) -> None:
+        if n == 0:
+            return
+        m, d = self._model, self._data
+        mujoco.mj_getState(m, d, self._snap, self._state_spec)
+        for ent in self._entities.values():
+            ent.snap_countdown = ent.countdown
+            if ent.hw is not None:
+                write_actuators(m, d, ent)
+        self._advance(n)
+        if self._warnings_changed():
+            self._recover(n)
+
+    def _advance(self, n: int) -> None:
+        m, d = self._model, self._data
+        varying = self._varying
+        remaining = n
+        while remaining > 0:
+            chunk = remaining
+            for ent in varying:
+                if ent.countdown <= 0:
+                    ent.cm.update(d.time)
+                    hw = ent.hw
+                    d.ctrl[ent.act_ids] = hw.command + ent.ff_scale * hw.command_velocity
+                    ent.countdown = ent.period
+                if ent.countdown < chunk:
+                    chunk = ent.countdown
+            mujoco.mj_step(m, d, chunk)
+            for ent in varying:
+                ent.countdown -= chunk
+            remaining -= chunk
+
+    def _warnings_changed(self) -> bool:
+        w = self._data.warning
+        return (w[_BAD_WARNINGS[0]].number != self._warn_counts[0]
+                or w[_BAD_WARNINGS[1]].number != self._warn_counts[1]
+                or w[_BAD_WARNINGS[2]].number != self._warn_counts[2])
+
+    def _diverged(self) -> list[EntityRecord]:
+        d = self._data
+        out = []
+        for ent in self._entities.values():
+            q, v = d.qpos[ent.qpos_idx], d.qvel[ent.dof_idx]
+            if not (np.all(np.isfinite(q)) and np.all(np.isfinite(v))) or (v.size and np.max(np.abs(v)) > 1e9):
+                out.append(ent)
+        return out
+
+    def _recover(self, n: int) -> None:
+        """Replay the step call one physics step at a time from the snapshot (deterministic), find
+        the entity that diverges first, restore it to its pre-call state at rest, and go on; the
+        other entities complete all ``n`` steps as if nothing happened."""
+        m, d = self._model, self._data
+        mujoco.mj_setState(m, d, self._snap, self._state_spec)
+        for ent in self._entities.values():
+            ent.countdown = ent.snap_countdown
+        self._sync_warn_counts()
+        culprits: dict[str, int] = {}
+        good = np.empty_like(self._snap)
+        done, attempts = 0, 0
+        while done < n:
+            mujoco.mj_getState(m, d, good, self._state_spec)
+            counts = {e.name: e.countdown for e in self._entities.values()}
+            self._advance(1)
+            if not self._warnings_changed() and not self._diverged():
+                done += 1
+                continue
+            bad = self._diverged()
+            if not bad:  # a warning without a NaN left behind: blame the owner of the reported dof
+                dof = int(d.warning[_BAD_WARNINGS[0]].lastinfo)
+                bad = [e for e in self._entities.values() if dof in e.dof_idx] or list(self._entities.values())
+            mujoco.mj_setState(m, d, good, self._state_spec)
+            for ent in self._entities.values():
+                ent.countdown = counts[ent.name]
+            attempts += 1
+            for ent in bad:
+                culprits[ent.name] = culprits.get(ent.name, 0) + 1
+                if culprits[ent.name] == 1:
+                    d.qpos[ent.qpos_idx] = self._snap_qpos_of(ent)
+                    d.qvel[ent.dof_idx] = 0.0
+                else:  # restoring did not help: back to the spawn state
+                    apply_initial(m, d, ent)
+                d.qacc_warmstart[ent.dof_idx] = 0.0
+            mujoco.mj_forward(m, d)
+            for ent in bad:
+                if ent.cm is not None:
+                    read_state(d, ent)
+                    ent.cm.hold(d.time)
+                    write_actuators(m, d, ent)
+            self._sync_warn_counts()
+            if attempts > 2 * max(1, len(self._entities)):
+                mujoco.mj_setState(m, d, self._snap, self._state_spec)
+                for ent in self._entities.values():
+                    apply_initial(m, d, ent)
+                mujoco.mj_forward(m, d)
+                break
+        self._sync_warn_counts()
+        names = tuple(culprits)
+        raise UnstableSimulationError(
+            f"physics diverged (MuJoCo bad qpos/qvel/qacc) in entity(s) {list(names)} near t={d.time:.4f}s; "
+            f"they were restored to their state before this step call, at rest, while the other entities "
+            f"stepped on. Lower the timestep, the gains or the commanded efforts.", entities=names)
+
+    def _snap_qpos_of(self, ent: EntityRecord) -> np.ndarray:
+        # mjSTATE_INTEGRATION starts with time (1), then qpos (nq)
+        q = self._snap[1:1 + self._model.nq][ent.qpos_idx]
+        return np.where(np.isfinite(q), q, self._model.qpos0[ent.qpos_idx])
+
+    def _sync_warn_counts(self) -> None:
+        self._warn_counts = np.array([self._data.warning[w].number for w in _BAD_WARNINGS])
