@@ -1,0 +1,373 @@
+"""``uniros-fake-robot``: a fake ros2_control robot, for trying a Real env with no robot.
+
+Not the simulation node: no physics, no simulation services, no ``/clock``. It serves what a real
+ros2_control robot serves, in the robot's namespace ``<ns>``:
+
+* ``<ns>/joint_states`` (``sensor_msgs/JointState``) at a fixed rate, stamped with the wall clock;
+* ``<ns>/controller_manager/{list,load,configure,switch,unload}_controller(s)`` (every supported
+  distribution's ``controller_manager_msgs`` variant);
+* ``<ns>/<controller>/commands`` (``std_msgs/Float64MultiArray``) per forward command controller;
+* ``<ns>/<controller>/joint_trajectory`` (``trajectory_msgs/JointTrajectory``) and
+  ``<ns>/<controller>/follow_joint_trajectory`` (``control_msgs/action/FollowJointTrajectory``) per
+  joint trajectory controller.
+
+Joints follow their commands with a first-order lag under the URDF's velocity and position limits
+(:mod:`multiros.hardware.fake_hardware`). Commands that are malformed (wrong length, NaN) are
+ignored with a log line. Fault injection for tests: ``--stall-after`` stops ``joint_states``,
+``--reject-goals`` refuses every trajectory goal.
+
+Run ``uniros-fake-robot --robot rx200`` (or ``python -m multiros.hardware.fake_robot``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+import time
+from collections.abc import Sequence
+from typing import Any
+
+from multiros.hardware.fake_hardware import DEFAULT_TIME_CONSTANT, FakeHardware
+from multiros.hardware.robot_spec import PRESETS, RobotSpec, load_robot_spec, parse_assignments
+from multiros.ros import Context, Node
+from multiros.ros.action import GoalResponse
+from multiros.ros.executors import SingleThreadedExecutor
+from multiros.sim.actions import TrajectoryActions
+from multiros.sim.controllers import JointTrajectoryController
+from multiros.sim.distro_adapters import create_services, get_message, get_service
+from multiros.sim.errors import CommandError, ControllerError, SimError
+from multiros.sim.services import CONTROLLER_SERVICES
+
+__all__ = ["FakeRobot", "main", "DEFAULT_RATE"]
+
+_logger = logging.getLogger(__name__)
+
+JointState = get_message("sensor_msgs/msg/JointState")
+Float64MultiArray = get_message("std_msgs/msg/Float64MultiArray")
+JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
+ControllerState = get_message("controller_manager_msgs/msg/ControllerState")
+SwitchController = get_service(CONTROLLER_SERVICES["switch_controller"])
+
+#: joint_states rate in Hz.
+DEFAULT_RATE = 100.0
+_NS_PER_S = 1_000_000_000
+
+
+def _stamp(msg: Any, seconds: float) -> None:
+    ns = int(seconds * _NS_PER_S)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = ns // _NS_PER_S, ns % _NS_PER_S
+
+
+class _Actions(TrajectoryActions):
+    """The simulation node's FollowJointTrajectory servers, with an optional refuse-everything fault."""
+
+    reject_all = False
+
+    def _accept(self, controller: str, goal: Any) -> GoalResponse:
+        if self.reject_all:
+            return self._reject(controller, "this fake robot refuses every goal (--reject-goals)")
+        return super()._accept(controller, goal)
+
+
+class FakeRobot:
+    """A fake ros2_control robot serving on ``context``.
+
+    Args:
+        spec: the robot (see :func:`~multiros.hardware.robot_spec.load_robot_spec`).
+        context: an initialised ROS context (Zenoh for other processes to see it).
+        rate: ``joint_states`` rate in Hz.
+        update_rate: control-loop rate in Hz (at least ``rate``; default ``max(rate, 100)``).
+        time_constant: first-order lag of the joints in seconds.
+        activate: controllers to activate at start (default: every controller of the YAML whose
+            joints are free, in file order); the others are loaded and inactive.
+        stall_after: stop publishing ``joint_states`` this many seconds after :meth:`start`.
+        reject_goals: refuse every FollowJointTrajectory goal.
+        node_name: the node's name (ros2_control's is ``controller_manager``).
+    """
+
+    def __init__(self, spec: RobotSpec, context: Context, *, rate: float = DEFAULT_RATE,
+                 update_rate: float | None = None, time_constant: float = DEFAULT_TIME_CONSTANT,
+                 activate: Sequence[str] | None = None, stall_after: float | None = None,
+                 reject_goals: bool = False, node_name: str = "controller_manager") -> None:
+        if not rate > 0 or (update_rate is not None and not update_rate > 0):
+            raise ValueError(f"rate ({rate}) and update_rate ({update_rate}) must be positive (Hz)")
+        if stall_after is not None and not stall_after >= 0:
+            raise ValueError(f"stall_after must be >= 0 seconds, got {stall_after}")
+        self.spec = spec
+        self.ns = spec.namespace
+        self.rate = float(rate)
+        self.update_rate = max(float(update_rate or max(rate, 100.0)), self.rate)
+        self.stall_after = stall_after
+        self.hardware = FakeHardware(spec, time_constant=time_constant)
+        self.active_controllers = self.hardware.start_controllers(list(activate) if activate is not None else None)
+        self.node = Node(node_name, namespace=self.ns or None, context=context)
+        self._names = spec.published_joints
+        self._joint_pub = self.node.create_publisher(JointState, f"{self.ns}/joint_states", 10)
+        self._actions = _Actions(self.node, self.hardware, spec.name, self.ns, self.hardware.lock)
+        self._actions.reject_all = bool(reject_goals)
+        self._command_subs: dict[str, Any] = {}
+        self._services: list[Any] = []
+        with self.hardware.lock:
+            for info in self.hardware.cm.list_controllers():
+                self._subscribe_commands(info.name)
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._executor: SingleThreadedExecutor | None = None
+        self._spin_thread: threading.Thread | None = None
+        self.published = 0  # joint_states messages sent
+
+    # -- loop --------------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start the command topics, the control loop and ``joint_states``, then the controller
+        manager's services: once they answer, everything is served."""
+        if self._thread is not None:
+            return
+        self._executor = SingleThreadedExecutor(context=self.node.context)
+        self._executor.add_node(self.node)
+        self._spin_thread = threading.Thread(target=self._executor.spin, name="uniros-fake-robot-topics",
+                                             daemon=True)
+        self._spin_thread.start()
+        self._thread = threading.Thread(target=self._loop, name="uniros-fake-robot", daemon=True)
+        self._thread.start()
+        cm = f"{self.ns}/controller_manager"
+        handlers = {"list_controllers": self._list, "load_controller": self._load,
+                    "configure_controller": self._configure, "switch_controller": self._switch,
+                    "unload_controller": self._unload}
+        self._services = [srv for name, type_name in CONTROLLER_SERVICES.items()
+                          for srv in create_services(self.node, type_name, f"{cm}/{name}", handlers[name])]
+
+    def _loop(self) -> None:
+        tick, pub_period = 1.0 / self.update_rate, 1.0 / self.rate
+        start = last = time.monotonic()
+        next_tick, next_pub = start, start
+        stall_at = start + self.stall_after if self.stall_after is not None else float("inf")
+        stalled = False
+        while not self._stop.wait(max(0.0, next_tick - time.monotonic())):
+            now = time.monotonic()
+            try:
+                self.hardware.update(now - last)
+                self._actions.on_step()
+                if now >= stall_at and not stalled:
+                    stalled = True
+                    _logger.warning("%s/joint_states: stalled on purpose (--stall-after %g s)", self.ns,
+                                    self.stall_after)
+                if not stalled and now >= next_pub:
+                    self._publish()
+                    next_pub += pub_period
+                    if next_pub <= now:  # fell behind: keep the rate, skip the missed messages
+                        next_pub = now + pub_period
+            except Exception:  # noqa: BLE001 - a transport hiccup must not kill the robot
+                _logger.exception("fake robot control loop")
+            last = now
+            next_tick += tick
+            if next_tick <= now:
+                next_tick = now + tick
+
+    def _publish(self) -> None:
+        positions, velocities, efforts = self.hardware.published_state()
+        msg = JointState()
+        _stamp(msg, time.time())
+        msg.name = self._names
+        msg.position, msg.velocity, msg.effort = positions, velocities, efforts
+        self._joint_pub.publish(msg)
+        self.published += 1
+
+    # -- controller command topics -----------------------------------------------------------
+    def _subscribe_commands(self, controller: str) -> None:
+        if controller in self._command_subs:
+            return
+        ctrl = self.hardware.cm.get(controller)
+        if not ctrl.command_interfaces:
+            return
+        if isinstance(ctrl, JointTrajectoryController):
+            self._actions.add(controller, ctrl)
+            sub = self.node.create_subscription(JointTrajectory, f"{self.ns}/{controller}/joint_trajectory",
+                                                lambda msg, c=controller: self._on_trajectory(c, msg), 10)
+        else:
+            sub = self.node.create_subscription(Float64MultiArray, f"{self.ns}/{controller}/commands",
+                                                lambda msg, c=controller: self._on_command(c, msg), 10)
+        self._command_subs[controller] = sub
+
+    def _unsubscribe_commands(self, controller: str) -> None:
+        self._actions.remove(controller)
+        sub = self._command_subs.pop(controller, None)
+        if sub is not None:
+            self.node.destroy_subscription(sub)
+
+    def _on_command(self, controller: str, msg: Any) -> None:
+        with self.hardware.lock:
+            try:
+                self.hardware.cm.set_command(controller, msg.data, self.hardware.time)
+            except (CommandError, ControllerError) as exc:
+                self.node.get_logger().warning("%s/%s/commands: %s (ignored)", self.ns, controller, exc)
+
+    def _on_trajectory(self, controller: str, msg: Any) -> None:
+        times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points]
+        velocities = [p.velocities for p in msg.points] if all(len(p.velocities) for p in msg.points) else None
+        with self.hardware.lock:
+            try:
+                ctrl = self.hardware.cm.get(controller)
+                if ctrl.state != "active":
+                    raise ControllerError(f"controller '{controller}' is {ctrl.state}")
+                ctrl.set_trajectory(list(msg.joint_names), [p.positions for p in msg.points], times, velocities,
+                                    time=self.hardware.time)
+            except (CommandError, ControllerError) as exc:
+                self.node.get_logger().warning("%s/%s/joint_trajectory: %s (ignored)", self.ns, controller, exc)
+
+    # -- controller manager services -----------------------------------------------------------
+    def _list(self, request: Any, response: Any) -> Any:
+        with self.hardware.lock:
+            infos = self.hardware.cm.list_controllers()
+        response.controller = [
+            ControllerState(name=i.name, state=i.state, type=i.type, claimed_interfaces=list(i.claimed_interfaces),
+                            required_command_interfaces=list(i.required_command_interfaces),
+                            required_state_interfaces=list(i.required_state_interfaces))
+            for i in infos
+        ]
+        return response
+
+    def _manage(self, response: Any, action: Any) -> Any:
+        with self.hardware.lock:
+            try:
+                action(self.hardware.cm)
+                response.ok = True
+            except ControllerError as exc:
+                self.node.get_logger().warning("%s/controller_manager: %s", self.ns, exc)
+                response.ok = False
+                if hasattr(response, "message"):  # SwitchController since ros2_control 4 (Jazzy)
+                    response.message = str(exc)
+        return response
+
+    def _load(self, request: Any, response: Any) -> Any:
+        def load(cm: Any) -> None:
+            cm.load(request.name)
+            self._subscribe_commands(request.name)
+
+        return self._manage(response, load)
+
+    def _configure(self, request: Any, response: Any) -> Any:
+        return self._manage(response, lambda cm: cm.configure(request.name))
+
+    def _switch(self, request: Any, response: Any) -> Any:
+        strict = int(request.strictness) != SwitchController.Request.BEST_EFFORT
+        return self._manage(response, lambda cm: cm.switch(
+            list(request.activate_controllers), list(request.deactivate_controllers), strict=strict,
+            time=self.hardware.time))
+
+    def _unload(self, request: Any, response: Any) -> Any:
+        def unload(cm: Any) -> None:
+            cm.unload(request.name)
+            self._unsubscribe_commands(request.name)
+
+        return self._manage(response, unload)
+
+    # -- teardown ----------------------------------------------------------------------------
+    def destroy(self) -> None:
+        """Stop the loop, then destroy every topic, service and action."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        if self._executor is not None:
+            self._executor.shutdown()
+            if self._spin_thread is not None:
+                self._spin_thread.join(timeout=2.0)
+        self._actions.destroy()
+        for name in list(self._command_subs):
+            self._unsubscribe_commands(name)
+        self.node.destroy_node()
+
+
+# ------------------------------------------------------------------------------------------ CLI
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="uniros-fake-robot",
+        description="A fake ros2_control robot (not a simulator): joint_states at a fixed rate, a controller "
+                    "manager, forward command and joint trajectory controllers, joints following commands "
+                    "with a first-order lag. For trying a Real env with no robot. It logs 'ready' once serving.",
+    )
+    parser.add_argument("--robot", choices=sorted(PRESETS),
+                        help="a shipped robot: its description, controllers, namespace and controller names")
+    parser.add_argument("--description", help="URDF/xacro file or package:// URI (?name=value adds xacro args)")
+    parser.add_argument("--xacro-arg", action="append", default=[], metavar="NAME:=VALUE", help="xacro argument")
+    parser.add_argument("--controllers-file", help="ros2_control controllers YAML (file or package:// URI); "
+                                                   "default: the preset's, or the one the description names")
+    parser.add_argument("--namespace", help="ROS namespace (default: the preset's; rx200 -> /rx200, irb120 -> none)")
+    parser.add_argument("--controller-name", action="append", default=[], metavar="YAML_NAME=NAME",
+                        help="serve a controller of the YAML under another name (repeatable)")
+    parser.add_argument("--activate", help="comma-separated controllers to activate at start (default: every "
+                                           "controller whose joints are free, in YAML order)")
+    parser.add_argument("--initial", action="append", default=[], metavar="JOINT=POSITION",
+                        help="start position of a joint (default: the description's initial_value, else 0, "
+                             "clamped to the limits)")
+    parser.add_argument("--rate", type=float, default=DEFAULT_RATE, help="joint_states rate in Hz (%(default)s)")
+    parser.add_argument("--update-rate", type=float, default=None, help="control loop rate in Hz "
+                                                                        "(default max(rate, 100))")
+    parser.add_argument("--time-constant", type=float, default=DEFAULT_TIME_CONSTANT,
+                        help="first-order lag of the joints in seconds (%(default)s)")
+    parser.add_argument("--stall-after", type=float, default=None, metavar="SEC",
+                        help="fault: stop publishing joint_states SEC seconds after start")
+    parser.add_argument("--reject-goals", action="store_true", help="fault: refuse every trajectory goal")
+    parser.add_argument("--transport", default="zenoh", choices=["zenoh"], help="ROS transport")
+    parser.add_argument("--router", default=None,
+                        help="Zenoh router: 'auto' (default: the one at $UNIROS_ZENOH_ROUTER or "
+                             "tcp/127.0.0.1:7447, started there if none listens), 'embedded', 'none', or an "
+                             "endpoint such as tcp/127.0.0.1:7448")
+    parser.add_argument("--owner-pid", type=int, default=None, help="exit when this process is gone")
+    parser.add_argument("--log-level", default="INFO")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
+    from multiros.sim.launch import _watch_owner
+
+    parser = _parser()
+    opts = parser.parse_args(argv)
+    logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    if not opts.robot and not opts.description:
+        parser.error(f"give --robot (one of {', '.join(sorted(PRESETS))}) or --description")
+    try:
+        spec = load_robot_spec(
+            opts.robot, description=opts.description,
+            xacro_args=parse_assignments(opts.xacro_arg, "--xacro-arg", sep=":="),
+            controllers_file=opts.controllers_file, namespace=opts.namespace,
+            renames=parse_assignments(opts.controller_name, "--controller-name"),
+            initial_positions={k: float(v) for k, v in parse_assignments(opts.initial, "--initial").items()},
+        )
+    except (ValueError, OSError, SimError) as exc:  # bad option, missing file, xacro/URDF error: exit 2
+        parser.error(f"cannot load the robot: {exc}")
+    options: dict[str, Any] = {"router": opts.router} if opts.router else {}
+    ctx = Context(transport=opts.transport, **options).init()
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    if opts.owner_pid is not None:
+        _watch_owner(opts.owner_pid, stop)
+    robot = None
+    try:
+        try:
+            robot = FakeRobot(spec, ctx, rate=opts.rate, update_rate=opts.update_rate,
+                              time_constant=opts.time_constant,
+                              activate=opts.activate.split(",") if opts.activate else None,
+                              stall_after=opts.stall_after, reject_goals=opts.reject_goals)
+        except (ValueError, ControllerError) as exc:
+            _logger.error("%s", exc)
+            return 2
+        robot.start()
+        _logger.info("fake robot %s ready: namespace '%s', joints %s, active controllers %s (transport %s)",
+                     spec.name, spec.namespace or "/", spec.published_joints, robot.active_controllers,
+                     opts.transport)
+        while not stop.wait(0.5):
+            pass
+    finally:
+        if robot is not None:
+            robot.destroy()
+        ctx.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
