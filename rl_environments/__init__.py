@@ -11,6 +11,17 @@ ID                             entry point
 ``ABBIRB120ReacherGoalEnv-v0`` ``...reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv``
 =============================  ========================================================================
 
+Real-robot twins (same task, same spaces; they need a robot or a stand-in, see ``docs/real_robots.md``):
+
+====================================  ==================================================================
+``RX200ReacherReal-v0``               ``rl_environments.rx200.real.task_envs.reach.rx200_reach_real:...``
+``RX200ReacherGoalReal-v0``           ``...reach.rx200_reach_goal_real:RX200ReacherGoalRealEnv``
+``ABBIRB120ReacherRealEnv-v0``        ``rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_real:...``
+``ABBIRB120ReacherGoalRealEnv-v0``    ``...reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv``
+====================================  ==================================================================
+
+``ENV_IDS``/``GOAL_ENV_IDS`` are the simulated envs (they run anywhere); ``REAL_ENV_IDS``/
+``REAL_GOAL_ENV_IDS`` the real ones, and ``SIM_TO_REAL`` maps each simulated ID to its real twin.
 All have ``max_episode_steps=100``. Robot description packages (``rx200_description``,
 ``abb_irb120_description``) live in ``rl_environments.robots``.
 """
@@ -30,15 +41,44 @@ ENV_SPECS: dict[str, str] = {
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 GOAL_ENV_IDS: tuple[str, ...] = ("RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0")
 MAX_EPISODE_STEPS = 100
+REAL_ENV_SPECS: dict[str, str] = {
+    "RX200ReacherReal-v0": "rl_environments.rx200.real.task_envs.reach.rx200_reach_real:RX200ReacherRealEnv",
+    "RX200ReacherGoalReal-v0": (
+        "rl_environments.rx200.real.task_envs.reach.rx200_reach_goal_real:RX200ReacherGoalRealEnv"
+    ),
+    "ABBIRB120ReacherRealEnv-v0": (
+        "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_real:ABBIRB120ReacherRealEnv"
+    ),
+    "ABBIRB120ReacherGoalRealEnv-v0": (
+        "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv"
+    ),
+}
+REAL_ENV_IDS: tuple[str, ...] = tuple(REAL_ENV_SPECS)
+REAL_GOAL_ENV_IDS: tuple[str, ...] = ("RX200ReacherGoalReal-v0", "ABBIRB120ReacherGoalRealEnv-v0")
+SIM_TO_REAL: dict[str, str] = {
+    "RX200ReacherSim-v0": "RX200ReacherReal-v0",
+    "RX200ReacherGoalSim-v0": "RX200ReacherGoalReal-v0",
+    "ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
+    "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0",
+}
 
 
 def register_envs() -> None:
     """Register every uniros env ID with gymnasium (idempotent)."""
-    for env_id, entry_point in ENV_SPECS.items():
+    for env_id, entry_point in {**ENV_SPECS, **REAL_ENV_SPECS}.items():
         if env_id not in registry:
             register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS)
 
 
 register_envs()
 
-__all__ = ["ENV_IDS", "ENV_SPECS", "GOAL_ENV_IDS", "register_envs"]
+__all__ = [
+    "ENV_IDS",
+    "ENV_SPECS",
+    "GOAL_ENV_IDS",
+    "REAL_ENV_IDS",
+    "REAL_ENV_SPECS",
+    "REAL_GOAL_ENV_IDS",
+    "SIM_TO_REAL",
+    "register_envs",
+]

@@ -3,10 +3,24 @@
 ``MujocoBaseEnv`` (a ``gymnasium.Env``) and ``MujocoGoalEnv`` (a ``gymnasium_robotics.GoalEnv``),
 importable under their MultiROS names too: ``multiros.envs.GazeboBaseEnv.GazeboBaseEnv`` and
 ``multiros.envs.GazeboGoalEnv.GazeboGoalEnv``.
+
+``RealBaseEnv`` and ``RealGoalEnv`` (RealROS' names, :mod:`multiros.envs.real`) drive a real
+ros2_control robot with the same hooks; ``multiros.envs.RealBaseEnv.RealBaseEnv`` works too.
 """
 
 from multiros.envs.base_env import MujocoBaseEnv, MujocoGoalEnv
 from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.core import EnvError, ResetError
+from multiros.envs.real import RealBaseEnv, RealGoalEnv, SafetyRules
 
-__all__ = ["EnvError", "MujocoBaseEnv", "MujocoGoalEnv", "ResetError", "SpawnPose", "StepConfig"]
+__all__ = [
+    "EnvError",
+    "MujocoBaseEnv",
+    "MujocoGoalEnv",
+    "RealBaseEnv",
+    "RealGoalEnv",
+    "ResetError",
+    "SafetyRules",
+    "SpawnPose",
+    "StepConfig",
+]

@@ -33,8 +33,9 @@ from rl_environments.abb_irb120.sim.task_envs.reacher.config import irb120_reach
 from rl_environments.reach_task import ReachTask
 
 
-class ABBIRB120ReacherEnv(ReachTask, ABBIRB120RobotEnv):
-    """IRB120 reacher (see the module docstring).
+class IRB120ReachTask(ReachTask):
+    """The IRB120 reacher task (see the module docstring), written once for the simulated robot env
+    and ``ABBIRB120ReacherRealEnv-v0``'s real one. Mix it in before the robot env.
 
     Args:
         config_file: task config (file name in ``rl_environments.config`` or a path).
@@ -69,3 +70,7 @@ class ABBIRB120ReacherEnv(ReachTask, ABBIRB120RobotEnv):
 
     def _check_if_done(self) -> bool:
         return float(np.linalg.norm(self.goal - self.ee_position())) <= self.tolerance
+
+
+class ABBIRB120ReacherEnv(IRB120ReachTask, ABBIRB120RobotEnv):
+    """``ABBIRB120ReacherEnv-v0``: the IRB120 reacher on the simulation node (arguments: :class:`IRB120ReachTask`)."""

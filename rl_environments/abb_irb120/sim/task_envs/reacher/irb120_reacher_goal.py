@@ -30,8 +30,9 @@ from rl_environments.reach import parse_reward_type
 from rl_environments.reach_task import GoalReachTask
 
 
-class ABBIRB120ReacherGoalEnv(GoalReachTask, ABBIRB120RobotGoalEnv):
-    """IRB120 reacher, goal-conditioned (see the module docstring).
+class IRB120GoalReachTask(GoalReachTask):
+    """The IRB120 reacher, goal-conditioned (see the module docstring), written once for the simulated
+    robot env and ``ABBIRB120ReacherGoalRealEnv-v0``'s real one. Mix it in before the robot env.
 
     Args:
         reward_type: ``"sparse"`` or ``"dense"``.
@@ -53,3 +54,8 @@ class ABBIRB120ReacherGoalEnv(GoalReachTask, ABBIRB120RobotGoalEnv):
 
     def _get_obs(self) -> dict[str, np.ndarray]:
         return self._goal_obs(np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action]))
+
+
+class ABBIRB120ReacherGoalEnv(IRB120GoalReachTask, ABBIRB120RobotGoalEnv):
+    """``ABBIRB120ReacherGoalEnv-v0``: the goal-conditioned IRB120 reacher on the simulation node
+    (arguments: :class:`IRB120GoalReachTask`)."""

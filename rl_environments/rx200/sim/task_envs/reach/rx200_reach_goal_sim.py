@@ -28,8 +28,9 @@ from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotGoalE
 from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config, rx200_reach_settings
 
 
-class RX200ReacherGoalEnv(GoalReachTask, RX200RobotGoalEnv):
-    """RX200 reach task, goal-conditioned (see the module docstring).
+class RX200GoalReachTask(GoalReachTask):
+    """The RX200 reach task, goal-conditioned (see the module docstring), written once for the
+    simulated robot env and ``RX200ReacherGoalReal-v0``'s real one. Mix it in before the robot env.
 
     Args:
         reward_type: ``"sparse"`` or ``"dense"``.
@@ -63,3 +64,8 @@ class RX200ReacherGoalEnv(GoalReachTask, RX200RobotGoalEnv):
         return self._goal_obs(
             np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action, self.arm_velocities()])
         )
+
+
+class RX200ReacherGoalEnv(RX200GoalReachTask, RX200RobotGoalEnv):
+    """``RX200ReacherGoalSim-v0``: the goal-conditioned RX200 reach on the simulation node
+    (arguments: :class:`RX200GoalReachTask`)."""

@@ -39,8 +39,10 @@ from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotEnv
 from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config, rx200_reach_settings
 
 
-class RX200ReacherEnv(ReachTask, RX200RobotEnv):
-    """RX200 reach task, plain observation (see the module docstring).
+class RX200ReachTask(ReachTask):
+    """The RX200 reach task, plain observation (see the module docstring), written once for every
+    robot layer that provides :class:`~rl_environments.arm_interface.ArmInterface` (this simulated
+    one and ``RX200ReacherReal-v0``'s real one). Mix it in before the robot env.
 
     Args:
         reward_type: ``"dense"`` or ``"sparse"``.
@@ -105,3 +107,7 @@ class RX200ReacherEnv(ReachTask, RX200RobotEnv):
 
     def _check_if_done(self) -> bool:
         return float(np.linalg.norm(self.goal - self.ee_position())) <= self.tolerance
+
+
+class RX200ReacherEnv(RX200ReachTask, RX200RobotEnv):
+    """``RX200ReacherSim-v0``: the RX200 reach task on the simulation node (arguments: :class:`RX200ReachTask`)."""

@@ -1,0 +1,366 @@
+"""The link to a robot over the standard ROS 2 interfaces a ros2_control robot offers, nothing else.
+
+* ``<ns>/joint_states`` (``sensor_msgs/JointState``): every message is checked (names unique,
+  lengths consistent, values finite and bounded) before it updates :class:`JointStateCache`;
+  malformed ones are dropped and counted, and the last reason is kept for the error message;
+* ``<ns>/controller_manager/list_controllers`` / ``switch_controller`` (the controller manager);
+* ``<ns>/<controller>/joint_trajectory`` (``trajectory_msgs/JointTrajectory``) and
+  ``<ns>/<controller>/follow_joint_trajectory`` (``control_msgs/action/FollowJointTrajectory``) of a
+  JointTrajectoryController, and ``<ns>/<controller>/commands`` (``std_msgs/Float64MultiArray``)
+  of a forward command controller;
+* ``/clock`` (``rosgraph_msgs/Clock``), only when asked (``use_sim_time``).
+
+Times are the local monotonic clock at receipt: a state's age never depends on the robot's clock.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from multiros.envs.real.errors import ControllerNotActiveError, RobotConnectionError, TrajectoryGoalError
+from multiros.ros.executors import SingleThreadedExecutor
+from multiros.ros.interfaces import get_action, get_message
+from multiros.ros.qos import qos_profile_clock
+from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
+
+_logger = logging.getLogger(__name__)
+
+JointState = get_message("sensor_msgs/msg/JointState")
+JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
+JointTrajectoryPoint = get_message("trajectory_msgs/msg/JointTrajectoryPoint")
+Float64MultiArray = get_message("std_msgs/msg/Float64MultiArray")
+Clock = get_message("rosgraph_msgs/msg/Clock")
+FollowJointTrajectory = get_action("control_msgs/action/FollowJointTrajectory")
+
+# Largest |value| accepted in joint_states (rad, m, rad/s, N m): anything beyond is a broken message.
+MAX_STATE_VALUE = 1e6
+MAX_JOINTS = 1024
+
+
+@dataclass(frozen=True)
+class JointSample:
+    """The freshest state of some joints.
+
+    Attributes:
+        names: the joints, in the order of the arrays.
+        position, velocity, effort: values (velocity/effort zero where the robot sends none).
+        received: local monotonic time when the oldest of these joints' values arrived.
+        stamp: the header stamp (seconds, robot clock) of that oldest value.
+    """
+
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+    received: float
+    stamp: float
+
+    def age(self, now: float | None = None) -> float:
+        """Seconds since the oldest value arrived."""
+        return (time.monotonic() if now is None else now) - self.received
+
+
+def check_joint_state(msg: Any) -> str | None:
+    """Why a ``JointState`` message is unusable, or ``None`` when it is fine."""
+    names = list(msg.name)
+    n = len(names)
+    if n == 0:
+        return "no joint names"
+    if n > MAX_JOINTS:
+        return f"{n} joints (more than {MAX_JOINTS})"
+    if len(set(names)) != n or not all(isinstance(s, str) and s for s in names):
+        return f"joint names are empty or repeated: {names[:16]}"
+    if len(msg.position) != n:
+        return f"{n} names but {len(msg.position)} positions"
+    for field in ("velocity", "effort"):
+        values = getattr(msg, field)
+        if len(values) not in (0, n):
+            return f"{n} names but {len(values)} {field} values"
+    for field in ("position", "velocity", "effort"):
+        values = np.asarray(getattr(msg, field), dtype=np.float64)
+        if values.size and not np.all(np.isfinite(values)):
+            return f"{field} contains NaN or infinite values"
+        if values.size and np.max(np.abs(values)) > MAX_STATE_VALUE:
+            return f"{field} has values beyond {MAX_STATE_VALUE:g}"
+    return None
+
+
+class JointStateCache:
+    """The latest valid value of every joint, merged over ``joint_states`` messages (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._values: dict[str, tuple[float, float, float, float, float]] = {}  # pos, vel, eff, recv, stamp
+        self.received_count = 0
+        self.malformed_count = 0
+        self.last_error: str | None = None
+        self.last_received: float | None = None
+
+    def update(self, msg: Any, now: float | None = None) -> bool:
+        """Take one message; ``False`` (and counted) when it is malformed."""
+        reason = check_joint_state(msg)
+        now = time.monotonic() if now is None else now
+        with self._cond:
+            if reason is not None:
+                self.malformed_count += 1
+                self.last_error = reason
+                self._cond.notify_all()
+                return False
+            stamp = float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) * 1e-9
+            pos = np.asarray(msg.position, dtype=np.float64)
+            vel = np.asarray(msg.velocity, dtype=np.float64) if len(msg.velocity) else np.zeros(len(pos))
+            eff = np.asarray(msg.effort, dtype=np.float64) if len(msg.effort) else np.zeros(len(pos))
+            for i, name in enumerate(msg.name):
+                self._values[name] = (float(pos[i]), float(vel[i]), float(eff[i]), now, stamp)
+            self.received_count += 1
+            self.last_received = now
+            self._cond.notify_all()
+        return True
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        with self._cond:
+            return tuple(self._values)
+
+    def sample(self, names: Sequence[str]) -> JointSample | None:
+        """The values of ``names``, or ``None`` while one of them never arrived."""
+        with self._cond:
+            try:
+                rows = [self._values[n] for n in names]
+            except KeyError:
+                return None
+        arr = np.array(rows, dtype=np.float64).reshape(len(rows), 5)
+        oldest = int(np.argmin(arr[:, 3])) if len(rows) else 0
+        return JointSample(tuple(names), arr[:, 0].copy(), arr[:, 1].copy(), arr[:, 2].copy(),
+                           float(arr[oldest, 3]) if len(rows) else -math.inf,
+                           float(arr[oldest, 4]) if len(rows) else 0.0)
+
+    def wait_for(self, names: Sequence[str], newer_than: float, timeout: float) -> JointSample | None:
+        """Wait until every joint of ``names`` has a value received after ``newer_than``."""
+        deadline = time.monotonic() + max(0.0, timeout)
+        with self._cond:
+            while True:
+                s = self.sample(names)
+                if s is not None and s.received > newer_than:
+                    return s
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return s
+                self._cond.wait(min(remaining, 0.05))
+
+    def describe_problem(self, names: Sequence[str]) -> str:
+        """A sentence on why a fresh state of ``names`` is missing (for error messages)."""
+        with self._cond:
+            missing = [n for n in names if n not in self._values]
+            parts = []
+            if self.received_count == 0 and self.malformed_count == 0:
+                parts.append("no joint_states message arrived")
+            if missing and self.received_count:
+                parts.append(f"joints {missing} never appeared in joint_states (seen: {sorted(self._values)})")
+            if self.malformed_count:
+                parts.append(f"{self.malformed_count} malformed joint_states message(s) dropped, the last because "
+                             f"{self.last_error}")
+            return "; ".join(parts) or "joint_states stopped arriving"
+
+
+def _duration(seconds: float) -> Any:
+    msg = get_message("builtin_interfaces/msg/Duration")()
+    sec = int(math.floor(seconds))
+    msg.sec, msg.nanosec = sec, min(int(round((seconds - sec) * 1e9)), 999_999_999)
+    return msg
+
+
+class RobotLink:
+    """A robot's standard ROS 2 interfaces, reached through one node of ours.
+
+    Args:
+        node: our ``multiros.ros.Node``.
+        namespace: the robot's namespace (``"/rx200"``; ``"/"`` or ``""`` for none).
+        joint_states_topic: relative to the namespace unless absolute.
+        use_sim_time: subscribe to ``/clock`` and expose the robot's time.
+        timeout_sec: bound on each service call and on waiting for topics.
+    """
+
+    def __init__(self, node: Any, namespace: str = "/", *, joint_states_topic: str = "joint_states",
+                 use_sim_time: bool = False, timeout_sec: float = 5.0) -> None:
+        self.node = node
+        ns = (namespace or "").strip("/")
+        self.ns = "/" + ns if ns else ""
+        self.timeout_sec = float(timeout_sec)
+        self.states = JointStateCache()
+        self.joint_states_topic = self.resolve(joint_states_topic)
+        self._sub = node.create_subscription(JointState, self.joint_states_topic, self.states.update, 10)
+        self._clock_sub = None
+        self.robot_time: float | None = None
+        if use_sim_time:
+            self._clock_sub = node.create_subscription(Clock, "/clock", self._on_clock, qos_profile_clock)
+        self.controller_manager = ControllerManagerClient(node, self.ns or None, timeout_sec=self.timeout_sec)
+        self._publishers: dict[tuple[str, str], Any] = {}
+        self._action_clients: dict[str, Any] = {}
+        self._executor = SingleThreadedExecutor(context=node.context)
+        self._executor.add_node(node)
+        self._spin = threading.Thread(target=self._executor.spin, name=f"{node.get_name()}-robot-link", daemon=True)
+        self._spin.start()
+
+    def resolve(self, name: str) -> str:
+        """``name`` inside the robot's namespace (absolute names stay)."""
+        return name if name.startswith("/") else f"{self.ns}/{name}"
+
+    def _on_clock(self, msg: Any) -> None:
+        t = float(msg.clock.sec) + float(msg.clock.nanosec) * 1e-9
+        if math.isfinite(t):
+            self.robot_time = t
+
+    # -- controllers ------------------------------------------------------------------------
+    def controller_states(self) -> dict[str, str]:
+        """``{controller: state}`` from ``list_controllers``.
+
+        Raises:
+            RobotConnectionError: the controller manager does not answer.
+        """
+        try:
+            return self.controller_manager.states()
+        except ControllerManagerError as exc:
+            raise RobotConnectionError(
+                f"the robot's controller manager ({self.ns}/controller_manager/list_controllers) did not answer "
+                f"within {self.timeout_sec:g} s: is the robot's ros2_control driver running in namespace "
+                f"{self.ns or '/'!r}, on this ROS_DOMAIN_ID and Zenoh router?"
+            ) from exc
+
+    def require_active(self, controllers: Sequence[str]) -> None:
+        """Raise :class:`ControllerNotActiveError` unless every one of ``controllers`` is active."""
+        states = self.controller_states()
+        bad = {c: states.get(c, "not loaded") for c in controllers if states.get(c) != "active"}
+        if bad:
+            raise ControllerNotActiveError(
+                f"controller(s) {bad} of the robot in {self.ns or '/'!r} must be active (controllers: {states}); "
+                f"activate them (e.g. `ros2 control switch_controllers --activate {' '.join(bad)}`, or pass "
+                "load_controllers=True), or name the robot's controllers with arm_controller=/controllers_list="
+            )
+
+    def spawn_controllers(self, controllers: Sequence[str]) -> None:
+        """Load (if needed), configure and activate ``controllers``."""
+        try:
+            self.controller_manager.spawn(list(controllers))
+        except ControllerManagerError as exc:
+            raise ControllerNotActiveError(f"could not activate {list(controllers)}: {exc}") from exc
+
+    def reset_controllers(self, controllers: Sequence[str] | None) -> None:
+        """Stop then start ``controllers`` (default: the active ones)."""
+        try:
+            self.controller_manager.reset(list(controllers) if controllers else None)
+        except ControllerManagerError as exc:
+            raise ControllerNotActiveError(f"could not restart the controllers {controllers}: {exc}") from exc
+
+    # -- commands ---------------------------------------------------------------------------
+    def _publisher(self, msg_type: Any, topic: str) -> Any:
+        key = (topic, msg_type.__name__)
+        pub = self._publishers.get(key)
+        if pub is None:
+            pub = self._publishers[key] = self.node.create_publisher(msg_type, topic, 10)
+        return pub
+
+    def trajectory_topic(self, controller: str) -> str:
+        return self.resolve(f"{controller}/joint_trajectory")
+
+    def commands_topic(self, controller: str) -> str:
+        return self.resolve(f"{controller}/commands")
+
+    def action_name(self, controller: str) -> str:
+        return self.resolve(f"{controller}/follow_joint_trajectory")
+
+    def wait_for_subscriber(self, controller: str, kind: str, timeout: float) -> bool:
+        """Wait until the controller's command topic has a subscriber (a publish before that is lost)."""
+        msg_type, topic = ((JointTrajectory, self.trajectory_topic(controller)) if kind == "trajectory"
+                           else (Float64MultiArray, self.commands_topic(controller)))
+        pub = self._publisher(msg_type, topic)
+        return self.node.context.wait_for(lambda: pub.get_subscription_count() > 0, timeout)
+
+    @staticmethod
+    def trajectory(joints: Sequence[str], positions: np.ndarray, duration: float) -> Any:
+        """A one-point ``JointTrajectory`` reaching ``positions`` after ``duration`` s, starting now."""
+        point = JointTrajectoryPoint(positions=np.asarray(positions, dtype=np.float64),
+                                     velocities=np.zeros(len(joints)), time_from_start=_duration(duration))
+        return JointTrajectory(joint_names=list(joints), points=[point])
+
+    def publish_trajectory(self, controller: str, joints: Sequence[str], positions: np.ndarray,
+                           duration: float) -> None:
+        """Send a one-point trajectory on the controller's ``joint_trajectory`` topic."""
+        self._publisher(JointTrajectory, self.trajectory_topic(controller)).publish(
+            self.trajectory(joints, positions, duration))
+
+    def publish_forward(self, controller: str, values: np.ndarray) -> None:
+        """Send a forward command controller's ``commands``."""
+        self._publisher(Float64MultiArray, self.commands_topic(controller)).publish(
+            Float64MultiArray(data=np.asarray(values, dtype=np.float64)))
+
+    def _action_client(self, controller: str) -> Any:
+        client = self._action_clients.get(controller)
+        if client is None:
+            from multiros.ros.action import ActionClient
+
+            client = self._action_clients[controller] = ActionClient(
+                self.node, FollowJointTrajectory, self.action_name(controller))
+        return client
+
+    def wait_for_action(self, controller: str, timeout: float) -> bool:
+        return self._action_client(controller).wait_for_server(timeout_sec=timeout)
+
+    def send_trajectory_goal(self, controller: str, joints: Sequence[str], positions: np.ndarray, duration: float,
+                             *, goal_time_tolerance: float = 1.0) -> Any:
+        """Send a FollowJointTrajectory goal and wait until it is accepted; returns the goal handle.
+
+        Raises:
+            TrajectoryGoalError: rejected, or no answer within ``timeout_sec``.
+        """
+        goal = FollowJointTrajectory.Goal()
+        goal.trajectory = self.trajectory(joints, positions, duration)
+        goal.goal_time_tolerance = _duration(goal_time_tolerance)
+        client = self._action_client(controller)
+        future = client.send_goal_async(goal)
+        if not future.wait(self.timeout_sec):
+            raise TrajectoryGoalError(f"{self.action_name(controller)} did not answer the goal within "
+                                      f"{self.timeout_sec:g} s")
+        exc = future.exception()
+        if exc is not None:
+            raise TrajectoryGoalError(f"{self.action_name(controller)}: {exc}") from exc
+        handle = future.result()
+        if not handle.accepted:
+            raise TrajectoryGoalError(
+                f"{self.action_name(controller)} rejected the trajectory to {np.round(positions, 4).tolist()} for "
+                f"{list(joints)}: is the controller active and are these exactly its joints?")
+        return handle
+
+    @staticmethod
+    def check_goal_result(handle: Any, what: str, timeout: float) -> None:
+        """Wait for a goal's result; raise :class:`TrajectoryGoalError` unless it succeeded."""
+        try:
+            response = handle.get_result(timeout_sec=timeout)
+        except Exception as exc:  # noqa: BLE001 - timeouts and server errors all mean: no success
+            raise TrajectoryGoalError(f"{what}: no result within {timeout:g} s ({exc})") from exc
+        status = int(response.status)
+        if status != 4:  # action_msgs/GoalStatus.STATUS_SUCCEEDED
+            result = response.result
+            raise TrajectoryGoalError(
+                f"{what}: the trajectory controller ended the goal with status {status} (error_code "
+                f"{getattr(result, 'error_code', '?')}: {getattr(result, 'error_string', '')!r})")
+
+    def close(self) -> None:
+        """Stop the spinning thread and destroy our subscriptions, publishers and clients."""
+        self._executor.shutdown()
+        self._spin.join(timeout=2.0)
+        for client in self._action_clients.values():
+            try:
+                client.destroy()
+            except Exception:  # noqa: BLE001 - closing must go on
+                _logger.debug("action client destroy failed", exc_info=True)
+        self._action_clients.clear()
+        self.controller_manager.close()

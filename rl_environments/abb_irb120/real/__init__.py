@@ -1,0 +1,1 @@
+"""IRB120 environments on a real robot (ros2_control with a joint trajectory controller)."""

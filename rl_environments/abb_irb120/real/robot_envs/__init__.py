@@ -1,0 +1,1 @@
+"""IRB120 real robot envs (the robot layer)."""

@@ -1,0 +1,1 @@
+"""IRB120 real task envs."""

@@ -1,0 +1,1 @@
+"""RX200 real robot envs (the robot layer)."""

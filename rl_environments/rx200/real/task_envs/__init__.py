@@ -1,0 +1,1 @@
+"""RX200 real task envs."""
