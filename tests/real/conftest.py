@@ -1,0 +1,155 @@
+"""Stand-ins for a real robot, in other processes, on a private Zenoh graph.
+
+* ``sim``: the simulation node (``python -m multiros.sim.launch --play --robot rx200=...``) in
+  real-time mode: its ros2_control-style topics, controller manager and FollowJointTrajectory;
+* ``fake``: ``uniros-fake-robot`` (multiros.hardware), a fake ros2_control robot.
+
+Each test graph is a context with its own router on a free loopback port (never 7447) and the
+suite's non-zero ``ROS_DOMAIN_ID``; every child is stopped by PID.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from multiros.ros import Context, Node
+from multiros.sim.launch import _child_environment, _stop_process, private_context
+
+RX200_URI = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
+STANDINS = ("sim", "fake")
+_CWD = tempfile.gettempdir()  # children import the installed package, as a user's scripts do
+
+
+def _fake_available() -> bool:
+    try:
+        import multiros.hardware.process  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+class StandIn:
+    """A robot stand-in process: ``kind`` ``"sim"`` or ``"fake"``, stopped by PID."""
+
+    def __init__(self, kind: str, ctx: Context, args: tuple[str, ...] = ()) -> None:
+        self.kind = kind
+        self.ctx = ctx
+        self._fake: Any = None
+        self.proc: subprocess.Popen | None = None
+        if kind == "fake":
+            if not _fake_available():
+                pytest.skip("uniros-fake-robot (multiros.hardware) is not installed")
+            from multiros.hardware.process import FakeRobotProcess
+
+            self._fake = FakeRobotProcess("rx200", context=ctx, args=list(args), timeout_sec=30.0, cwd=_CWD)
+            self.proc = self._fake.process
+        else:
+            env = {k: v for k, v in os.environ.items() if not k.startswith(("ZENOH_", "UNIROS_ZENOH_"))}
+            env.update(_child_environment(ctx))
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "multiros.sim.launch", "--log-level", "WARNING", "--play",
+                 "--owner-pid", str(os.getpid()), "--robot", f"rx200={RX200_URI}", *args],
+                env=env, stdin=subprocess.DEVNULL, cwd=_CWD)
+            try:
+                wait_controller_manager(ctx, "/rx200", self.proc, 30.0)
+            except BaseException:
+                self.stop()
+                raise
+
+    @property
+    def pid(self) -> int:
+        assert self.proc is not None
+        return self.proc.pid
+
+    def kill(self) -> None:
+        """SIGKILL, as a robot whose driver dies."""
+        assert self.proc is not None
+        self.proc.kill()
+        self.proc.wait(timeout=10)
+
+    def stop(self) -> None:
+        if self._fake is not None:
+            self._fake.stop()
+        elif self.proc is not None:
+            _stop_process(self.proc)
+
+
+def wait_controller_manager(ctx: Context, ns: str, proc: subprocess.Popen, timeout: float) -> None:
+    """Wait until ``<ns>/controller_manager/list_controllers`` answers (the robot is up)."""
+    from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
+
+    node = Node(f"standin_probe_{os.getpid()}_{time.monotonic_ns()}", context=ctx)
+    try:
+        cm = ControllerManagerClient(node, ns, timeout_sec=1.0)
+        deadline = time.monotonic() + timeout
+        while True:
+            if proc.poll() is not None:
+                raise RuntimeError(f"stand-in (pid {proc.pid}) exited with {proc.returncode} before it was ready")
+            try:
+                cm.list_controllers()
+                return
+            except ControllerManagerError:
+                if time.monotonic() > deadline:
+                    raise
+    finally:
+        node.destroy_node()
+
+
+@pytest.fixture(scope="module")
+def graph() -> Iterator[Context]:
+    """A private Zenoh graph (router on a free loopback port) for this module's stand-ins and envs."""
+    ctx = private_context()
+    try:
+        yield ctx
+    finally:
+        ctx.try_shutdown()
+
+
+@pytest.fixture(scope="module", params=STANDINS)
+def standin(request: pytest.FixtureRequest, graph: Context) -> Iterator[StandIn]:
+    """One stand-in per kind, shared by the module's tests (which leave its controllers as they found them)."""
+    robot = StandIn(request.param, graph)
+    try:
+        yield robot
+    finally:
+        robot.stop()
+
+
+class TopicRecorder:
+    """Records every message on a topic (the robot side's view of what the env sent)."""
+
+    def __init__(self, ctx: Context, msg_type: Any, topic: str) -> None:
+        from multiros.ros.executors import SingleThreadedExecutor
+
+        self.messages: list[Any] = []
+        self._lock = threading.Lock()
+        self.node = Node(f"recorder_{os.getpid()}_{time.monotonic_ns()}", context=ctx)
+        self.sub = self.node.create_subscription(msg_type, topic, self._on, 100)
+        self._executor = SingleThreadedExecutor(context=ctx)
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._executor.spin, daemon=True)
+        self._thread.start()
+
+    def _on(self, msg: Any) -> None:
+        with self._lock:
+            self.messages.append(msg)
+
+    def wait_count(self, n: int, timeout: float = 5.0) -> bool:
+        return self.node.context.wait_for(lambda: len(self.messages) >= n, timeout)
+
+    def wait_matched(self, timeout: float = 5.0) -> bool:
+        return self.node.context.wait_for(lambda: self.sub.get_publisher_count() > 0, timeout)
+
+    def close(self) -> None:
+        self._executor.shutdown()
+        self._thread.join(timeout=2.0)
+        self.node.destroy_node()

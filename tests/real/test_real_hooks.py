@@ -1,0 +1,108 @@
+"""RealBaseEnv/RealGoalEnv in one process: RealROS knobs and hook names, prompts, the arm interface."""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from gymnasium import spaces
+
+import uniros
+from multiros.envs import RealBaseEnv as ExportedBase
+from multiros.envs.real import RobotConnectionError
+from multiros.envs.real.robot_link import JointState
+from multiros.envs.RealBaseEnv import RealBaseEnv
+from multiros.envs.RealGoalEnv import RealGoalEnv
+from multiros.ros import Context, Node
+from rl_environments.abb_irb120.real.robot_envs.irb120_robot_real import ABBIRB120RobotRealEnv
+from rl_environments.arm_interface import ARM_INTERFACE_MEMBERS
+from rl_environments.rx200.real.task_envs.reach.rx200_reach_goal_real import RX200ReacherGoalRealEnv
+from rl_environments.rx200.sim.task_envs.reach.rx200_reach_goal_sim import RX200ReacherGoalEnv
+
+
+@pytest.fixture
+def joint_states() -> Iterator[Context]:
+    """An in-process graph where a test node publishes ``/toy/joint_states`` at 100 Hz."""
+    with Context(transport="inproc", env={}) as ctx:
+        node = Node("toy_robot", context=ctx)
+        pub = node.create_publisher(JointState, "/toy/joint_states", 10)
+        stop = threading.Event()
+
+        def run() -> None:
+            while not stop.wait(0.01):
+                pub.publish(JointState(name=["a", "b"], position=[0.1, 0.2], velocity=[0.0, 0.0]))
+
+        thread = threading.Thread(target=run, daemon=True)
+        thread.start()
+        try:
+            yield ctx
+        finally:
+            stop.set()
+            thread.join(timeout=2.0)
+
+
+class ToyRealEnv(RealBaseEnv):
+    """A RealROS-style task written with RealROS' hook names."""
+
+    def __init__(self, **kw) -> None:
+        super().__init__(namespace="/toy", **kw)
+        self.action_space = spaces.Box(-1.0, 1.0, (2,), np.float32)
+        self.observation_space = spaces.Box(-10.0, 10.0, (2,), np.float32)
+        self.sent: list[np.ndarray] = []
+        self.init_options = None
+
+    def _send_action(self, action) -> None:
+        self.sent.append(action)
+
+    def _get_observation(self):
+        return self.joint_positions(["a", "b"]).astype(np.float32)
+
+    def _get_reward(self, info) -> float:
+        info["seen"] = True
+        return -1.0
+
+    def _compute_terminated(self, info) -> bool:
+        return False
+
+    def _set_init_params(self, options) -> None:
+        self.init_options = options
+
+
+def test_realros_hook_names_prompts_and_loop(joint_states: Context, caplog: pytest.LogCaptureFixture) -> None:
+    assert ExportedBase is RealBaseEnv is uniros.RealBaseEnv and RealGoalEnv is uniros.RealGoalEnv
+    with caplog.at_level(logging.WARNING):
+        env = ToyRealEnv(context=joint_states, reset_env_prompt=True, close_env_prompt=True, kill_rosmaster=True,
+                         environment_loop_rate=50.0)
+        obs, info = env.reset(seed=3, options={"x": 1})
+        np.testing.assert_allclose(obs, [0.1, 0.2], rtol=1e-6)
+        assert env.init_options == {"x": 1} and info["state_age_sec"] < 0.5
+        obs, reward, terminated, truncated, info = env.step(np.array([0.5, -0.5], np.float32))
+        assert reward == -1.0 and info["seen"] and len(env.sent) == 1 and info["cycle_time_sec"] >= 0.02 - 1e-3
+        env.close()
+    text = caplog.text
+    assert "ignores kill_rosmaster" in text and "not waiting for the operator" in text  # stdin is not a terminal
+
+
+def test_knobs_that_would_launch_a_robot_are_refused() -> None:
+    with pytest.raises(ValueError, match="start the robot's ROS 2 driver yourself"):
+        RealBaseEnv(load_robot=True)
+    with pytest.raises(TypeError, match="unexpected keyword"):
+        RealBaseEnv(no_such_knob=1)
+    with pytest.raises(ValueError, match="cannot render"):
+        RealBaseEnv(render_mode="rgb_array")
+
+
+def test_no_robot_is_a_clear_error_within_the_startup_timeout() -> None:
+    with Context(transport="inproc", env={}) as ctx, pytest.raises(RobotConnectionError, match="no joint_states"):
+        ABBIRB120RobotRealEnv(context=ctx, startup_timeout=0.2)
+
+
+def test_both_robot_layers_provide_the_arm_interface() -> None:
+    for cls in (RX200ReacherGoalEnv, RX200ReacherGoalRealEnv):
+        missing = [m for m in ARM_INTERFACE_MEMBERS if m not in ("node", "info", "np_random") and not hasattr(cls, m)]
+        assert not missing, (cls, missing)
+    # The task logic is one class, shared.
+    assert RX200ReacherGoalRealEnv.__mro__[1] is RX200ReacherGoalEnv.__mro__[1]

@@ -1,0 +1,139 @@
+"""The real envs' safety rules, control loop and joint-state checks, unit-tested without ROS."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from multiros.envs.real import ControlLoop, JointStateCache, SafetyRules, UnsafeCommandError
+from multiros.envs.real.robot_link import JointState
+from multiros.envs.real.safety import FLOOR, JOINT_DELTA, JOINT_LIMITS, WORKSPACE, description_joint_limits
+from rl_environments.robots.rx200_description import ARM_JOINTS, URDF_XACRO
+from rl_environments.rx200.real.robot_envs.rx200_robot_real import RX200RealRobot
+
+CHAIN = RX200RealRobot.kinematic_chain()
+HOME = np.zeros(5)
+
+
+def rules(**kw) -> SafetyRules:
+    args = dict(lower=CHAIN.lower, upper=CHAIN.upper, chain=CHAIN)
+    args.update(kw)
+    return SafetyRules(ARM_JOINTS, **args)
+
+
+def test_targets_are_clamped_to_the_tighter_of_task_and_description_limits() -> None:
+    lo, hi = description_joint_limits(str(URDF_XACRO), ARM_JOINTS, {"robot_name": "rx200"})
+    np.testing.assert_allclose(lo, CHAIN.lower)
+    r = SafetyRules(ARM_JOINTS, lower=[-1.0] * 5, upper=[10.0] * 5, description_lower=lo, description_upper=hi)
+    d = r.check([-5.0, 0.5, 5.0, 0.0, 0.0], HOME)
+    assert d.events == (JOINT_LIMITS,) and not d.refused
+    np.testing.assert_allclose(d.target, [-1.0, 0.5, hi[2], 0.0, 0.0])
+    assert d.as_info()["joint_limits"] is True and d.as_info()["refused"] is False
+
+
+def test_per_command_change_is_capped_from_the_measured_position() -> None:
+    r = rules(max_joint_delta=0.1)
+    current = np.array([0.2, 0.0, 0.0, 0.0, 0.0])
+    d = r.check([1.0, -1.0, 0.05, 0.0, 0.0], current)
+    assert JOINT_DELTA in d.events
+    np.testing.assert_allclose(d.target, [0.3, -0.1, 0.05, 0.0, 0.0])
+    assert np.max(np.abs(d.target - current)) <= 0.1 + 1e-12
+
+
+@pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0], [np.inf, 0, 0, 0, 0], [0, 0, 0, 0]])
+def test_nan_infinite_or_wrong_length_targets_raise(bad: list[float]) -> None:
+    with pytest.raises(UnsafeCommandError, match="nothing was sent"):
+        rules().check(bad, HOME)
+
+
+def test_floor_projects_the_motion_back_to_the_limit() -> None:
+    z_home = float(CHAIN.fk_position(HOME)[2])
+    r = rules(floor_z=z_home - 0.05)
+    down = np.array([0.0, 1.2, 0.6, 0.0, 0.0])  # shoulder and elbow forward: the gripper goes down
+    assert CHAIN.fk_position(down)[2] < z_home - 0.05
+    d = r.check(down, HOME)
+    assert FLOOR in d.events and not d.refused
+    z = float(CHAIN.fk_position(d.target)[2])
+    assert z_home - 0.05 - 1e-6 <= z < z_home - 0.04  # as far as allowed, not further
+    frac = d.target[1:3] / down[1:3]
+    np.testing.assert_allclose(frac, frac[0])  # along the requested motion
+
+
+def test_refuse_mode_sends_nothing_and_says_why() -> None:
+    z_home = float(CHAIN.fk_position(HOME)[2])
+    r = rules(floor_z=z_home - 0.05, workspace_mode="refuse")
+    d = r.check([0.0, 1.2, 0.6, 0.0, 0.0], HOME)
+    assert d.refused and d.target is None and "refused" in d.reason and d.as_info()["floor"] is True
+
+
+def test_workspace_box_and_a_robot_outside_may_only_move_back_in() -> None:
+    ee = CHAIN.fk_position(HOME)
+    r = rules(workspace_min=ee - [0.3, 0.3, 0.3], workspace_max=ee + [0.3, 0.3, 0.01])
+    up = np.array([0.0, -0.5, -0.5, 0.0, 0.0])  # raises the gripper
+    d = r.check(up, HOME)
+    assert WORKSPACE in d.events and d.ee_position[2] <= ee[2] + 0.01 + 1e-6
+    # Started above the box: moving further up is refused, moving down is allowed.
+    r2 = rules(workspace_min=ee - [0.3, 0.3, 0.3], workspace_max=ee + [0.3, 0.3, -0.02])
+    assert r2.check(up, HOME).refused
+    assert not r2.check([0.0, 0.2, 0.2, 0.0, 0.0], HOME).refused
+
+
+def test_long_moves_are_checked_along_the_whole_path() -> None:
+    z_home = float(CHAIN.fk_position(HOME)[2])
+    r = rules(floor_z=z_home - 0.05, max_joint_delta=0.1)
+    d = r.check_move([0.0, 1.2, 0.6, 0.0, 0.0], HOME)
+    assert d.refused and "floor" in d.reason
+    ok = r.check_move([1.0, 0.0, 0.0, 0.0, 0.0], HOME)  # no per-command cap on resets
+    np.testing.assert_allclose(ok.target, [1.0, 0, 0, 0, 0])
+
+
+def test_rules_refuse_inconsistent_configuration() -> None:
+    with pytest.raises(ValueError, match="kinematic chain"):
+        SafetyRules(ARM_JOINTS, lower=CHAIN.lower, upper=CHAIN.upper, floor_z=0.0)
+    with pytest.raises(ValueError, match="empty"):
+        SafetyRules(ARM_JOINTS, lower=[1.0] * 5, upper=[0.0] * 5)
+    with pytest.raises(ValueError, match="workspace_mode"):
+        rules(workspace_mode="ignore")
+
+
+def test_control_loop_paces_and_validates() -> None:
+    loop = ControlLoop(20.0, 0.0)
+    assert loop.cycle == pytest.approx(0.05)
+    loop.last_observe = 100.0
+    assert loop.observe_time(100.0) == pytest.approx(100.05)
+    assert ControlLoop(10.0, 0.3).observe_time(5.0) == pytest.approx(5.3)
+    with pytest.raises(ValueError, match="shorter than one loop period"):
+        ControlLoop(10.0, 0.05)
+    with pytest.raises(ValueError, match="environment_loop_rate"):
+        ControlLoop(0.0)
+    calls = []
+
+    def watchdog() -> None:
+        calls.append(1)
+        if len(calls) == 3:
+            raise TimeoutError("stale")
+
+    with pytest.raises(TimeoutError):
+        ControlLoop(1.0).wait(__import__("time").monotonic(), watchdog)  # aborts long before the 1 s cycle
+
+
+def _js(names, pos, vel=(), eff=()):
+    return JointState(name=list(names), position=list(pos), velocity=list(vel), effort=list(eff))
+
+
+@pytest.mark.parametrize(("msg", "reason"), [
+    (_js(["a", "b"], [0.0]), "2 names but 1 positions"),
+    (_js(["a", "b"], [0.0, float("nan")]), "NaN"),
+    (_js(["a", "b"], [0.0, 1.0], [1.0]), "velocity"),
+    (_js(["a", "a"], [0.0, 1.0]), "repeated"),
+    (_js(["a"], [1e9]), "beyond"),
+])
+def test_malformed_joint_states_are_dropped_with_the_reason(msg, reason) -> None:
+    cache = JointStateCache()
+    assert cache.update(_js(["a", "b"], [0.1, 0.2], [0.0, 0.0]), now=1.0)
+    assert not cache.update(msg, now=2.0)
+    assert reason in cache.last_error and cache.malformed_count == 1
+    s = cache.sample(["b", "a"])
+    np.testing.assert_allclose(s.position, [0.2, 0.1])
+    assert s.received == 1.0  # the bad message did not refresh the state
+    assert "malformed" in cache.describe_problem(["a", "b"])
