@@ -322,7 +322,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
-    from multiros.sim.launch import _watch_owner
+    from multiros.ros.processes import watch_owner
 
     parser = _parser()
     opts = parser.parse_args(argv)
@@ -345,7 +345,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     if opts.owner_pid is not None:
-        _watch_owner(opts.owner_pid, stop)
+        watch_owner(opts.owner_pid, stop)
     robot = None
     try:
         try:

@@ -2,7 +2,7 @@
 
 ::
 
-    from multiros.sim.launch import private_context
+    from multiros.ros.processes import private_context
     from multiros.hardware.process import FakeRobotProcess
 
     ctx = private_context()                       # a router of its own on a free loopback port
@@ -23,8 +23,14 @@ from collections.abc import Sequence
 
 from multiros.hardware.robot_spec import PRESETS
 from multiros.ros import Context, Node
+from multiros.ros.processes import (
+    child_environment,
+    private_environment,
+    stop_process,
+    track_child,
+    untrack_child,
+)
 from multiros.sim.distro_adapters import get_service
-from multiros.sim.launch import _SHARED_GRAPH_PREFIXES, _child_environment, _children, _stop_process
 
 __all__ = ["FakeRobotProcess", "FakeRobotError"]
 
@@ -62,10 +68,10 @@ class FakeRobotProcess:
         self.namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
         argv = [sys.executable, "-m", "multiros.hardware.fake_robot", "--router", "none",
                 "--owner-pid", str(os.getpid()), *(["--robot", robot] if robot else []), *args]
-        env = {k: v for k, v in os.environ.items() if not k.startswith(_SHARED_GRAPH_PREFIXES)}
-        env.update(_child_environment(context))
+        env = private_environment()
+        env.update(child_environment(context))
         self.process = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL, cwd=cwd)
-        _children.add(self.process)
+        track_child(self.process)
         try:
             self._wait_ready(context, timeout_sec)
         except BaseException:
@@ -101,8 +107,8 @@ class FakeRobotProcess:
 
     def stop(self) -> None:
         """Stop the child by PID (SIGINT, then SIGTERM, then SIGKILL, bounded waits)."""
-        _stop_process(self.process)
-        _children.discard(self.process)
+        stop_process(self.process)
+        untrack_child(self.process)
 
     def __enter__(self) -> FakeRobotProcess:
         return self

@@ -21,60 +21,35 @@ graph instead (router and domain from the environment), for a child that ROS too
 from __future__ import annotations
 
 import argparse
-import atexit
 import itertools
 import logging
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
 import time
-import weakref
 from collections.abc import Mapping, Sequence
 from typing import Any
 from urllib.parse import urlencode
 
 from multiros.ros import Context, Node
-from multiros.ros.exceptions import TransportError
+from multiros.ros.processes import (
+    child_environment,
+    free_loopback_endpoint,
+    private_context,
+    private_environment,
+    stop_process,
+    track_child,
+    untrack_child,
+    watch_owner,
+)
 from multiros.sim.client import DEFAULT_NODE_NAME, SimulationClient, SimulationNodeError
 
 _logger = logging.getLogger(__name__)
 _env_ids = itertools.count()
-_children: weakref.WeakSet[subprocess.Popen] = weakref.WeakSet()
-
-#: Prefixes of the environment variables that point a Zenoh context at a shared graph (router,
-#: session files, overrides, endpoints, credentials); a private context and its child ignore them all.
-_SHARED_GRAPH_PREFIXES = ("ZENOH_", "UNIROS_ZENOH_")
-#: How often a child node checks that its owner is alive (seconds).
-OWNER_POLL_SEC = 0.2
-
-
-def _stop_children_at_exit() -> None:
-    for proc in list(_children):
-        _stop_process(proc, timeout=2.0)
-
-
-atexit.register(_stop_children_at_exit)
-
-
-def _stop_process(proc: subprocess.Popen, timeout: float = 5.0) -> None:
-    """Stop one child by PID: SIGINT, then SIGTERM, then SIGKILL, each with a bounded wait."""
-    if proc.poll() is not None:
-        return
-    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-        try:
-            proc.send_signal(sig)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(timeout=timeout)
-            return
-        except subprocess.TimeoutExpired:
-            continue
-
-
+__all__ = ["SimulationConnection", "compose", "connect", "free_loopback_endpoint", "local_description_dirs", "main",
+           "private_context", "robot_resource"]
 def compose(
     node_name: str = DEFAULT_NODE_NAME,
     *,
@@ -158,8 +133,8 @@ class SimulationConnection:
                 self.sim_node.destroy_node()
         finally:
             if self.process is not None:
-                _stop_process(self.process)
-                _children.discard(self.process)
+                stop_process(self.process)
+                untrack_child(self.process)
             if self._owns_context:
                 self.context.try_shutdown()
 
@@ -252,7 +227,7 @@ def connect(
         if sim_node is not None:
             sim_node.destroy_node()
         if process is not None:
-            _stop_process(process)
+            stop_process(process)
         if owns:
             ctx.try_shutdown()
         raise
@@ -294,33 +269,6 @@ def _too_broad_to_trust() -> set[str]:
     return {os.path.realpath(p) for p in ("/", os.path.expanduser("~"), "/tmp", "/home", "/root")}
 
 
-def free_loopback_endpoint() -> str:
-    """A Zenoh TCP endpoint on a port of 127.0.0.1 that is free right now."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return f"tcp/127.0.0.1:{sock.getsockname()[1]}"
-
-
-def private_context(attempts: int = 5) -> Context:
-    """A Zenoh context with its own router on a free loopback port, deaf to the shared graph.
-
-    The ``ZENOH_*`` and ``UNIROS_ZENOH_ROUTER`` variables are ignored, so a user's multi-host set-up
-    never leaks into it. A port taken between probing and binding is retried on another port.
-
-    Raises:
-        TransportError: no router could be started in ``attempts`` tries.
-    """
-    env = {k: v for k, v in os.environ.items() if not k.startswith(_SHARED_GRAPH_PREFIXES)}
-    last: Exception | None = None
-    for _ in range(max(1, attempts)):
-        ctx = Context(transport="zenoh", env=env, router="embedded", router_endpoint=free_loopback_endpoint())
-        try:
-            return ctx.init()
-        except TransportError as exc:  # port taken meanwhile: another port
-            last = exc
-    raise TransportError(f"could not start a private Zenoh router on loopback after {attempts} tries: {last}")
-
-
 def _spawn_child(
     ctx: Context, node_name: str, *, gui: bool, paused: bool, real_time_factor: float, timestep: float | None,
     private: bool = False, trusted_paths: Sequence[str | os.PathLike[str]] = (),
@@ -335,51 +283,11 @@ def _spawn_child(
         argv += ["--timestep", str(timestep)]
     for path in trusted_paths:
         argv += ["--trust-path", os.fspath(path)]
-    env = dict(os.environ)
+    env = private_environment() if private else dict(os.environ)
     if private:
-        env = {k: v for k, v in env.items() if not k.startswith(_SHARED_GRAPH_PREFIXES)}
         argv += ["--router", "none"]
-    env.update(_child_environment(ctx))
-    proc = subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL)
-    _children.add(proc)
-    return proc
-
-
-def _child_environment(ctx: Context) -> dict[str, str]:
-    """Environment variables that make a child process join ``ctx``'s ROS graph."""
-    env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": "zenoh"}
-    endpoint = ctx.transport_options.get("router_endpoint") or ctx.env.get("UNIROS_ZENOH_ROUTER")
-    if endpoint:
-        env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
-    return env
-
-
-def _watch_owner(owner_pid: int, stop: threading.Event) -> threading.Thread:
-    """Set ``stop`` once the owner process is gone (or this process was re-parented away from it)."""
-
-    watch_parent = os.getppid() == owner_pid  # started by the owner itself: re-parenting means it died
-
-    def alive() -> bool:
-        if watch_parent and os.getppid() != owner_pid:
-            return False
-        try:
-            os.kill(owner_pid, 0)
-        except ProcessLookupError:
-            return False
-        except PermissionError:
-            return True
-        return True
-
-    def watch() -> None:
-        while not stop.wait(OWNER_POLL_SEC):
-            if not alive():
-                _logger.warning("owner process %d is gone: shutting down", owner_pid)
-                stop.set()
-                return
-
-    thread = threading.Thread(target=watch, name="uniros-sim-owner-watch", daemon=True)
-    thread.start()
-    return thread
+    env.update(child_environment(ctx))
+    return track_child(subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL))
 
 
 def robot_resource(
@@ -496,7 +404,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     if opts.owner_pid is not None:
-        _watch_owner(opts.owner_pid, stop)
+        watch_owner(opts.owner_pid, stop)
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True

@@ -27,6 +27,7 @@ from typing import Any
 
 import yaml
 
+from multiros.ros.processes import stop_process as _stop_child
 from multiros.sim.errors import PackageNotFoundError
 from multiros.sim.packages import PackageIndex, default_index
 
@@ -384,14 +385,12 @@ def stop_process(pid: int | subprocess.Popen, timeout: float = 5.0) -> bool:
     Raises:
         ValueError: ``pid`` was not started by this module (it is never signalled).
     """
-    from multiros.sim.launch import _stop_process
-
     pid = pid.pid if isinstance(pid, subprocess.Popen) else int(pid)
     proc = _table.pop(pid)
     if proc is None:
         raise ValueError(f"pid {pid} was not started by multiros.utils.ros_common; refusing to signal it")
     was_running = proc.poll() is None
-    _stop_process(proc, timeout=timeout)
+    _stop_child(proc, timeout=timeout)
     return was_running
 
 

@@ -22,7 +22,7 @@ from typing import Any
 import pytest
 
 from multiros.ros import Context, Node
-from multiros.sim.launch import _child_environment, _stop_process, private_context
+from multiros.ros.processes import child_environment, private_context, stop_process
 
 RX200_URI = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
 STANDINS = ("sim", "fake")
@@ -54,7 +54,7 @@ class StandIn:
             self.proc = self._fake.process
         else:
             env = {k: v for k, v in os.environ.items() if not k.startswith(("ZENOH_", "UNIROS_ZENOH_"))}
-            env.update(_child_environment(ctx))
+            env.update(child_environment(ctx))
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "multiros.sim.launch", "--log-level", "WARNING", "--play",
                  "--owner-pid", str(os.getpid()), "--robot", f"rx200={RX200_URI}", *args],
@@ -80,7 +80,7 @@ class StandIn:
         if self._fake is not None:
             self._fake.stop()
         elif self.proc is not None:
-            _stop_process(self.proc)
+            stop_process(self.proc)
 
 
 def wait_controller_manager(ctx: Context, ns: str, proc: subprocess.Popen, timeout: float) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 import uniros
-from multiros.sim.launch import _child_environment, private_context
+from multiros.ros.processes import child_environment, private_context
 
 from .conftest import StandIn
 
@@ -35,7 +35,7 @@ def test_eval_of_a_sim_model_on_the_real_env(tmp_path: Path, monkeypatch, capsys
     robot = None
     try:
         robot = StandIn("fake", graph)
-        for key, value in _child_environment(graph).items():  # the CLI joins the graph the environment names
+        for key, value in child_environment(graph).items():  # the CLI joins the graph the environment names
             monkeypatch.setenv(key, value)
         assert main(["eval", str(model), "--env", "RX200ReacherGoalReal-v0", "--episodes", "1"]) == 0
         assert "RX200ReacherGoalReal-v0: success rate" in capsys.readouterr().out
