@@ -6,7 +6,6 @@ Each subcommand is a small function taking parsed arguments and returning an exi
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import sys
 from collections.abc import Sequence
@@ -32,77 +31,112 @@ def _env_overrides(args: argparse.Namespace) -> dict[str, object]:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    import uniros
-    from uniros.training import default_config_for, evaluate, load_training_config, train
+    from uniros.training import (
+        TrainingError,
+        TrainingInterrupted,
+        default_config_for,
+        evaluate,
+        load_for_eval,
+        load_training_config,
+        make_env,
+        open_run,
+        record_run_video,
+        resolve_env_id,
+        run_training,
+        start_run,
+    )
 
-    config = load_training_config(args.config) if args.config else default_config_for(args.env_id)
+    if args.resume:
+        if args.config or args.name:
+            raise TrainingError("--resume continues a run with its own config.yaml: drop --config and --name")
+        run, env_id, config = open_run(args.resume)
+        if args.env_id and args.env_id != env_id:
+            raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
+    else:
+        if not args.env_id:
+            raise TrainingError("give an env ID (e.g. RX200ReacherGoalSim-v0 or my_pkg.my_module:MyEnv-v0) "
+                                "or --resume RUN_DIR")
+        env_id = args.env_id
+        resolve_env_id(env_id)  # a user's module:ID is imported (and checked) before anything is written
+        config = load_training_config(args.config) if args.config else default_config_for(env_id)
     if args.steps is not None:
         config.training_steps = args.steps
     if args.seed is not None:
         config.seed = args.seed
     config.env_kwargs.update(_env_overrides(args))
-    output = Path(args.output)
-    output.mkdir(parents=True, exist_ok=True)
-    model_path = output / f"{args.env_id}_{config.algorithm}.zip"
-    print(f"training {config.algorithm.upper()}{' + HER' if config.use_her else ''} on {args.env_id} "
-          f"for {config.training_steps} steps (config: {config.source})", flush=True)
+    config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
+    if not args.resume:
+        run = start_run(env_id, config, output=args.output, name=args.name, command=["uniros", *sys.argv[1:]])
+    print(f"{'resuming' if args.resume else 'training'} {config.algorithm.upper()}{' + HER' if config.use_her else ''} "
+          f"on {env_id} for {config.training_steps} steps (config: {config.source})", flush=True)
+    print(f"run directory: {run.root}", flush=True)
 
     def report(steps: int, seconds: float, rate: float) -> None:
         print(f"  steps {steps:6d}  train time {seconds:7.1f} s  eval success {rate:.2f}", flush=True)
 
-    result = train(args.env_id, config, target=args.target, on_eval=report, save_path=model_path)
-    # What `uniros eval` needs to rebuild the same env (e.g. ee_action_type changes the action space).
-    model_path.with_suffix(".env.json").write_text(
-        json.dumps({"env_id": args.env_id, "algorithm": config.algorithm, "env_kwargs": config.env_kwargs}, indent=2)
-    )
-    print(f"trained {result.total_steps} steps in {result.train_seconds:.1f} s; model saved to {model_path}")
+    try:
+        result = run_training(run, env_id, config, resume=bool(args.resume), target=args.target, on_eval=report)
+    except TrainingInterrupted as exc:
+        print(f"\n{exc}", file=sys.stderr)
+        if exc.checkpoint is not None:
+            print(f"resume with: uniros train --resume {run.root}", file=sys.stderr)
+        return exc.exit_code
+    print(f"trained {result.total_steps} steps in {result.train_seconds:.1f} s")
     if result.steps_to_success is not None:
         print(f"first eval success >= {args.target}: {result.steps_to_success} steps, "
               f"{result.seconds_to_success:.1f} s of training")
-    else:
+    elif result.evaluations:
         print(f"eval success never reached {args.target}")
-    env = uniros.make(args.env_id, **config.env_kwargs)
-    try:
-        stats = evaluate(result.model, env, args.eval_episodes, seed=10_000_000 + (config.seed or 0),
-                         normalizer=result.normalizer)
-    finally:
-        env.close()
-    print(f"final evaluation over {args.eval_episodes} episodes: success rate {stats['success_rate']:.2f}, "
-          f"mean return {stats['mean_return']:.2f}, mean length {stats['mean_length']:.1f}")
+    model_path = result.files.get("best_model", result.files["final_model"])
+    if args.eval_episodes > 0:
+        env = make_env(env_id, **config.env_kwargs)
+        try:
+            model, normalizer = load_for_eval(model_path, env)
+            stats = evaluate(model, env, args.eval_episodes, seed=10_000_000 + (config.seed or 0),
+                             normalizer=normalizer)
+        finally:
+            env.close()
+        print(f"final evaluation of {model_path.name} over {args.eval_episodes} episodes: success rate "
+              f"{stats['success_rate']:.2f}, mean return {stats['mean_return']:.2f}, "
+              f"mean length {stats['mean_length']:.1f}")
+    if config.video and not args.no_video:
+        try:
+            result.files["video"] = record_run_video(run, env_id, config)
+        except Exception as exc:  # the run is complete without it: say why there is no video
+            print(f"no video: {type(exc).__name__}: {exc} (headless rendering needs MUJOCO_GL=egl or osmesa)",
+                  file=sys.stderr)
+    print("files:")
+    for label, path in result.files.items():
+        print(f"  {label:12s} {path}")
     return 0
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    import stable_baselines3 as sb3
+    from uniros.training import evaluate, load_for_eval, make_env, resolve_model_path, saved_env_kwargs
 
-    import uniros
-    from uniros.training import evaluate
-
-    saved: dict = {}
-    meta = Path(args.model).with_suffix(".env.json")
-    if meta.is_file():
-        saved = json.loads(meta.read_text())
-    algo = args.algo or saved.get("algorithm") or Path(args.model).stem.rsplit("_", 1)[-1]
-    classes = {"sac": sb3.SAC, "td3": sb3.TD3, "ddpg": sb3.DDPG, "ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}
-    if algo not in classes:
-        print(f"cannot tell the algorithm of {args.model!r}; pass --algo {{{','.join(classes)}}}", file=sys.stderr)
+    if args.model is None:  # `uniros eval MODEL --env ID`
+        args.env_id, args.model = None, args.env_id
+    args.env_id = args.env or args.env_id
+    if args.env_id is None:
+        print("name the env: `uniros eval ENV_ID MODEL` or `uniros eval MODEL --env ENV_ID`", file=sys.stderr)
         return 2
-    env = uniros.make(args.env_id, **{**saved.get("env_kwargs", {}), **_env_overrides(args)})
+    model_path = resolve_model_path(args.model)
+    env = make_env(args.env_id, **{**saved_env_kwargs(model_path, args.env_id), **_env_overrides(args)})
     try:
-        normalizer = None
-        stats_file = Path(args.model).with_suffix(".vecnormalize.pkl")
-        if stats_file.is_file():
-            from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+        from uniros.model_spaces import SpaceMismatchError, check_model_spaces
 
-            normalizer = VecNormalize.load(str(stats_file), DummyVecEnv([lambda: env]))
-            normalizer.training = False
-        # HER models need an env to rebuild their replay buffer, even for prediction.
-        model = classes[algo].load(args.model, env=normalizer if normalizer is not None else env, device="cpu")
+        try:
+            check_model_spaces(model_path, env, args.env_id)
+        except SpaceMismatchError as exc:
+            print(exc, file=sys.stderr)
+            return 2
+        model, normalizer = load_for_eval(model_path, env, algorithm=args.algo)
         stats = evaluate(model, env, args.episodes, seed=args.seed, normalizer=normalizer)
     finally:
         env.close()
     print(f"{args.env_id}: success rate {stats['success_rate']:.2f} over {args.episodes} episodes, "
-          f"mean return {stats['mean_return']:.2f}, mean length {stats['mean_length']:.1f}")
+          f"mean return {stats['mean_return']:.2f}, mean length {stats['mean_length']:.1f}"
+          + ("" if normalizer is None else " (observations normalised with the saved statistics)"))
     return 0
 
 
@@ -137,20 +171,27 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--transport", choices=["inproc", "zenoh"], help="ROS transport")
 
     p = sub.add_parser("train", help="train an agent and evaluate it")
-    p.add_argument("env_id", help="a registered env ID, e.g. RX200ReacherGoalSim-v0")
+    p.add_argument("env_id", nargs="?",
+                   help="a registered env ID (RX200ReacherGoalSim-v0) or module:ID (my_pkg.my_module:MyEnv-v0)")
     p.add_argument("--config", help="training YAML (default: the one shipped for the env ID)")
     p.add_argument("--steps", type=int, help="override training_steps")
     p.add_argument("--seed", type=int, help="override the seed")
     p.add_argument("--target", type=float, default=0.9, help="success rate that counts as solved")
     p.add_argument("--eval-episodes", type=int, default=50, help="episodes of the final evaluation")
-    p.add_argument("--output", default="runs", help="directory for the trained model (default: %(default)s)")
+    p.add_argument("--output", default="runs", help="parent of the run directories (default: %(default)s)")
+    p.add_argument("--name", help="run directory name (default: <env id>_<algo>_<timestamp>); never overwritten")
+    p.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run from its latest checkpoint")
+    p.add_argument("--no-video", action="store_true", help="do not record best_model.mp4")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
     env_options(p)
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("eval", help="evaluate a saved model")
-    p.add_argument("env_id")
-    p.add_argument("model", help="a model .zip saved by `uniros train`")
-    p.add_argument("--algo", help="sac, td3, ddpg, ppo, a2c or dqn (default: from the file name)")
+    p.add_argument("env_id", nargs="?", help="a registered env ID or module:ID (or give --env)")
+    p.add_argument("model", nargs="?", help="a model .zip (uniros' or rl-zoo3's) or a run directory (its best model)")
+    p.add_argument("--env", help="evaluate on this env ID instead (equal spaces, e.g. RX200ReacherGoalReal-v0 for a "
+                   "model trained on RX200ReacherGoalSim-v0)")
+    p.add_argument("--algo", help="sac, td3, ddpg, ppo, a2c or dqn (default: read from the model file)")
     p.add_argument("--episodes", type=int, default=50)
     p.add_argument("--seed", type=int, default=0)
     env_options(p)
@@ -173,13 +214,24 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``uniros`` console script."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args, extra = parser.parse_known_args(argv)
+    if args.command == "sim":
+        # Everything after `sim` belongs to uniros-sim's own parser (--help included).
+        args.sim_args = argv[argv.index("sim") + 1:]
+    elif extra:
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
     logging.basicConfig(level=args.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    from uniros.train_config import TrainingError
+    from uniros.trainer import sigterm_as_interrupt
+
     try:
-        return int(args.func(args))
-    except KeyboardInterrupt:
-        return 130
-    except (ValueError, LookupError, FileNotFoundError) as exc:
+        with sigterm_as_interrupt():
+            return int(args.func(args))
+    except KeyboardInterrupt as exc:
+        print(f"\nuniros {args.command}: interrupted", file=sys.stderr)
+        return 128 + int(getattr(exc, "signum", 2))
+    except (TrainingError, ValueError, LookupError, FileNotFoundError) as exc:
         print(f"uniros {args.command}: error: {exc}", file=sys.stderr)
         return 2
 

@@ -1,9 +1,10 @@
 """Training and evaluating Stable-Baselines3 agents on uniros envs from one YAML file.
 
-One trainer, not one wrapper per algorithm: the YAML (the format of sb3_ros_support and FRobs_RL,
-optionally under a ``model_params:`` key) names the algorithm and its ``<algo>_params``; goal envs
-get ``HerReplayBuffer`` when ``use_HER`` is true. Evaluation runs on a separate env instance
-every ``eval_freq`` steps and reports the success rate (mean of the final ``info["is_success"]``).
+One implementation (:mod:`uniros.trainer`) serves ``uniros train``, :func:`train` and the
+sb3_ros_support-style classes of :mod:`uniros.sb3`. The YAML is sb3_ros_support's or FRobs_RL's
+format (:mod:`uniros.train_config`); a run writes a run directory (:mod:`uniros.run_dir`) with
+TensorBoard logs, monitor CSVs, checkpoints, the best and final models, a learning-curve plot and
+a video; Ctrl-C or SIGTERM saves a checkpoint that :func:`run_training` resumes.
 
 Configs shipped with uniros sit in ``config/training/`` (installed as
 ``rl_environments.config.training``), one per env ID; see :func:`default_config_for`.
@@ -11,209 +12,93 @@ Configs shipped with uniros sit in ``config/training/`` (installed as
 
 from __future__ import annotations
 
+import copy
+import importlib
+import json
 import logging
-import time
-from collections.abc import Callable, Mapping
+import sys
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+
+from uniros.run_dir import RunDir, RunDirError, normalizer_path, save_model_with_stats
+from uniros.train_config import (
+    ALGORITHMS,
+    TrainingConfig,
+    TrainingConfigError,
+    TrainingError,
+    default_config_for,
+    load_training_config,
+    parse_training_config,
+    save_training_config,
+)
+from uniros.trainer import (
+    ModelFileError,
+    Paths,
+    Session,
+    TrainingInterrupted,
+    build_model,
+    latest_checkpoint,
+    load_model,
+    sigterm_as_interrupt,
+)
 
 _logger = logging.getLogger(__name__)
-
-ALGORITHMS = ("sac", "td3", "ddpg", "ppo", "a2c", "dqn")
 _OFF_POLICY = {"sac", "td3", "ddpg", "dqn"}
 
 
-class TrainingConfigError(ValueError):
-    """A training YAML is missing, malformed, or names an unknown algorithm or option."""
-
-
-@dataclass
-class TrainingConfig:
-    """A parsed training YAML.
-
-    Attributes:
-        algorithm: ``sac``, ``td3``, ``ddpg``, ``ppo``, ``a2c`` or ``dqn``.
-        training_steps: env steps to train for.
-        algo_params: keyword arguments of the SB3 algorithm (``<algo>_params``).
-        use_her, her_params: HER replay (goal envs, off-policy algorithms).
-        policy_params: ``net_arch``, ``activation_fn`` (by name), when ``use_custom_policy``.
-        action_noise: ``{"mean", "sigma"}`` Gaussian action noise when ``use_action_noise``.
-        env_kwargs: keyword arguments for ``uniros.make``.
-        eval_freq, eval_episodes: evaluation schedule.
-        stop_at_success: stop once this eval success rate is reached (``None``: never).
-        normalize: normalise observations with ``VecNormalize`` (as rl-zoo3 does for FetchReach);
-            the evaluation env uses the training statistics, frozen.
-        seed: seed of the algorithm and of the training env's first reset.
-        torch_threads: torch CPU threads (1 is fastest for these small networks).
-    """
-
-    algorithm: str = "sac"
-    training_steps: int = 10_000
-    algo_params: dict[str, Any] = field(default_factory=dict)
-    use_her: bool = False
-    her_params: dict[str, Any] = field(default_factory=dict)
-    policy_params: dict[str, Any] | None = None
-    action_noise: dict[str, float] | None = None
-    env_kwargs: dict[str, Any] = field(default_factory=dict)
-    eval_freq: int = 1000
-    eval_episodes: int = 20
-    stop_at_success: float | None = None
-    normalize: bool = False
-    seed: int | None = 0
-    torch_threads: int = 1
-    source: str = "<defaults>"
-
-
-def _require(mapping: Mapping[str, Any], key: str, kind: Any, source: str, default: Any = ...) -> Any:
-    if key not in mapping:
-        if default is ...:
-            raise TrainingConfigError(f"{source}: missing key {key!r}")
-        return default
-    value = mapping[key]
-    if kind is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if value is not None and not isinstance(value, kind):
-        names = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
-        raise TrainingConfigError(f"{source}: key {key!r} must be {names}, got {value!r}")
-    return value
-
-
-def parse_training_config(data: Mapping[str, Any], source: str = "<mapping>") -> TrainingConfig:
-    """Check and convert a training YAML mapping.
+# -- envs ------------------------------------------------------------------------------------------
+def resolve_env_id(env_id: str) -> str:
+    """Import the module of a ``module:ID`` env ID (gymnasium's form) and return the bare ID.
 
     Raises:
-        TrainingConfigError: a missing or mistyped key, or an unknown algorithm.
+        TrainingError: the module cannot be imported, or does not register the ID.
     """
-    if not isinstance(data, Mapping):
-        raise TrainingConfigError(f"{source}: expected a mapping, got {type(data).__name__}")
-    if "model_params" in data:
-        data = data["model_params"]
-        if not isinstance(data, Mapping):
-            raise TrainingConfigError(f"{source}: 'model_params' must be a mapping")
-    algo = str(_require(data, "algorithm", str, source, "sac")).lower()
-    if algo not in ALGORITHMS:
-        raise TrainingConfigError(f"{source}: algorithm {algo!r} is not one of {ALGORITHMS}")
-    params = _require(data, f"{algo}_params", dict, source, {}) or {}
-    params = dict(params)
-    if isinstance(params.get("train_freq"), Mapping):
-        tf = params["train_freq"]
-        params["train_freq"] = (int(tf.get("freq", 1)), str(tf.get("unit", "step")))
-    noise = None
-    if _require(data, "use_action_noise", bool, source, False):
-        noise = dict(_require(data, "action_noise", dict, source, {"mean": 0.0, "sigma": 0.1}))
-    policy = None
-    if _require(data, "use_custom_policy", bool, source, False):
-        policy = dict(_require(data, "policy_params", dict, source))
-    use_her = bool(_require(data, "use_HER", bool, source, False))
-    if use_her and algo not in _OFF_POLICY:
-        raise TrainingConfigError(
-            f"{source}: use_HER needs an off-policy algorithm (sac, td3, ddpg, dqn), not {algo!r}"
-        )
-    her = dict(_require(data, "her_params", dict, source, {}) or {})
-    for obsolete in ("online_sampling", "max_episode_length"):
-        her.pop(obsolete, None)  # read by old SB3 versions, gone since SB3 1.7
-    stop = _require(data, "stop_at_success", (float, int), source, None)
-    return TrainingConfig(
-        algorithm=algo,
-        training_steps=int(_require(data, "training_steps", int, source)),
-        algo_params=params,
-        use_her=use_her,
-        her_params=her,
-        policy_params=policy,
-        action_noise=noise,
-        env_kwargs=dict(_require(data, "env_kwargs", dict, source, {}) or {}),
-        eval_freq=int(_require(data, "eval_freq", int, source, 1000)),
-        eval_episodes=int(_require(data, "eval_episodes", int, source, 20)),
-        stop_at_success=None if stop is None else float(stop),
-        normalize=bool(_require(data, "normalize", bool, source, False)),
-        seed=_require(data, "seed", int, source, 0),
-        torch_threads=int(_require(data, "torch_threads", int, source, 1)),
-        source=source,
-    )
+    import gymnasium as gym
+
+    module, sep, bare = env_id.rpartition(":")
+    if not sep:
+        return env_id
+    if module not in sys.modules:
+        try:
+            importlib.import_module(module)
+        except ImportError as exc:
+            raise TrainingError(
+                f"cannot import {module!r} (from env ID {env_id!r}): {exc}. Install the package or run from "
+                "the directory that contains it (it must be importable)"
+            ) from exc
+    if bare not in gym.registry:
+        import difflib
+
+        close = difflib.get_close_matches(bare, list(gym.registry), n=3)
+        raise TrainingError(f"{module!r} was imported but did not register {bare!r}"
+                            + (f"; close: {close}" if close else ""))
+    return bare
 
 
-def load_training_config(path: str | Path) -> TrainingConfig:
-    """Load a training YAML file (see :func:`parse_training_config`)."""
-    path = Path(path)
-    if not path.is_file():
-        raise TrainingConfigError(f"training config {str(path)!r} not found")
-    try:
-        data = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
-        raise TrainingConfigError(f"{path}: not valid YAML: {exc}") from exc
-    return parse_training_config(data, str(path))
+def make_env(env_id: str, **kwargs: Any) -> Any:
+    """``uniros.make`` for a registered ID or a ``module:ID``."""
+    import uniros
+
+    return uniros.make(resolve_env_id(env_id), **kwargs)
 
 
-def default_config_for(env_id: str) -> TrainingConfig:
-    """The training config uniros ships for ``env_id`` (``config/training/<env_id>.yaml``)."""
-    root = resources.files("rl_environments.config").joinpath("training")
-    candidate = root.joinpath(f"{env_id}.yaml")
-    if not candidate.is_file():
-        shipped = sorted(p.name[: -len(".yaml")] for p in root.iterdir() if p.name.endswith(".yaml"))
-        raise TrainingConfigError(f"no shipped training config for {env_id!r}; shipped: {shipped}. Pass --config FILE")
-    return load_training_config(Path(str(candidate)))
+_make_env = make_env  # ``train`` has a parameter of that name
 
 
-# -- building ----------------------------------------------------------------------------------
-def _gamma(config: TrainingConfig) -> float:
-    return float(config.algo_params.get("gamma", 0.99))
+def _reports_success(env: Any) -> bool:
+    from gymnasium_robotics.core import GoalEnv
+
+    import rl_environments
+
+    spec = getattr(env, "spec", None)
+    return isinstance(env.unwrapped, GoalEnv) or (spec is not None and spec.id in rl_environments.ENV_IDS)
 
 
-def _activation(name: str) -> Any:
-    import torch.nn as nn
-
-    table = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "selu": nn.SELU, "leaky_relu": nn.LeakyReLU}
-    try:
-        return table[name.lower()]
-    except KeyError:
-        raise TrainingConfigError(f"activation_fn {name!r} is not one of {sorted(table)}") from None
-
-
-def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
-    """The SB3 model for ``config`` on ``env`` (a gymnasium env or a VecEnv)."""
-    import stable_baselines3 as sb3
-    import torch
-    from gymnasium import spaces
-    from stable_baselines3.common.noise import NormalActionNoise
-
-    torch.set_num_threads(max(1, config.torch_threads))
-    cls = {"sac": sb3.SAC, "td3": sb3.TD3, "ddpg": sb3.DDPG, "ppo": sb3.PPO, "a2c": sb3.A2C, "dqn": sb3.DQN}[
-        config.algorithm
-    ]
-    kwargs: dict[str, Any] = dict(config.algo_params)
-    kwargs.setdefault("seed", config.seed)
-    kwargs.setdefault("device", "cpu")
-    obs_space = env.observation_space
-    policy = "MultiInputPolicy" if isinstance(obs_space, spaces.Dict) else "MlpPolicy"
-    if config.use_her:
-        if not isinstance(obs_space, spaces.Dict):
-            raise TrainingConfigError(f"{config.source}: use_HER needs a goal env (Dict observation space)")
-        kwargs["replay_buffer_class"] = sb3.HerReplayBuffer
-        kwargs["replay_buffer_kwargs"] = {"n_sampled_goal": 4, "goal_selection_strategy": "future", **config.her_params}
-    if config.policy_params:
-        pk = dict(config.policy_params)
-        if "activation_fn" in pk:
-            pk["activation_fn"] = _activation(pk["activation_fn"])
-        for unused in ("features_extractor_class", "optimizer_class"):
-            pk.pop(unused, None)
-        kwargs["policy_kwargs"] = pk
-    if config.action_noise is not None and config.algorithm in ("td3", "ddpg", "sac"):
-        n = env.action_space.shape[0]
-        kwargs["action_noise"] = NormalActionNoise(
-            mean=np.full(n, float(config.action_noise.get("mean", 0.0))),
-            sigma=np.full(n, float(config.action_noise.get("sigma", 0.1))),
-        )
-    try:
-        return cls(policy, env, verbose=verbose, **kwargs)
-    except TypeError as exc:
-        raise TrainingConfigError(f"{config.source}: {config.algorithm}_params: {exc}") from exc
-
-
+# -- evaluation ------------------------------------------------------------------------------------
 def evaluate(
     model: Any, env: Any, episodes: int, *, seed: int | None = None, normalizer: Any = None
 ) -> dict[str, float]:
@@ -242,15 +127,18 @@ def evaluate(
     }
 
 
+# -- the legacy programmatic entry point (benchmarks) ---------------------------------------------
 @dataclass
 class TrainingResult:
-    """What :func:`train` measured.
+    """What :func:`train` and :func:`run_training` measured.
 
     Attributes:
         evaluations: ``(env_steps, train_seconds, success_rate)`` per evaluation.
         steps_to_success: first env step count whose evaluation reached ``target`` (or None).
         seconds_to_success: training wall-clock (evaluation excluded) at that point.
         total_steps, train_seconds: what was run.
+        run_dir: the run directory (``run_training``), else None.
+        files: what the run wrote, by name (``final_model``, ``best_model``, ``curve``, ``video``, ...).
     """
 
     evaluations: list[tuple[int, float, float]]
@@ -260,6 +148,22 @@ class TrainingResult:
     train_seconds: float
     model: Any = None
     normalizer: Any = None
+    run_dir: Path | None = None
+    files: dict[str, Path] = field(default_factory=dict)
+
+
+def _result(session: Session, **extra: Any) -> TrainingResult:
+    return TrainingResult(
+        evaluations=[(int(r["steps"]), float(r["train_seconds"]), float(r["success_rate"]))
+                     for r in session.evaluations],
+        steps_to_success=session.steps_to_success,
+        seconds_to_success=session.seconds_to_success,
+        total_steps=int(session.model.num_timesteps),
+        train_seconds=session.train_seconds(),
+        model=session.model,
+        normalizer=session.normalizer,
+        **extra,
+    )
 
 
 def train(
@@ -272,68 +176,265 @@ def train(
     verbose: int = 0,
     make_env: Callable[[], Any] | None = None,
 ) -> TrainingResult:
-    """Train on ``env_id`` with ``config``; evaluate every ``eval_freq`` steps on a second env.
+    """Train on ``env_id`` with ``config`` in memory (no run directory); evaluate every ``eval_freq`` steps.
 
     Args:
         target: success rate that counts as solved (for ``steps_to_success``).
         on_eval: ``callback(steps, train_seconds, success_rate)`` after each evaluation.
-        save_path: where to save the final model (``.zip``), if given.
+        save_path: where to save the final model (``.zip``, plus ``.vecnormalize.pkl``), if given.
         make_env: build the train and eval envs with this instead of ``uniros.make`` (baselines).
     """
-    from stable_baselines3.common.callbacks import BaseCallback
-
-    import uniros
-
-    def factory() -> Any:
-        return make_env() if make_env is not None else uniros.make(env_id, **config.env_kwargs)
-
+    factory = make_env if make_env is not None else (lambda: _make_env(env_id, **config.env_kwargs))
+    config = copy.copy(config)
+    config.progress_bar = False
     env = factory()
-    eval_env = factory()
-    evaluations: list[tuple[int, float, float]] = []
-    clock = {"train": 0.0, "since": time.perf_counter()}
-    reached: dict[str, Any] = {"steps": None, "seconds": None}
-
-    class _EvalCallback(BaseCallback):
-        def _on_step(self) -> bool:
-            if self.num_timesteps % config.eval_freq != 0:
-                return True
-            clock["train"] += time.perf_counter() - clock["since"]
-            seed = None if config.seed is None else config.seed + 10_000 + len(evaluations)
-            stats = evaluate(self.model, eval_env, config.eval_episodes, seed=seed, normalizer=normalizer)
-            rate = stats["success_rate"]
-            evaluations.append((self.num_timesteps, clock["train"], rate))
-            if on_eval is not None:
-                on_eval(self.num_timesteps, clock["train"], rate)
-            if rate >= target and reached["steps"] is None:
-                reached.update(steps=self.num_timesteps, seconds=clock["train"])
-            clock["since"] = time.perf_counter()
-            return not (config.stop_at_success is not None and rate >= config.stop_at_success)
-
-    normalizer = None
+    session = Session(config, env, make_eval_env=factory, on_eval=on_eval, target=target, verbose=verbose,
+                      success_info=_reports_success(env))
     try:
-        env.reset(seed=config.seed)
-        train_env: Any = env
-        if config.normalize:
-            from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-            train_env = normalizer = VecNormalize(DummyVecEnv([lambda: env]), gamma=_gamma(config), norm_reward=False)
-            train_env.seed(config.seed)
-        model = build_model(config, train_env, verbose=verbose)
-        model.learn(total_timesteps=config.training_steps, callback=_EvalCallback())
-        clock["train"] += time.perf_counter() - clock["since"]
+        session.build()
+        session.learn()
         if save_path is not None:
-            model.save(str(save_path))
-            if normalizer is not None:
-                normalizer.save(str(Path(save_path).with_suffix(".vecnormalize.pkl")))
-        return TrainingResult(
-            evaluations=evaluations,
-            steps_to_success=reached["steps"],
-            seconds_to_success=reached["seconds"],
-            total_steps=int(model.num_timesteps),
-            train_seconds=clock["train"],
-            model=model,
-            normalizer=normalizer,
-        )
+            path = Path(save_path)
+            save_model_with_stats(session.model, session.normalizer, path if path.suffix == ".zip"
+                                  else path.with_name(path.name + ".zip"))
+        return _result(session)
+    finally:
+        session.close()
+
+
+# -- runs with a run directory (uniros train) -------------------------------------------------------
+def start_run(env_id: str, config: TrainingConfig, *, output: str | Path = "runs", name: str | None = None,
+              command: list[str] | None = None) -> RunDir:
+    """Create the run directory and write the resolved config and ``run.json``."""
+    run = RunDir.create(output, name, env_id, config.algorithm)
+    save_training_config(config, run.config)
+    run.update_meta(env_id=env_id, algorithm=config.algorithm, env_kwargs=config.env_kwargs, status="created",
+                    steps=0, train_seconds=0.0, command=command or [])
+    return run
+
+
+def open_run(run_dir: str | Path) -> tuple[RunDir, str, TrainingConfig]:
+    """An existing run directory, its env ID and its resolved config (for ``--resume``)."""
+    run = RunDir.open(run_dir)
+    meta = run.read_meta()
+    config = load_training_config(run.config)
+    config.env_kwargs = dict(meta.get("env_kwargs", config.env_kwargs))
+    return run, str(meta["env_id"]), config
+
+
+def run_training(
+    run: RunDir,
+    env_id: str,
+    config: TrainingConfig,
+    *,
+    resume: bool = False,
+    target: float = 0.9,
+    on_eval: Callable[[int, float, float], None] | None = None,
+    verbose: int = 0,
+) -> TrainingResult:
+    """Train into ``run`` (new, or ``resume`` from its latest complete checkpoint), then write the final
+    model, the learning curve and the video.
+
+    Raises:
+        TrainingInterrupted: Ctrl-C or SIGTERM; a checkpoint was saved first.
+        TrainingError: bad config, env or files (clear message).
+    """
+    from uniros.reports import plot_learning_curve, read_evaluations
+
+    paths = Paths(checkpoints=run.checkpoints, prefix=config.save_prefix, logs=run.tensorboard,
+                  monitor=run.monitor, evaluations=run.evaluations, best_model=run.best_model, meta=run.meta)
+    with sigterm_as_interrupt():
+        env = make_env(env_id, **config.env_kwargs)
+        session = Session(config, env, make_eval_env=lambda: make_env(env_id, **config.env_kwargs), paths=paths,
+                          on_eval=on_eval, target=target, verbose=verbose, success_info=_reports_success(env))
+        try:
+            if resume:
+                session.evaluations = read_evaluations(run.evaluations)
+                session.prior_seconds = float(run.read_meta().get("train_seconds", 0.0))
+                _build_from_checkpoints(session, run)
+            else:
+                session.build()
+            run.update_meta(status="running")
+            session.learn()
+            save_model_with_stats(session.model, session.normalizer, run.final_model)
+            session.checkpoint()
+            run.update_meta(status="finished", steps=int(session.model.num_timesteps),
+                            train_seconds=round(session.train_seconds(), 3))
+            files = {"run_dir": run.root, "final_model": run.final_model, "config": run.config,
+                     "tensorboard": run.tensorboard, "monitor": run.monitor, "checkpoints": run.checkpoints}
+            if run.best_model.is_file():
+                files["best_model"] = run.best_model
+            if session.evaluations:
+                files["evaluations"] = run.evaluations
+                plot_learning_curve(session.evaluations, run.curve, title=f"{env_id} {config.algorithm.upper()}",
+                                    monitor_csv=run.monitor / "train.monitor.csv")
+                files["curve"] = run.curve
+            return _result(session, run_dir=run.root, files=files)
+        finally:
+            session.close()
+
+
+def _build_from_checkpoints(session: Session, run: RunDir) -> None:
+    candidates = latest_checkpoint(run.checkpoints, session.paths.prefix)
+    if not candidates:
+        raise RunDirError(f"{run.root} has no checkpoint to resume from (none in {run.checkpoints})")
+    problems = []
+    for ckpt in candidates:
+        try:
+            session.build(resume=ckpt)
+        except TrainingError as exc:
+            problems.append(str(exc))
+            _logger.warning("checkpoint %s unusable (%s); trying an older one", ckpt.model, exc)
+            continue
+        if problems:
+            print(f"warning: skipped {len(problems)} unusable checkpoint(s): {'; '.join(problems)}", file=sys.stderr)
+        return
+    raise RunDirError(f"no usable checkpoint in {run.checkpoints}: {'; '.join(problems)}")
+
+
+def record_run_video(run: RunDir, env_id: str, config: TrainingConfig, *, episodes: int | None = None) -> Path:
+    """Record the best model (else the final one) of ``run`` as ``best_model.mp4``."""
+    from uniros.reports import record_video
+
+    model_path = run.best_model if run.best_model.is_file() else run.final_model
+    env = make_env(env_id, **config.env_kwargs)
+    try:
+        model, normalizer = load_for_eval(model_path, env)
     finally:
         env.close()
-        eval_env.close()
+    target = run.video if model_path == run.best_model else run.root / "final_model.mp4"
+    record_video(model, lambda **kw: make_env(env_id, **{**config.env_kwargs, **kw}), target,
+                 episodes=episodes or config.video_episodes, normalizer=normalizer, seed=(config.seed or 0) + 777)
+    return target
+
+
+# -- loading for evaluation ------------------------------------------------------------------------
+def find_normalizer(model_path: Path) -> Path | None:
+    """The ``VecNormalize`` statistics of a model: uniros' ``<model>.vecnormalize.pkl``, or rl-zoo3's
+    ``vecnormalize.pkl`` (``<run>/<env id>/vecnormalize.pkl`` next to ``<run>/<env id>.zip``)."""
+    own = normalizer_path(model_path)
+    folder = model_path.parent
+    candidates = [own, folder / model_path.stem / "vecnormalize.pkl", folder / "vecnormalize.pkl"]
+    candidates += sorted(folder.glob("*/vecnormalize.pkl"))
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def resolve_model_path(model: str | Path) -> Path:
+    """A model ``.zip`` from what a user typed: a file, a file without ``.zip``, or a run directory.
+
+    Raises:
+        ModelFileError: nothing there (the message says what was looked for).
+    """
+    path = Path(model)
+    if path.is_dir():
+        for name in ("best_model.zip", "final_model.zip"):
+            if (path / name).is_file():
+                return path / name
+        zips = sorted(path.glob("*.zip"))
+        if len(zips) == 1:
+            return zips[0]
+        raise ModelFileError(f"{str(path)!r} is a directory without best_model.zip or final_model.zip"
+                             + (f"; models in it: {[z.name for z in zips]}" if zips else ""))
+    if path.is_file():
+        return path
+    if path.suffix != ".zip" and path.with_name(path.name + ".zip").is_file():
+        return path.with_name(path.name + ".zip")
+    raise ModelFileError(f"model file {str(path)!r} not found")
+
+
+def saved_env_kwargs(model_path: Path, env_id: str | None = None) -> dict[str, Any]:
+    """The env kwargs a model was trained with: uniros' run.json / .env.json, or rl-zoo3's args.yml.
+
+    None when the model was trained on another env than ``env_id`` (its kwargs may not apply).
+    """
+    for meta in (model_path.parent / "run.json", model_path.with_suffix(".env.json")):
+        if meta.is_file():
+            try:
+                data = json.loads(meta.read_text())
+            except ValueError:
+                continue
+            trained_on = str(data.get("env_id", "")).rpartition(":")[2]
+            if env_id is not None and trained_on and trained_on != env_id.rpartition(":")[2]:
+                return {}
+            return dict(data.get("env_kwargs") or {})
+    for folder in [model_path.parent / model_path.stem, *sorted(model_path.parent.glob("*/"))]:
+        args = folder / "args.yml"
+        if args.is_file():
+            data = _zoo_yaml(args)
+            kwargs = data.get("env_kwargs") if isinstance(data, dict) else None
+            return dict(kwargs or {})
+    return {}
+
+
+def _zoo_yaml(path: Path) -> Any:
+    """rl-zoo3's args.yml/config.yml (OrderedDicts dumped as python tags), read without running code."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def ordered(loader: Any, node: Any) -> dict[str, Any]:
+        seq = loader.construct_sequence(node.value[0], deep=True) if node.value else []
+        return {k: v for k, v in seq}
+
+    Loader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", ordered)
+    Loader.add_multi_constructor("tag:yaml.org,2002:python/", lambda loader, suffix, node: None)
+    try:
+        data = yaml.load(path.read_text(), Loader=Loader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError:
+        return {}
+    return dict(data) if isinstance(data, dict) else (dict(data) if isinstance(data, list) else {})
+
+
+def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None) -> tuple[Any, Any]:
+    """Load a model and its normalisation statistics for ``env`` (uniros' or rl-zoo3's layout).
+
+    Returns:
+        ``(model, normalizer)``; ``normalizer`` is a frozen ``VecNormalize`` or ``None``.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    normalizer = None
+    stats = find_normalizer(model_path)
+    venv = DummyVecEnv([lambda: env])
+    if stats is not None:
+        try:
+            normalizer = VecNormalize.load(str(stats), venv)
+        except (AssertionError, ValueError) as exc:
+            raise ModelFileError(f"{stats} does not fit this env ({exc}); "
+                                 "evaluate on the env the model was trained on") from exc
+        except Exception as exc:
+            raise ModelFileError(f"{stats} cannot be read ({type(exc).__name__}: {exc})") from exc
+        normalizer.training = False
+        normalizer.norm_reward = False
+    # HER models need an env to rebuild their replay buffer, even for prediction.
+    model = load_model(model_path, normalizer if normalizer is not None else venv, algorithm=algorithm)
+    return model, normalizer
+
+
+__all__ = [
+    "ALGORITHMS",
+    "ModelFileError",
+    "RunDir",
+    "RunDirError",
+    "TrainingConfig",
+    "TrainingConfigError",
+    "TrainingError",
+    "TrainingInterrupted",
+    "TrainingResult",
+    "build_model",
+    "default_config_for",
+    "evaluate",
+    "find_normalizer",
+    "load_for_eval",
+    "load_training_config",
+    "make_env",
+    "open_run",
+    "parse_training_config",
+    "record_run_video",
+    "resolve_env_id",
+    "resolve_model_path",
+    "run_training",
+    "start_run",
+    "train",
+]

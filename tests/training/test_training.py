@@ -51,6 +51,12 @@ def test_frobs_style_yaml_parses(tmp_path):
         ({"algorithm": "sac", "training_steps": "ten"}, "'training_steps' must be int"),
         ({"algorithm": "sac", "training_steps": 10, "sac_params": [1]}, "'sac_params' must be dict"),
         ({"algorithm": "sac", "training_steps": 10, "use_custom_policy": True}, "missing key 'policy_params'"),
+        ({"training_steps": 10, "eval_frq": 5}, "unknown key 'eval_frq'; did you mean 'eval_freq'"),
+        ({"training_steps": 10, "sac_params": {"learnig_rate": 1}}, "did you mean 'learning_rate'"),
+        ({"training_steps": 10, "her_params": {"n_sampled_goals": 4}}, "did you mean 'n_sampled_goal'"),
+        ({"model_params": {"training_steps": 10}, "extra": 1}, "unknown key 'extra'"),
+        ({"algorithm": "sac", "training_steps": 10, "td3_params": {}}, "has td3_params but the algorithm is 'sac'"),
+        ({"algorithm": "td3", "training_steps": 10, "use_sde": True}, "use_sde works with"),
     ],
 )
 def test_bad_training_yaml_names_the_key(data, match):
@@ -69,12 +75,11 @@ def test_missing_and_malformed_files(tmp_path):
         default_config_for("CartPole-v1")
 
 
-def test_unknown_sb3_keyword_is_reported():
-    config = parse_training_config(
-        {"algorithm": "sac", "training_steps": 10, "sac_params": {"learnig_rate": 0.1}}, "cfg.yaml"
-    )
-    with pytest.raises(TrainingConfigError, match="learnig_rate"):
-        train("RX200ReacherGoalSim-v0", config)
+def test_frobs_yaml_without_algorithm_key_takes_it_from_the_block():
+    config = parse_training_config({"model_params": {"training_steps": 5, "td3_params": {"policy_delay": 2}}})
+    assert config.algorithm == "td3"
+    with pytest.raises(TrainingConfigError, match="TD3 config .* given to SAC"):
+        parse_training_config({"training_steps": 5, "td3_params": {}}, "td3.yaml", algorithm="sac")
 
 
 def test_cli_list(capsys):
@@ -86,26 +91,6 @@ def test_cli_list(capsys):
 def test_cli_errors_are_reported_with_exit_code_2(capsys, tmp_path):
     assert cli_main(["train", "NoSuchEnv-v0", "--output", str(tmp_path)]) == 2
     assert "no shipped training config" in capsys.readouterr().err
-
-
-@pytest.mark.slow
-def test_cli_train_then_eval(tmp_path, capsys):
-    cfg = tmp_path / "tiny.yaml"
-    cfg.write_text(
-        "algorithm: sac\ntraining_steps: 300\neval_freq: 150\neval_episodes: 2\nnormalize: true\n"
-        "use_HER: true\nsac_params: {learning_starts: 100, batch_size: 32}\n"
-        "env_kwargs: {ee_action_type: true}\n"
-    )
-    args = ["train", "RX200ReacherGoalSim-v0", "--config", str(cfg), "--output", str(tmp_path), "--eval-episodes", "2"]
-    assert cli_main(args) == 0
-    out = capsys.readouterr().out
-    assert "steps    150" in out and "final evaluation over 2 episodes" in out
-    model = tmp_path / "RX200ReacherGoalSim-v0_sac.zip"
-    assert model.is_file() and model.with_suffix(".vecnormalize.pkl").is_file()
-    assert model.with_suffix(".env.json").is_file()
-    # eval rebuilds the env with the training kwargs (ee_action_type) and the saved normalisation.
-    assert cli_main(["eval", "RX200ReacherGoalSim-v0", str(model), "--episodes", "2"]) == 0
-    assert "success rate" in capsys.readouterr().out
 
 
 @pytest.mark.slow

@@ -1,0 +1,239 @@
+"""``BasicModel``: sb3_ros_support's and FRobs_RL's model wrapper, on uniros' one trainer.
+
+The arguments and YAML keys mean what they meant there (see docs/training.md, "Trainer classes"):
+``save_model_path`` holds the checkpoints (``<save_prefix>_<N>_steps.zip`` every ``save_freq``
+steps, with the replay buffer and normalisation statistics) and the trained model
+(``<trained_model_name>.zip``, a ``_dd_mm_YYYY_HH_MM_SS`` suffix when the name is taken);
+``log_path + log_folder`` holds the TensorBoard and CSV logs (a free ``_N`` suffix when the folder
+exists: logs are never overwritten); ``load_model`` + ``model_name`` continue a saved model (and
+its replay buffer); ``reset_num_timesteps: False`` continues its step count.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from uniros.run_dir import normalizer_path, save_model_with_stats, save_replay_buffer
+from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError, load_training_config
+from uniros.trainer import Paths, Session, load_model
+
+_logger = logging.getLogger(__name__)
+
+
+def _package_dir(pkg: str) -> Path:
+    """A package's root: a ROS-style package (multiros' index) or an importable Python package."""
+    import importlib.util
+
+    try:
+        from multiros.utils.ros_common import get_package_path
+
+        return Path(get_package_path(pkg))
+    except Exception:  # not a ROS-style package: try Python
+        pass
+    try:
+        spec = importlib.util.find_spec(pkg)
+    except (ImportError, ValueError):
+        spec = None
+    if spec is None or not spec.submodule_search_locations:
+        raise TrainingConfigError(f"package {pkg!r} not found (neither a ROS package nor an importable Python package)")
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+def resolve_config_path(algo: str, goal: bool, config_file_pkg: str | None, config_filename: str | None,
+                        abs_config_path: str | None) -> Path:
+    """Where the YAML is: ``abs_config_path``, ``<config_file_pkg>/config/<config_filename>``, or the default."""
+    if abs_config_path:
+        return Path(abs_config_path)
+    default = f"{algo}_goal.yaml" if goal else f"{algo}.yaml"
+    if config_file_pkg in (None, "", "uniros", "sb3_ros_support", "frobs_rl"):
+        name = config_filename if config_file_pkg and config_filename else default
+        shipped = resources.files("uniros.sb3").joinpath("config", name)
+        if not shipped.is_file():
+            raise TrainingConfigError(f"no config {name!r} shipped with uniros.sb3; pass abs_config_path")
+        return Path(str(shipped))
+    root = _package_dir(config_file_pkg)
+    name = config_filename or default
+    candidates = [root / "config" / name, root / name]
+    for path in candidates:
+        if path.is_file():
+            return path
+    raise TrainingConfigError(f"config {name!r} not found in package {config_file_pkg!r}; looked at: "
+                              + ", ".join(str(c) for c in candidates))
+
+
+def _under(root: Path | None, path: str | Path) -> Path:
+    if root is None:
+        return Path(path)
+    return root / str(path).strip("/")
+
+
+class BasicModel:
+    """A Stable-Baselines3 model built from a YAML, trained with checkpoints and logs.
+
+    Args:
+        env: the training env (a gymnasium env, possibly wrapped).
+        save_model_path: folder for checkpoints and the trained model (relative to ``model_pkg_path``
+            when given).
+        log_path: folder for the logs (``log_path/<log_folder>/``).
+        model_pkg_path: a package whose root the two paths are relative to.
+        load_trained: load the trained model at ``load_model_path`` (or ``save_model_path``) for
+            prediction, instead of creating one.
+        config_file_pkg, config_filename, abs_config_path: where the YAML is (default: the one
+            shipped for the algorithm).
+        use_her: HER replay (goal classes; also when the YAML says ``use_HER: True``).
+        seed: overrides the YAML's seed.
+        eval_env: an env to evaluate on every ``eval_freq`` steps (``best_model.zip`` in
+            ``save_model_path``); none by default.
+    """
+
+    algorithm = "sac"
+    goal = False
+
+    def __init__(self, env: Any, save_model_path: str | Path, log_path: str | Path, model_pkg_path: str | None = None,
+                 load_trained: bool = False, load_model_path: str | Path | None = None,
+                 config_file_pkg: str | None = None, config_filename: str | None = None,
+                 abs_config_path: str | None = None, use_her: bool = False, seed: int | None = None,
+                 eval_env: Any = None, ns: str = "/", verbose: int = 1, **legacy: Any) -> None:
+        for key in ("load_il_policy",):
+            if legacy.pop(key, False):
+                raise TrainingError("imitation-learning initialisation (load_il_policy) is not supported")
+        legacy.pop("il_policy_path", None)
+        legacy.pop("action_noise_type", None)
+        if legacy:
+            raise TypeError(f"{type(self).__name__} got unexpected keyword argument(s) {sorted(legacy)}")
+        root = _package_dir(model_pkg_path) if model_pkg_path else None
+        self.env = env
+        self.save_model_path = _under(root, save_model_path)
+        self.log_path = _under(root, log_path)
+        config_path = resolve_config_path(self.algorithm, self.goal, config_file_pkg, config_filename, abs_config_path)
+        self.config: TrainingConfig = load_training_config(config_path, algorithm=self.algorithm)
+        self.config_path = config_path
+        if seed is not None:
+            self.config.seed = seed
+        self.config.use_her = bool(self.goal and (use_her or self.config.use_her))
+        self.config.progress_bar = False
+        self.session = Session(self.config, env, make_eval_env=(lambda: eval_env) if eval_env is not None else None,
+                               verbose=verbose, success_info=_has_success(env))
+        if load_trained:
+            target = _under(root, load_model_path) if load_model_path else self.save_model_path
+            self.session.build(load=target)
+        elif self.config.load_model:
+            if not self.config.model_name:
+                raise TrainingConfigError(f"{config_path}: load_model is true but model_name is not set")
+            model_file = self.save_model_path / self.config.model_name
+            self.session.build(load=model_file)
+            buffer = self.save_model_path / f"{self.config.model_name}_replay_buffer.pkl"
+            if buffer.is_file() and hasattr(self.session.model, "replay_buffer"):
+                self.session.model.load_replay_buffer(str(buffer))
+        else:
+            self.session.build()
+        self.model = self.session.model
+        self.log_dir = self._log_dir()
+        self.session.paths = Paths(checkpoints=self.save_model_path, prefix=self.config.save_prefix, logs=self.log_dir,
+                                   evaluations=self.save_model_path / "evaluations.csv" if eval_env is not None
+                                   else None, best_model=self.save_model_path / "best_model.zip" if eval_env
+                                   is not None else None)
+        self.set_model_logger()
+
+    def _log_dir(self) -> Path:
+        folder = self.config.log_folder or f"{self.algorithm.upper()}_1"
+        path = self.log_path / folder
+        n = 1
+        while path.exists():
+            n += 1
+            path = self.log_path / f"{folder}_{n}"
+        if n > 1:
+            _logger.warning("log folder %s exists; logging to %s", self.log_path / folder, path)
+        return path
+
+    def set_model_logger(self) -> None:
+        """Log to ``log_path/<log_folder>/`` (stdout, CSV and TensorBoard)."""
+        from stable_baselines3.common.logger import configure
+
+        self.model.set_logger(configure(str(self.log_dir), ["stdout", "csv", "tensorboard"]))
+
+    def train(self, action_cycle_time: float | None = None) -> bool:
+        """Train for ``training_steps`` (more) steps, with checkpoints every ``save_freq``; then save the model.
+
+        Raises:
+            TrainingInterrupted: Ctrl-C or SIGTERM (a ``KeyboardInterrupt``), after saving a checkpoint.
+        """
+        if action_cycle_time:
+            _logger.warning("action_cycle_time is ignored: set the env's action_cycle_time instead")
+        steps = self.config.training_steps
+        if self.config.reset_num_timesteps:
+            self.session.learn(steps, reset_num_timesteps=True)
+        else:
+            self.session.learn(int(self.model.num_timesteps) + steps)
+        self.save_model()
+        return True
+
+    def save_model(self) -> Path:
+        """Save ``<save_model_path><trained_model_name>.zip`` (a date suffix if the name is taken),
+        its normalisation statistics, and the replay buffer when ``save_replay_buffer``."""
+        name = self.config.trained_model_name
+        path = self.save_model_path / f"{name}.zip"
+        if path.exists():
+            path = self.save_model_path / f"{name}_{time.strftime('%d_%m_%Y_%H_%M_%S')}.zip"
+        save_model_with_stats(self.model, self.session.normalizer, path)
+        if self.config.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
+            save_replay_buffer(self.model, path.with_name(path.stem + "_replay_buffer.pkl"))
+        self.saved_model = path
+        return path
+
+    def save_replay_buffer(self) -> None:
+        """Save the replay buffer beside the last saved model."""
+        path = getattr(self, "saved_model", self.save_model_path / f"{self.config.trained_model_name}.zip")
+        save_replay_buffer(self.model, path.with_name(path.stem + "_replay_buffer.pkl"))
+
+    def predict(self, observation: Any, state: Any = None, mask: Any = None, deterministic: bool = False) -> Any:
+        """The model's action (observations normalised as in training when ``normalize`` is on)."""
+        norm = self.session.normalizer
+        obs = observation if norm is None else norm.normalize_obs(observation)
+        return self.model.predict(obs, state=state, episode_start=mask, deterministic=deterministic)
+
+    def check_env(self) -> None:
+        """SB3's env checker on the training env."""
+        from stable_baselines3.common.env_checker import check_env
+
+        check_env(self.env)
+
+    def close_env(self) -> None:
+        """Close the env(s)."""
+        self.session.close()
+
+    @classmethod
+    def load_trained_model(cls, model_path: str | Path, model_pkg: str | None = None, env: Any = None,
+                           config_file_pkg: str | None = None, config_filename: str | None = None,
+                           abs_config_path: str | None = None) -> Any:
+        """Load a trained model for prediction (SB3's ``load``; the config is not needed)."""
+        from uniros.trainer import algorithm_class
+
+        path = _under(_package_dir(model_pkg) if model_pkg else None, model_path)
+        if env is None:
+            target = path if path.is_file() else path.with_name(path.name + ".zip")
+            if not target.is_file():
+                raise TrainingError(f"model file {str(path)!r} not found")
+            return algorithm_class(cls.algorithm).load(str(target), device="cpu")
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        return load_model(path, DummyVecEnv([lambda: env]), algorithm=cls.algorithm)
+
+    load_trained = load_trained_model  # FRobs_RL's name
+
+
+def _has_success(env: Any) -> bool:
+    from gymnasium_robotics.core import GoalEnv
+
+    import rl_environments
+
+    spec = getattr(env, "spec", None)
+    return isinstance(getattr(env, "unwrapped", env), GoalEnv) or (spec is not None and spec.id in
+                                                                    rl_environments.ENV_IDS)
+
+
+__all__ = ["BasicModel", "normalizer_path", "resolve_config_path"]

@@ -1,0 +1,353 @@
+"""The training YAML: sb3_ros_support's and FRobs_RL's format, checked key by key.
+
+Both forms are read: sb3_ros_support's flat mapping and FRobs_RL's ``model_params:`` wrapper. The
+algorithm is the ``algorithm`` key, or the one ``<algo>_params`` block present (FRobs_RL files have
+no ``algorithm`` key), or the trainer class's own. Every key is checked: an unknown or misspelt key
+is an error naming the key and the nearest valid one, at every level (``eval_frq``,
+``her_params.n_sampled_goals``, ``sac_params.learnig_rate``).
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import inspect
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+ALGORITHMS = ("sac", "td3", "ddpg", "ppo", "a2c", "dqn")
+OFF_POLICY = frozenset({"sac", "td3", "ddpg", "dqn"})
+_SDE = frozenset({"sac", "ppo", "a2c"})
+_NOISE = frozenset({"sac", "td3", "ddpg"})
+
+
+class TrainingError(Exception):
+    """A training run cannot go on: the message says what is wrong and what to do."""
+
+
+class TrainingConfigError(TrainingError, ValueError):
+    """A training YAML is missing, malformed, or has an unknown, misspelt or mistyped key."""
+
+
+# Top-level keys: (type, default). ``...`` as default: required.
+_TOP: dict[str, tuple[Any, Any]] = {
+    "algorithm": (str, None),
+    "training_steps": (int, ...),
+    "seed": (int, 0),
+    "torch_threads": (int, 1),
+    "normalize": (bool, False),
+    "eval_freq": (int, 1000),
+    "eval_episodes": (int, 20),
+    "stop_at_success": ((float, int), None),
+    "env_kwargs": (dict, None),
+    "video": (bool, True),
+    "video_episodes": (int, 2),
+    "progress_bar": (bool, True),
+    # sb3_ros_support / FRobs_RL
+    "save_freq": (int, 1000),
+    "save_prefix": (str, "model"),
+    "trained_model_name": (str, "trained_model"),
+    "save_replay_buffer": (bool, False),
+    "load_model": (bool, False),
+    "model_name": (str, None),
+    "log_folder": (str, None),
+    "log_interval": (int, 4),
+    "reset_num_timesteps": (bool, False),
+    "use_custom_policy": (bool, False),
+    "policy_params": (dict, None),
+    "use_action_noise": (bool, False),
+    "action_noise_type": (str, "normal"),
+    "action_noise": (dict, None),
+    "use_sde": (bool, False),
+    "sde_params": (dict, None),
+    "use_HER": (bool, False),
+    "her_params": (dict, None),
+    "use_wandb": (bool, False),
+    "wandb_params": (dict, None),
+}
+_NESTED: dict[str, set[str]] = {
+    "her_params": {"n_sampled_goal", "goal_selection_strategy", "copy_info_dict", "online_sampling",
+                   "max_episode_length"},
+    "policy_params": {"net_arch", "activation_fn", "features_extractor_class", "optimizer_class", "log_std_init",
+                      "ortho_init", "n_critics", "share_features_extractor", "normalize_images", "use_expln",
+                      "squash_output", "full_std", "clip_mean", "optimizer_kwargs", "features_extractor_kwargs"},
+    "action_noise": {"mean", "sigma", "theta", "dt"},
+    "sde_params": {"sde_sample_freq", "use_sde_at_warmup"},
+}
+# Keyword arguments of the SB3 classes that the YAML must not set itself (uniros sets them).
+_MANAGED = {"self", "policy", "env", "replay_buffer_class", "replay_buffer_kwargs", "action_noise", "policy_kwargs",
+            "tensorboard_log", "verbose", "device", "_init_setup_model", "use_sde", "sde_sample_freq",
+            "use_sde_at_warmup"}
+
+
+@dataclass
+class TrainingConfig:
+    """A parsed training YAML.
+
+    Attributes:
+        algorithm: ``sac``, ``td3``, ``ddpg``, ``ppo``, ``a2c`` or ``dqn``.
+        training_steps: env steps to train for (in total: a resumed run trains the rest).
+        algo_params: keyword arguments of the SB3 algorithm (``<algo>_params``).
+        use_her, her_params: HER replay (goal envs, off-policy algorithms).
+        policy_params: ``net_arch``, ``activation_fn`` (by name), ... when ``use_custom_policy``.
+        action_noise: ``{"mean", "sigma"}`` action noise when ``use_action_noise``
+            (``action_noise_type``: ``normal`` or ``ornstein``).
+        use_sde, sde_params: generalised state-dependent exploration (SAC, PPO, A2C).
+        env_kwargs: keyword arguments for ``uniros.make``.
+        eval_freq, eval_episodes: evaluation schedule (env steps; 0 disables evaluation).
+        stop_at_success: stop once this eval success rate is reached (``None``: never).
+        normalize: normalise observations with ``VecNormalize``; evaluation uses the training
+            statistics, frozen.
+        seed: seed of the algorithm and of the training env's first reset.
+        torch_threads: torch CPU threads (1 is fastest for these small networks).
+        save_freq: env steps between checkpoints (model, replay buffer, normalisation); 0: none.
+        save_prefix, trained_model_name, save_replay_buffer, load_model, model_name, log_folder,
+            log_interval, reset_num_timesteps: as in sb3_ros_support (see docs/training.md).
+        video, video_episodes: record an MP4 of the best model after a run.
+        progress_bar: show SB3's progress bar (rate and ETA).
+    """
+
+    algorithm: str = "sac"
+    training_steps: int = 10_000
+    algo_params: dict[str, Any] = field(default_factory=dict)
+    use_her: bool = False
+    her_params: dict[str, Any] = field(default_factory=dict)
+    policy_params: dict[str, Any] | None = None
+    action_noise: dict[str, float] | None = None
+    action_noise_type: str = "normal"
+    use_sde: bool = False
+    sde_params: dict[str, Any] = field(default_factory=dict)
+    env_kwargs: dict[str, Any] = field(default_factory=dict)
+    eval_freq: int = 1000
+    eval_episodes: int = 20
+    stop_at_success: float | None = None
+    normalize: bool = False
+    seed: int | None = 0
+    torch_threads: int = 1
+    save_freq: int = 1000
+    save_prefix: str = "model"
+    trained_model_name: str = "trained_model"
+    save_replay_buffer: bool = False
+    load_model: bool = False
+    model_name: str | None = None
+    log_folder: str | None = None
+    log_interval: int = 4
+    reset_num_timesteps: bool = False
+    video: bool = True
+    video_episodes: int = 2
+    progress_bar: bool = True
+    source: str = "<defaults>"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The resolved config as a YAML mapping that :func:`parse_training_config` reads back."""
+        params = copy.deepcopy(self.algo_params)
+        if isinstance(params.get("train_freq"), tuple):
+            freq, unit = params["train_freq"]
+            params["train_freq"] = {"freq": freq, "unit": unit}
+        out: dict[str, Any] = {
+            "algorithm": self.algorithm, "training_steps": self.training_steps, "seed": self.seed,
+            "torch_threads": self.torch_threads, "normalize": self.normalize, "eval_freq": self.eval_freq,
+            "eval_episodes": self.eval_episodes, "stop_at_success": self.stop_at_success,
+            "save_freq": self.save_freq, "save_prefix": self.save_prefix,
+            "trained_model_name": self.trained_model_name, "save_replay_buffer": self.save_replay_buffer,
+            "log_interval": self.log_interval, "reset_num_timesteps": self.reset_num_timesteps,
+            "use_HER": self.use_her, "her_params": dict(self.her_params),
+            "use_custom_policy": self.policy_params is not None, "policy_params": self.policy_params,
+            "use_action_noise": self.action_noise is not None, "action_noise_type": self.action_noise_type,
+            "action_noise": self.action_noise, "use_sde": self.use_sde, "sde_params": dict(self.sde_params),
+            "video": self.video, "video_episodes": self.video_episodes, "progress_bar": self.progress_bar,
+            f"{self.algorithm}_params": params, "env_kwargs": copy.deepcopy(self.env_kwargs),
+        }
+        return {"model_params": {k: v for k, v in out.items() if v is not None}}
+
+
+def _nearest(key: str, valid: Any) -> str:
+    close = difflib.get_close_matches(key, sorted(valid), n=1, cutoff=0.6)
+    return f"; did you mean {close[0]!r}?" if close else f"; valid keys: {sorted(valid)}"
+
+
+def _check_keys(mapping: Mapping[str, Any], valid: Any, where: str) -> None:
+    for key in mapping:
+        if key not in valid:
+            raise TrainingConfigError(f"{where}: unknown key {key!r}{_nearest(str(key), valid)}")
+
+
+def _typed(mapping: Mapping[str, Any], key: str, source: str) -> Any:
+    kind, default = _TOP[key]
+    if key not in mapping:
+        if default is ...:
+            raise TrainingConfigError(f"{source}: missing key {key!r}")
+        return copy.deepcopy(default)
+    value = mapping[key]
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    bad_bool = isinstance(value, bool) and kind is not bool and kind != (float, int)
+    if value is not None and (not isinstance(value, kind) or bad_bool):
+        names = kind.__name__ if isinstance(kind, type) else " or ".join(k.__name__ for k in kind)
+        raise TrainingConfigError(f"{source}: key {key!r} must be {names}, got {value!r}")
+    return value
+
+
+def algo_keywords(algorithm: str) -> set[str]:
+    """The keyword arguments an ``<algo>_params`` block may set (the SB3 class's, minus uniros' own)."""
+    import stable_baselines3 as sb3
+
+    cls = getattr(sb3, algorithm.upper())
+    return set(inspect.signature(cls.__init__).parameters) - _MANAGED
+
+
+def parse_training_config(
+    data: Mapping[str, Any], source: str = "<mapping>", *, algorithm: str | None = None
+) -> TrainingConfig:
+    """Check and convert a training YAML mapping.
+
+    Args:
+        algorithm: the algorithm the caller trains (a trainer class's); the YAML must agree.
+
+    Raises:
+        TrainingConfigError: an unknown, misspelt, missing or mistyped key, an unknown algorithm, or
+            a config for another algorithm.
+    """
+    if not isinstance(data, Mapping):
+        raise TrainingConfigError(f"{source}: expected a mapping, got {type(data).__name__}")
+    if "model_params" in data:
+        _check_keys(data, {"model_params"}, source)
+        data = data["model_params"]
+        if not isinstance(data, Mapping):
+            raise TrainingConfigError(f"{source}: 'model_params' must be a mapping")
+    blocks = [a for a in ALGORITHMS if f"{a}_params" in data]
+    _check_keys(data, set(_TOP) | {f"{a}_params" for a in ALGORITHMS}, source)
+    named = _typed(data, "algorithm", source)
+    algo = (named or (blocks[0] if len(blocks) == 1 else None) or algorithm or "sac").lower()
+    if algo not in ALGORITHMS:
+        raise TrainingConfigError(f"{source}: algorithm {algo!r} is not one of {ALGORITHMS}")
+    if algorithm is not None and algo != algorithm:
+        raise TrainingConfigError(
+            f"{source} is a {algo.upper()} config ({'algorithm: ' + algo if named else algo + '_params'}), "
+            f"but it was given to {algorithm.upper()}; use the {algo.upper()} class or a {algorithm} config"
+        )
+    others = [b for b in blocks if b != algo]
+    if others:
+        raise TrainingConfigError(
+            f"{source}: has {others[0]}_params but the algorithm is {algo!r}; "
+            f"rename the block to {algo}_params or set algorithm: {others[0]}"
+        )
+    params = data.get(f"{algo}_params") or {}
+    if not isinstance(params, Mapping):
+        raise TrainingConfigError(f"{source}: key '{algo}_params' must be dict, got {params!r}")
+    params = dict(params)
+    _check_keys(params, algo_keywords(algo), f"{source}: {algo}_params")
+    if isinstance(params.get("train_freq"), Mapping):
+        tf = params["train_freq"]
+        _check_keys(tf, {"freq", "unit"}, f"{source}: {algo}_params.train_freq")
+        params["train_freq"] = (int(tf.get("freq", 1)), str(tf.get("unit", "step")))
+    seed = _typed(data, "seed", source)
+    if "seed" in params:  # sb3_ros_support keeps the seed in <algo>_params
+        seed = params.pop("seed")
+    nested = {}
+    for key, valid in _NESTED.items():
+        block = _typed(data, key, source) or {}
+        _check_keys(block, valid, f"{source}: {key}")
+        nested[key] = dict(block)
+    noise = None
+    if _typed(data, "use_action_noise", source) and algo in _NOISE:
+        noise = {"mean": 0.0, "sigma": 0.1, **nested["action_noise"]}
+    noise_type = _typed(data, "action_noise_type", source).lower()
+    if noise_type not in ("normal", "ornstein"):
+        raise TrainingConfigError(f"{source}: action_noise_type {noise_type!r} is not 'normal' or 'ornstein'")
+    policy = None
+    if _typed(data, "use_custom_policy", source):
+        if "policy_params" not in data:
+            raise TrainingConfigError(f"{source}: missing key 'policy_params' (use_custom_policy is true)")
+        policy = nested["policy_params"]
+    use_her = bool(_typed(data, "use_HER", source))
+    if use_her and algo not in OFF_POLICY:
+        raise TrainingConfigError(
+            f"{source}: use_HER needs an off-policy algorithm (sac, td3, ddpg, dqn), not {algo!r}"
+        )
+    her = nested["her_params"]
+    for obsolete in ("online_sampling", "max_episode_length"):
+        her.pop(obsolete, None)  # read by old SB3 versions, gone since SB3 1.7
+    use_sde = bool(_typed(data, "use_sde", source))
+    if use_sde and algo not in _SDE:
+        raise TrainingConfigError(f"{source}: use_sde works with sac, ppo and a2c, not {algo!r}")
+    stop = _typed(data, "stop_at_success", source)
+    positive = {k: _typed(data, k, source) for k in ("training_steps", "eval_episodes", "log_interval")}
+    for key, value in positive.items():
+        if value < 1:
+            raise TrainingConfigError(f"{source}: {key} must be at least 1, got {value}")
+    for key in ("eval_freq", "save_freq"):
+        if _typed(data, key, source) < 0:
+            raise TrainingConfigError(f"{source}: {key} must be 0 (off) or positive")
+    return TrainingConfig(
+        algorithm=algo,
+        training_steps=positive["training_steps"],
+        algo_params=params,
+        use_her=use_her,
+        her_params=her,
+        policy_params=policy,
+        action_noise=noise,
+        action_noise_type=noise_type,
+        use_sde=use_sde,
+        sde_params=nested["sde_params"],
+        env_kwargs=dict(_typed(data, "env_kwargs", source) or {}),
+        eval_freq=_typed(data, "eval_freq", source),
+        eval_episodes=positive["eval_episodes"],
+        stop_at_success=None if stop is None else float(stop),
+        normalize=_typed(data, "normalize", source),
+        seed=seed,
+        torch_threads=_typed(data, "torch_threads", source),
+        save_freq=_typed(data, "save_freq", source),
+        save_prefix=_typed(data, "save_prefix", source),
+        trained_model_name=_typed(data, "trained_model_name", source),
+        save_replay_buffer=_typed(data, "save_replay_buffer", source),
+        load_model=_typed(data, "load_model", source),
+        model_name=_typed(data, "model_name", source),
+        log_folder=_typed(data, "log_folder", source),
+        log_interval=positive["log_interval"],
+        reset_num_timesteps=_typed(data, "reset_num_timesteps", source),
+        video=_typed(data, "video", source),
+        video_episodes=_typed(data, "video_episodes", source),
+        progress_bar=_typed(data, "progress_bar", source),
+        source=source,
+    )
+
+
+def load_training_config(path: str | Path, *, algorithm: str | None = None) -> TrainingConfig:
+    """Load a training YAML file (see :func:`parse_training_config`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise TrainingConfigError(f"training config {str(path)!r} not found")
+    try:
+        data = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise TrainingConfigError(f"{path}: not valid YAML: {exc}") from exc
+    return parse_training_config(data, str(path), algorithm=algorithm)
+
+
+def shipped_config_ids() -> list[str]:
+    """Env IDs with a training config shipped in ``rl_environments.config.training``."""
+    root = resources.files("rl_environments.config").joinpath("training")
+    return sorted(p.name[: -len(".yaml")] for p in root.iterdir() if p.name.endswith(".yaml"))
+
+
+def default_config_for(env_id: str) -> TrainingConfig:
+    """The training config uniros ships for ``env_id`` (``config/training/<env_id>.yaml``)."""
+    bare = env_id.rpartition(":")[2]
+    candidate = resources.files("rl_environments.config").joinpath("training", f"{bare}.yaml")
+    if not candidate.is_file():
+        raise TrainingConfigError(
+            f"no shipped training config for {env_id!r}; shipped: {shipped_config_ids()}. Pass --config FILE"
+        )
+    return load_training_config(Path(str(candidate)))
+
+
+def save_training_config(config: TrainingConfig, path: Path) -> None:
+    """Write the resolved config (every key, defaults filled in) as YAML."""
+    header = f"# resolved training config (from {config.source})\n"
+    path.write_text(header + yaml.safe_dump(config.to_dict(), sort_keys=False))

@@ -1,0 +1,504 @@
+"""The one training implementation under ``uniros train``, :func:`uniros.training.train` and the
+sb3_ros_support-style classes (:mod:`uniros.sb3`).
+
+A :class:`Session` wraps the env (Monitor, VecNormalize), builds or loads the SB3 model, and runs
+``model.learn`` with SB3 callbacks: :class:`CheckpointEvery` (SB3's ``CheckpointCallback``, writing
+atomically, with the replay buffer and normalisation statistics) and :class:`SuccessEval` (SB3's
+``EvalCallback``, recording the success rate and keeping the best model). Ctrl-C and SIGTERM during
+``learn`` save a checkpoint and raise :class:`TrainingInterrupted`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from uniros.run_dir import (
+    Checkpoint,
+    list_checkpoints,
+    save_checkpoint,
+    save_model_with_stats,
+    write_json,
+)
+from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError
+
+_logger = logging.getLogger(__name__)
+
+
+class TrainingInterrupted(TrainingError, KeyboardInterrupt):
+    """Training stopped on Ctrl-C or SIGTERM; a checkpoint was saved (``checkpoint``) when possible."""
+
+    def __init__(self, message: str, signum: int, checkpoint: Checkpoint | None) -> None:
+        super().__init__(message)
+        self.signum = signum
+        self.checkpoint = checkpoint
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal number (130 for Ctrl-C, 143 for SIGTERM), as shells report it."""
+        return 128 + int(self.signum)
+
+
+class _Signal(KeyboardInterrupt):
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM interrupts like Ctrl-C (raises ``KeyboardInterrupt`` with ``signum``)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise _Signal(signum)
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[list[int]]:
+    """Within the block, Ctrl-C and SIGTERM are noted, not raised (a save in progress completes)."""
+    pending: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield pending
+        return
+    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in (signal.SIGINT,
+                                                                                              signal.SIGTERM)}
+    try:
+        yield pending
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+# -- building ------------------------------------------------------------------------------------
+def _activation(name: str) -> Any:
+    import torch.nn as nn
+
+    table = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "selu": nn.SELU, "leaky_relu": nn.LeakyReLU}
+    try:
+        return table[str(name).lower()]
+    except KeyError:
+        raise TrainingConfigError(f"activation_fn {name!r} is not one of {sorted(table)}") from None
+
+
+def _policy_kwargs(config: TrainingConfig) -> dict[str, Any] | None:
+    if not config.policy_params:
+        return None
+    import torch.optim as optim
+    from stable_baselines3.common import torch_layers
+
+    pk = dict(config.policy_params)
+    if "activation_fn" in pk:
+        pk["activation_fn"] = _activation(pk["activation_fn"])
+    if isinstance(pk.get("optimizer_class"), str):
+        name = pk["optimizer_class"]
+        if not hasattr(optim, name):
+            raise TrainingConfigError(f"{config.source}: optimizer_class {name!r} is not a torch.optim optimizer")
+        pk["optimizer_class"] = getattr(optim, name)
+    if isinstance(pk.get("features_extractor_class"), str):
+        # FRobs_RL names FlattenExtractor for Box observations; dict observations need CombinedExtractor.
+        name = pk.pop("features_extractor_class")
+        if not hasattr(torch_layers, name):
+            raise TrainingConfigError(f"{config.source}: features_extractor_class {name!r} is not an SB3 extractor")
+        if name not in ("FlattenExtractor", "CombinedExtractor", "BaseFeaturesExtractor"):
+            pk["features_extractor_class"] = getattr(torch_layers, name)
+    return pk
+
+
+def algorithm_class(name: str) -> Any:
+    """The SB3 class of algorithm ``name`` (``sac``, ``td3``, ...)."""
+    import stable_baselines3 as sb3
+
+    return getattr(sb3, name.upper())
+
+
+def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
+    """The SB3 model for ``config`` on ``env`` (a gymnasium env or a VecEnv)."""
+    import stable_baselines3 as sb3
+    import torch
+    from gymnasium import spaces
+    from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+
+    torch.set_num_threads(max(1, config.torch_threads))
+    cls = algorithm_class(config.algorithm)
+    kwargs: dict[str, Any] = dict(config.algo_params)
+    kwargs.setdefault("seed", config.seed)
+    kwargs.setdefault("device", "cpu")
+    obs_space = env.observation_space
+    policy = "MultiInputPolicy" if isinstance(obs_space, spaces.Dict) else "MlpPolicy"
+    if config.use_her:
+        if not isinstance(obs_space, spaces.Dict):
+            raise TrainingConfigError(f"{config.source}: use_HER needs a goal env (Dict observation space)")
+        kwargs["replay_buffer_class"] = sb3.HerReplayBuffer
+        kwargs["replay_buffer_kwargs"] = {"n_sampled_goal": 4, "goal_selection_strategy": "future", **config.her_params}
+    pk = _policy_kwargs(config)
+    if pk is not None:
+        kwargs["policy_kwargs"] = pk
+    if config.use_sde:
+        kwargs["use_sde"] = True
+        kwargs.update(config.sde_params)
+    if config.action_noise is not None and config.algorithm in ("td3", "ddpg", "sac"):
+        if not isinstance(env.action_space, spaces.Box):
+            raise TrainingConfigError(f"{config.source}: use_action_noise needs a continuous (Box) action space")
+        n = env.action_space.shape[0]
+        mean = np.full(n, float(config.action_noise.get("mean", 0.0)))
+        sigma = np.full(n, float(config.action_noise.get("sigma", 0.1)))
+        if config.action_noise_type == "ornstein":
+            extra = {k: float(config.action_noise[k]) for k in ("theta", "dt") if k in config.action_noise}
+            kwargs["action_noise"] = OrnsteinUhlenbeckActionNoise(mean=mean, sigma=sigma, **extra)
+        else:
+            kwargs["action_noise"] = NormalActionNoise(mean=mean, sigma=sigma)
+    try:
+        return cls(policy, env, verbose=verbose, **kwargs)
+    except (TypeError, AssertionError, ValueError) as exc:
+        raise TrainingConfigError(f"{config.source}: {config.algorithm}_params: {exc}") from exc
+
+
+def spaces_mismatch(model_path: Path, env: Any) -> str | None:
+    """Why the model in ``model_path`` cannot act in ``env`` (observation or action space), or None."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, _, _ = load_from_zip_file(str(model_path), load_data=True, device="cpu")
+    for name in ("observation_space", "action_space"):
+        saved, current = (data or {}).get(name), getattr(env, name)
+        if saved is not None and saved != current:
+            return (f"{model_path} was trained with {name} {saved}, but the env has {current}: "
+                    "evaluate it on the env ID and env kwargs it was trained with")
+    return None
+
+
+# -- callbacks -----------------------------------------------------------------------------------
+def _aligned(cls: type) -> type:
+    """Count calls from the model's step count, so a resumed run keeps the schedule (every N steps)."""
+
+    class Aligned(cls):  # type: ignore[misc, valid-type]
+        def _on_training_start(self) -> None:
+            super()._on_training_start()
+            self.n_calls = int(self.model.num_timesteps) // max(1, self.model.n_envs)
+
+    Aligned.__name__ = cls.__name__
+    return Aligned
+
+
+def _callback_classes() -> tuple[type, type]:
+    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+
+    class CheckpointEvery(_aligned(CheckpointCallback)):  # type: ignore[misc]
+        """SB3's ``CheckpointCallback``, saving through the session (atomic files, ``latest.json``)."""
+
+        def __init__(self, session: Session, save_freq: int) -> None:
+            super().__init__(save_freq=save_freq, save_path=str(session.paths.checkpoints),
+                             name_prefix=session.paths.prefix, save_replay_buffer=True, save_vecnormalize=True)
+            self.session = session
+
+        def _on_step(self) -> bool:
+            if self.n_calls % self.save_freq == 0:
+                self.session.checkpoint()
+            return True
+
+    class SuccessEval(_aligned(EvalCallback)):  # type: ignore[misc]
+        """SB3's ``EvalCallback``, recording the success rate, keeping the best model by it."""
+
+        def __init__(self, session: Session, eval_env: Any) -> None:
+            config = session.config
+            super().__init__(eval_env, n_eval_episodes=config.eval_episodes, eval_freq=config.eval_freq,
+                             deterministic=True, verbose=0, warn=False)
+            self.session = session
+
+        def _on_step(self) -> bool:
+            if not (self.eval_freq > 0 and self.n_calls % self.eval_freq == 0):
+                return True
+            s = self.session
+            if s.config.seed is not None:
+                self.eval_env.seed(s.config.seed + 10_000 + len(s.evaluations))
+            started = time.perf_counter()
+            keep_going = super()._on_step()
+            rate = float(np.mean(self._is_success_buffer)) if self._is_success_buffer else float("nan")
+            keep_going = s.after_eval(int(self.num_timesteps), rate, float(self.last_mean_reward)) and keep_going
+            s.excluded += time.perf_counter() - started
+            return keep_going
+
+    return CheckpointEvery, SuccessEval
+
+
+# -- the session ---------------------------------------------------------------------------------
+@dataclass
+class Paths:
+    """Where a session writes (``None``: not written)."""
+
+    checkpoints: Path | None = None
+    prefix: str = "model"
+    logs: Path | None = None
+    monitor: Path | None = None
+    evaluations: Path | None = None
+    best_model: Path | None = None
+    meta: Path | None = None
+
+
+@dataclass
+class Session:
+    """One training run: env wrapping, model, callbacks, interruption.
+
+    Args:
+        config: the training config.
+        env: the training env (a gymnasium env).
+        make_eval_env: builds the evaluation env (``None``: no evaluation).
+        paths: output locations.
+        on_eval: ``callback(steps, train_seconds, success_rate)`` after each evaluation.
+        target: success rate that counts as solved (``steps_to_success``).
+    """
+
+    config: TrainingConfig
+    env: Any
+    make_eval_env: Callable[[], Any] | None = None
+    paths: Paths = field(default_factory=Paths)
+    on_eval: Callable[[int, float, float], None] | None = None
+    target: float = 0.9
+    verbose: int = 0
+    success_info: bool = True
+    model: Any = None
+    normalizer: Any = None
+    evaluations: list[dict[str, float]] = field(default_factory=list)
+    steps_to_success: int | None = None
+    seconds_to_success: float | None = None
+    prior_seconds: float = 0.0
+    excluded: float = 0.0
+    _eval_env: Any = None
+    _learn_started: float = 0.0
+
+    # -- environments --
+    def _monitored(self, env: Any, name: str) -> Any:
+        from stable_baselines3.common.monitor import Monitor
+
+        filename = None if self.paths.monitor is None else str(self.paths.monitor / name)
+        keys = ("is_success",) if self.success_info else ()
+        return Monitor(env, filename=filename, info_keywords=keys, override_existing=False)
+
+    def _vec(self, env: Any, *, training: bool, stats: Path | None = None) -> Any:
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        venv = DummyVecEnv([lambda: env])
+        if not self.config.normalize:
+            return venv
+        gamma = float(self.config.algo_params.get("gamma", 0.99))
+        if stats is not None:
+            norm = VecNormalize.load(str(stats), venv)
+            norm.training = training
+        else:
+            norm = VecNormalize(venv, gamma=gamma, norm_reward=False, training=training)
+        return norm
+
+    def _logger(self) -> None:
+        from stable_baselines3.common.logger import configure
+
+        if self.paths.logs is not None:
+            formats = ["csv", "tensorboard"] + (["stdout"] if self.verbose else [])
+            self.model.set_logger(configure(str(self.paths.logs), formats))
+
+    # -- model --
+    def build(self, resume: Checkpoint | None = None, load: Path | None = None) -> Any:
+        """Create the model, or load it from a checkpoint (``resume``) or a saved model (``load``)."""
+        import torch
+
+        torch.set_num_threads(max(1, self.config.torch_threads))
+        self.env.reset(seed=self.config.seed)
+        source = resume.model if resume is not None else load
+        stats = resume.vecnormalize if resume is not None else None
+        if source is not None and stats is None and self.config.normalize:
+            from uniros.run_dir import normalizer_path
+
+            candidate = normalizer_path(Path(source))
+            stats = candidate if candidate.is_file() else None
+        venv = self._vec(self._monitored(self.env, "train"), training=True, stats=stats)
+        self.normalizer = venv if self.config.normalize else None
+        if source is None:
+            self.model = build_model(self.config, venv, verbose=self.verbose)
+        else:
+            self.model = load_model(Path(source), venv, algorithm=self.config.algorithm)
+            if resume is not None and resume.replay_buffer is not None and hasattr(self.model, "replay_buffer"):
+                try:
+                    self.model.load_replay_buffer(str(resume.replay_buffer))
+                except Exception as exc:  # a corrupt pickle: say which file
+                    raise TrainingError(f"replay buffer {resume.replay_buffer} cannot be read ({exc})") from exc
+        self._logger()
+        if self.make_eval_env is not None and self.config.eval_freq > 0:
+            self._eval_env = self._vec(self._monitored(self.make_eval_env(), "eval"), training=False)
+        return self.model
+
+    # -- outputs --
+    def checkpoint(self) -> Checkpoint | None:
+        """Save a checkpoint now (model, replay buffer, normalisation); ``None`` without a folder."""
+        if self.paths.checkpoints is None or self.model is None:
+            return None
+        started = time.perf_counter()
+        ckpt = save_checkpoint(self.model, self.normalizer, self.paths.checkpoints, self.paths.prefix)
+        self._write_meta(status="running")
+        self.excluded += time.perf_counter() - started
+        return ckpt
+
+    def train_seconds(self) -> float:
+        """Training wall-clock so far (evaluation and checkpoint saving excluded)."""
+        if not self._learn_started:
+            return self.prior_seconds
+        return self.prior_seconds + time.perf_counter() - self._learn_started - self.excluded
+
+    def _write_meta(self, **values: Any) -> None:
+        if self.paths.meta is None:
+            return
+        from uniros.run_dir import RunDir
+
+        RunDir(self.paths.meta.parent).update_meta(steps=int(self.model.num_timesteps),
+                                                   train_seconds=round(self.train_seconds(), 3), **values)
+
+    def after_eval(self, steps: int, rate: float, mean_return: float) -> bool:
+        """Record an evaluation, keep the best model; False stops training (``stop_at_success``)."""
+        seconds = self.train_seconds()
+        best = max(self.evaluations, key=_eval_key, default=None)
+        row = {"steps": steps, "train_seconds": round(seconds, 3), "success_rate": rate, "mean_return": mean_return}
+        self.evaluations.append(row)
+        if self.paths.evaluations is not None:
+            from uniros.reports import write_evaluations
+
+            write_evaluations(self.paths.evaluations, self.evaluations)
+        if self.paths.best_model is not None and (best is None or _eval_key(row) > _eval_key(best)):
+            save_model_with_stats(self.model, self.normalizer, self.paths.best_model)
+        if self.on_eval is not None:
+            self.on_eval(steps, seconds, rate)
+        if rate >= self.target and self.steps_to_success is None:
+            self.steps_to_success, self.seconds_to_success = steps, seconds
+        stop = self.config.stop_at_success
+        return not (stop is not None and rate >= stop)
+
+    # -- learning --
+    def learn(self, total_steps: int | None = None, *, reset_num_timesteps: bool = False,
+              progress_bar: bool | None = None) -> None:
+        """Train until the model has ``total_steps`` (default: ``training_steps``) env steps.
+
+        Raises:
+            TrainingInterrupted: on Ctrl-C or SIGTERM, after saving a checkpoint.
+        """
+        checkpoint_cls, eval_cls = _callback_classes()
+        callbacks: list[Any] = []
+        if self.paths.checkpoints is not None and self.config.save_freq > 0:
+            callbacks.append(checkpoint_cls(self, self.config.save_freq))
+        if self._eval_env is not None:
+            callbacks.append(eval_cls(self, self._eval_env))
+        total = self.config.training_steps if total_steps is None else total_steps
+        remaining = total if reset_num_timesteps else total - int(self.model.num_timesteps)
+        if remaining <= 0:
+            return
+        bar = self.config.progress_bar if progress_bar is None else progress_bar
+        self._learn_started, self.excluded = time.perf_counter(), 0.0
+        try:
+            with sigterm_as_interrupt():
+                self.model.learn(total_timesteps=remaining, callback=callbacks, log_interval=self.config.log_interval,
+                                 reset_num_timesteps=reset_num_timesteps, progress_bar=bar)
+        except KeyboardInterrupt as exc:
+            signum = getattr(exc, "signum", signal.SIGINT)
+            with _signals_deferred():
+                ckpt = self.checkpoint()
+                self._write_meta(status="interrupted")
+            name = signal.Signals(signum).name
+            where = f"; checkpoint at {ckpt.steps} steps: {ckpt.model}" if ckpt else " (no checkpoint folder)"
+            raise TrainingInterrupted(f"training interrupted by {name}{where}", signum, ckpt) from None
+        self.prior_seconds, self._learn_started, self.excluded = self.train_seconds(), 0.0, 0.0
+
+    def close(self) -> None:
+        """Close the training and evaluation envs."""
+        for env in (self.env, self._eval_env):
+            if env is not None:
+                with contextlib.suppress(Exception):
+                    env.close()
+
+
+def _eval_key(row: dict[str, float]) -> tuple[float, float]:
+    rate = row["success_rate"]
+    return (-1.0 if rate != rate else rate, row["mean_return"])
+
+
+def load_model(path: Path, env: Any, *, algorithm: str | None = None) -> Any:
+    """Load a saved SB3 model for ``env``, with clear errors for a missing, corrupt or mismatched file.
+
+    Raises:
+        ModelFileError: the file is missing, not an SB3 model, for another algorithm or another env.
+    """
+    import zipfile
+
+    path = Path(path)
+    if not path.is_file() and path.with_name(path.name + ".zip").is_file():
+        path = path.with_name(path.name + ".zip")
+    if not path.is_file():
+        raise ModelFileError(f"model file {str(path)!r} not found")
+    algo = algorithm or algorithm_of(path)
+    try:
+        problem = spaces_mismatch(path, env)
+    except (zipfile.BadZipFile, ValueError, KeyError, EOFError, OSError) as exc:
+        raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
+    if problem:
+        raise ModelFileError(problem)
+    try:
+        return algorithm_class(algo).load(str(path), env=env, device="cpu")
+    except (zipfile.BadZipFile, ValueError, KeyError, EOFError, RuntimeError, TypeError) as exc:
+        raise ModelFileError(
+            f"{path} cannot be loaded as a {algo.upper()} model ({type(exc).__name__}: {exc})"
+        ) from exc
+
+
+class ModelFileError(TrainingError, ValueError):
+    """A saved model is missing, unreadable, for another algorithm, or for another env."""
+
+
+def algorithm_of(path: Path) -> str:
+    """The algorithm a saved SB3 ``.zip`` was trained with (from its policy class)."""
+    import json
+    import zipfile
+
+    from uniros.train_config import ALGORITHMS
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
+        raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
+    module = str((data.get("policy_class") or {}).get("__module__", ""))
+    for algo in ALGORITHMS:
+        if f".{algo}." in f".{module}.":
+            return algo
+    raise ModelFileError(f"cannot tell the algorithm of {path} (policy module {module!r}); pass --algo")
+
+
+def latest_checkpoint(folder: Path, prefix: str | None = None) -> list[Checkpoint]:
+    """Complete checkpoints, the one ``latest.json`` names first, then the others newest first."""
+    import json
+
+    found = list_checkpoints(folder, prefix)
+    latest = folder / "latest.json"
+    if latest.is_file():
+        try:
+            named = json.loads(latest.read_text())["model"]
+            found.sort(key=lambda c: c.model.name != named)
+        except (ValueError, KeyError, TypeError):
+            _logger.warning("%s is unreadable; using the newest checkpoint files", latest)
+    return found
+
+
+def write_run_meta(path: Path, **values: Any) -> None:
+    """Write ``run.json``."""
+    write_json(path, values)
