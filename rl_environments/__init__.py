@@ -28,7 +28,14 @@ All have ``max_episode_steps=100``. Robot description packages (``rx200_descript
 
 from __future__ import annotations
 
+from pathlib import Path as _Path
+
 from gymnasium.envs.registration import register, registry
+
+from rl_environments._checkout import map_checkout_package as _map_checkout_package
+
+# From a source checkout, config/ is not inside this package (an install maps it): map it.
+_map_checkout_package("rl_environments.config", _Path(__file__).resolve().parent.parent / "config")
 
 ENV_SPECS: dict[str, str] = {
     "RX200ReacherSim-v0": "rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim:RX200ReacherEnv",

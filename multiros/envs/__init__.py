@@ -8,6 +8,7 @@ importable under their MultiROS names too: ``multiros.envs.GazeboBaseEnv.GazeboB
 ros2_control robot with the same hooks; ``multiros.envs.RealBaseEnv.RealBaseEnv`` works too.
 """
 
+from multiros.envs import _third_party  # noqa: F401  (gymnasium_robotics without its AdroitHand notice)
 from multiros.envs.base_env import MujocoBaseEnv, MujocoGoalEnv
 from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.core import EnvError, ResetError

@@ -97,9 +97,35 @@ class MujocoEnvCore:
         render_mode: ``None``, ``"rgb_array"``, ``"depth_array"`` or ``"human"``.
         render_camera: camera for rendering (a camera name in the world; empty = the default view).
         render_width, render_height: rendered image size.
+        sim_connection: a :class:`~multiros.sim.launch.SimulationConnection` shared with other envs
+            (a vector env's batch, see :mod:`multiros.envs.batch`): the env spawns its robot there,
+            does not close the connection, and its reset puts back only its own robot, never the world.
+        world_slot: offset ``(x, y, z)`` in metres of this env's slot in a shared world: the robot spawns
+            at its spawn position plus the offset and frame positions are reported minus it, so the
+            task sees the same numbers as alone in its own world.
     """
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "depth_array", "human"], "render_fps": 25}
+
+    # -- pickling: an env is re-created from its constructor arguments, as Gymnasium's MuJoCo envs
+    # (EzPickle) are; the copy has its own simulation node and starts from a fresh reset.
+    def __new__(cls, *args: Any, **kwargs: Any) -> Any:
+        self = super().__new__(cls)
+        self._ctor_args = (args, dict(kwargs))
+        return self
+
+    def __getstate__(self) -> dict[str, Any]:
+        args, kwargs = getattr(self, "_ctor_args", ((), {}))
+        if kwargs.get("sim_mode") == "existing" or kwargs.get("sim_connection") is not None:
+            raise TypeError(
+                f"{type(self).__name__} with sim_mode='existing' cannot be pickled or copied: a copy would spawn "
+                "a second robot into the same running simulation node; create another env instead"
+            )
+        return {"_ctor_args": (args, kwargs)}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        args, kwargs = state["_ctor_args"]
+        self.__dict__.update(type(self)(*args, **kwargs).__dict__)
 
     def _init_core(
         self,
@@ -140,6 +166,8 @@ class MujocoEnvCore:
         render_camera: str = "",
         render_width: int = 480,
         render_height: int = 480,
+        sim_connection: Any = None,
+        world_slot: Sequence[float] = (0.0, 0.0, 0.0),
         **legacy: Any,
     ) -> None:
         # MultiROS / FRobs_RL spellings of the same knobs.
@@ -212,10 +240,15 @@ class MujocoEnvCore:
         self._action_bounds: tuple[Any, np.ndarray, np.ndarray] | None = None
         self._closed = False
         self.info: dict[str, Any] = {}
+        slot = np.asarray(world_slot, dtype=np.float64)
+        if slot.shape != (3,) or not np.all(np.isfinite(slot)):
+            raise ValueError(f"world_slot must be 3 finite numbers (x, y, z), got {world_slot!r}")
+        self._slot: np.ndarray | None = slot if np.any(slot) else None
+        self._shared_world = sim_connection is not None
 
         from multiros.sim.launch import connect, local_description_dirs  # the sim layer sits above envs (DESIGN §2)
 
-        self._connection = connect(
+        self._connection = sim_connection if sim_connection is not None else connect(
             sim_mode,
             node_name=sim_node_name,
             transport=transport,
@@ -237,7 +270,8 @@ class MujocoEnvCore:
                 self.sim.unpause()  # physics runs free; the env acts and observes at its own pace
             self._refresh_state()
         except BaseException:
-            self._connection.close()
+            if not self._shared_world:
+                self._connection.close()
             raise
 
     # -- set-up -----------------------------------------------------------------------------
@@ -258,7 +292,7 @@ class MujocoEnvCore:
             uri=uri,
             resource_string=text,
             namespace=self.namespace,
-            position=self.spawn_pose.position,
+            position=self.spawn_pose.position if self._slot is None else tuple(np.add(self.spawn_pose.position, self._slot)),
             orientation=self.spawn_pose.orientation,
             timeout_sec=max(self.timeout_sec, 30.0),
         )
@@ -267,7 +301,12 @@ class MujocoEnvCore:
     def _refresh_state(self, steps: int = 0) -> RobotState:
         """One ``StepRobot`` round trip: pending commands, ``steps`` physics steps, fresh state."""
         commands, self._pending_commands = self._pending_commands, {}
-        state = self.sim.step_robot(self.robot_name, commands, steps, self.frames)
+        return self._accept_state(self.sim.step_robot(self.robot_name, commands, steps, self.frames))
+
+    def _accept_state(self, state: RobotState) -> RobotState:
+        """Make ``state`` (from StepRobot, or a vector env's StepRobots) the one hooks read."""
+        if self._slot is not None and len(state.frame_positions):
+            state.frame_positions -= self._slot  # a fresh array per state: relative to this env's slot
         if self._state is None or state.names != self._state.names:
             self._joint_index = {name: i for i, name in enumerate(state.names)}
             self._select_cache = {}
@@ -440,6 +479,9 @@ class MujocoEnvCore:
         hook(action)
 
     def _reset_simulation(self) -> None:
+        if self._shared_world:  # other envs' robots share this world: put back only this one
+            self.sim.reset_robot(self.robot_name)
+            return
         scope = _SCOPE_STATE if self.reset_mode == "world" else _SCOPE_STATE | _SCOPE_TIME
         self.sim.reset_simulation(scope)
         if self.reset_controllers:
@@ -459,6 +501,11 @@ class MujocoEnvCore:
             return None
         camera, width, height = self._render_options
         if self.render_mode == "human":
+            from multiros.sim.render import display_available
+
+            if not display_available():
+                raise EnvError('render_mode="human" opens the MuJoCo viewer and needs a display (DISPLAY or '
+                               'WAYLAND_DISPLAY is not set); use render_mode="rgb_array" for images without one')
             self._connection.show_viewer()
             return None
         return self.sim.render(camera, width, height, depth=self.render_mode == "depth_array")
@@ -469,7 +516,7 @@ class MujocoEnvCore:
             return
         self._closed = True
         connection = getattr(self, "_connection", None)
-        if connection is not None:
+        if connection is not None and not getattr(self, "_shared_world", False):
             try:
                 connection.close()
             except SimulationNodeError:
