@@ -63,10 +63,20 @@ class MujocoBaseEnv(MujocoEnvCore, gym.Env):
         return obs, info
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
+        self._step_act(action)
+        self._advance()
+        return self._step_result()
+
+    # The two halves of a step around the simulation's advance; a vector env (multiros.envs.batch)
+    # runs the first for each of its envs, advances all their robots in one request, then the second.
+    def _step_act(self, action: Any) -> None:
+        """Check the action and run the action hook (commands become pending)."""
         action = self._check_action(action)
         self.info = {}
         self._set_action_hook(MujocoBaseEnv, action)
-        self._advance()
+
+    def _step_result(self) -> tuple[Any, float, bool, bool, dict]:
+        """Observation, reward, termination and info from the state after the advance."""
         obs = self._observe()
         info = self.info
         reward = self._hook(MujocoBaseEnv, "_get_reward")
@@ -141,10 +151,18 @@ class MujocoGoalEnv(MujocoEnvCore, GoalEnv):
         return obs, info
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
+        self._step_act(action)
+        self._advance()
+        return self._step_result()
+
+    def _step_act(self, action: Any) -> None:
+        """Check the action and run the action hook (commands become pending)."""
         action = self._check_action(action)
         self.info = {}
         self._set_action_hook(MujocoGoalEnv, action)
-        self._advance()
+
+    def _step_result(self) -> tuple[dict, float, bool, bool, dict]:
+        """Observation, reward, termination and info from the state after the advance."""
         obs = self._observe()
         info = self.info
         ag, dg = obs["achieved_goal"], obs["desired_goal"]

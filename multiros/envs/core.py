@@ -292,7 +292,7 @@ class MujocoEnvCore:
             uri=uri,
             resource_string=text,
             namespace=self.namespace,
-            position=self.spawn_pose.position if self._slot is None else tuple(np.add(self.spawn_pose.position, self._slot)),
+            position=tuple(np.add(self.spawn_pose.position, 0.0 if self._slot is None else self._slot)),
             orientation=self.spawn_pose.orientation,
             timeout_sec=max(self.timeout_sec, 30.0),
         )
@@ -306,7 +306,8 @@ class MujocoEnvCore:
     def _accept_state(self, state: RobotState) -> RobotState:
         """Make ``state`` (from StepRobot, or a vector env's StepRobots) the one hooks read."""
         if self._slot is not None and len(state.frame_positions):
-            state.frame_positions -= self._slot  # a fresh array per state: relative to this env's slot
+            # a fresh array per state: made relative to this env's slot in place
+            np.subtract(state.frame_positions, self._slot, out=state.frame_positions)
         if self._state is None or state.names != self._state.names:
             self._joint_index = {name: i for i, name in enumerate(state.names)}
             self._select_cache = {}

@@ -35,6 +35,8 @@ DEFAULT_NODE_NAME = "mujoco_sim"
 Result = get_message("simulation_interfaces/msg/Result")
 SimulationState = get_message("simulation_interfaces/msg/SimulationState")
 ControllerCommand = get_message("uniros_interfaces/msg/ControllerCommand")
+RobotStep = get_message("uniros_interfaces/msg/RobotStep")
+RobotStepResult = get_message("uniros_interfaces/msg/RobotStepResult")
 Pose = get_message("geometry_msgs/msg/Pose")
 
 
@@ -96,7 +98,7 @@ def _time_to_sec(stamp: Any) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-def _robot_state(response: Any) -> RobotState:
+def _robot_state(response: Any, sim_time: Any = None) -> RobotState:
     js = response.joint_state
     poses = response.frame_poses
     if poses:
@@ -105,7 +107,7 @@ def _robot_state(response: Any) -> RobotState:
     else:
         positions, orientations = np.empty((0, 3)), np.empty((0, 4))
     return RobotState(
-        sim_time=_time_to_sec(response.sim_time),
+        sim_time=_time_to_sec(response.sim_time if sim_time is None else sim_time),
         names=tuple(js.name),
         position=np.asarray(js.position, dtype=np.float64),
         velocity=np.asarray(js.velocity, dtype=np.float64),
@@ -113,6 +115,34 @@ def _robot_state(response: Any) -> RobotState:
         frame_positions=positions,
         frame_orientations=orientations,
     )
+
+
+@dataclass(frozen=True)
+class RobotStepOutcome:
+    """One robot's part of a :meth:`SimulationClient.step_robots` answer.
+
+    Attributes:
+        entity: the robot.
+        status: ``uniros_interfaces/msg/RobotStepResult`` code (0 = OK; 104 = UNSTABLE: physics
+            diverged and the robot was restored at rest; 101-103, 105: its request part was refused).
+        message: the node's explanation when ``status`` is not OK.
+        state: the robot's state after the step (``None`` for an unknown robot).
+    """
+
+    entity: str
+    status: int
+    message: str
+    state: RobotState | None
+
+
+@dataclass(frozen=True)
+class RobotStepSpec:
+    """One robot's part of a :meth:`SimulationClient.step_robots` request."""
+
+    entity: str
+    commands: Mapping[str, Iterable[float]] | None = None
+    frames: Sequence[str] = ()
+    reset: bool = False
 
 
 def make_pose(position: Sequence[float], orientation_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0)) -> Any:
@@ -330,6 +360,68 @@ class SimulationClient:
         res = self._call("step_robot", req, timeout_sec)
         _check(self.service_name("step_robot"), res.result)
         return _robot_state(res)
+
+    def step_robots_request(self, robots: Sequence[RobotStepSpec], steps: int = 1) -> Any:
+        """The ``StepRobots`` request for ``robots`` (see :meth:`step_robots`)."""
+        items = []
+        for spec in robots:
+            item = RobotStep(entity=spec.entity, reset=bool(spec.reset), frames=list(spec.frames))
+            if spec.commands:
+                item.commands = [
+                    ControllerCommand(controller=name, command=np.asarray(values, dtype=np.float64))
+                    for name, values in spec.commands.items()
+                ]
+            items.append(item)
+        return self.request("step_robots", robots=items, steps=int(steps))
+
+    def step_robots_async(self, request: Any, timeout_sec: float | None = None) -> Any:
+        """Send a ``StepRobots`` request; a future of the response (see :meth:`step_robots_outcomes`)."""
+        timeout = self.timeout_sec if timeout_sec is None else timeout_sec
+        return self._client("step_robots").call_async(request, timeout_sec=timeout)
+
+    def step_robots_outcomes(self, request: Any, response: Any) -> list[RobotStepOutcome]:
+        """Per-robot outcomes of a ``StepRobots`` response (raises if the call as a whole failed)."""
+        _check(self.service_name("step_robots"), response.result)
+        if len(response.robots) != len(request.robots):
+            raise SimulationNodeError(
+                f"simulation node {self._prefix!r} answered StepRobots for {len(response.robots)} robots, "
+                f"asked for {len(request.robots)}"
+            )
+        out = []
+        for item, part in zip(request.robots, response.robots):
+            known = part.status != RobotStepResult.UNKNOWN_ROBOT
+            state = _robot_state(part, response.sim_time) if known else None
+            out.append(RobotStepOutcome(item.entity, int(part.status), part.message, state))
+        return out
+
+    def step_robots(
+        self, robots: Sequence[RobotStepSpec], steps: int = 1, timeout_sec: float | None = None
+    ) -> list[RobotStepOutcome]:
+        """Step a batch of robots in one round trip: per robot an optional reset and its commands,
+        then ``steps`` physics steps for the whole world, then each robot's state.
+
+        A robot's own failure (bad command, divergence, ...) is in its outcome's ``status``; the
+        others step on. Raises :class:`SimulationServiceError` when the call as a whole fails.
+        """
+        request = self.step_robots_request(robots, steps)
+        return self.step_robots_outcomes(request, self._call("step_robots", request, timeout_sec))
+
+    def reset_robot(self, entity: str) -> RobotState:
+        """Put one robot back in its spawn state (joints, at rest, controllers holding it); the
+        other robots, objects and time are untouched."""
+        (outcome,) = self.step_robots([RobotStepSpec(entity, reset=True)], steps=0)
+        if outcome.state is None or outcome.status != RobotStepResult.OK:
+            raise SimulationServiceError(self.service_name("step_robots"), outcome.status, outcome.message)
+        return outcome.state
+
+    def get_node_load(self) -> dict[str, Any]:
+        """The node's load and limits: ``robots``, ``max_robots``, ``entities``, ``physics_steps``,
+        ``physics_steps_per_sec``, ``busy_fraction``, ``model_bytes``, ``process_rss_bytes``."""
+        res = self._call("get_node_load", self.request("get_node_load"))
+        _check(self.service_name("get_node_load"), res.result)
+        keys = ("robots", "max_robots", "entities", "physics_steps", "physics_steps_per_sec", "busy_fraction",
+                "model_bytes", "process_rss_bytes")
+        return {k: getattr(res, k) for k in keys}
 
     def set_robot_joint_state(
         self,

@@ -378,6 +378,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--max-steps-per-call", type=int, default=None, metavar="N",
                         help="largest step count one StepSimulation/StepRobot request may ask for "
                              "(default 100000); larger requests are refused")
+    parser.add_argument("--max-robots", type=int, default=None, metavar="N",
+                        help="most robots this node holds (default 256); SpawnEntity refuses more")
     parser.add_argument("--owner-pid", type=int, default=None,
                         help="exit when this process is gone (set by envs that start the node)")
     parser.add_argument("--log-level", default="INFO")
@@ -412,6 +414,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         if opts.max_steps_per_call < 1:
             parser.error("--max-steps-per-call must be a positive integer")
         node_options["max_steps_per_call"] = opts.max_steps_per_call
+    if opts.max_robots is not None:
+        if opts.max_robots < 1:
+            parser.error("--max-robots must be a positive integer")
+        node_options["max_robots"] = opts.max_robots
     node = None
     try:
         node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,

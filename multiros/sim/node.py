@@ -11,7 +11,8 @@ Services (``~`` = this node, default ``/mujoco_sim``):
 ``~/get_simulator_features``, ``~/spawn_entity``, ``~/delete_entity``, ``~/get_entities``,
 ``~/get_entity_state``, ``~/set_entity_state``, ``~/get_entities_states``, ``~/reset_simulation``,
 ``~/get_simulation_state``, ``~/set_simulation_state``, ``~/step_simulation``, and the project's own
-``~/step_robot`` (the lockstep env step), ``~/set_robot_joint_state``,
+``~/step_robot`` (the lockstep env step), ``~/step_robots`` (a batch of robots in one round trip),
+``~/get_node_load`` (robots, limits, physics rate, memory), ``~/set_robot_joint_state``,
 ``~/get_physics_properties``, ``~/set_physics_properties``, ``~/render_camera``.
 Topics: ``/clock`` while time advances; per robot ``joint_states``, ``robot_description``,
 controller command topics; ``/tf``.
@@ -21,6 +22,7 @@ from __future__ import annotations
 
 import re
 import threading
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -35,10 +37,11 @@ from multiros.sim.actions import SimulateStepsAction
 from multiros.sim.description import SourcePolicy
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError
-from multiros.sim.limits import MAX_STEPS_PER_CALL, DescriptionLimits
+from multiros.sim.limits import MAX_ROBOTS, MAX_STEPS_PER_CALL, DescriptionLimits
+from multiros.sim.node_load import LoadMeter, get_node_load
 from multiros.sim.node_results import FAILED, NOT_FOUND, OK, Result, fail, guarded, ok
 from multiros.sim.node_spawn import spawn_entity
-from multiros.sim.node_stepping import FrameSetCache, step_robot, step_simulation
+from multiros.sim.node_stepping import FrameSetCache, step_robot, step_robots, step_simulation
 from multiros.sim.robot_io import RobotInterfaces
 from multiros.sim.services import SIM_SERVICES
 from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
@@ -99,6 +102,8 @@ class SimulationNode(Node):
             parameter ``max_steps_per_call``, so ``--ros-args -p max_steps_per_call:=N`` works).
         description_limits: size and value bounds of spawned descriptions (default
             :class:`~multiros.sim.limits.DescriptionLimits`).
+        max_robots: most robots the node holds (default :data:`multiros.sim.limits.MAX_ROBOTS`;
+            also the read-only ROS parameter ``max_robots``); SpawnEntity refuses more.
         **node_kwargs: passed to :class:`multiros.ros.Node` (``context``, ``namespace``, ...).
     """
 
@@ -116,6 +121,7 @@ class SimulationNode(Node):
         trusted_paths: Sequence[str | Path] = (),
         max_steps_per_call: int = MAX_STEPS_PER_CALL,
         description_limits: DescriptionLimits | None = None,
+        max_robots: int = MAX_ROBOTS,
         **node_kwargs: Any,
     ) -> None:
         super().__init__(node_name, **node_kwargs)
@@ -129,6 +135,14 @@ class SimulationNode(Node):
         if not isinstance(steps, int) or steps < 1:
             raise ValueError(f"max_steps_per_call must be an integer >= 1, got {steps!r}")
         self.max_steps_per_call = steps
+        robots = self.declare_parameter(
+            "max_robots", int(max_robots),
+            ParameterDescriptor(read_only=True, description="most robots this node holds"),
+        ).value
+        if not isinstance(robots, int) or robots < 1:
+            raise ValueError(f"max_robots must be an integer >= 1, got {robots!r}")
+        self.max_robots = robots
+        self.load = LoadMeter()  # ~/get_node_load
         self._executor: Any = None
         self._spin_thread: threading.Thread | None = None
         self.world = world if world is not None else World(options)
@@ -139,7 +153,7 @@ class SimulationNode(Node):
         self.lock = self._runner.lock
         self._state = SimulationState.STATE_PAUSED
         self._robots: dict[str, RobotInterfaces] = {}
-        self._frame_sets = FrameSetCache()  # StepRobot's frame sets
+        self._frame_sets = FrameSetCache(max(64, 2 * self.max_robots))  # StepRobot(s)' frame sets
         self._renderer: Any = None
         self._viewer: Any = None
         self._clock_pub = self.create_publisher(Clock, "/clock", qos_profile_clock)
@@ -256,7 +270,16 @@ class SimulationNode(Node):
 
     @guarded
     def _srv_spawn_entity(self, request: Any, response: Any) -> Any:
-        return spawn_entity(self, request, response, self.source_policy)
+        response = spawn_entity(self, request, response, self.source_policy)
+        if response.result.result == OK and len(self._robots) > self.max_robots:
+            with self.lock:
+                name = response.entity_name
+                if name in self._robots:
+                    self._detach_robot(name)
+                    self.world.delete(name)
+            fail(response.result, FAILED, f"this node already holds max_robots={self.max_robots} robots; "
+                 "spawn it on another node, or start this one with a larger max_robots (uniros-sim --max-robots)")
+        return response
 
     def _srv_delete_entity(self, request: Any, response: Any) -> Any:
         with self.lock:
@@ -401,7 +424,11 @@ class SimulationNode(Node):
 
     def _step_world(self, steps: int) -> None:
         """Step in chunks that stop when the node shuts down (lock held by the caller)."""
-        self.world.step(steps, should_stop=self._stopping.is_set)
+        start = time.perf_counter()
+        try:
+            self.world.step(steps, should_stop=self._stopping.is_set)
+        finally:
+            self.load.record(steps, time.perf_counter() - start)
 
     @guarded
     def _srv_step_simulation(self, request: Any, response: Any) -> Any:
@@ -411,6 +438,13 @@ class SimulationNode(Node):
     @guarded
     def _srv_step_robot(self, request: Any, response: Any) -> Any:
         return step_robot(self, request, response)
+
+    @guarded
+    def _srv_step_robots(self, request: Any, response: Any) -> Any:
+        return step_robots(self, request, response)
+
+    def _srv_get_node_load(self, request: Any, response: Any) -> Any:
+        return get_node_load(self, request, response)
 
     def _srv_set_robot_joint_state(self, request: Any, response: Any) -> Any:
         js = request.joint_state

@@ -17,6 +17,8 @@ SIM_SERVICES: dict[str, str] = {
     "set_simulation_state": "simulation_interfaces/srv/SetSimulationState",
     "step_simulation": "simulation_interfaces/srv/StepSimulation",
     "step_robot": "uniros_interfaces/srv/StepRobot",
+    "step_robots": "uniros_interfaces/srv/StepRobots",
+    "get_node_load": "uniros_interfaces/srv/GetNodeLoad",
     "set_robot_joint_state": "uniros_interfaces/srv/SetRobotJointState",
     "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
     "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",

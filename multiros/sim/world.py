@@ -544,6 +544,22 @@ class World(WorldStepping):
                     write_actuators(self._model, d, ent)
         return ()
 
+    def reset_entity(self, name: str) -> None:
+        """Put one entity back in its spawn state (joints at their initial positions, at rest, solver
+        warm start cleared, active controllers holding that pose); time and the others are untouched.
+
+        For one entity alone in its world this equals ``reset(ResetScope.STATE)``. Raises EntityError if unknown.
+        """
+        ent, m, d = self._get(name), self._model, self._data
+        apply_initial(m, d, ent)
+        d.qacc_warmstart[ent.dof_idx] = 0.0
+        mujoco.mj_forward(m, d)
+        if ent.cm is not None:
+            ent.countdown = 0
+            read_state(d, ent)
+            ent.cm.hold(d.time)
+            write_actuators(m, d, ent)
+
     def _relaunch(self) -> tuple[str, ...]:
         for ent in self._entities.values():
             remove_from_spec(self._spec, ent)

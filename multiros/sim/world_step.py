@@ -137,11 +137,11 @@ class WorldStepping:
             if not self._warnings_changed() and not self._diverged():
                 done += 1
                 continue
-            bad = self._diverged()
-            if not bad:  # a warning without a NaN left behind: blame the owner of the reported dof
-                dof = int(d.warning[_BAD_WARNINGS[0]].lastinfo)
-                bad = [e for e in self._entities.values() if dof in e.dof_idx] or list(self._entities.values())
+            # Blame, in order: entities already bad before this physics step (NaN can leak into the
+            # others through the solver), the owners of the index MuJoCo warned about, the bad ones after.
+            after, warned = self._diverged(), self._warned()
             mujoco.mj_setState(m, d, good, self._state_spec)
+            bad = self._diverged() or warned or after or list(self._entities.values())
             for ent in self._entities.values():
                 ent.countdown = counts[ent.name]
             attempts += 1
@@ -172,6 +172,23 @@ class WorldStepping:
             f"physics diverged (MuJoCo bad qpos/qvel/qacc) in entity(s) {list(names)} near t={d.time:.4f}s; "
             f"they were restored to their state before this step call, at rest, while the other entities "
             f"stepped on. Lower the timestep, the gains or the commanded efforts.", entities=names)
+
+    def _warned(self) -> list[EntityRecord]:
+        """Owners of the index a new bad-state warning reported: bad qpos/qvel first (they name the
+        source; a bad qacc follows from MuJoCo's reset of the whole data), else bad qacc."""
+        d = self._data
+        for kinds in ((1, 2), (0,)):  # (_BAD_WARNINGS: QACC, QPOS, QVEL)
+            out: list[EntityRecord] = []
+            for k in kinds:
+                warning = d.warning[_BAD_WARNINGS[k]]
+                if warning.number == self._warn_counts[k]:
+                    continue
+                index = int(warning.lastinfo)
+                out += [e for e in self._entities.values()
+                        if index in (e.qpos_idx if k == 1 else e.dof_idx) and e not in out]
+            if out:
+                return out
+        return []
 
     def _snap_qpos_of(self, ent: EntityRecord) -> np.ndarray:
         # mjSTATE_INTEGRATION starts with time (1), then qpos (nq)

@@ -1,0 +1,236 @@
+"""A batch of envs whose robots share simulation nodes: one ``StepRobots`` round trip per node per step.
+
+:class:`EnvBatch` holds N ordinary task-env instances (the task logic is written once, in the task
+env) spread over K simulation nodes (N/K robots each). Each env spawns its robot in its own
+namespace and **world slot**: a spatial offset (a grid, ``spacing`` metres apart) far beyond an
+arm's reach, so robots never touch, and frame positions reported relative to the slot, so each env
+sees exactly the numbers it would see alone in its own world. A step runs each env's action hook
+(its commands become pending), sends one ``uniros_interfaces/srv/StepRobots`` request per node
+(all K at once), then hands each env its robot's state for its observation, reward and
+termination hooks. A reset puts back only that env's robot (``RobotStep.reset``), never the world.
+
+The vector envs on top (:class:`multiros.envs.vector.BatchedVectorEnv` for Gymnasium,
+``uniros.vec_env.BatchedVecEnv`` for Stable-Baselines3) add the autoreset rules.
+
+Faults: a robot that diverges, or whose commands the node refuses, ends its episode alone
+(``truncated``, ``info["sim_error"]``; ``info["sim_diverged"]`` for divergence) and the others
+step on. A node that dies or stops answering raises :class:`~multiros.sim.client.SimulationNodeError`
+naming it, within the batch's ``timeout_sec`` (at once when its process is seen to exit).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from multiros.envs.core import EnvError, MujocoEnvCore
+from multiros.sim.client import RobotStepOutcome, RobotStepSpec, SimulationNodeError
+
+StepResult = tuple[Any, float, bool, bool, dict]
+
+_OK, _UNSTABLE = 0, 104
+_batch_ids = itertools.count()
+
+
+def slot_offset(index: int, count: int, spacing: float) -> tuple[float, float, float]:
+    """World slot ``index`` of ``count``: a square grid in the x-y plane, ``spacing`` metres apart."""
+    cols = max(1, math.ceil(math.sqrt(count)))
+    return (float(index % cols) * spacing, float(index // cols) * spacing, 0.0)
+
+
+class EnvBatch:
+    """N envs over K simulation nodes, stepped with one ``StepRobots`` request per node.
+
+    Args:
+        make_env: ``make_env(**kwargs)`` creates one env (a :class:`~multiros.envs.core.MujocoEnvCore`
+            task env); it is called with ``sim_connection``, ``world_slot``, ``robot_name`` and ``seed``.
+        num_envs: N, the number of envs (robots).
+        robot_name: base of the robots' entity names (each gets ``<base>_<batch>_<i>``, its namespace too).
+        sim_mode: ``"composed"`` (one node in this process) or ``"process"`` (nodes in child
+            processes, each behind its own private Zenoh router).
+        num_nodes: K nodes (``process`` mode for K > 1); env ``i`` lives on node ``i * K // N``.
+        spacing: metres between world slots (larger than twice the robot's reach).
+        timeout_sec: bound on every request; a node that does not answer in time is named in the error.
+        max_episode_steps: truncate episodes after this many steps (``None``: never).
+        node_name: the simulation nodes' name (each behind its own router in process mode).
+        trusted_paths: folders of local robot files the nodes may read.
+        connect_kwargs: more options for :func:`multiros.sim.launch.connect`.
+
+    Raises:
+        ValueError: bad counts, or ``num_envs`` beyond what the nodes accept (``max_robots``).
+    """
+
+    def __init__(
+        self,
+        make_env: Callable[..., Any],
+        num_envs: int,
+        *,
+        robot_name: str = "robot",
+        sim_mode: str = "composed",
+        num_nodes: int = 1,
+        spacing: float = 2.0,
+        timeout_sec: float = 10.0,
+        max_episode_steps: int | None = None,
+        node_name: str = "mujoco_sim",
+        trusted_paths: Sequence[str] = (),
+        connect_kwargs: Mapping[str, Any] | None = None,
+    ) -> None:
+        from multiros.sim.launch import connect  # the sim layer's launcher (DESIGN §2)
+
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if not isinstance(num_nodes, int) or not 1 <= num_nodes <= num_envs:
+            raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {num_nodes!r}")
+        if sim_mode not in ("composed", "process"):
+            raise ValueError(f"a batched vector env runs its own nodes: sim_mode must be 'composed' or 'process', "
+                             f"got {sim_mode!r}")
+        if num_nodes > 1 and sim_mode != "process":
+            raise ValueError("num_nodes > 1 needs sim_mode='process' (composed nodes would share this process' core)")
+        if not (math.isfinite(spacing) and spacing > 0):
+            raise ValueError(f"spacing must be a positive number of metres, got {spacing!r}")
+        self.num_envs = num_envs
+        self.num_nodes = num_nodes
+        self.timeout_sec = float(timeout_sec)
+        self.max_episode_steps = max_episode_steps
+        self.node_of = [i * num_nodes // num_envs for i in range(num_envs)]
+        self.connections: list[Any] = []
+        self.envs: list[Any] = []
+        self._elapsed = np.zeros(num_envs, dtype=np.int64)
+        tag = f"{os.getpid()}x{next(_batch_ids)}"
+        try:
+            for _ in range(num_nodes):
+                self.connections.append(connect(sim_mode, node_name=node_name, timeout_sec=max(self.timeout_sec, 30.0),
+                                                 trusted_paths=trusted_paths, **dict(connect_kwargs or {})))
+            for k, conn in enumerate(self.connections):
+                self._check_capacity(k, conn, self.node_of.count(k))
+            for i in range(num_envs):
+                k = self.node_of[i]
+                members = [j for j in range(num_envs) if self.node_of[j] == k]
+                env = make_env(sim_connection=self.connections[k], robot_name=f"{robot_name}_{tag}_{i}",
+                               world_slot=slot_offset(members.index(i), len(members), spacing))
+                if not isinstance(env, MujocoEnvCore):
+                    raise TypeError(f"a batched vector env needs uniros envs on the simulation node; got "
+                                    f"{type(env).__name__}: use vectorization_mode='sync' or 'async' for it")
+                self.envs.append(env)
+                if env.step_config.mode != "lockstep":
+                    raise ValueError(f"a batched vector env steps its robots in lockstep; env {i} has "
+                                     f"step_mode={env.step_config.mode!r}")
+            steps = {env.step_config.num_sim_steps for env in self.envs}
+            if len(steps) != 1:
+                raise ValueError(f"the envs of one batch must share num_sim_steps, got {sorted(steps)}")
+            self.num_sim_steps = steps.pop()
+        except BaseException:
+            self.close()
+            raise
+
+    def _check_capacity(self, k: int, conn: Any, share: int) -> None:
+        load = conn.client.get_node_load()
+        free = int(load["max_robots"]) - int(load["robots"])
+        if share > free:
+            raise ValueError(
+                f"num_envs={self.num_envs} puts {share} robots on simulation node {self._node_label(k)}, which "
+                f"accepts {free} more (max_robots={load['max_robots']}, documented in docs/simulation_node.md); "
+                f"use num_nodes > 1 (sim_mode='process') or fewer envs"
+            )
+
+    def _node_label(self, k: int) -> str:
+        conn = self.connections[k]
+        pid = f", pid {conn.pid}" if conn.pid is not None else ""
+        return f"{k} of {self.num_nodes} ({conn.client.sim_node}{pid})"
+
+    # -- stepping -----------------------------------------------------------------------------
+    def step_envs(self, indices: Sequence[int], actions: Sequence[Any]) -> list[StepResult]:
+        """Step envs ``indices`` with ``actions``: one ``StepRobots`` request per node, all nodes at once.
+
+        Robots of envs not in ``indices`` stay in the world and advance too (their controllers
+        hold their last commands); such envs are about to be reset, which puts back their whole state.
+        """
+        envs = self.envs
+        specs: dict[int, list[RobotStepSpec]] = {}
+        members: dict[int, list[int]] = {}
+        for i, action in zip(indices, actions):
+            env = envs[i]
+            env._step_act(action)
+            commands, env._pending_commands = env._pending_commands, {}
+            k = self.node_of[i]
+            specs.setdefault(k, []).append(RobotStepSpec(env.robot_name, commands, env.frames))
+            members.setdefault(k, []).append(i)
+        outcomes: dict[int, RobotStepOutcome] = {}
+        for k, result in self._send(specs).items():
+            outcomes.update(zip(members[k], result))
+        results = []
+        for i in indices:
+            results.append(self._finish(i, outcomes[i]))
+        return results
+
+    def _send(self, specs: Mapping[int, list[RobotStepSpec]]) -> dict[int, list[RobotStepOutcome]]:
+        pending = []
+        for k, items in specs.items():
+            client = self.connections[k].client
+            request = client.step_robots_request(items, self.num_sim_steps)
+            pending.append((k, request, client.step_robots_async(request, self.timeout_sec)))
+        deadline = time.monotonic() + self.timeout_sec
+        out = {}
+        for k, request, future in pending:
+            process = self.connections[k].process
+            while not future.wait(0.05 if process is not None else max(0.0, deadline - time.monotonic())):
+                if process is not None and process.poll() is not None:
+                    future.cancel()
+                    raise SimulationNodeError(
+                        f"simulation node {self._node_label(k)} exited with code {process.returncode} during a "
+                        f"vector step; its robots are lost: close this vector env and make a new one"
+                    )
+                if time.monotonic() >= deadline:
+                    future.cancel()
+                    raise SimulationNodeError(
+                        f"simulation node {self._node_label(k)} did not answer StepRobots within "
+                        f"{self.timeout_sec:g} s; is it alive and reachable?"
+                    )
+            exc = future.exception()
+            if exc is not None:
+                raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step: {exc}") from exc
+            out[k] = self.connections[k].client.step_robots_outcomes(request, future.result())
+        return out
+
+    def _finish(self, i: int, outcome: RobotStepOutcome) -> StepResult:
+        env = self.envs[i]
+        if outcome.state is None:
+            raise EnvError(f"env {i}: robot {outcome.entity!r} is gone from simulation node "
+                           f"{self._node_label(self.node_of[i])}: {outcome.message}")
+        env._accept_state(outcome.state)
+        obs, reward, terminated, truncated, info = env._step_result()
+        self._elapsed[i] += 1
+        if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
+            truncated = True
+        if outcome.status != _OK:
+            # This robot alone ends its episode; the vector env's autoreset puts it back.
+            truncated = True
+            info["sim_error"] = outcome.message
+            info["sim_status"] = outcome.status
+            if outcome.status == _UNSTABLE:
+                info["sim_diverged"] = True
+        return obs, reward, bool(terminated), bool(truncated), info
+
+    def reset_env(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        """Reset env ``i`` alone (its robot back to its spawn state, then its reset hooks)."""
+        self._elapsed[i] = 0
+        return self.envs[i].reset(seed=seed, options=options)
+
+    def node_loads(self) -> list[dict[str, Any]]:
+        """Each node's ``GetNodeLoad`` answer (robots, physics steps/s, memory)."""
+        return [conn.client.get_node_load() for conn in self.connections]
+
+    def close(self) -> None:
+        """Close the envs, then the nodes (stopping child processes by PID)."""
+        envs, self.envs = self.envs, []
+        for env in envs:
+            env.close()
+        connections, self.connections = self.connections, []
+        for conn in connections:
+            conn.close()

@@ -1,0 +1,155 @@
+"""``BatchedVectorEnv``: a Gymnasium ``VectorEnv`` over an :class:`~multiros.envs.batch.EnvBatch`.
+
+One simulation node (or K of them) holds every sub-env's robot and one ``StepRobots`` request per
+node steps them all: one round trip per vector step, not N. Seeds, spaces, autoreset modes,
+``reset(options={"reset_mask": ...})`` and the info dicts behave as in Gymnasium's
+``SyncVectorEnv``; ``call``/``get_attr``/``set_attr`` reach the sub-envs (``call("compute_reward",
+...)`` for HER).
+
+Autoreset (``autoreset_mode``, Gymnasium 1.x): ``NEXT_STEP`` (the default): the step after an
+episode ended resets that env, ignores its action and returns its first observation with reward 0
+and ``terminated = truncated = False``. ``SAME_STEP``: the env resets in the step that ended its
+episode; ``info["final_obs"]`` and ``info["final_info"]`` hold the last observation and info.
+``DISABLED``: reset ended envs yourself with ``reset(options={"reset_mask": mask})``.
+"""
+
+from __future__ import annotations
+
+from copy import deepcopy
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
+
+from multiros.envs.batch import EnvBatch
+
+
+class BatchedVectorEnv(VectorEnv):
+    """N uniros envs whose robots share simulation nodes, stepped in one request per node.
+
+    Args:
+        batch: the envs (see :class:`~multiros.envs.batch.EnvBatch`); closed with this vector env.
+        autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``
+            (or their string values).
+        copy: return copies of the observations (as ``SyncVectorEnv``).
+    """
+
+    def __init__(self, batch: EnvBatch, *, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 copy: bool = True) -> None:
+        self.batch = batch
+        self.envs = batch.envs
+        self.num_envs = batch.num_envs
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.copy = copy
+        first = self.envs[0]
+        self.metadata = dict(first.metadata)
+        self.metadata["autoreset_mode"] = self.autoreset_mode
+        self.render_mode = first.render_mode
+        self.single_observation_space = first.observation_space
+        self.single_action_space = first.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._observations = create_empty_array(self.single_observation_space, self.num_envs, fn=np.zeros)
+        self._env_obs: list[Any] = [None] * self.num_envs
+        self._rewards = np.zeros(self.num_envs, dtype=np.float64)
+        self._terminations = np.zeros(self.num_envs, dtype=np.bool_)
+        self._truncations = np.zeros(self.num_envs, dtype=np.bool_)
+        self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
+
+    # -- gymnasium API ----------------------------------------------------------------------
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every sub-env (or those in ``options["reset_mask"]``); an int seed gives ``seed + i``."""
+        if seed is None:
+            seeds: list[int | None] = [None] * self.num_envs
+        elif isinstance(seed, int):
+            seeds = [seed + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"{len(seeds)} seeds given for num_envs={self.num_envs}; give one per env or an int")
+        options = dict(options) if options else None
+        mask = np.ones(self.num_envs, dtype=np.bool_)
+        if options is not None and "reset_mask" in options:
+            mask = options.pop("reset_mask")
+            if not isinstance(mask, np.ndarray) or mask.shape != (self.num_envs,) or mask.dtype != np.bool_:
+                raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({self.num_envs},)")
+            if not mask.any():
+                raise ValueError("options['reset_mask'] must hold at least one True value")
+        infos: dict[str, Any] = {}
+        for i in np.flatnonzero(mask):
+            self._env_obs[i], info = self.batch.reset_env(int(i), seeds[i], options)
+            infos = self._add_info(infos, info, int(i))
+        self._terminations[mask] = False
+        self._truncations[mask] = False
+        self._autoreset_envs[mask] = False
+        self._observations = concatenate(self.single_observation_space, self._env_obs, self._observations)
+        return (deepcopy(self._observations) if self.copy else self._observations), infos
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every sub-env in one request per node, then reset the ones the autoreset mode says."""
+        acts = list(iterate(self.action_space, actions))
+        mode = self.autoreset_mode
+        if mode == AutoresetMode.DISABLED and self._autoreset_envs.any():
+            ended = np.flatnonzero(self._autoreset_envs).tolist()
+            raise RuntimeError(f"envs {ended} ended their episodes and autoreset is disabled: reset them with "
+                               "reset(options={'reset_mask': mask}) before stepping")
+        next_step = mode == AutoresetMode.NEXT_STEP
+        resetting = self._autoreset_envs.copy() if next_step else np.zeros_like(self._autoreset_envs)
+        stepping = [i for i in range(self.num_envs) if not resetting[i]]
+        # Step first, reset after: a reset robot's state is put back whole, so the physics its
+        # robot went through in this request does not matter, and it starts its episode unstepped.
+        results = self.batch.step_envs(stepping, [acts[i] for i in stepping]) if stepping else []
+        infos: dict[str, Any] = {}
+        per_env: list[dict[str, Any] | None] = [None] * self.num_envs
+        for i, (obs, reward, terminated, truncated, info) in zip(stepping, results):
+            self._env_obs[i], self._rewards[i] = obs, reward
+            self._terminations[i], self._truncations[i] = terminated, truncated
+            per_env[i] = info
+            if mode == AutoresetMode.SAME_STEP and (terminated or truncated):
+                infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
+                self._env_obs[i], per_env[i] = self.batch.reset_env(i)
+        for i in np.flatnonzero(resetting):
+            self._env_obs[i], per_env[i] = self.batch.reset_env(int(i))
+            self._rewards[i] = 0.0
+            self._terminations[i] = self._truncations[i] = False
+        for i, info in enumerate(per_env):
+            infos = self._add_info(infos, info or {}, i)
+        self._autoreset_envs = np.logical_or(self._terminations, self._truncations)
+        self._observations = concatenate(self.single_observation_space, self._env_obs, self._observations)
+        obs = deepcopy(self._observations) if self.copy else self._observations
+        return obs, np.copy(self._rewards), np.copy(self._terminations), np.copy(self._truncations), infos
+
+    # -- sub-env access ---------------------------------------------------------------------
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call a method of every sub-env (or read an attribute) and return the results in order."""
+        out = []
+        for env in self.envs:
+            value = getattr(env, name)
+            out.append(value(*args, **kwargs) if callable(value) else value)
+        return tuple(out)
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """An attribute of every sub-env."""
+        return tuple(getattr(env, name) for env in self.envs)
+
+    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
+        """Set an attribute of every sub-env (one value for all, or one per env)."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
+        if len(values) != self.num_envs:
+            raise ValueError(f"{len(values)} values for num_envs={self.num_envs}")
+        for env, value in zip(self.envs, values):
+            setattr(env, name, value)
+
+    def render(self) -> tuple[Any, ...] | None:
+        """Each sub-env's render (the images show the whole shared world, from each env's camera)."""
+        return self.call("render")
+
+    def node_loads(self) -> list[dict[str, Any]]:
+        """Each simulation node's load (see ``GetNodeLoad``)."""
+        return self.batch.node_loads()
+
+    def close_extras(self, **kwargs: Any) -> None:
+        self.batch.close()

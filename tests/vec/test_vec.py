@@ -1,0 +1,227 @@
+"""Batched vector envs (one simulation node, one StepRobots per step): equality with N separate
+envs, autoreset, world slots, faults, limits, the SB3 adapter with HER, and the node's StepRobots /
+GetNodeLoad services."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+
+import uniros
+from multiros.ros import Context, Node
+from multiros.ros.interfaces import type_hash
+from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationServiceError
+from multiros.sim.launch import compose
+
+ENV = "RX200ReacherGoalSim-v0"
+RX200 = ("package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
+         "&__controllers=joint_state_broadcaster,arm_position_controller,gripper_controller")
+
+
+def _assert_same(a, b) -> None:
+    if isinstance(a, dict):
+        assert a.keys() == b.keys()
+        for k in a:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    else:
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode) -> None:
+    """Same seeds and actions: identical observations, rewards, terminations, truncations and
+    autoresets as Gymnasium's SyncVectorEnv over N separate envs (each with its own node)."""
+    n, horizon = 3, 12
+    batched = uniros.make_vec(ENV, n, vectorization_mode="batched", max_episode_steps=horizon,
+                              vector_kwargs={"autoreset_mode": mode})
+    separate = SyncVectorEnv([lambda: uniros.make(ENV, max_episode_steps=horizon) for _ in range(n)],
+                             autoreset_mode=mode)
+    try:
+        assert batched.metadata["autoreset_mode"] == mode
+        assert batched.single_observation_space == separate.single_observation_space
+        assert batched.action_space == separate.action_space
+        obs_b, _ = batched.reset(seed=7)
+        obs_s, _ = separate.reset(seed=7)
+        _assert_same(obs_b, obs_s)
+        rng = np.random.default_rng(0)
+        ended = 0
+        for _ in range(2 * horizon + 3):  # crosses two autoresets of every env
+            actions = rng.uniform(-1, 1, (n, 5)).astype(np.float32)
+            ob, rb, tb, trb, ib = batched.step(actions)
+            os_, rs, ts, trs, is_ = separate.step(actions)
+            _assert_same(ob, os_)
+            np.testing.assert_array_equal(rb, rs)
+            np.testing.assert_array_equal(tb, ts)
+            np.testing.assert_array_equal(trb, trs)
+            np.testing.assert_array_equal(ib["is_success"], is_["is_success"])
+            if mode == AutoresetMode.SAME_STEP and "final_obs" in is_:
+                np.testing.assert_array_equal(ib["_final_obs"], is_["_final_obs"])
+                for i in np.flatnonzero(is_["_final_obs"]):
+                    _assert_same(ib["final_obs"][i], is_["final_obs"][i])
+            ended += int(np.sum(tb | trb))
+        assert ended >= 2 * n
+    finally:
+        batched.close()
+        separate.close()
+
+
+def test_next_step_autoreset_semantics_and_slots() -> None:
+    """NEXT_STEP: the step after an episode ends ignores that env's action and returns its first
+    observation with reward 0; robots sit in their own slots, namespaces, and never touch."""
+    vec = uniros.make_vec(ENV, 4, vectorization_mode="batched", max_episode_steps=3)
+    try:
+        obs, _ = vec.reset(seed=1)
+        first = {k: v.copy() for k, v in obs.items()}
+        zero = np.zeros((4, 5), np.float32)
+        for _ in range(2):
+            _, _, _, trunc, _ = vec.step(zero + 1.0)
+            assert not trunc.any()
+        _, _, _, trunc, _ = vec.step(zero + 1.0)
+        assert trunc.all()
+        obs, reward, term, trunc, _ = vec.step(zero - 1.0)  # ignored: this step resets
+        assert not term.any() and not trunc.any() and np.all(reward == 0.0)
+        np.testing.assert_array_equal(obs["observation"][:, :3], first["observation"][:, :3])  # EE at start pose
+        names = vec.get_attr("robot_name")
+        assert len(set(names)) == 4 and all(n.startswith("rx200_") for n in names)
+        assert [e.namespace for e in vec.envs] == ["/" + n for n in names]
+        world = vec.batch.connections[0].sim_node.world
+        bases = [world.get_entity_state(n).position for n in names]
+        gaps = [np.linalg.norm(a - b) for i, a in enumerate(bases) for b in bases[i + 1:]]
+        assert min(gaps) >= 2.0 - 1e-9
+        # relative to its slot every robot reports the same end-effector position as alone
+        np.testing.assert_allclose(obs["achieved_goal"], np.repeat(obs["achieved_goal"][:1], 4, axis=0), atol=1e-6)
+        m, d = world.model, world.data
+        for c in d.contact[: d.ncon]:
+            owners = {_entity_of(m, world, int(g)) for g in (c.geom1, c.geom2)} - {None}
+            assert len(owners) <= 1, owners
+        assert vec.call("compute_reward", obs["achieved_goal"], obs["desired_goal"], [{}] * 4)[0].shape == (4,)
+    finally:
+        vec.close()
+
+
+def _entity_of(m, world, geom: int) -> str | None:
+    import mujoco
+
+    body = mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, int(m.geom_bodyid[geom])) or ""
+    return next((n for n in world.entity_names() if body.startswith(n + "/")), None)
+
+
+def test_diverging_or_refused_robot_ends_its_episode_alone() -> None:
+    vec = uniros.make_vec(ENV, 3, vectorization_mode="batched")
+    try:
+        vec.reset(seed=0)
+        actions = np.zeros((3, 5), np.float32)
+        vec.step(actions)
+        world = vec.batch.connections[0].sim_node.world
+        ent = world._entities[vec.envs[1].robot_name]
+        world.data.qvel[ent.dof_idx] = np.nan  # robot 1's physics blows up in the next step
+        obs, _, _, trunc, info = vec.step(actions)
+        assert trunc.tolist() == [False, True, False]
+        assert info["sim_diverged"][1] and info["_sim_diverged"].tolist() == [False, True, False]
+        assert "diverged" in info["sim_error"][1]
+        assert np.all(np.isfinite(obs["observation"]))
+        # a command the node refuses (wrong length) ends env 0's episode, not the others'
+        env0 = vec.envs[0]
+        env0.send_command = lambda controller, values: env0._pending_commands.__setitem__(controller, np.ones(2))
+        _, reward, _, trunc, info = vec.step(actions)  # env 1 autoresets here
+        assert trunc.tolist() == [True, False, False] and reward[1] == 0.0
+        assert "arm_position_controller" in info["sim_error"][0] or "command" in info["sim_error"][0]
+        del env0.send_command
+        _, _, _, trunc, _ = vec.step(actions)  # env 0 autoresets, all step on
+        assert not trunc.any()
+        with pytest.raises(ValueError, match="NaN"):
+            vec.step(np.full((3, 5), np.nan, np.float32))
+    finally:
+        vec.close()
+
+
+def test_num_envs_beyond_node_limit_is_refused() -> None:
+    with pytest.raises(ValueError, match="max_robots=256"):
+        uniros.make_vec(ENV, 300, vectorization_mode="batched")
+    with pytest.raises(ValueError, match="num_nodes > 1 needs sim_mode='process'"):
+        uniros.make_vec(ENV, 4, vectorization_mode="batched", vector_kwargs={"num_nodes": 2})
+    with pytest.raises(TypeError, match="unknown batched vector env option"):
+        uniros.make_vec(ENV, 2, vectorization_mode="batched", vector_kwargs={"nodes": 2})
+
+
+def test_gymnasium_sync_mode_still_works() -> None:
+    vec = uniros.make_vec(ENV, 2, vectorization_mode="sync")
+    try:
+        obs, _ = vec.reset(seed=0)
+        assert obs["observation"].shape[0] == 2
+    finally:
+        vec.close()
+
+
+def test_node_step_robots_and_load() -> None:
+    """StepRobots per-robot results, refusals, and GetNodeLoad; SpawnEntity beyond max_robots."""
+    ctx = Context(transport="inproc").init()
+    try:
+        node = compose("mujoco_sim", context=ctx, max_robots=2)
+        client = SimulationClient(Node("t", context=ctx), "/mujoco_sim")
+        client.spawn_entity("a", uri=RX200, namespace="/a")
+        client.spawn_entity("b", uri=RX200, namespace="/b", position=(2.0, 0.0, 0.0))
+        with pytest.raises(SimulationServiceError, match="max_robots=2"):
+            client.spawn_entity("c", uri=RX200, namespace="/c", position=(4.0, 0.0, 0.0))
+        assert client.get_entities() == ["a", "b"]
+        ee = "rx200/ee_gripper_link"
+        out = client.step_robots([
+            RobotStepSpec("a", {"arm_position_controller": [0.3, 0, 0, 0, 0]}, [ee]),
+            RobotStepSpec("b", {"arm_position_controller": [0.3]}, [ee]),
+        ], steps=20)
+        assert [o.status for o in out] == [0, 102]
+        missing = client.step_robots([RobotStepSpec("nobody"), RobotStepSpec("a", frames=["no_such_link"])], steps=0)
+        assert [o.status for o in missing] == [105, 103]
+        assert missing[0].state is None and "nobody" in missing[0].message
+        assert out[0].state.position[0] > 0.05 and abs(out[1].state.position[0]) < 1e-3
+        np.testing.assert_allclose(out[1].state.frame_positions[0] - out[0].state.frame_positions[0],
+                                   [2.0, 0, 0], atol=0.15)  # a turned its waist a little
+        client.reset_robot("a")
+        out = client.step_robots([RobotStepSpec("a", frames=[ee]), RobotStepSpec("b", frames=[ee])], steps=0)
+        assert abs(out[0].state.position[0]) < 1e-9
+        with pytest.raises(SimulationServiceError, match="more than once"):
+            client.step_robots([RobotStepSpec("a"), RobotStepSpec("a")], steps=1)
+        with pytest.raises(SimulationServiceError, match="max_robots=2"):
+            client.step_robots([RobotStepSpec("a"), RobotStepSpec("b"), RobotStepSpec("c")], steps=1)
+        load = client.get_node_load()
+        assert load["robots"] == 2 and load["max_robots"] == 2 and load["entities"] == 2
+        assert load["physics_steps"] == 20 and load["physics_steps_per_sec"] > 0
+        assert 0 < load["busy_fraction"] <= 1 and load["model_bytes"] > 100_000 and load["process_rss_bytes"] > 0
+        assert node.get_parameter("max_robots").value == 2
+    finally:
+        ctx.try_shutdown()
+
+
+def test_batch_interface_hashes_are_pinned() -> None:
+    """The wire identity of the new services (changing a definition must be deliberate)."""
+    assert type_hash("uniros_interfaces/srv/StepRobots") == (
+        "RIHS01_832a6f4e288783fb858cfffa14aa047007735801d9c8a662217dc5fa324e7fe5")
+    assert type_hash("uniros_interfaces/srv/GetNodeLoad") == (
+        "RIHS01_ef840b7bba2526b70de56add0bfefcb2a155191f59804b3dfb7eb9995035cc3c")
+
+
+@pytest.mark.slow
+def test_her_sac_on_batched_sb3_vec_env() -> None:
+    from stable_baselines3 import SAC, HerReplayBuffer
+    from stable_baselines3.common.env_checker import check_env  # noqa: F401  (SB3 importable)
+
+    from uniros.vec_env import make_batched_vec_env
+
+    venv = make_batched_vec_env(ENV, 2, max_episode_steps=20)
+    try:
+        venv.seed(3)
+        model = SAC("MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer,
+                    replay_buffer_kwargs={"n_sampled_goal": 4, "goal_selection_strategy": "future"},
+                    learning_starts=100, batch_size=32, train_freq=1, gradient_steps=1,
+                    policy_kwargs={"net_arch": [32, 32]}, seed=0, verbose=0)
+        model.learn(300)
+        assert model.num_timesteps >= 300
+        assert model.replay_buffer.size() > 0
+        rewards = venv.env_method("compute_reward", np.zeros((5, 3)), np.zeros((5, 3)), [{}] * 5, indices=[1])
+        assert rewards[0].shape == (5,) and np.all(rewards[0] == 0.0)
+        assert venv.get_attr("robot_name", indices=0)[0].startswith("rx200_")
+        assert venv.env_is_wrapped(gym.Wrapper) == [False, False]
+    finally:
+        venv.close()

@@ -1,0 +1,118 @@
+"""Stable-Baselines3 ``VecEnv`` over a batch of uniros envs sharing simulation nodes.
+
+:class:`BatchedVecEnv` follows SB3's ``DummyVecEnv`` conventions (an ended env resets in the same
+step; ``infos[i]["terminal_observation"]`` and ``infos[i]["TimeLimit.truncated"]``; seeds and
+options given by :meth:`seed`/``set_options`` apply at the next :meth:`reset`), while one
+``StepRobots`` request per node steps every robot. ``env_method("compute_reward", ...)`` reaches
+the sub-envs, so SB3's ``HerReplayBuffer`` works with it.
+
+    from uniros.vec_env import make_batched_vec_env
+    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", n_envs=8)          # one node, this process
+    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", 8, sim_mode="process", num_nodes=2)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from copy import deepcopy
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+from stable_baselines3.common.vec_env.util import obs_space_info
+
+from multiros.envs.batch import EnvBatch
+
+
+class BatchedVecEnv(VecEnv):
+    """SB3 ``VecEnv`` over an :class:`~multiros.envs.batch.EnvBatch` (closed with it)."""
+
+    def __init__(self, batch: EnvBatch) -> None:
+        self.batch = batch
+        self.envs = batch.envs
+        first = self.envs[0]
+        super().__init__(batch.num_envs, first.observation_space, first.action_space)
+        self.keys, shapes, dtypes = obs_space_info(self.observation_space)
+        self.buf_obs = {k: np.zeros((self.num_envs, *tuple(shapes[k])), dtype=dtypes[k]) for k in self.keys}
+        self.buf_rews = np.zeros(self.num_envs, dtype=np.float32)
+        self.buf_dones = np.zeros(self.num_envs, dtype=bool)
+        self.buf_infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        self.actions: np.ndarray | None = None
+        self.metadata = first.metadata
+        self.render_mode = first.render_mode
+
+    def _save_obs(self, i: int, obs: Any) -> None:
+        for key in self.keys:
+            self.buf_obs[key][i] = obs if key is None else obs[key]
+
+    def _obs_from_buf(self) -> VecEnvObs:
+        if self.keys == [None]:
+            return np.copy(self.buf_obs[None])
+        return {k: np.copy(v) for k, v in self.buf_obs.items()}
+
+    def reset(self) -> VecEnvObs:
+        for i in range(self.num_envs):
+            options = self._options[i] or None
+            obs, self.reset_infos[i] = self.batch.reset_env(i, self._seeds[i], options)
+            self._save_obs(i, obs)
+        self._reset_seeds()
+        self._reset_options()
+        return self._obs_from_buf()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.actions = actions
+
+    def step_wait(self) -> VecEnvStepReturn:
+        if self.actions is None:
+            raise RuntimeError("step_wait() called without step_async(actions)")
+        results = self.batch.step_envs(range(self.num_envs), list(self.actions))
+        for i, (obs, reward, terminated, truncated, info) in enumerate(results):
+            self.buf_rews[i] = reward
+            self.buf_dones[i] = terminated or truncated
+            info["TimeLimit.truncated"] = truncated and not terminated
+            if self.buf_dones[i]:
+                info["terminal_observation"] = obs
+                obs, self.reset_infos[i] = self.batch.reset_env(i)
+            self.buf_infos[i] = info
+            self._save_obs(i, obs)
+        self.actions = None
+        return self._obs_from_buf(), np.copy(self.buf_rews), np.copy(self.buf_dones), deepcopy(self.buf_infos)
+
+    def close(self) -> None:
+        self.batch.close()
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return [env.render() for env in self.envs]
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        return [getattr(self.envs[i], attr_name) for i in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        for i in self._get_indices(indices):
+            setattr(self.envs[i], attr_name, value)
+
+    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+                   **method_kwargs: Any) -> list[Any]:
+        return [getattr(self.envs[i], method_name)(*method_args, **method_kwargs) for i in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        # The sub-envs are bare uniros envs (the batch applies the time limit itself).
+        return [False for _ in self._get_indices(indices)]
+
+    def node_loads(self) -> list[dict[str, Any]]:
+        """Each simulation node's load (see ``GetNodeLoad``)."""
+        return self.batch.node_loads()
+
+
+def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "composed", num_nodes: int = 1,
+                         spacing: float = 2.0, timeout_sec: float = 10.0, **env_kwargs: Any) -> BatchedVecEnv:
+    """An SB3 :class:`BatchedVecEnv` of ``n_envs`` envs ``env_id`` on ``num_nodes`` simulation nodes.
+
+    ``env_kwargs`` go to each env (``reward_type``, ``max_episode_steps``, ...).
+    """
+    from uniros.factory import make_batch
+
+    batch = make_batch(env_id, n_envs, {"num_nodes": num_nodes, "spacing": spacing, "timeout_sec": timeout_sec},
+                       sim_mode=sim_mode, **env_kwargs)
+    return BatchedVecEnv(batch)
