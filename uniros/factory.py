@@ -88,7 +88,7 @@ def make_vec(
     return BatchedVectorEnv(make_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)
 
 
-_BATCH_OPTIONS = ("num_nodes", "spacing", "timeout_sec", "node_name")
+_BATCH_OPTIONS = ("num_nodes", "spacing", "timeout_sec", "node_name", "connect_kwargs")
 
 
 def make_batch(env_id: str, num_envs: int, batch_options: dict[str, Any] | None = None, **kwargs: Any) -> Any:

@@ -52,8 +52,10 @@ class EnvBatch:
             task env); it is called with ``sim_connection``, ``world_slot``, ``robot_name`` and ``seed``.
         num_envs: N, the number of envs (robots).
         robot_name: base of the robots' entity names (each gets ``<base>_<batch>_<i>``, its namespace too).
-        sim_mode: ``"composed"`` (one node in this process) or ``"process"`` (nodes in child
-            processes, each behind its own private Zenoh router).
+        sim_mode: ``"composed"`` (one node in this process), ``"process"`` (nodes in child
+            processes, each behind its own private Zenoh router) or ``"existing"`` (a running node
+            named ``node_name``, shared with other clients; pass ``connect_kwargs={"context": ...}``
+            to reach it through a given ROS context).
         num_nodes: K nodes (``process`` mode for K > 1); env ``i`` lives on node ``i * K // N``.
         spacing: metres between world slots (larger than twice the robot's reach).
         timeout_sec: bound on every request; a node that does not answer in time is named in the error.
@@ -87,9 +89,8 @@ class EnvBatch:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if not isinstance(num_nodes, int) or not 1 <= num_nodes <= num_envs:
             raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {num_nodes!r}")
-        if sim_mode not in ("composed", "process"):
-            raise ValueError(f"a batched vector env runs its own nodes: sim_mode must be 'composed' or 'process', "
-                             f"got {sim_mode!r}")
+        if sim_mode not in ("composed", "process", "existing"):
+            raise ValueError(f"sim_mode must be 'composed', 'process' or 'existing', got {sim_mode!r}")
         if num_nodes > 1 and sim_mode != "process":
             raise ValueError("num_nodes > 1 needs sim_mode='process' (composed nodes would share this process' core)")
         if not (math.isfinite(spacing) and spacing > 0):
