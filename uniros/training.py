@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from multiros.envs.real.core import SIMULATION_KNOBS
+from rl_environments import SIM_TO_REAL
 from uniros.run_dir import RunDir, RunDirError, normalizer_path, save_model_with_stats
 from uniros.train_config import (
     ALGORITHMS,
@@ -354,9 +356,15 @@ def saved_env_kwargs(model_path: Path, env_id: str | None = None) -> dict[str, A
             except ValueError:
                 continue
             trained_on = str(data.get("env_id", "")).rpartition(":")[2]
-            if env_id is not None and trained_on and trained_on != env_id.rpartition(":")[2]:
-                return {}
-            return dict(data.get("env_kwargs") or {})
+            kwargs = dict(data.get("env_kwargs") or {})
+            target = None if env_id is None else env_id.rpartition(":")[2]
+            if target is not None and trained_on and trained_on != target:
+                if SIM_TO_REAL.get(trained_on) != target:
+                    return {}
+                # The Real twin of the training env: the same task options, none of the simulation's
+                # (its transport included: a robot is reached over the user's Zenoh graph).
+                return {k: v for k, v in kwargs.items() if k not in SIMULATION_KNOBS and k != "transport"}
+            return kwargs
     for folder in [model_path.parent / model_path.stem, *sorted(model_path.parent.glob("*/"))]:
         args = folder / "args.yml"
         if args.is_file():

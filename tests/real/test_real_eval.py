@@ -53,3 +53,20 @@ def test_eval_on_an_env_with_other_spaces_is_a_clear_error(tmp_path: Path, capsy
     assert main(["eval", str(model), "--env", "RX200ReacherGoalSim-v0", "--episodes", "1"]) == 2
     err = capsys.readouterr().err
     assert "cannot run on RX200ReacherGoalSim-v0" in err and "observation space" in err
+
+
+def test_a_sim_models_task_options_carry_over_to_its_real_twin(tmp_path: Path) -> None:
+    import json
+
+    from uniros.training import saved_env_kwargs
+
+    model = tmp_path / "best_model.zip"
+    model.write_bytes(b"")
+    (tmp_path / "run.json").write_text(json.dumps({
+        "env_id": "RX200ReacherGoalSim-v0",
+        "env_kwargs": {"ee_action_type": True, "reward_type": "dense", "sim_mode": "process", "transport": "inproc",
+                       "num_sim_steps": 10},
+    }))
+    assert saved_env_kwargs(model, "RX200ReacherGoalReal-v0") == {"ee_action_type": True, "reward_type": "dense"}
+    assert saved_env_kwargs(model, "RX200ReacherGoalSim-v0")["sim_mode"] == "process"
+    assert saved_env_kwargs(model, "ABBIRB120ReacherGoalEnv-v0") == {}  # another task: its options may not apply

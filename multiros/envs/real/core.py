@@ -52,8 +52,11 @@ _REFUSED = {
     "robot_launch_file": "a Real env does not launch the robot: start its ROS 2 driver yourself",
     "robot_args": "a Real env does not launch the robot: start its ROS 2 driver yourself",
 }
-_SIM_ONLY = {"sim_mode", "sim_node_name", "gui", "num_sim_steps", "sim_timestep", "real_time_factor", "spawn_robot",
-             "robot_model_xml", "reset_mode", "step_mode", "frames", "render_camera", "render_width", "render_height"}
+#: Knobs of the simulation envs that mean nothing to a robot (a Real env ignores them with a warning).
+SIMULATION_KNOBS = frozenset({
+    "sim_mode", "sim_node_name", "gui", "num_sim_steps", "sim_timestep", "real_time_factor", "spawn_robot",
+    "robot_model_xml", "reset_mode", "step_mode", "frames", "render_camera", "render_width", "render_height",
+})
 
 
 def _interactive() -> bool:
@@ -155,7 +158,7 @@ class RealEnvCore:
         for old in ("ros_controllers_list", "controller_list"):  # MultiROS / FRobs_RL spellings
             if old in legacy:
                 controllers_list = legacy.pop(old)
-        unknown = sorted(set(legacy) - set(_IGNORED) - _SIM_ONLY)
+        unknown = sorted(set(legacy) - set(_IGNORED) - SIMULATION_KNOBS)
         if unknown:
             raise TypeError(f"{type(self).__name__} got unexpected keyword argument(s) {unknown}; see "
                             "multiros.envs.real.core.RealEnvCore for the accepted knobs")
