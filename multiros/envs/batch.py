@@ -171,13 +171,24 @@ class EnvBatch:
         return results
 
     def _send(self, specs: Mapping[int, list[RobotStepSpec]]) -> dict[int, list[RobotStepOutcome]]:
+        # All nodes but the last get their request asynchronously, the last one synchronously (a
+        # blocking call answers sooner than a reply callback on another thread), then the others.
         pending = []
+        out = {}
+        last = list(specs)[-1]
         for k, items in specs.items():
             client = self.connections[k].client
             request = client.step_robots_request(items, self.num_sim_steps)
-            pending.append((k, request, client.step_robots_async(request, self.timeout_sec)))
+            if k != last:
+                pending.append((k, request, client.step_robots_async(request, self.timeout_sec)))
+                continue
+            try:
+                response = client.step_robots_call(request, self.timeout_sec)
+            except SimulationNodeError as exc:
+                raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
+                                          f"{self._exit_note(k)}: {exc}") from exc
+            out[k] = client.step_robots_outcomes(request, response)
         deadline = time.monotonic() + self.timeout_sec
-        out = {}
         for k, request, future in pending:
             process = self.connections[k].process
             while not future.wait(0.05 if process is not None else max(0.0, deadline - time.monotonic())):
@@ -198,6 +209,11 @@ class EnvBatch:
                 raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step: {exc}") from exc
             out[k] = self.connections[k].client.step_robots_outcomes(request, future.result())
         return out
+
+    def _exit_note(self, k: int) -> str:
+        process = self.connections[k].process
+        code = process.poll() if process is not None else None
+        return "" if code is None else f" (its process exited with code {code}; close this vector env)"
 
     def _finish(self, i: int, outcome: RobotStepOutcome) -> StepResult:
         env = self.envs[i]

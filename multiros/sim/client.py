@@ -379,6 +379,10 @@ class SimulationClient:
         timeout = self.timeout_sec if timeout_sec is None else timeout_sec
         return self._client("step_robots").call_async(request, timeout_sec=timeout)
 
+    def step_robots_call(self, request: Any, timeout_sec: float | None = None) -> Any:
+        """Send a ``StepRobots`` request and wait for the response (see :meth:`step_robots_outcomes`)."""
+        return self._call("step_robots", request, timeout_sec)
+
     def step_robots_outcomes(self, request: Any, response: Any) -> list[RobotStepOutcome]:
         """Per-robot outcomes of a ``StepRobots`` response (raises if the call as a whole failed)."""
         _check(self.service_name("step_robots"), response.result)

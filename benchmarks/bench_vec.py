@@ -1,0 +1,170 @@
+"""Total env steps per second of vector envs for N = 1, 2, 4, 8, 16, in one run.
+
+Cases (random actions, episodes autoreset as they end):
+
+* batched, composed: ``uniros.make_vec(ID, N, vectorization_mode="batched")``: one simulation
+  node in this process holds the N robots, one StepRobots request per vector step;
+* batched, node in another process (``sim_mode="process"``, one node behind a private router);
+* batched, K = 2 nodes in 2 processes (N/2 robots each), N >= 2;
+* SB3 ``SubprocVecEnv`` over N separate uniros envs (each with its own composed node);
+* gymnasium ``AsyncVectorEnv`` over N FetchReach-v4 (gymnasium-robotics, patched by fetch_compat);
+* one FetchReach-v4, the anchor.
+
+The physics limit is the raw ``mj_step`` rate of the batched env's own world (N robots, one
+core), in env steps/s: ``N * calls/s`` with ``num_sim_steps`` physics steps per call. The batched
+composed rate is printed as a fraction of it.
+
+    python benchmarks/bench_vec.py [--seconds 2] [--sizes 1,2,4,8,16] [--env RX200ReacherGoalSim-v0]
+
+Goals (issue 13): N = 8 batched composed >= 5x one FetchReach-v4 and >= 2x SubprocVecEnv over 8
+separate uniros envs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from fetch_compat import make_fetch_reach  # noqa: E402
+
+import uniros  # noqa: E402
+
+
+def _rate(step: Callable[[np.ndarray], object], sample: Callable[[], np.ndarray], n: int, seconds: float) -> float:
+    actions = [sample() for _ in range(64)]
+    for a in actions[:5]:  # warm up
+        step(a)
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        step(actions[calls % 64])
+        calls += 1
+    return n * calls / (time.perf_counter() - start)
+
+
+def gym_vec_rate(vec, seconds: float) -> float:
+    vec.reset(seed=0)
+    rng = np.random.default_rng(0)
+    space = vec.action_space
+    return _rate(vec.step, lambda: rng.uniform(space.low, space.high).astype(space.dtype), vec.num_envs, seconds)
+
+
+def physics_limit(vec, seconds: float) -> float:
+    """Env steps/s of raw mj_step on a copy of the batched env's world (all N robots, one core)."""
+    world = vec.batch.connections[0].sim_node.world
+    m = world.model
+    d = mujoco.MjData(m)
+    d.qpos[:] = world.data.qpos
+    d.ctrl[:] = world.data.ctrl
+    steps = vec.batch.num_sim_steps
+    calls, start = 0, time.perf_counter()
+    while time.perf_counter() - start < seconds:
+        mujoco.mj_step(m, d, nstep=steps)
+        calls += 1
+    return vec.num_envs * calls / (time.perf_counter() - start)
+
+
+def batched(env_id: str, n: int, seconds: float, **kwargs) -> tuple[float, float | None]:
+    vec = uniros.make_vec(env_id, n, vectorization_mode="batched", **kwargs)
+    try:
+        rate = gym_vec_rate(vec, seconds)
+        limit = physics_limit(vec, seconds / 2) if kwargs.get("sim_mode", "composed") == "composed" else None
+        return rate, limit
+    finally:
+        vec.close()
+
+
+def _make_uniros(env_id: str) -> Callable[[], object]:
+    def make():
+        return uniros.make(env_id)
+    return make
+
+
+def subproc(env_id: str, n: int, seconds: float) -> float:
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    venv = SubprocVecEnv([_make_uniros(env_id) for _ in range(n)])
+    try:
+        venv.seed(0)
+        venv.reset()
+        rng = np.random.default_rng(0)
+        space = venv.action_space
+        return _rate(lambda a: venv.step(a),
+                     lambda: rng.uniform(space.low, space.high, (n, *space.shape)).astype(space.dtype), n, seconds)
+    finally:
+        venv.close()
+
+
+def fetch_async(n: int, seconds: float) -> float:
+    from gymnasium.vector import AsyncVectorEnv
+
+    vec = AsyncVectorEnv([make_fetch_reach for _ in range(n)])
+    try:
+        return gym_vec_rate(vec, seconds)
+    finally:
+        vec.close()
+
+
+def fetch_single(seconds: float) -> float:
+    env = make_fetch_reach()
+    try:
+        env.reset(seed=0)
+        rng = np.random.default_rng(0)
+        space = env.action_space
+
+        def step(a):
+            _, _, term, trunc, _ = env.step(a)
+            if term or trunc:
+                env.reset()
+
+        return _rate(step, lambda: rng.uniform(space.low, space.high).astype(space.dtype), 1, seconds)
+    finally:
+        env.close()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=2.0)
+    parser.add_argument("--sizes", default="1,2,4,8,16")
+    parser.add_argument("--env", default="RX200ReacherGoalSim-v0")
+    args = parser.parse_args()
+    sizes = [int(s) for s in args.sizes.split(",")]
+    cols = ["batched composed", "batched process", "batched 2 procs", "SB3 SubprocVecEnv",
+            "Async FetchReach", "physics limit", "fraction"]
+    fetch = fetch_single(args.seconds)
+    rows: dict[int, dict[str, float | None]] = {}
+    for n in sizes:
+        row: dict[str, float | None] = {}
+        row["batched composed"], row["physics limit"] = batched(args.env, n, args.seconds)
+        row["fraction"] = row["batched composed"] / row["physics limit"]
+        row["batched process"], _ = batched(args.env, n, args.seconds, sim_mode="process")
+        row["batched 2 procs"] = batched(args.env, n, args.seconds, sim_mode="process",
+                                         vector_kwargs={"num_nodes": 2})[0] if n >= 2 else None
+        row["SB3 SubprocVecEnv"] = subproc(args.env, n, args.seconds)
+        row["Async FetchReach"] = fetch_async(n, args.seconds)
+        rows[n] = row
+        print(f"N={n:2d} " + "  ".join(f"{c}={row[c]:.3g}" if row[c] is not None else f"{c}=-" for c in cols),
+              flush=True)
+    print(f"\n{args.env}: total env steps/s ({os.cpu_count()} CPUs); one FetchReach-v4: {fetch:,.0f}/s")
+    print(f"{'N':>3} " + " ".join(f"{c:>18}" for c in cols))
+    for n, row in rows.items():
+        cells = []
+        for c in cols:
+            v = row[c]
+            cells.append(f"{'-':>18}" if v is None else f"{v:>18.2f}" if c == "fraction" else f"{v:>18,.0f}")
+        print(f"{n:>3} " + " ".join(cells))
+    if 8 in rows:
+        r = rows[8]
+        print(f"\nN=8 batched composed: {r['batched composed'] / fetch:.2f}x one FetchReach-v4 (goal >= 5x), "
+              f"{r['batched composed'] / r['SB3 SubprocVecEnv']:.2f}x SubprocVecEnv over 8 uniros envs (goal >= 2x)")
+
+
+if __name__ == "__main__":
+    main()
