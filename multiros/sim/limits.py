@@ -58,9 +58,9 @@ MAX_STEPS_PER_CALL = 100_000
 # Steps run in chunks of this many; between chunks the node checks whether it is shutting down.
 STEP_CHUNK = 1_000
 # Robots one node holds (SpawnEntity refuses more; StepRobots batches at most this many). Measured
-# on a 2-core laptop-class CPU with the RX200: ~0.35 MB of MuJoCo memory per robot, and physics cost
-# linear in robots (about 7,500 RX200 env steps/s per core in total), so 256 robots still step at
-# ~30 env steps/s each; beyond that a second node (another core) serves better than a bigger batch.
+# with the RX200 on a 2-core machine: 0.5-0.9 MB of MuJoCo memory and 2.5-4 MB of process memory
+# per robot, and ~6,000 env steps/s in total for the node whatever the count, so 256 robots still
+# step at ~20 env steps/s each; beyond that a second node (another core) serves more than a bigger batch.
 MAX_ROBOTS = 256
 
 
