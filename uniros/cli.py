@@ -15,9 +15,13 @@ from pathlib import Path
 def _cmd_list(args: argparse.Namespace) -> int:
     import rl_environments
 
-    for env_id in rl_environments.ENV_IDS:
-        kind = "goal" if env_id in rl_environments.GOAL_ENV_IDS else "plain"
-        print(f"{env_id:32s} {kind}  {rl_environments.ENV_SPECS[env_id]}")
+    goal = set(rl_environments.GOAL_ENV_IDS) | set(rl_environments.REAL_GOAL_ENV_IDS)
+    for title, specs in (("simulated (the simulation node; run anywhere)", rl_environments.ENV_SPECS),
+                         ("real (a ros2_control robot or a stand-in: docs/real_robots.md)",
+                          rl_environments.REAL_ENV_SPECS)):
+        print(f"# {title}")
+        for env_id, entry_point in specs.items():
+            print(f"{env_id:32s} {'goal' if env_id in goal else 'plain':5s}  {entry_point}")
     return 0
 
 

@@ -86,6 +86,7 @@ def test_cli_list(capsys):
     assert cli_main(["list"]) == 0
     out = capsys.readouterr().out
     assert "RX200ReacherGoalSim-v0" in out and "ABBIRB120ReacherEnv-v0" in out
+    assert "RX200ReacherGoalReal-v0" in out and "ABBIRB120ReacherGoalRealEnv-v0" in out
 
 
 def test_cli_errors_are_reported_with_exit_code_2(capsys, tmp_path):
