@@ -20,6 +20,7 @@ naming it, within the batch's ``timeout_sec`` (at once when its process is seen 
 
 from __future__ import annotations
 
+import concurrent.futures
 import itertools
 import math
 import os
@@ -103,6 +104,7 @@ class EnvBatch:
         self.connections: list[Any] = []
         self.envs: list[Any] = []
         self._elapsed = np.zeros(num_envs, dtype=np.int64)
+        self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         tag = f"{os.getpid()}x{next(_batch_ids)}"
         try:
             for _ in range(num_nodes):
@@ -171,44 +173,46 @@ class EnvBatch:
         return results
 
     def _send(self, specs: Mapping[int, list[RobotStepSpec]]) -> dict[int, list[RobotStepOutcome]]:
-        # All nodes but the last get their request asynchronously, the last one synchronously (a
-        # blocking call answers sooner than a reply callback on another thread), then the others.
-        pending = []
-        out = {}
-        last = list(specs)[-1]
-        for k, items in specs.items():
-            client = self.connections[k].client
-            request = client.step_robots_request(items, self.num_sim_steps)
-            if k != last:
-                pending.append((k, request, client.step_robots_async(request, self.timeout_sec)))
-                continue
-            try:
-                response = client.step_robots_call(request, self.timeout_sec)
-            except SimulationNodeError as exc:
-                raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
-                                          f"{self._exit_note(k)}: {exc}") from exc
-            out[k] = client.step_robots_outcomes(request, response)
+        # One blocking call per node; with several nodes, all but the last run on worker threads
+        # (a blocking call waits without the GIL and answers sooner than a reply callback would).
+        requests = {k: self.connections[k].client.step_robots_request(items, self.num_sim_steps)
+                    for k, items in specs.items()}
+        last = list(requests)[-1]
+        pending = {k: self._pool().submit(self._call, k, requests[k]) for k in requests if k != last}
+        out = {last: self._call(last, requests[last])}
         deadline = time.monotonic() + self.timeout_sec
-        for k, request, future in pending:
+        for k, future in pending.items():
             process = self.connections[k].process
-            while not future.wait(0.05 if process is not None else max(0.0, deadline - time.monotonic())):
+            while True:
+                try:
+                    out[k] = future.result(timeout=0.05)
+                    break
+                except concurrent.futures.TimeoutError:
+                    pass
                 if process is not None and process.poll() is not None:
-                    future.cancel()
                     raise SimulationNodeError(
                         f"simulation node {self._node_label(k)} exited with code {process.returncode} during a "
                         f"vector step; its robots are lost: close this vector env and make a new one"
                     )
-                if time.monotonic() >= deadline:
-                    future.cancel()
-                    raise SimulationNodeError(
-                        f"simulation node {self._node_label(k)} did not answer StepRobots within "
-                        f"{self.timeout_sec:g} s; is it alive and reachable?"
-                    )
-            exc = future.exception()
-            if exc is not None:
-                raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step: {exc}") from exc
-            out[k] = self.connections[k].client.step_robots_outcomes(request, future.result())
+                if time.monotonic() >= deadline + 1.0:  # the call's own timeout should have fired
+                    raise SimulationNodeError(f"simulation node {self._node_label(k)} did not answer StepRobots "
+                                              f"within {self.timeout_sec:g} s; is it alive and reachable?")
         return out
+
+    def _call(self, k: int, request: Any) -> list[RobotStepOutcome]:
+        client = self.connections[k].client
+        try:
+            response = client.step_robots_call(request, self.timeout_sec)
+        except SimulationNodeError as exc:
+            raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
+                                      f"{self._exit_note(k)}: {exc}") from exc
+        return client.step_robots_outcomes(request, response)
+
+    def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
+        if self._executor is None:
+            self._executor = concurrent.futures.ThreadPoolExecutor(max(1, self.num_nodes - 1),
+                                                                   thread_name_prefix="uniros-batch")
+        return self._executor
 
     def _exit_note(self, k: int) -> str:
         process = self.connections[k].process
@@ -248,6 +252,9 @@ class EnvBatch:
         envs, self.envs = self.envs, []
         for env in envs:
             env.close()
+        if self._executor is not None:
+            self._executor.shutdown(wait=True, cancel_futures=True)
+            self._executor = None
         connections, self.connections = self.connections, []
         for conn in connections:
             conn.close()
