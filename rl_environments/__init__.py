@@ -7,6 +7,10 @@ ID                             entry point
 =============================  ========================================================================
 ``RX200ReacherSim-v0``         ``rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim:RX200ReacherEnv``
 ``RX200ReacherGoalSim-v0``     ``...reach.rx200_reach_goal_sim:RX200ReacherGoalEnv``
+``RX200PushSim-v0``            ``rl_environments.rx200.sim.task_envs.manipulation.rx200_push_sim:RX200PushEnv``
+``RX200PushGoalSim-v0``        ``...manipulation.rx200_push_goal_sim:RX200PushGoalEnv``
+``RX200PnPSim-v0``             ``...manipulation.rx200_pnp_sim:RX200PnPEnv``
+``RX200PnPGoalSim-v0``         ``...manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv``
 ``ABBIRB120ReacherEnv-v0``     ``rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv``
 ``ABBIRB120ReacherGoalEnv-v0`` ``...reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv``
 =============================  ========================================================================
@@ -22,7 +26,8 @@ Real-robot twins (same task, same spaces; they need a robot or a stand-in, see `
 
 ``ENV_IDS``/``GOAL_ENV_IDS`` are the simulated envs (they run anywhere); ``REAL_ENV_IDS``/
 ``REAL_GOAL_ENV_IDS`` the real ones, and ``SIM_TO_REAL`` maps each simulated ID to its real twin.
-All have ``max_episode_steps=100``. Robot description packages (``rx200_description``,
+The reach IDs have ``max_episode_steps=100``, push and pick-and-place (``MANIPULATION_ENV_IDS``) 50
+(``EPISODE_STEPS``). Robot description packages (``rx200_description``,
 ``abb_irb120_description``) live in ``rl_environments.robots``.
 """
 
@@ -44,10 +49,20 @@ ENV_SPECS: dict[str, str] = {
     "ABBIRB120ReacherGoalEnv-v0": (
         "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv"
     ),
+    "RX200PushSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_push_sim:RX200PushEnv",
+    "RX200PushGoalSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_push_goal_sim:RX200PushGoalEnv",
+    "RX200PnPSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_sim:RX200PnPEnv",
+    "RX200PnPGoalSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv",
 }
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
-GOAL_ENV_IDS: tuple[str, ...] = ("RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0")
+GOAL_ENV_IDS: tuple[str, ...] = (
+    "RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0", "RX200PushGoalSim-v0", "RX200PnPGoalSim-v0",
+)
+MANIPULATION_ENV_IDS: tuple[str, ...] = ("RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0",
+                                         "RX200PnPGoalSim-v0")
 MAX_EPISODE_STEPS = 100
+# Push and pick-and-place: Fetch's 50 steps of 40 ms (see rx200_manipulation's docstring).
+EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, 50)
 REAL_ENV_SPECS: dict[str, str] = {
     "RX200ReacherReal-v0": "rl_environments.rx200.real.task_envs.reach.rx200_reach_real:RX200ReacherRealEnv",
     "RX200ReacherGoalReal-v0": (
@@ -74,7 +89,8 @@ def register_envs() -> None:
     """Register every uniros env ID with gymnasium (idempotent)."""
     for env_id, entry_point in {**ENV_SPECS, **REAL_ENV_SPECS}.items():
         if env_id not in registry:
-            register(id=env_id, entry_point=entry_point, max_episode_steps=MAX_EPISODE_STEPS)
+            register(id=env_id, entry_point=entry_point,
+                     max_episode_steps=EPISODE_STEPS.get(env_id, MAX_EPISODE_STEPS))
 
 
 register_envs()
@@ -82,7 +98,9 @@ register_envs()
 __all__ = [
     "ENV_IDS",
     "ENV_SPECS",
+    "EPISODE_STEPS",
     "GOAL_ENV_IDS",
+    "MANIPULATION_ENV_IDS",
     "REAL_ENV_IDS",
     "REAL_ENV_SPECS",
     "REAL_GOAL_ENV_IDS",

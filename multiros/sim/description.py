@@ -4,7 +4,8 @@ Why the URDF -> MjSpec conversion is written here instead of using MuJoCo's URDF
 importer fuses fixed-joint links (end-effector frames vanish), discards visuals, knows nothing of
 ``package://`` and ``<ros2_control>``, and cannot fix degenerate inertias; we need all of those.
 Parsing is done by :mod:`multiros.sim.urdf_model` (ElementTree; see there why not yourdfpy), which
-also reads the ``<ros2_control>`` and ``<gazebo>`` tags.
+also reads the ``<ros2_control>`` and ``<gazebo>`` tags. A ``<mimic>`` joint becomes a MuJoCo joint
+equality (``q = offset + multiplier * q_leader``), so a gripper's second finger follows the first.
 
 xacro runs in :mod:`multiros.sim.xacro_runner` (``xacro_to_urdf`` is re-exported here).
 
@@ -27,7 +28,7 @@ import os
 import re
 import threading
 import xml.etree.ElementTree as ET
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -343,11 +344,25 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
     if built != len(links):
         raise DescriptionError(f"{source_name}: {len(links) - built} link(s) are not connected to the root "
                                f"'{roots[0]}' (a cycle of joints?)", source=source_name)
+    _add_mimics(spec, robot.joints, {j.name for j in joint_infos})
     rc_joints = _parse_ros2_control(xml_root, source_name)
     return RobotDescription(name=spec.modelname, format="urdf", spec=spec, source=source_name, text=urdf,
                             root=roots[0], joints=tuple(joint_infos), links=tuple(links),
                             ros2_control=rc_joints, link_bodies=link_bodies,
                             controllers_yaml=_parse_gazebo_parameters(xml_root, index, source_name, policy))
+
+
+def _add_mimics(spec: mujoco.MjSpec, joints: Sequence[object], movable: set[str]) -> None:
+    """URDF ``<mimic>``: a joint equality ``q = offset + multiplier * q_leader`` (e.g. the second
+    finger of a parallel gripper follows the commanded one). A mimic of an unknown or fixed joint is
+    ignored, as robot_state_publisher does."""
+    for joint in joints:
+        mimic = getattr(joint, "mimic", None)
+        if mimic is None or joint.name not in movable or mimic.joint not in movable or mimic.joint == joint.name:
+            continue
+        spec.add_equality(name=f"mimic_{joint.name}", type=mujoco.mjtEq.mjEQ_JOINT, objtype=mujoco.mjtObj.mjOBJ_JOINT,
+                          name1=joint.name, name2=mimic.joint,
+                          data=[float(mimic.offset), float(mimic.multiplier)] + [0.0] * 10)
 
 
 class _UrdfBuild:

@@ -23,6 +23,10 @@ __all__ = ["FrameSet"]
 class FrameSet:
     """Several frames (links or sites) whose world poses are fetched together, ids resolved once.
 
+    With an ``entity``, a frame that is not one of its own may name another entity's frame as
+    ``"<entity>/<frame>"`` (e.g. ``"cube/object"``, the root body of an object spawned as ``cube``),
+    so one StepRobot round trip returns a robot's frames and the poses of the objects it handles.
+
     Create with :meth:`World.frame_set`. The world re-resolves the ids after each recompile
     (spawn/delete), so keep using the same object; it raises EntityError once its entity is gone.
     """
@@ -35,6 +39,7 @@ class FrameSet:
         self._out = np.zeros((n, 7))
         self._pos = np.zeros((n, 3))
         self._stale = ""
+        self._others: set[str] = set()  # other entities whose frames this set reads
         self._bind()
 
     def _bind(self) -> None:
@@ -48,6 +53,15 @@ class FrameSet:
             if ent is not None:
                 body_name = ent.prefix + ent.desc.body_name(frame) if frame in ent.desc.links else None
                 site_name = ent.prefix + frame
+                if body_name is None and frame not in ent.info.frames:
+                    other = self._other_entity(frame)
+                    if other is not None:  # "<entity>/<frame>" of another entity (an object's pose)
+                        if not world.has_entity(other[0]):
+                            self._stale = f"frame set {list(self.names)}: entity '{other[0]}' was deleted"
+                            return
+                        oent = world._entities[other[0]]
+                        body_name = oent.prefix + oent.desc.body_name(other[1]) if other[1] in oent.desc.links else None
+                        site_name = oent.prefix + other[1]
             else:
                 body_name, site_name = frame, frame
             bid = mujoco.mj_name2id(model, int(mujoco.mjtObj.mjOBJ_BODY), body_name) if body_name else -1
@@ -58,7 +72,8 @@ class FrameSet:
             if sid < 0:
                 known = sorted(ent.info.frames) if ent is not None else "(full '<entity>/<frame>' names)"
                 where = f"entity '{self.entity}'" if ent is not None else "the world"
-                raise EntityError(f"frame '{frame}' is not a link or site of {where}; known frames: {known}")
+                raise EntityError(f"frame '{frame}' is not a link or site of {where}; known frames: {known}"
+                                  + ("; another entity's frame is named '<entity>/<frame>'" if ent is not None else ""))
             sites.append((i, sid))
         self._b_rows = np.array([r for r, _ in bodies], dtype=np.intp)
         self._b_ids = np.array([b for _, b in bodies], dtype=np.intp)
@@ -67,6 +82,17 @@ class FrameSet:
         self._s_ids_arr = np.array(self._s_ids, dtype=np.intp)
         self._s_rows_arr = np.array(self._s_rows, dtype=np.intp)
         self._stale = ""
+
+    def _other_entity(self, frame: str) -> tuple[str, str] | None:
+        """``(entity, frame)`` when ``frame`` is ``"<other entity>/<frame>"`` and that entity exists
+        (or existed when this set was first bound), else None."""
+        head, sep, rest = frame.partition("/")
+        if not sep or not rest or head == self.entity:
+            return None
+        if self._world.has_entity(head) or head in self._others:
+            self._others.add(head)
+            return head, rest
+        return None
 
     def _check(self) -> None:
         if self._stale:

@@ -1,0 +1,151 @@
+"""Push and pick-and-place, the parts every arm shares: object and goal sampling, vectorised
+rewards and success, object velocities from consecutive poses, and the RX200's top-down IK.
+
+Pure functions (no ROS call, no side effect), so HER can call the reward on batches (``axis=-1``).
+Fetch's conventions (Gymnasium-Robotics ``FetchPush``/``FetchPickAndPlace``): the achieved goal is
+the object's position, sparse reward 0 on success and -1 otherwise, dense ``-distance``, success
+within ``distance_threshold``; goals on the table for push, in the air half of the time for
+pick-and-place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rl_environments.reach import RewardType, goal_distance, goal_reward, is_success
+
+__all__ = [
+    "ObjectGoalSampler",
+    "RX200TopDownIK",
+    "goal_distance",
+    "goal_reward",
+    "is_success",
+    "quat_to_euler",
+    "rotation_velocity",
+    "RewardType",
+]
+
+
+@dataclass(frozen=True)
+class ObjectGoalSampler:
+    """Object start poses and goals on (or above) a table, relative to the robot base.
+
+    Args:
+        object_low, object_high: box of the object's start ``(x, y)``.
+        goal_low, goal_high: box of the goal's ``(x, y)``.
+        rest_z: the object's centre height when it rests on the table.
+        air_probability: chance a goal is lifted (0 for push, Fetch's 0.5 for pick-and-place).
+        air_height: a lifted goal is ``rest_z + U(0, air_height)``.
+        min_distance: object and goal at least this far apart (3-D).
+        yaw_range: the object's yaw is the radial direction from the base plus ``U(-yaw_range, yaw_range)``.
+    """
+
+    object_low: tuple[float, float]
+    object_high: tuple[float, float]
+    goal_low: tuple[float, float]
+    goal_high: tuple[float, float]
+    rest_z: float
+    air_probability: float = 0.0
+    air_height: float = 0.0
+    min_distance: float = 0.08
+    yaw_range: float = 0.3
+
+    def sample(self, rng: np.random.Generator, max_tries: int = 1000) -> tuple[np.ndarray, float, np.ndarray]:
+        """``(object position, object yaw, goal)`` drawn with ``rng``; object and goal apart.
+
+        Raises:
+            RuntimeError: the boxes are too small for ``min_distance``.
+        """
+        for _ in range(max_tries):
+            obj = np.array([*rng.uniform(self.object_low, self.object_high), self.rest_z])
+            goal = np.array([*rng.uniform(self.goal_low, self.goal_high), self.rest_z])
+            if self.air_probability > 0 and rng.uniform() < self.air_probability:
+                goal[2] += rng.uniform(0.0, self.air_height)
+            if np.linalg.norm(goal - obj) >= self.min_distance:
+                yaw = float(np.arctan2(obj[1], obj[0]) + rng.uniform(-self.yaw_range, self.yaw_range))
+                return obj, yaw, goal
+        raise RuntimeError(
+            f"no object/goal pair {self.min_distance} m apart in {max_tries} draws: the object and goal boxes "
+            "are too small; widen them or lower min_object_goal_distance"
+        )
+
+
+def yaw_quat(yaw: float) -> np.ndarray:
+    """Quaternion ``(w, x, y, z)`` of a rotation by ``yaw`` about z."""
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def quat_to_euler(q: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (x-y-z extrinsic, as Fetch's ``mat2euler``) of ``(w, x, y, z)`` quaternions."""
+    w, x, y, z = (np.asarray(q, dtype=np.float64)[..., i] for i in range(4))
+    roll = np.arctan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = np.arcsin(np.clip(2 * (w * y - z * x), -1.0, 1.0))
+    yaw = np.arctan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return np.stack([roll, pitch, yaw], axis=-1)
+
+
+def rotation_velocity(q0: np.ndarray, q1: np.ndarray, dt: float) -> np.ndarray:
+    """World-frame angular velocity taking orientation ``q0`` to ``q1`` in ``dt`` seconds."""
+    w0, v0 = q0[0], -np.asarray(q0[1:])  # conjugate of q0
+    w1, v1 = q1[0], np.asarray(q1[1:])
+    # q1 * conj(q0): the world-frame rotation between them
+    w = w1 * w0 - v1 @ v0
+    v = w1 * v0 + w0 * v1 + np.cross(v1, v0)
+    if w < 0:
+        w, v = -w, -v
+    s = float(np.linalg.norm(v))
+    if s < 1e-12 or dt <= 0:
+        return np.zeros(3)
+    angle = 2.0 * np.arctan2(s, w)
+    return v / s * angle / dt
+
+
+class RX200TopDownIK:
+    """Closed-form IK of the RX200 with the gripper pointing straight down (5-DOF: the waist aims
+    at the target, shoulder and elbow place the wrist above it, wrist_angle makes the pitch 90°,
+    wrist_rotate stays 0 so the fingers close across the radial direction).
+
+    Lengths from ``rx200.urdf.xacro``: shoulder axis 0.10457 m above the base, upper arm
+    (0.05, 0.2), forearm 0.2, wrist_angle axis to ``ee_gripper_link`` 0.158575 along the gripper.
+    """
+
+    SHOULDER_Z = 0.06566 + 0.03891
+    UPPER = (0.05, 0.2)
+    FOREARM = 0.2
+    TIP = 0.065 + 0.043 + 0.023 + 0.027575
+
+    def __init__(self, lower: Sequence[float], upper: Sequence[float]) -> None:
+        self.lower = np.asarray(lower, dtype=np.float64)
+        self.upper = np.asarray(upper, dtype=np.float64)
+        self._a = float(np.hypot(*self.UPPER))
+        self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
+
+    def solve(self, target: np.ndarray) -> np.ndarray:
+        """Joint targets (clipped into the limits) putting ``ee_gripper_link`` at ``target``
+        (base frame), gripper vertical; an unreachable target is pulled in to the reachable edge."""
+        x, y, z = (float(v) for v in target)
+        waist = float(np.arctan2(y, x)) if np.hypot(x, y) > 1e-6 else 0.0
+        r = float(np.hypot(x, y))
+        dr, dz = r, z + self.TIP - self.SHOULDER_Z
+        a, b = self._a, self.FOREARM
+        dist = float(np.hypot(dr, dz))
+        dist_c = min(max(dist, abs(a - b) + 1e-6), a + b - 1e-6)
+        if dist_c != dist and dist > 1e-9:
+            dr, dz = dr * dist_c / dist, dz * dist_c / dist
+        cos_rel = (dist_c**2 - a * a - b * b) / (2 * a * b)
+        rel = -float(np.arccos(np.clip(cos_rel, -1.0, 1.0)))  # elbow up: the forearm folds down
+        phi1 = float(np.arctan2(dz, dr) - np.arctan2(b * np.sin(rel), a + b * np.cos(rel)))
+        phi2 = phi1 + rel
+        shoulder = self._alpha0 - phi1
+        elbow = -phi2 - shoulder
+        wrist = np.pi / 2 - shoulder - elbow
+        return np.clip(np.array([waist, shoulder, elbow, wrist, 0.0]), self.lower, self.upper)
+
+
+def object_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, threshold: float,
+                  reward_type: RewardType) -> np.ndarray | float:
+    """Fetch's reward: sparse 0 / -1 within ``threshold``, or dense ``-distance``; vectorised."""
+    return goal_reward(achieved_goal, desired_goal, threshold, reward_type)
