@@ -61,7 +61,9 @@ class EnvBatch:
         spacing: metres between world slots (larger than twice the robot's reach).
         timeout_sec: bound on every request; a node that does not answer in time is named in the error.
         max_episode_steps: truncate episodes after this many steps (``None``: never).
-        node_name: the simulation nodes' name (each behind its own router in process mode).
+        node_name: the simulation nodes' name (each behind its own router in process mode); with
+            ``sim_mode="existing"`` a list of K names reaches K running nodes (e.g. on K hosts joined
+            by a Zenoh router network), and ``num_nodes`` is its length.
         trusted_paths: folders of local robot files the nodes may read.
         connect_kwargs: more options for :func:`multiros.sim.launch.connect`.
 
@@ -80,20 +82,28 @@ class EnvBatch:
         spacing: float = 2.0,
         timeout_sec: float = 10.0,
         max_episode_steps: int | None = None,
-        node_name: str = "mujoco_sim",
+        node_name: str | Sequence[str] = "mujoco_sim",
         trusted_paths: Sequence[str] = (),
         connect_kwargs: Mapping[str, Any] | None = None,
     ) -> None:
         from multiros.sim.launch import connect  # the sim layer's launcher (DESIGN §2)
 
+        names = [node_name] if isinstance(node_name, str) else list(node_name)
+        if not isinstance(node_name, str):
+            if sim_mode != "existing" or not names:
+                raise ValueError("a list of node names needs sim_mode='existing' and at least one name")
+            num_nodes = len(names)
         if not isinstance(num_envs, int) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if not isinstance(num_nodes, int) or not 1 <= num_nodes <= num_envs:
             raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {num_nodes!r}")
         if sim_mode not in ("composed", "process", "existing"):
             raise ValueError(f"sim_mode must be 'composed', 'process' or 'existing', got {sim_mode!r}")
-        if num_nodes > 1 and sim_mode != "process":
-            raise ValueError("num_nodes > 1 needs sim_mode='process' (composed nodes would share this process' core)")
+        if num_nodes > 1 and sim_mode == "composed":
+            raise ValueError("num_nodes > 1 needs sim_mode='process' (composed nodes would share this process' core), "
+                             "or sim_mode='existing' with a list of node names")
+        if sim_mode == "existing" and len(names) != num_nodes:
+            raise ValueError(f"num_nodes={num_nodes} running nodes need {num_nodes} node names, got {names}")
         if not (math.isfinite(spacing) and spacing > 0):
             raise ValueError(f"spacing must be a positive number of metres, got {spacing!r}")
         self.num_envs = num_envs
@@ -107,8 +117,9 @@ class EnvBatch:
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         tag = f"{os.getpid()}x{next(_batch_ids)}"
         try:
-            for _ in range(num_nodes):
-                self.connections.append(connect(sim_mode, node_name=node_name, timeout_sec=max(self.timeout_sec, 30.0),
+            for k in range(num_nodes):
+                name = names[k] if sim_mode == "existing" else names[0]
+                self.connections.append(connect(sim_mode, node_name=name, timeout_sec=max(self.timeout_sec, 30.0),
                                                  trusted_paths=trusted_paths, **dict(connect_kwargs or {})))
             for k, conn in enumerate(self.connections):
                 self._check_capacity(k, conn, self.node_of.count(k))
