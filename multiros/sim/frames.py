@@ -94,6 +94,11 @@ class FrameSet:
             return head, rest
         return None
 
+    @property
+    def stale(self) -> bool:
+        """Whether an entity this set reads was deleted (reading it raises; build a new set)."""
+        return bool(self._stale)
+
     def _check(self) -> None:
         if self._stale:
             raise EntityError(self._stale)

@@ -47,7 +47,7 @@ class FrameSetCache:
         """The cached frame set, else a new one (EntityError for an unknown entity or frame)."""
         key = (entity, frames)
         frame_set = self._sets.get(key)
-        if frame_set is None:
+        if frame_set is None or frame_set.stale:  # stale: an object whose frames it read was deleted
             frame_set = world.frame_set(frames, entity)
             if len(self._sets) >= self._limit:
                 self._sets.clear()

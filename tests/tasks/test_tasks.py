@@ -35,10 +35,11 @@ def make():
 def test_every_id_is_registered_on_import():
     assert set(ALL_IDS) == {
         "RX200ReacherSim-v0", "RX200ReacherGoalSim-v0", "ABBIRB120ReacherEnv-v0", "ABBIRB120ReacherGoalEnv-v0",
+        "RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0", "RX200PnPGoalSim-v0",
     }
     for env_id in ALL_IDS:
         spec = gym.spec(env_id)
-        assert spec.max_episode_steps == 100
+        assert spec.max_episode_steps == (50 if env_id in rl_environments.MANIPULATION_ENV_IDS else 100)
     assert uniros.make is not gym.make and uniros.spaces is gym.spaces and uniros.register is gym.register
 
 
