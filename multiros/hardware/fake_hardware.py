@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,7 +78,7 @@ class FakeHardware:
         self._mimic_lo = np.array([m.lower for m in spec.mimics])
         self._mimic_hi = np.array([m.upper for m in spec.mimics])
 
-    # -- the "world" view used by TrajectoryActions ----------------------------------------------
+    # -- the "world" view used by TrajectoryActions and ControllerInterfaces -----------------------
     @property
     def time(self) -> float:
         """Now, wall clock (seconds since the epoch)."""
@@ -89,6 +89,10 @@ class FakeHardware:
 
     def controllers_changed(self, robot: str) -> None:
         """Nothing to rebuild: modes and gains are read at every update."""
+
+    def set_command(self, robot: str, controller: str, command: Sequence[float]) -> None:
+        """Send a command vector to a controller, now (CommandError/ControllerError if refused)."""
+        self.cm.set_command(controller, command, self.time)
 
     def joint_names(self, robot: str) -> tuple[str, ...]:
         return self.hw.joint_names

@@ -36,20 +36,15 @@ from multiros.ros import Context, Node
 from multiros.ros.action import GoalResponse
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.sim.actions import TrajectoryActions
-from multiros.sim.controllers import JointTrajectoryController
-from multiros.sim.distro_adapters import create_services, get_message, get_service
-from multiros.sim.errors import CommandError, ControllerError, SimError
-from multiros.sim.services import CONTROLLER_SERVICES
+from multiros.sim.controller_io import ControllerInterfaces
+from multiros.sim.distro_adapters import get_message
+from multiros.sim.errors import ControllerError, SimError
 
 __all__ = ["FakeRobot", "main", "DEFAULT_RATE"]
 
 _logger = logging.getLogger(__name__)
 
 JointState = get_message("sensor_msgs/msg/JointState")
-Float64MultiArray = get_message("std_msgs/msg/Float64MultiArray")
-JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
-ControllerState = get_message("controller_manager_msgs/msg/ControllerState")
-SwitchController = get_service(CONTROLLER_SERVICES["switch_controller"])
 
 #: joint_states rate in Hz.
 DEFAULT_RATE = 100.0
@@ -108,11 +103,10 @@ class FakeRobot:
         self._joint_pub = self.node.create_publisher(JointState, f"{self.ns}/joint_states", 10)
         self._actions = _Actions(self.node, self.hardware, spec.name, self.ns, self.hardware.lock)
         self._actions.reject_all = bool(reject_goals)
-        self._command_subs: dict[str, Any] = {}
-        self._services: list[Any] = []
+        self.controllers = ControllerInterfaces(self.node, self.hardware, spec.name, self.ns, self.hardware.lock,
+                                                self._actions)
         with self.hardware.lock:
-            for info in self.hardware.cm.list_controllers():
-                self._subscribe_commands(info.name)
+            self.controllers.subscribe_all()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._executor: SingleThreadedExecutor | None = None
@@ -132,12 +126,7 @@ class FakeRobot:
         self._spin_thread.start()
         self._thread = threading.Thread(target=self._loop, name="uniros-fake-robot", daemon=True)
         self._thread.start()
-        cm = f"{self.ns}/controller_manager"
-        handlers = {"list_controllers": self._list, "load_controller": self._load,
-                    "configure_controller": self._configure, "switch_controller": self._switch,
-                    "unload_controller": self._unload}
-        self._services = [srv for name, type_name in CONTROLLER_SERVICES.items()
-                          for srv in create_services(self.node, type_name, f"{cm}/{name}", handlers[name])]
+        self.controllers.serve()
 
     def _loop(self) -> None:
         tick, pub_period = 1.0 / self.update_rate, 1.0 / self.rate
@@ -175,95 +164,6 @@ class FakeRobot:
         self._joint_pub.publish(msg)
         self.published += 1
 
-    # -- controller command topics -----------------------------------------------------------
-    def _subscribe_commands(self, controller: str) -> None:
-        if controller in self._command_subs:
-            return
-        ctrl = self.hardware.cm.get(controller)
-        if not ctrl.command_interfaces:
-            return
-        if isinstance(ctrl, JointTrajectoryController):
-            self._actions.add(controller, ctrl)
-            sub = self.node.create_subscription(JointTrajectory, f"{self.ns}/{controller}/joint_trajectory",
-                                                lambda msg, c=controller: self._on_trajectory(c, msg), 10)
-        else:
-            sub = self.node.create_subscription(Float64MultiArray, f"{self.ns}/{controller}/commands",
-                                                lambda msg, c=controller: self._on_command(c, msg), 10)
-        self._command_subs[controller] = sub
-
-    def _unsubscribe_commands(self, controller: str) -> None:
-        self._actions.remove(controller)
-        sub = self._command_subs.pop(controller, None)
-        if sub is not None:
-            self.node.destroy_subscription(sub)
-
-    def _on_command(self, controller: str, msg: Any) -> None:
-        with self.hardware.lock:
-            try:
-                self.hardware.cm.set_command(controller, msg.data, self.hardware.time)
-            except (CommandError, ControllerError) as exc:
-                self.node.get_logger().warning("%s/%s/commands: %s (ignored)", self.ns, controller, exc)
-
-    def _on_trajectory(self, controller: str, msg: Any) -> None:
-        times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points]
-        velocities = [p.velocities for p in msg.points] if all(len(p.velocities) for p in msg.points) else None
-        with self.hardware.lock:
-            try:
-                ctrl = self.hardware.cm.get(controller)
-                if ctrl.state != "active":
-                    raise ControllerError(f"controller '{controller}' is {ctrl.state}")
-                ctrl.set_trajectory(list(msg.joint_names), [p.positions for p in msg.points], times, velocities,
-                                    time=self.hardware.time)
-            except (CommandError, ControllerError) as exc:
-                self.node.get_logger().warning("%s/%s/joint_trajectory: %s (ignored)", self.ns, controller, exc)
-
-    # -- controller manager services -----------------------------------------------------------
-    def _list(self, request: Any, response: Any) -> Any:
-        with self.hardware.lock:
-            infos = self.hardware.cm.list_controllers()
-        response.controller = [
-            ControllerState(name=i.name, state=i.state, type=i.type, claimed_interfaces=list(i.claimed_interfaces),
-                            required_command_interfaces=list(i.required_command_interfaces),
-                            required_state_interfaces=list(i.required_state_interfaces))
-            for i in infos
-        ]
-        return response
-
-    def _manage(self, response: Any, action: Any) -> Any:
-        with self.hardware.lock:
-            try:
-                action(self.hardware.cm)
-                response.ok = True
-            except ControllerError as exc:
-                self.node.get_logger().warning("%s/controller_manager: %s", self.ns, exc)
-                response.ok = False
-                if hasattr(response, "message"):  # SwitchController since ros2_control 4 (Jazzy)
-                    response.message = str(exc)
-        return response
-
-    def _load(self, request: Any, response: Any) -> Any:
-        def load(cm: Any) -> None:
-            cm.load(request.name)
-            self._subscribe_commands(request.name)
-
-        return self._manage(response, load)
-
-    def _configure(self, request: Any, response: Any) -> Any:
-        return self._manage(response, lambda cm: cm.configure(request.name))
-
-    def _switch(self, request: Any, response: Any) -> Any:
-        strict = int(request.strictness) != SwitchController.Request.BEST_EFFORT
-        return self._manage(response, lambda cm: cm.switch(
-            list(request.activate_controllers), list(request.deactivate_controllers), strict=strict,
-            time=self.hardware.time))
-
-    def _unload(self, request: Any, response: Any) -> Any:
-        def unload(cm: Any) -> None:
-            cm.unload(request.name)
-            self._unsubscribe_commands(request.name)
-
-        return self._manage(response, unload)
-
     # -- teardown ----------------------------------------------------------------------------
     def destroy(self) -> None:
         """Stop the loop, then destroy every topic, service and action."""
@@ -274,9 +174,7 @@ class FakeRobot:
             self._executor.shutdown()
             if self._spin_thread is not None:
                 self._spin_thread.join(timeout=2.0)
-        self._actions.destroy()
-        for name in list(self._command_subs):
-            self._unsubscribe_commands(name)
+        self.controllers.destroy()
         self.node.destroy_node()
 
 

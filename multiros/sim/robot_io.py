@@ -2,11 +2,8 @@
 
 * ``joint_states`` (``sensor_msgs/JointState``), ``/tf`` (its links in the ``world`` frame) and
   ``robot_description`` (``std_msgs/String``, transient local);
-* controller command topics in ros2_control style: ``<controller>/commands``
-  (``std_msgs/Float64MultiArray``) for forward command controllers and
-  ``<controller>/joint_trajectory`` (``trajectory_msgs/JointTrajectory``) for trajectory controllers;
-* controller-manager services: ``controller_manager/list_controllers``, ``load_controller``,
-  ``configure_controller``, ``switch_controller``, ``unload_controller``.
+* the controller manager's services, controller command topics and trajectory actions
+  (:class:`~multiros.sim.controller_io.ControllerInterfaces`, shared with the fake robot).
 
 State topics are published only when someone subscribes, so the lockstep hot path pays nothing
 for them.
@@ -20,23 +17,13 @@ from typing import Any
 from multiros.ros.qos import DurabilityPolicy, QoSProfile
 from multiros.sim import convert
 from multiros.sim.actions import TrajectoryActions
-from multiros.sim.controllers import JointTrajectoryController
-from multiros.sim.distro_adapters import create_services, get_message, get_service
-from multiros.sim.errors import CommandError, ControllerError
-from multiros.sim.services import CONTROLLER_SERVICES
+from multiros.sim.controller_io import ControllerInterfaces
+from multiros.sim.distro_adapters import get_message
 
 JointState = get_message("sensor_msgs/msg/JointState")
 String = get_message("std_msgs/msg/String")
-Float64MultiArray = get_message("std_msgs/msg/Float64MultiArray")
-JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
 TFMessage = get_message("tf2_msgs/msg/TFMessage")
 TransformStamped = get_message("geometry_msgs/msg/TransformStamped")
-ControllerState = get_message("controller_manager_msgs/msg/ControllerState")
-ListControllers = get_service(CONTROLLER_SERVICES["list_controllers"])
-LoadController = get_service(CONTROLLER_SERVICES["load_controller"])
-ConfigureController = get_service(CONTROLLER_SERVICES["configure_controller"])
-SwitchController = get_service(CONTROLLER_SERVICES["switch_controller"])
-UnloadController = get_service(CONTROLLER_SERVICES["unload_controller"])
 
 _LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -65,18 +52,10 @@ class RobotInterfaces:
         self._tf_pub = node.create_publisher(TFMessage, "/tf", 100)
         self._description_pub = node.create_publisher(String, f"{ns}/robot_description", _LATCHED)
         self._description_pub.publish(String(data=info.description))
-        self._command_subs: dict[str, Any] = {}
         self._actions = TrajectoryActions(node, world, info.name, ns, lock)  # follow_joint_trajectory
-        cm = f"{ns}/controller_manager"
-        handlers = {"list_controllers": self._list, "load_controller": self._load,
-                    "configure_controller": self._configure, "switch_controller": self._switch,
-                    "unload_controller": self._unload}
-        self._services = [  # every served distribution's variant (multiros.sim.distro_adapters)
-            srv for name, type_name in CONTROLLER_SERVICES.items()
-            for srv in create_services(node, type_name, f"{cm}/{name}", handlers[name])
-        ]
-        for controller in world.controller_manager(info.name).list_controllers():
-            self._subscribe_commands(controller.name)
+        self.controllers = ControllerInterfaces(node, world, info.name, ns, lock, self._actions)
+        self.controllers.serve()
+        self.controllers.subscribe_all()
 
     # -- state topics -----------------------------------------------------------------------
     def fill_joint_state(self, msg: Any) -> Any:
@@ -111,114 +90,10 @@ class RobotInterfaces:
     def on_reset(self) -> None:
         """Called after a world reset (state topics are refreshed on the next step)."""
 
-    # -- controller command topics ----------------------------------------------------------
-    def _subscribe_commands(self, controller: str) -> None:
-        if controller in self._command_subs:
-            return
-        ctrl = self.world.controller_manager(self.name).get(controller)
-        if not ctrl.command_interfaces:
-            return
-        if isinstance(ctrl, JointTrajectoryController):
-            self._actions.add(controller, ctrl)
-            sub = self.node.create_subscription(
-                JointTrajectory, f"{self.ns}/{controller}/joint_trajectory",
-                lambda msg, c=controller: self._on_trajectory(c, msg), 10,
-            )
-        else:
-            sub = self.node.create_subscription(
-                Float64MultiArray, f"{self.ns}/{controller}/commands",
-                lambda msg, c=controller: self._on_command(c, msg), 10,
-            )
-        self._command_subs[controller] = sub
-
-    def _unsubscribe_commands(self, controller: str) -> None:
-        self._actions.remove(controller)
-        sub = self._command_subs.pop(controller, None)
-        if sub is not None:
-            self.node.destroy_subscription(sub)
-
-    def _on_command(self, controller: str, msg: Any) -> None:
-        with self.lock:
-            try:
-                self.world.set_command(self.name, controller, msg.data)
-            except (CommandError, ControllerError) as exc:
-                self.node.get_logger().warning("%s/%s/commands: %s (ignored)", self.ns, controller, exc)
-
-    def _on_trajectory(self, controller: str, msg: Any) -> None:
-        times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points]
-        velocities = [p.velocities for p in msg.points] if all(len(p.velocities) for p in msg.points) else None
-        with self.lock:
-            try:
-                ctrl = self.world.controller_manager(self.name).get(controller)
-                if ctrl.state != "active":
-                    raise ControllerError(f"controller '{controller}' is {ctrl.state}")
-                ctrl.set_trajectory(list(msg.joint_names), [p.positions for p in msg.points], times, velocities,
-                                    time=self.world.time)
-                self.world.controllers_changed(self.name)
-            except (CommandError, ControllerError) as exc:
-                self.node.get_logger().warning("%s/%s/joint_trajectory: %s (ignored)", self.ns, controller, exc)
-
-    # -- controller manager services ----------------------------------------------------------
-    def _list(self, request: Any, response: Any) -> Any:
-        with self.lock:
-            infos = self.world.controller_manager(self.name).list_controllers()
-        response.controller = [
-            ControllerState(
-                name=i.name, state=i.state, type=i.type, claimed_interfaces=list(i.claimed_interfaces),
-                required_command_interfaces=list(i.required_command_interfaces),
-                required_state_interfaces=list(i.required_state_interfaces),
-            )
-            for i in infos
-        ]
-        return response
-
-    def _manage(self, response: Any, action: Any) -> Any:
-        with self.lock:
-            try:
-                action(self.world.controller_manager(self.name))
-                self.world.controllers_changed(self.name)
-                response.ok = True
-            except ControllerError as exc:
-                self.node.get_logger().warning("%s/controller_manager: %s", self.ns, exc)
-                response.ok = False
-                if hasattr(response, "message"):  # SwitchController since ros2_control 4 (Jazzy)
-                    response.message = str(exc)
-        return response
-
-    def _load(self, request: Any, response: Any) -> Any:
-        def load(cm: Any) -> None:
-            cm.load(request.name)
-            self._subscribe_commands(request.name)
-
-        return self._manage(response, load)
-
-    def _configure(self, request: Any, response: Any) -> Any:
-        return self._manage(response, lambda cm: cm.configure(request.name))
-
-    def _switch(self, request: Any, response: Any) -> Any:
-        strict = int(request.strictness) != SwitchController.Request.BEST_EFFORT
-        return self._manage(
-            response,
-            lambda cm: cm.switch(list(request.activate_controllers), list(request.deactivate_controllers),
-                                 strict=strict, time=self.world.time),
-        )
-
-    def _unload(self, request: Any, response: Any) -> Any:
-        def unload(cm: Any) -> None:
-            cm.unload(request.name)
-            self._unsubscribe_commands(request.name)
-
-        return self._manage(response, unload)
-
     # -- teardown ---------------------------------------------------------------------------
     def destroy(self) -> None:
         """Destroy every publisher, subscription, service and action of this robot."""
-        self._actions.destroy()
-        for name in list(self._command_subs):
-            self._unsubscribe_commands(name)
-        for srv in self._services:
-            self.node.destroy_service(srv)
-        self._services = []
+        self.controllers.destroy()
         for pub in (self._joint_pub, self._tf_pub, self._description_pub):
             self.node.destroy_publisher(pub)
 
