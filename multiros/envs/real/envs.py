@@ -10,15 +10,13 @@ from __future__ import annotations
 from typing import Any
 
 import gymnasium as gym
-import numpy as np
 from gymnasium_robotics.core import GoalEnv
 
-from multiros.envs.base_env import _GOAL_KEYS, _call
-from multiros.envs.core import EnvError
+from multiros.envs.base_env import GoalStepTemplate, PlainStepTemplate
 from multiros.envs.real.core import RealEnvCore
 
 
-class RealBaseEnv(RealEnvCore, gym.Env):
+class RealBaseEnv(RealEnvCore, PlainStepTemplate, gym.Env):
     """A gymnasium ``Env`` driving a real ros2_control robot (RealROS' ``RealBaseEnv``).
 
     Subclass it twice, as in RealROS: a robot env (namespace, controllers, joints, safety) and a task
@@ -52,27 +50,10 @@ class RealBaseEnv(RealEnvCore, gym.Env):
         action = self._check_action(action)
         self.info = {}
         self._act_and_wait(RealBaseEnv, action)
-        obs = self._observe()
-        info = self.info
-        reward = self._hook(RealBaseEnv, "_get_reward")
-        if reward is None:
-            raise NotImplementedError(f"{type(self).__name__} must implement _get_reward()")
-        reward_value = float(_call(reward, info))
-        done = self._hook(RealBaseEnv, "_check_if_done", "_compute_terminated")
-        terminated = bool(_call(done, info)) if done is not None else False
-        trunc = self._hook(RealBaseEnv, "_compute_truncated")
-        truncated = bool(_call(trunc, info)) if trunc is not None else False
-        info.setdefault("is_success", False)
-        return obs, reward_value, terminated, truncated, info
-
-    def _observe(self) -> Any:
-        hook = self._hook(RealBaseEnv, "_get_obs", "_get_observation")
-        if hook is None:
-            raise NotImplementedError(f"{type(self).__name__} must implement _get_obs()")
-        return hook()
+        return self._step_result()
 
 
-class RealGoalEnv(RealEnvCore, GoalEnv):
+class RealGoalEnv(RealEnvCore, GoalStepTemplate, GoalEnv):
     """A goal-conditioned env (``gymnasium_robotics.GoalEnv``) on a real robot, ready for HER
     (RealROS' ``RealGoalEnv``).
 
@@ -87,24 +68,6 @@ class RealGoalEnv(RealEnvCore, GoalEnv):
         gym.Env.__init__(self)
         self._init_real(**kwargs)
 
-    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
-        hook = self._hook(RealGoalEnv, "_compute_reward")
-        if hook is None:
-            raise NotImplementedError(
-                f"{type(self).__name__} must implement _compute_reward(achieved_goal, desired_goal, info)")
-        return hook(achieved_goal, desired_goal, info)
-
-    def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
-        hook = self._hook(RealGoalEnv, "_is_success")
-        if hook is None:
-            return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool) if np.ndim(achieved_goal) > 1 else False
-        return hook(achieved_goal, desired_goal)
-
-    def compute_truncated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
-        if np.ndim(achieved_goal) > 1:
-            return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool)
-        return False
-
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
         if seed is None and self._pending_seed is not None:
             seed = self._pending_seed
@@ -113,37 +76,15 @@ class RealGoalEnv(RealEnvCore, GoalEnv):
         self._real_reset(RealGoalEnv, options)
         obs = self._observe()
         info = self.info
-        info.setdefault("is_success", bool(self.compute_terminated(obs["achieved_goal"], obs["desired_goal"], info)))
+        info.setdefault("is_success", self._success(obs, info))
         return obs, info
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
         action = self._check_action(action)
         self.info = {}
         self._act_and_wait(RealGoalEnv, action)
-        obs = self._observe()
-        info = self.info
-        ag, dg = obs["achieved_goal"], obs["desired_goal"]
-        terminated = bool(self.compute_terminated(ag, dg, info))
-        info.setdefault("is_success", terminated if self._hook(RealGoalEnv, "_is_success") is not None else False)
-        reward = float(self.compute_reward(ag, dg, info))
-        extra = self._hook(RealGoalEnv, "_check_if_done")
-        if extra is not None:
-            terminated = terminated or bool(extra())
-        truncated = bool(self.compute_truncated(ag, dg, info))
-        return obs, reward, terminated, truncated, info
+        return self._step_result()
 
-    def _observe(self) -> dict:
-        hook = self._hook(RealGoalEnv, "_get_obs")
-        if hook is not None:
-            obs = hook()
-        else:
-            names = ("_get_observation", "_get_achieved_goal", "_get_desired_goal")
-            parts = [self._hook(RealGoalEnv, n) for n in names]
-            if any(p is None for p in parts):
-                raise NotImplementedError(
-                    f"{type(self).__name__} must implement _get_obs() returning a dict with {_GOAL_KEYS} "
-                    "(or _get_observation(), _get_achieved_goal() and _get_desired_goal())")
-            obs = dict(zip(_GOAL_KEYS, (p() for p in parts)))
-        if not isinstance(obs, dict) or any(k not in obs for k in _GOAL_KEYS):
-            raise EnvError(f"{type(self).__name__}._get_obs() must return a dict with keys {_GOAL_KEYS}")
-        return obs
+
+RealBaseEnv._template = RealBaseEnv
+RealGoalEnv._template = RealGoalEnv
