@@ -60,21 +60,11 @@ def _start_standin(kind: str, env: dict[str, str], cwd: Path) -> subprocess.Pope
 
 def _wait_ready(ctx, proc: subprocess.Popen, timeout: float = 60.0) -> None:
     from multiros.ros import Node
-    from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
+    from multiros.sim.controller_client import ControllerManagerClient
 
     node = Node(f"bench_probe_{os.getpid()}", context=ctx)
     try:
-        cm = ControllerManagerClient(node, "/rx200", timeout_sec=1.0)
-        deadline = time.monotonic() + timeout
-        while True:
-            if proc.poll() is not None:
-                raise RuntimeError(f"stand-in exited with {proc.returncode} before it was ready")
-            try:
-                cm.list_controllers()
-                return
-            except ControllerManagerError:
-                if time.monotonic() > deadline:
-                    raise
+        ControllerManagerClient(node, "/rx200").wait_until_ready(timeout, proc)
     finally:
         node.destroy_node()
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Sequence
 
 from multiros.hardware.robot_spec import PRESETS
@@ -30,11 +29,10 @@ from multiros.ros.processes import (
     track_child,
     untrack_child,
 )
-from multiros.sim.distro_adapters import get_service
+from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
 
 __all__ = ["FakeRobotProcess", "FakeRobotError"]
 
-ListControllers = get_service("controller_manager_msgs/srv/ListControllers")
 
 
 class FakeRobotError(RuntimeError):
@@ -85,23 +83,9 @@ class FakeRobotProcess:
     def _wait_ready(self, context: Context, timeout_sec: float) -> None:
         node = Node(f"fake_robot_probe_{os.getpid()}_{id(self):x}", context=context)
         try:
-            client = node.create_client(ListControllers, f"{self.namespace}/controller_manager/list_controllers")
-            deadline = time.monotonic() + timeout_sec
-            while True:
-                if self.process.poll() is not None:
-                    raise FakeRobotError(f"uniros-fake-robot (pid {self.process.pid}) exited with code "
-                                         f"{self.process.returncode} before it was ready")
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
-                    raise FakeRobotError(f"uniros-fake-robot (pid {self.process.pid}) did not answer "
-                                         f"{self.namespace}/controller_manager/list_controllers within "
-                                         f"{timeout_sec:g} s")
-                if client.wait_for_service(timeout_sec=min(0.5, remaining)):
-                    try:
-                        client.call(ListControllers.Request(), timeout_sec=min(2.0, max(remaining, 0.1)))
-                        return
-                    except Exception:  # noqa: BLE001 - not answering yet: retry until the deadline
-                        continue
+            ControllerManagerClient(node, self.namespace).wait_until_ready(timeout_sec, self.process)
+        except ControllerManagerError as exc:
+            raise FakeRobotError(f"uniros-fake-robot: {exc}") from None
         finally:
             node.destroy_node()
 

@@ -11,11 +11,13 @@ MultiROS and FRobs_RL function names on top.
 from __future__ import annotations
 
 import logging
+import subprocess
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from multiros.ros.exceptions import ServiceTimeoutError
+from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError
 from multiros.ros.interfaces import get_message, get_service
 from multiros.sim.services import CONTROLLER_SERVICES
 
@@ -101,6 +103,38 @@ class ControllerManagerClient:
                 "and the simulation node's log says why"
             )
         return True
+
+    def wait_until_ready(self, timeout_sec: float, process: subprocess.Popen | None = None) -> None:
+        """Block until ``list_controllers`` answers (the robot is up), at most ``timeout_sec``.
+
+        Args:
+            process: the robot's process, if this program started it: its exit ends the wait at once.
+
+        Raises:
+            ControllerManagerError: no answer in time, or ``process`` exited first (its code is named).
+        """
+        deadline = time.monotonic() + timeout_sec
+        client = self._node.create_client(self._types["list_controllers"], self.service_name("list_controllers"))
+        try:
+            while True:
+                if process is not None and process.poll() is not None:
+                    raise ControllerManagerError(
+                        f"the robot's process (pid {process.pid}) exited with code {process.returncode} before "
+                        f"{self.service_name('list_controllers')} answered")
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise ControllerManagerError(
+                        f"controller manager {self.ns or '/'} did not answer {self.service_name('list_controllers')} "
+                        f"within {timeout_sec:g} s")
+                if client.wait_for_service(timeout_sec=min(0.5, remaining)):
+                    try:
+                        client.call(self._types["list_controllers"].Request(),
+                                    timeout_sec=min(2.0, max(remaining, 0.1)))
+                        return
+                    except (ServiceCallError, ServiceTimeoutError):  # not answering yet: retry until the deadline
+                        continue
+        finally:
+            self._node.destroy_client(client)
 
     # -- queries ----------------------------------------------------------------------------
     def list_controllers(self) -> list[ControllerInfo]:

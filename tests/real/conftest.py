@@ -85,21 +85,11 @@ class StandIn:
 
 def wait_controller_manager(ctx: Context, ns: str, proc: subprocess.Popen, timeout: float) -> None:
     """Wait until ``<ns>/controller_manager/list_controllers`` answers (the robot is up)."""
-    from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
+    from multiros.sim.controller_client import ControllerManagerClient
 
     node = Node(f"standin_probe_{os.getpid()}_{time.monotonic_ns()}", context=ctx)
     try:
-        cm = ControllerManagerClient(node, ns, timeout_sec=1.0)
-        deadline = time.monotonic() + timeout
-        while True:
-            if proc.poll() is not None:
-                raise RuntimeError(f"stand-in (pid {proc.pid}) exited with {proc.returncode} before it was ready")
-            try:
-                cm.list_controllers()
-                return
-            except ControllerManagerError:
-                if time.monotonic() > deadline:
-                    raise
+        ControllerManagerClient(node, ns).wait_until_ready(timeout, proc)
     finally:
         node.destroy_node()
 
