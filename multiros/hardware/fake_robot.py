@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import signal
 import sys
 import threading
 import time
@@ -220,7 +219,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
-    from multiros.ros.processes import watch_owner
+    from multiros.ros.processes import stop_event
 
     parser = _parser()
     opts = parser.parse_args(argv)
@@ -239,11 +238,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"cannot load the robot: {exc}")
     options: dict[str, Any] = {"router": opts.router} if opts.router else {}
     ctx = Context(transport=opts.transport, **options).init()
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    if opts.owner_pid is not None:
-        watch_owner(opts.owner_pid, stop)
+    stop = stop_event(opts.owner_pid)
     robot = None
     try:
         try:

@@ -29,6 +29,7 @@ __all__ = [
     "free_loopback_endpoint",
     "private_context",
     "private_environment",
+    "stop_event",
     "stop_process",
     "track_child",
     "untrack_child",
@@ -121,6 +122,17 @@ def child_environment(ctx: Context) -> dict[str, str]:
     if endpoint:
         env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
     return env
+
+
+def stop_event(owner_pid: int | None = None) -> threading.Event:
+    """An event set by SIGINT, SIGTERM, or (with ``owner_pid``) the owner's death: a program's
+    main loop waits on it (call from the main thread: Python installs signal handlers only there)."""
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    if owner_pid is not None:
+        watch_owner(owner_pid, stop)
+    return stop
 
 
 def watch_owner(owner_pid: int, stop: threading.Event) -> threading.Thread:

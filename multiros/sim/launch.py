@@ -24,7 +24,6 @@ import argparse
 import itertools
 import logging
 import os
-import signal
 import subprocess
 import sys
 import threading
@@ -39,10 +38,10 @@ from multiros.ros.processes import (
     free_loopback_endpoint,
     private_context,
     private_environment,
+    stop_event,
     stop_process,
     track_child,
     untrack_child,
-    watch_owner,
 )
 from multiros.sim.client import DEFAULT_NODE_NAME, SimulationClient, SimulationNodeError
 
@@ -402,11 +401,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if opts.router:
         transport_options["router"] = opts.router
     ctx = Context(transport=opts.transport, **(transport_options if opts.transport == "zenoh" else {})).init()
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    if opts.owner_pid is not None:
-        watch_owner(opts.owner_pid, stop)
+    stop = stop_event(opts.owner_pid)
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True
