@@ -21,6 +21,7 @@ from collections.abc import Iterator
 import pytest
 
 from multiros import ros
+from multiros.ros.processes import stop_process
 from multiros.sim.client import SimulationClient
 from multiros.sim.launch import free_loopback_endpoint
 
@@ -55,13 +56,7 @@ def _clean_env(**extra: str) -> dict[str, str]:
 
 
 def _stop(proc: subprocess.Popen) -> str:
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
+    stop_process(proc)  # SIGINT, SIGTERM, SIGKILL: bounded waits
     return proc.stdout.read() if proc.stdout else ""
 
 

@@ -13,6 +13,7 @@ import pytest
 
 from multiros import ros
 from multiros.envs.vector import BatchedVectorEnv
+from multiros.ros.processes import stop_process
 from multiros.sim.launch import free_loopback_endpoint
 from uniros.factory import make_batch
 
@@ -35,13 +36,7 @@ def _node(name: str, env: dict[str, str]) -> subprocess.Popen:
 
 
 def _stop(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        proc.terminate()
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=10)
+    stop_process(proc)  # SIGINT, SIGTERM, SIGKILL: bounded waits
 
 
 def test_vector_env_over_two_hosts_nodes_by_name() -> None:
