@@ -3,14 +3,9 @@
 from __future__ import annotations
 
 import pytest
-import xacro
+from xacro_text import process
 
 from rl_environments.robots import abb_irb120_description, rx200_description
-
-
-def process(path, **args: str) -> str:
-    """xacro file -> URDF XML text, with xacro args."""
-    return xacro.process_file(str(path), mappings=dict(args)).toxml()
 
 
 @pytest.fixture(scope="session")

@@ -11,7 +11,7 @@ import pytest
 import yaml
 import yourdfpy
 from _urdf_tables import IRB120_FIXED, IRB120_INERTIALS, IRB120_JOINTS, floats, joints, links, total_mass, visual_bounds
-from conftest import process
+from xacro_text import process
 
 from rl_environments.robots import abb_irb120_description as pkg
 

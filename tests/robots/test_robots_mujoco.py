@@ -7,7 +7,7 @@ import mujoco
 import numpy as np
 import pytest
 import yaml
-from conftest import process
+from xacro_text import process
 
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.robots import abb_irb120_description as irb120

@@ -9,27 +9,12 @@ import numpy as np
 import pytest
 
 import rl_environments
-import uniros
 from rl_environments.manipulation import RX200TopDownIK, rotation_velocity
 from rl_environments.manipulation_scripted import run_episode, scripted_policy
 
 IDS = rl_environments.MANIPULATION_ENV_IDS
 GOAL_IDS = ("RX200PushGoalSim-v0", "RX200PnPGoalSim-v0")
 SEEDS = (0, 1, 2, 3, 4)
-
-
-@pytest.fixture
-def make():
-    envs = []
-
-    def _make(env_id, **kwargs):
-        env = uniros.make(env_id, **kwargs)
-        envs.append(env)
-        return env
-
-    yield _make
-    for env in envs:
-        env.close()
 
 
 def _obs(o):

@@ -18,20 +18,6 @@ ALL_IDS = rl_environments.ENV_IDS
 GOAL_IDS = rl_environments.GOAL_ENV_IDS
 
 
-@pytest.fixture
-def make():
-    envs = []
-
-    def _make(env_id, **kwargs):
-        env = uniros.make(env_id, **kwargs)
-        envs.append(env)
-        return env
-
-    yield _make
-    for env in envs:
-        env.close()
-
-
 def test_every_id_is_registered_on_import():
     assert set(ALL_IDS) == {
         "RX200ReacherSim-v0", "RX200ReacherGoalSim-v0", "ABBIRB120ReacherEnv-v0", "ABBIRB120ReacherGoalEnv-v0",
