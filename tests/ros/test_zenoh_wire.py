@@ -259,3 +259,27 @@ def test_fuzzed_wire_input_is_dropped_and_node_keeps_serving(zenoh_ctx: ros.Cont
                           any(m.data == "ok" for m in got), 5.0)
     finally:
         peer.close()
+
+
+def test_a_known_ros_subscriber_gets_messages_even_before_zenoh_reports_the_match(
+        zenoh_ctx: ros.Context, router_endpoint: str) -> None:
+    """Zenoh's matching news can trail the ROS graph: once get_subscription_count() is 1, the next
+    message must still go out (it was lost when publishing waited for the matching listener alone)."""
+    node = ros.Node("talker2", context=zenoh_ctx)
+    pub = node.create_publisher(String, "/lagging", 10)
+    peer = _foreign_session(router_endpoint)
+    try:
+        key = f"0/lagging/std_msgs::msg::dds_::String_/{STRING_HASH}"
+        samples = []
+        sub = peer.declare_subscriber(key, lambda s: samples.append(s))
+        token = peer.liveliness().declare_token(
+            f"@ros2_lv/0/{peer.zid()}/0/1/MS/%/%/listener/%lagging/std_msgs::msg::dds_::String_/"
+            f"{STRING_HASH}/::,10:,:,:,,")
+        assert zenoh_ctx.wait_for(lambda: pub.get_subscription_count() == 1, 5.0)
+        pub._wire._matching = False  # the matching listener has not said so yet
+        pub.publish(String(data="not lost"))
+        assert _wait(lambda: samples)
+        token.undeclare()
+        sub.undeclare()
+    finally:
+        peer.close()

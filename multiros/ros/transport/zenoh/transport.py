@@ -72,6 +72,7 @@ class ZenohTransport(Transport):
         self._counts: dict[tuple[str, str], int] = {}  # (kind, name) -> entities in _graph
         self._graph_lock = threading.Lock()
         self._servers: dict[str, int] = {}
+        self._remote_subs: dict[str, int] = {}  # ROS subscriptions of other sessions, per topic
         self._lv_sub: Any = None
         self._closed = False
 
@@ -191,6 +192,8 @@ class ZenohTransport(Transport):
             self._counts[(ep.kind, ep.name)] = self._counts.get((ep.kind, ep.name), 0) + delta
             if ep.kind == SERVICE:
                 self._servers[ep.name] = self._servers.get(ep.name, 0) + delta
+            elif ep.kind == SUBSCRIPTION and ep.origin != self.zid:
+                self._remote_subs[ep.name] = self._remote_subs.get(ep.name, 0) + delta
         self.context.notify()
 
     def endpoints(self) -> list[Endpoint]:
@@ -200,6 +203,10 @@ class ZenohTransport(Transport):
     def count(self, kind: str, name: str) -> int:
         with self._graph_lock:
             return self._counts.get((kind, name), 0)
+
+    def has_remote_subscriber(self, topic: str) -> bool:
+        """Whether a ROS subscription of another session is known on ``topic`` (from its token)."""
+        return self._remote_subs.get(topic, 0) > 0
 
     def has_server(self, name: str) -> bool:
         return self._servers.get(name, 0) > 0
@@ -337,8 +344,10 @@ class _PublisherHandle(_Token):
         self._listener: Any = None
         if self._lazy:
             # Zenoh tells the publisher whether any subscriber matches its key (a ROS node or a
-            # plain Zenoh tool alike); serialize and put only then. Listener first, then the
-            # current status, so no change is missed in between.
+            # plain Zenoh tool alike); serialize and put only then, or while a remote ROS
+            # subscription's token is known: matching news can trail the graph, and a node that
+            # saw get_subscription_count() == 1 must not lose the next message. Listener first,
+            # then the current status, so no change is missed in between.
             self._listener = self._pub.declare_matching_listener(_direct_callback(self._on_matching))
             self._matching = bool(self._pub.matching_status.matching)
         super().__init__(transport, token_key)
@@ -352,7 +361,7 @@ class _PublisherHandle(_Token):
         self._matching = bool(status.matching)
 
     def publish(self, msg: Any) -> None:
-        if self._closed or not self._matching:
+        if self._closed or not (self._matching or self.transport.has_remote_subscriber(self.topic)):
             return
         payload = self._codec.serialize(msg)
         att = wire.encode_attachment(next(self._seq), time.time_ns(), self.gid, self._fmt)
