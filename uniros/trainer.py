@@ -71,6 +71,40 @@ def sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+class _StopRequest:
+    """The signal that asked training to stop, once one has."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+
+@contextlib.contextmanager
+def _stop_at_next_step() -> Iterator[_StopRequest]:
+    """Within the block, the first Ctrl-C or SIGTERM asks training to stop; a second one interrupts at once.
+
+    The request is honoured at the next env step, where the model is whole. Raising from the handler
+    instead lands anywhere, mid optimizer update included, and a checkpoint saved then can hold Adam
+    state with ``step`` but no ``exp_avg``, which fails on resume.
+    """
+    request = _StopRequest()
+    if threading.current_thread() is not threading.main_thread():
+        yield request
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        if request.signum is None:
+            request.signum = signum
+            return
+        raise _Signal(signum)
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield request
+    finally:
+        for s, old in previous.items():
+            signal.signal(s, old)
+
+
 @contextlib.contextmanager
 def _signals_deferred() -> Iterator[list[int]]:
     """Within the block, Ctrl-C and SIGTERM are noted, not raised (a save in progress completes)."""
@@ -214,8 +248,18 @@ def _aligned(cls: type) -> type:
     return Aligned
 
 
-def _callback_classes() -> tuple[type, type]:
-    from stable_baselines3.common.callbacks import CheckpointCallback, EvalCallback
+def _callback_classes() -> tuple[type, type, type]:
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
+
+    class StopOnRequest(BaseCallback):  # type: ignore[misc]
+        """Ends ``learn`` at the first env step after a stop was requested (see ``_stop_at_next_step``)."""
+
+        def __init__(self, request: _StopRequest) -> None:
+            super().__init__()
+            self.request = request
+
+        def _on_step(self) -> bool:
+            return self.request.signum is None
 
     class CheckpointEvery(_aligned(CheckpointCallback)):  # type: ignore[misc]
         """SB3's ``CheckpointCallback``, saving through the session (atomic files, ``latest.json``)."""
@@ -243,6 +287,8 @@ def _callback_classes() -> tuple[type, type]:
             if not (self.eval_freq > 0 and self.n_calls % self.eval_freq == 0):
                 return True
             s = self.session
+            if s.stop_request.signum is not None:
+                return False
             if s.config.seed is not None:
                 self.eval_env.seed(s.config.seed + 10_000 + len(s.evaluations))
             started = time.perf_counter()
@@ -252,7 +298,7 @@ def _callback_classes() -> tuple[type, type]:
             s.excluded += time.perf_counter() - started
             return keep_going
 
-    return CheckpointEvery, SuccessEval
+    return StopOnRequest, CheckpointEvery, SuccessEval
 
 
 # -- the session ---------------------------------------------------------------------------------
@@ -297,6 +343,7 @@ class Session:
     seconds_to_success: float | None = None
     prior_seconds: float = 0.0
     excluded: float = 0.0
+    stop_request: _StopRequest = field(default_factory=_StopRequest)
     _eval_env: Any = None
     _learn_started: float = 0.0
 
@@ -409,12 +456,7 @@ class Session:
         Raises:
             TrainingInterrupted: on Ctrl-C or SIGTERM, after saving a checkpoint.
         """
-        checkpoint_cls, eval_cls = _callback_classes()
-        callbacks: list[Any] = []
-        if self.paths.checkpoints is not None and self.config.save_freq > 0:
-            callbacks.append(checkpoint_cls(self, self.config.save_freq))
-        if self._eval_env is not None:
-            callbacks.append(eval_cls(self, self._eval_env))
+        stop_cls, checkpoint_cls, eval_cls = _callback_classes()
         total = self.config.training_steps if total_steps is None else total_steps
         remaining = total if reset_num_timesteps else total - int(self.model.num_timesteps)
         if remaining <= 0:
@@ -422,18 +464,36 @@ class Session:
         bar = self.config.progress_bar if progress_bar is None else progress_bar
         self._learn_started, self.excluded = time.perf_counter(), 0.0
         try:
-            with sigterm_as_interrupt():
+            with _stop_at_next_step() as self.stop_request:
+                callbacks: list[Any] = [stop_cls(self.stop_request)]
+                if self.paths.checkpoints is not None and self.config.save_freq > 0:
+                    callbacks.append(checkpoint_cls(self, self.config.save_freq))
+                if self._eval_env is not None:
+                    callbacks.append(eval_cls(self, self._eval_env))
                 self.model.learn(total_timesteps=remaining, callback=callbacks, log_interval=self.config.log_interval,
                                  reset_num_timesteps=reset_num_timesteps, progress_bar=bar)
         except KeyboardInterrupt as exc:
+            # A second signal, or Ctrl-C outside the main thread's handler: the model may be mid update,
+            # so no checkpoint is written now; the last complete one stands.
             signum = getattr(exc, "signum", signal.SIGINT)
+            with _signals_deferred():
+                self._write_meta(status="interrupted")
+            found = latest_checkpoint(self.paths.checkpoints) if self.paths.checkpoints is not None else []
+            self._raise_interrupted(signum, found[0] if found else None)
+        if self.stop_request.signum is not None:
             with _signals_deferred():
                 ckpt = self.checkpoint()
                 self._write_meta(status="interrupted")
-            name = signal.Signals(signum).name
-            where = f"; checkpoint at {ckpt.steps} steps: {ckpt.model}" if ckpt else " (no checkpoint folder)"
-            raise TrainingInterrupted(f"training interrupted by {name}{where}", signum, ckpt) from None
+            self._raise_interrupted(self.stop_request.signum, ckpt)
         self.prior_seconds, self._learn_started, self.excluded = self.train_seconds(), 0.0, 0.0
+
+    def _raise_interrupted(self, signum: int, ckpt: Checkpoint | None) -> None:
+        name = signal.Signals(signum).name
+        if ckpt is not None:
+            where = f"; checkpoint at {ckpt.steps} steps: {ckpt.model}"
+        else:
+            where = " (no checkpoint folder)" if self.paths.checkpoints is None else " before the first checkpoint"
+        raise TrainingInterrupted(f"training interrupted by {name}{where}", signum, ckpt) from None
 
     def close(self) -> None:
         """Close the training and evaluation envs."""
