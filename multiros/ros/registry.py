@@ -39,6 +39,17 @@ def service_type_key(srv_type: object) -> str:
     return type_name_of(srv_type)
 
 
+def message_type_key(msg_type: object) -> str:
+    """What a publisher and a subscription of one topic must share to be connected: as
+    :func:`service_type_key`, the RIHS01 hash for interface messages (one distribution's variant of
+    a message never reaches a subscription of another's, as over Zenoh), else the class name."""
+    if getattr(msg_type, "_registry", None) is not None and hasattr(msg_type, "_type"):
+        from multiros.ros.interfaces import type_hash
+
+        return type_hash(msg_type)
+    return type_name_of(msg_type)
+
+
 class LocalRegistry:
     """Entities of one context, indexed by resolved name."""
 
@@ -108,6 +119,8 @@ class LocalRegistry:
                         topic, pub.type_name, sub.type_name,
                     )
                     continue
+                if message_type_key(sub.msg_type) != message_type_key(pub.msg_type):
+                    continue  # two distributions' variants of one type: side by side, as over Zenoh
                 if qos_compatible(pub.qos_profile, sub.qos_profile):
                     matched.append(sub)
             pub._local_subs = tuple(matched)

@@ -12,7 +12,9 @@
   <= 0 is not checked. A cancel holds the joints where they are. A new goal, or a trajectory on the
   controller's topic, ends the running goal (ABORTED, "preempted"). Only one goal runs per
   controller; goals for an inactive controller, unknown or missing joints, an empty or malformed
-  trajectory, or one that ended in the past are rejected.
+  trajectory, or one that ended in the past are rejected. Goals and results are the same in every
+  served distribution; feedback is published in each distribution's definition (Kilted's and
+  Rolling's carry ``index``), so clients of any of them get it.
 * ``~/simulate_steps`` (``simulation_interfaces/action/SimulateSteps``): steps a paused simulation,
   with feedback (completed/remaining steps) and cancel; more than the node's
   ``max_steps_per_call`` steps, or a simulation that is not paused, finish with
@@ -49,6 +51,24 @@ DEFAULT_GOAL_TIME = 1.0
 _WAKE_SEC = 0.1  # re-check cancel/shutdown at least this often while sim time stands still
 _FEEDBACK_PERIOD_SEC = 0.02  # SimulateSteps feedback at most this often (wall clock)
 _STEP_CHUNK = 50  # SimulateSteps physics steps per lock acquisition
+
+
+def _other_variants(action: Any) -> list[Any]:
+    """The served distributions' other definitions of ``action`` (one per distinct type hash).
+
+    control_msgs' FollowJointTrajectory feedback gained ``index``/``multi_dof_index`` after Jazzy;
+    goal and result stayed, so one server serves all, publishing each feedback in every variant.
+    """
+    from multiros.ros.interfaces import registry_for, type_hash
+    from multiros.sim.distro_adapters import SERVED_DISTROS
+
+    seen, variants = {type_hash(action)}, []
+    for distro in SERVED_DISTROS:
+        variant = registry_for(distro).action_class(action._type)
+        if type_hash(variant) not in seen:
+            seen.add(type_hash(variant))
+            variants.append(variant)
+    return variants
 
 
 def _seconds(duration: Any) -> float:
@@ -95,6 +115,9 @@ class TrajectoryActions:
         self._active: dict[str, ServerGoalHandle] = {}  # controller -> its running goal
         self._preempted: set[ServerGoalHandle] = set()
         self._signal = _StepSignal()
+        self._point = threading.local()  # the trajectory point the feedback being published is at
+        self._variants = [(v, lambda fb, cls=v.Feedback: self._converted(fb, cls))
+                          for v in _other_variants(FollowJointTrajectory)]
 
     # -- attachment (called by RobotInterfaces) ------------------------------------------------
     def add(self, controller: str, ctrl: Any) -> None:
@@ -108,6 +131,7 @@ class TrajectoryActions:
             handle_accepted_callback=lambda handle, c=controller: self._start(c, handle),
             cancel_callback=lambda handle: CancelResponse.ACCEPT,
             max_goals=4,
+            feedback_variants=self._variants,
         )
 
     def remove(self, controller: str) -> None:
@@ -172,6 +196,15 @@ class TrajectoryActions:
         self._active[controller] = handle
         handle.execute()
 
+    def _converted(self, feedback: Any, cls: type) -> Any:
+        """``feedback`` in another distribution's definition (``index``: the current point)."""
+        from multiros.sim.distro_adapters import convert_message
+
+        out = convert_message(feedback, cls)
+        if hasattr(out, "index"):
+            out.index = getattr(self._point, "index", 0)
+        return out
+
     def _tolerances(self, entries: Any, joints: list[str]) -> np.ndarray:
         tol = np.zeros(len(joints))
         for entry in entries:
@@ -230,6 +263,7 @@ class TrajectoryActions:
                 return self._finish(controller, handle, result, _FJT.INVALID_GOAL,
                                     "preempted: the controller got another trajectory, was deactivated or unloaded")
             error = desired - actual
+            self._point.index = min(int(np.searchsorted(times, now - start)), len(times) - 1)
             handle.publish_feedback(self._feedback(joints, now, now - start, desired, desired_vel, actual,
                                                    actual_vel))
             if now < end:

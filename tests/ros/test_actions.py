@@ -261,3 +261,12 @@ def test_goal_handle_state_machine(ctx: ros.Context) -> None:
     with pytest.raises(RuntimeError, match="cannot execute"):
         goal.execute()
     assert server.goal_handles() == []
+
+
+def test_a_feedback_variant_must_share_goal_and_result(ctx: ros.Context) -> None:
+    """``feedback_variants`` is for another distribution's definition differing in feedback only."""
+    node = ros.Node("variants", context=ctx)
+    other = get_action("control_msgs/action/FollowJointTrajectory")
+    with pytest.raises(ValueError, match="in more than its feedback"):
+        ActionServer(node, SimulateSteps, "/variant", Behaviour(), feedback_variants=[(other, lambda fb: fb)])
+    assert not [name for name, _ in node.get_topic_names_and_types() if name.startswith("/variant")]

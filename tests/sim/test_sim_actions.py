@@ -15,7 +15,9 @@ from multiros.ros.action import (
     ActionClient,
     get_action_names_and_types,
 )
-from multiros.ros.interfaces import get_action, get_message
+from multiros.ros.action._common import FEEDBACK, action_types
+from multiros.ros.executors import SingleThreadedExecutor
+from multiros.ros.interfaces import get_action, get_message, registry_for
 from multiros.sim.client import SimulationClient
 from multiros.sim.launch import free_loopback_endpoint
 from multiros.sim.node import SimulationNode
@@ -105,6 +107,39 @@ def test_follow_joint_trajectory_reaches_the_goal_with_feedback(sim):
     assert list(fb.joint_names) == JOINTS and len(fb.actual.positions) == 3
     assert np.allclose(fb.error.positions, np.asarray(fb.desired.positions) - np.asarray(fb.actual.positions))
     assert fb.header.stamp.sec > 0 or fb.header.stamp.nanosec > 0
+
+
+def test_feedback_reaches_clients_of_every_distribution(sim):
+    """Kilted and Rolling added ``index`` to FollowJointTrajectory's feedback (a new type hash); goal and
+    result did not change. One server serves both: each feedback goes out in both definitions, and each
+    client gets its own (``index`` the trajectory point being followed)."""
+    node, client, user = sim
+    name = "control_msgs/action/FollowJointTrajectory"
+    jazzy, rolling = (registry_for(d).action_class(name) for d in ("jazzy", "rolling"))
+    on_topic: dict[str, list] = {"jazzy": [], "rolling": []}
+    for distro, action_type in (("jazzy", jazzy), ("rolling", rolling)):
+        user.create_subscription(action_types(action_type).feedback_message, ACTION + FEEDBACK,
+                                 on_topic[distro].append, 1000)
+    action = ActionClient(user, rolling, ACTION)
+    goal = _goal([0.1, 0.1, 0.1], 0.2, goal_tol=0.03, goal_time=1.0)
+    goal.trajectory.points.append(Point(positions=np.array([0.3, 0.2, 0.1])))
+    goal.trajectory.points[1].time_from_start.nanosec = 400_000_000
+    feedback = []
+    handle = _send(action, goal, feedback.append)
+    response = _step_until(client, handle.get_result_async(), steps=10)
+    assert response.status == STATUS_SUCCEEDED and response.result.error_code == FJT.SUCCESSFUL
+    assert feedback and all(type(f.feedback) is rolling.Feedback for f in feedback)
+    indices = [f.feedback.index for f in feedback]
+    assert indices[0] == 0 and indices[-1] == 1 and indices == sorted(indices)
+    executor = SingleThreadedExecutor(context=user.context)
+    executor.add_node(user)
+    deadline = time.monotonic() + 5.0
+    while min(len(v) for v in on_topic.values()) < len(feedback) and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.05)
+    assert len(on_topic["jazzy"]) == len(on_topic["rolling"]) == len(feedback)
+    assert all(type(m.feedback) is jazzy.Feedback for m in on_topic["jazzy"])
+    for old, new in zip(on_topic["jazzy"], on_topic["rolling"], strict=True):
+        assert list(old.feedback.desired.positions) == list(new.feedback.desired.positions)
 
 
 @pytest.mark.parametrize("bad", ["joints", "empty", "nan", "past"])
@@ -214,7 +249,8 @@ def test_simulate_steps_action(sim):
 
 
 @pytest.mark.slow
-def test_follow_joint_trajectory_over_zenoh(index, tmp_path):
+@pytest.mark.parametrize("distro", ["jazzy", "rolling"])
+def test_follow_joint_trajectory_over_zenoh(index, tmp_path, distro):
     router_endpoint = free_loopback_endpoint()
     ctx, node = _sim(index, tmp_path, "zenoh", router_endpoint)
     other = Context(transport="zenoh", env={}, router="none", router_endpoint=router_endpoint).init()
@@ -223,7 +259,8 @@ def test_follow_joint_trajectory_over_zenoh(index, tmp_path):
         client = SimulationClient(user, "/mujoco_sim", timeout_sec=10.0)
         client.wait_until_ready(10.0)
         client.spawn_entity("arm", uri=ARM_URI, namespace="/arm")
-        action = ActionClient(user, FollowJointTrajectory, ACTION)
+        action_type = registry_for(distro).action_class("control_msgs/action/FollowJointTrajectory")
+        action = ActionClient(user, action_type, ACTION)
         assert action.wait_for_server(10.0)
         feedback = []
         handle = _send(action, _goal([0.25, 0.1, -0.1], 0.3, goal_tol=0.03, goal_time=1.0), feedback.append)
@@ -233,7 +270,7 @@ def test_follow_joint_trajectory_over_zenoh(index, tmp_path):
         deadline = time.monotonic() + 5.0
         while not feedback and time.monotonic() < deadline:
             time.sleep(0.01)
-        assert feedback
+        assert feedback and all(type(f.feedback) is action_type.Feedback for f in feedback)
         client.close()
     finally:
         other.shutdown()

@@ -24,7 +24,7 @@ import logging
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from multiros.ros.action._common import (
@@ -44,6 +44,7 @@ from multiros.ros.action._common import (
     STATUS_UNKNOWN,
     TERMINAL_STATES,
     ZERO_UUID,
+    ActionTypes,
     CancelResponse,
     GoalEvent,
     GoalResponse,
@@ -183,6 +184,18 @@ class _Goal:
         self.finished_at = 0.0
 
 
+def _same_but_feedback(types: ActionTypes, variant: ActionTypes, action_name: str) -> ActionTypes:
+    """``variant``, checked to share ``types``' goal, result and cancel services (so one server serves both)."""
+    from multiros.ros.interfaces import type_hash
+
+    if variant.name != types.name or any(
+        type_hash(getattr(variant, part)) != type_hash(getattr(types, part)) for part in ("send_goal", "get_result")
+    ):
+        raise ValueError(f"action server '{action_name}': feedback variant {variant.name} differs from "
+                         f"{types.name} in more than its feedback; serve it with an action server of its own")
+    return variant
+
+
 class ActionServer:
     """Serves one action under ``action_name`` for ``node``.
 
@@ -197,10 +210,15 @@ class ActionServer:
         result_timeout: seconds a finished goal's result is kept (rclpy's default, 900).
         max_goals: most goals active at once; more are rejected.
         max_results: most finished goals kept; the oldest are forgotten first.
+        feedback_variants: ``(action_type, convert)`` pairs for other definitions of this action
+            (another ROS distribution's) that share its goal, result and cancel services but not its
+            feedback: each feedback is also published as ``convert(feedback)`` on that variant's
+            feedback type, so their clients get feedback too (control_msgs' FollowJointTrajectory
+            gained feedback fields after Jazzy).
 
     Raises:
         TypeError: ``action_type`` is not an action type.
-        ValueError: a bound is not positive.
+        ValueError: a bound is not positive, or a feedback variant differs in more than its feedback.
     """
 
     def __init__(
@@ -222,6 +240,7 @@ class ActionServer:
         max_goals: int = 32,
         max_results: int = 256,
         callback_group: Any = None,
+        feedback_variants: Sequence[tuple[Any, Callable[[Any], Any]]] = (),
     ) -> None:
         if result_timeout <= 0 or max_goals < 1 or max_results < 1:
             raise ValueError(
@@ -247,9 +266,14 @@ class ActionServer:
         self._destroyed = False
         self._last_warning = 0.0
         t = self._types
+        variants = [(_same_but_feedback(t, action_types(v), action_name), c) for v, c in feedback_variants]
         self._status_pub = node.create_publisher(t.status_array, self._name + STATUS, status_pub_qos_profile)
         self._feedback_pub = node.create_publisher(t.feedback_message, self._name + FEEDBACK,
                                                    feedback_pub_qos_profile)
+        self._feedback_variants = [
+            (node.create_publisher(vt.feedback_message, self._name + FEEDBACK, feedback_pub_qos_profile), vt, convert)
+            for vt, convert in variants
+        ]
         self._services = [
             node.create_service(t.send_goal, self._name + SEND_GOAL, self._on_send_goal,
                                 qos_profile=goal_service_qos_profile),
@@ -507,6 +531,8 @@ class ActionServer:
             return
         try:
             self._feedback_pub.publish(t.feedback_message(goal_id=handle.goal_id, feedback=feedback))
+            for pub, vt, convert in self._feedback_variants:
+                pub.publish(vt.feedback_message(goal_id=handle.goal_id, feedback=convert(feedback)))
         except RuntimeError:
             _log.debug("action '%s': feedback not published", self._name, exc_info=True)
 
@@ -544,6 +570,8 @@ class ActionServer:
         for srv in self._services:
             node.destroy_service(srv)
         node.destroy_publisher(self._feedback_pub)
+        for pub, _, _ in self._feedback_variants:
+            node.destroy_publisher(pub)
         node.destroy_publisher(self._status_pub)
         node.remove_waitable(self)
 
