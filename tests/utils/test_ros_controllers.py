@@ -124,6 +124,30 @@ def test_missing_manager_times_out_with_namespace(cm):
         rc.list_controllers(node, "/nobody", timeout_sec=0.2)
 
 
+def test_wait_until_ready_answers_times_out_and_sees_the_process_exit(cm):
+    import subprocess
+    import sys
+    import time
+
+    _, node = cm
+    rc.ControllerManagerClient(node, "/robot1").wait_until_ready(2.0)  # the fake answers
+    started = time.monotonic()
+    with pytest.raises(rc.ControllerManagerError,
+                       match=r"/nobody did not answer /nobody/controller_manager/list_controllers within 0.3 s"):
+        rc.ControllerManagerClient(node, "/nobody").wait_until_ready(0.3)
+    assert time.monotonic() - started < 2.0
+    proc = subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"])
+    try:
+        proc.wait(timeout=30)
+        with pytest.raises(rc.ControllerManagerError, match=rf"pid {proc.pid}\) exited with code 3 before"):
+            rc.ControllerManagerClient(node, "/nobody").wait_until_ready(30.0, proc)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout=10)
+    assert not [c for c in node.clients if "nobody" in c.srv_name]  # its probe client is gone
+
+
 def test_client_object_and_node_of_env_like():
     ctx = Context(transport="inproc").init()
     try:
