@@ -28,20 +28,14 @@ import numpy as np
 from gymnasium import spaces
 
 from multiros.envs.config import SpawnPose, StepConfig, parse_reset_mode, parse_step_mode
+from multiros.envs.errors import EnvError, ResetError
+from multiros.envs.joint_access import JointStateAccess
 from multiros.sim.client import RobotState, SimulationClient, SimulationNodeError
 
 _logger = logging.getLogger(__name__)
 
 # ResetSimulation scopes (simulation_interfaces/srv/ResetSimulation).
 _SCOPE_TIME, _SCOPE_STATE = 1, 2
-
-
-class EnvError(RuntimeError):
-    """A problem in an environment's set-up or episode logic that the user can fix."""
-
-
-class ResetError(EnvError):
-    """A reset could not bring the robot to its initial pose within the allowed attempts."""
 
 
 @functools.lru_cache(maxsize=1024)
@@ -61,7 +55,7 @@ def _hook_name(cls: type, base: type, names: tuple[str, ...]) -> str | None:
     return None
 
 
-class MujocoEnvCore:
+class MujocoEnvCore(JointStateAccess):
     """Machinery shared by :class:`MujocoBaseEnv` and :class:`MujocoGoalEnv`.
 
     Args:
@@ -235,8 +229,7 @@ class MujocoEnvCore:
         self._pending_commands: dict[str, np.ndarray] = {}
         self._state: RobotState | None = None
         self._frame_index: dict[str, int] = {}
-        self._joint_index: dict[str, int] = {}
-        self._select_cache: dict[tuple[str, ...], np.ndarray] = {}
+        self._set_joint_order(())
         self._action_bounds: tuple[Any, np.ndarray, np.ndarray] | None = None
         self._closed = False
         self.info: dict[str, Any] = {}
@@ -309,8 +302,7 @@ class MujocoEnvCore:
             # a fresh array per state: made relative to this env's slot in place
             np.subtract(state.frame_positions, self._slot, out=state.frame_positions)
         if self._state is None or state.names != self._state.names:
-            self._joint_index = {name: i for i, name in enumerate(state.names)}
-            self._select_cache = {}
+            self._set_joint_order(state.names)
         if not self._frame_index:
             self._frame_index = {name: i for i, name in enumerate(self.frames)}
         self._state = state
@@ -327,33 +319,6 @@ class MujocoEnvCore:
     def joint_names(self) -> tuple[str, ...]:
         """Names of all the robot's joints, in the order of the joint arrays."""
         return self.robot_state.names
-
-    def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray:
-        """Joint positions after the last step (all joints, or ``names`` in that order)."""
-        return self._select(self.robot_state.position, names)
-
-    def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray:
-        """Joint velocities after the last step."""
-        return self._select(self.robot_state.velocity, names)
-
-    def joint_efforts(self, names: Sequence[str] | None = None) -> np.ndarray:
-        """Joint efforts after the last step."""
-        return self._select(self.robot_state.effort, names)
-
-    def _select(self, values: np.ndarray, names: Sequence[str] | None) -> np.ndarray:
-        if names is None:
-            return values.copy()
-        key = tuple(names)
-        idx = self._select_cache.get(key)
-        if idx is not None:
-            return values[idx]
-        try:
-            idx = self._select_cache[key] = np.array([self._joint_index[n] for n in key], dtype=np.intp)
-            return values[idx]
-        except KeyError as exc:
-            raise EnvError(
-                f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: {self.joint_names}"
-            ) from None
 
     def frame_position(self, frame: str) -> np.ndarray:
         """World position of a frame listed in ``frames``."""

@@ -22,6 +22,7 @@ import numpy as np
 from gymnasium import spaces
 
 from multiros.envs.core import EnvError, MujocoEnvCore, ResetError
+from multiros.envs.joint_access import JointStateAccess
 from multiros.envs.real.control_loop import ControlLoop
 from multiros.envs.real.errors import RobotConnectionError, StaleStateError, UnsafeCommandError
 from multiros.envs.real.robot_link import JointSample, RobotLink
@@ -66,7 +67,7 @@ def _interactive() -> bool:
         return False
 
 
-class RealEnvCore:
+class RealEnvCore(JointStateAccess):
     """Machinery shared by :class:`RealBaseEnv` and :class:`RealGoalEnv`.
 
     Args:
@@ -202,7 +203,7 @@ class RealEnvCore:
         self._fault: BaseException | None = None
         self._state: JointSample | None = None
         self._observed: tuple[str, ...] = ()
-        self._joint_index: dict[str, int] = {}
+        self._set_joint_order(())
         self.last_command: np.ndarray | None = None
         self.last_decision: SafetyDecision | None = None
         self.commands_sent = 0
@@ -250,7 +251,7 @@ class RealEnvCore:
                 "process?"
             )
         self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
-        self._joint_index = {n: i for i, n in enumerate(self._observed)}
+        self._set_joint_order(self._observed)
         controllers = ([self.arm_controller] if self.arm_controller else []) + [
             c for c in self.controllers_list if c != self.arm_controller]
         if controllers:
@@ -313,25 +314,6 @@ class RealEnvCore:
     @property
     def joint_names(self) -> tuple[str, ...]:
         return self._observed
-
-    def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray:
-        """Joint positions observed after the last step (all joints, or ``names`` in that order)."""
-        return self._select(self.robot_state.position, names)
-
-    def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray:
-        return self._select(self.robot_state.velocity, names)
-
-    def joint_efforts(self, names: Sequence[str] | None = None) -> np.ndarray:
-        return self._select(self.robot_state.effort, names)
-
-    def _select(self, values: np.ndarray, names: Sequence[str] | None) -> np.ndarray:
-        if names is None:
-            return values.copy()
-        try:
-            return values[[self._joint_index[n] for n in names]]
-        except KeyError as exc:
-            raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: "
-                           f"{self._observed}") from None
 
     def _observe_state(self) -> None:
         self._state = self._fresh_sample()
