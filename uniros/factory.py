@@ -70,53 +70,31 @@ def make_vec(
     request steps them all. ``sim_mode="process"`` puts the node in a child process;
     ``vector_kwargs`` takes ``num_nodes`` (K nodes in K processes, N/K robots each), ``spacing``
     (metres between world slots), ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and
-    ``"async"`` (Gymnasium's, one node per env) work as before. See ``docs/vector_envs.md``.
+    ``"async"`` (Gymnasium's, one node per env) work as before. The default (``None``) is
+    Gymnasium's: the ID's ``vector_entry_point`` when it has one (the simulated IDs: batched),
+    else ``"sync"``. See ``docs/vector_envs.md``.
 
     Raises:
         ValueError: ``num_envs`` beyond the node's ``max_robots`` or bad batch options.
     """
     if env_id not in gym.registry:
         make(env_id)  # raises the helpful error
+    vector_entry = gym.spec(env_id).vector_entry_point
+    if vectorization_mode is None and isinstance(vector_entry, str) and \
+            vector_entry.startswith(rl_environments.VECTOR_ENTRY_MODULE + ":"):
+        vectorization_mode = "batched"  # the ID's own vector entry point (see rl_environments.vector_entry)
     if vectorization_mode != "batched":
         return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode=vectorization_mode,
                             vector_kwargs=vector_kwargs, **kwargs)
-    from multiros.envs.vector import BatchedVectorEnv
+    from multiros.envs.vector import make_batched_vector_env
 
-    options = dict(vector_kwargs or {})
-    autoreset = options.pop("autoreset_mode", gym.vector.AutoresetMode.NEXT_STEP)
-    copy = options.pop("copy", True)
-    return BatchedVectorEnv(make_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)
-
-
-_BATCH_OPTIONS = ("num_nodes", "spacing", "timeout_sec", "node_name", "connect_kwargs")
+    return make_batched_vector_env(env_id, num_envs, vector_options=vector_kwargs, **kwargs)
 
 
 def make_batch(env_id: str, num_envs: int, batch_options: dict[str, Any] | None = None, **kwargs: Any) -> Any:
     """The :class:`~multiros.envs.batch.EnvBatch` of ``num_envs`` envs ``env_id`` (``kwargs`` go to each env)."""
-    from multiros.envs.batch import EnvBatch
-    from multiros.sim.launch import local_description_dirs
+    from multiros.envs.batch import make_env_batch
 
     if env_id not in gym.registry:
-        make(env_id)
-    options = dict(batch_options or {})
-    unknown = sorted(set(options) - set(_BATCH_OPTIONS))
-    if unknown:
-        raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(_BATCH_OPTIONS)} "
-                        "and autoreset_mode, copy")
-    for key in ("sim_connection", "world_slot", "sim_node_name"):
-        if key in kwargs:
-            raise TypeError(f"{key!r} is set by the batched vector env itself; do not pass it")
-    spec = gym.spec(env_id)
-    creator = spec.entry_point if not isinstance(spec.entry_point, str) else \
-        gym.envs.registration.load_env_creator(spec.entry_point)
-    sim_mode = kwargs.pop("sim_mode", "composed")
-    max_steps = kwargs.pop("max_episode_steps", spec.max_episode_steps)
-    base = kwargs.pop("robot_name", getattr(creator, "ROBOT_NAME", "robot"))
-    env_kwargs = {**spec.kwargs, **kwargs}
-    trusted = local_description_dirs(env_kwargs.get("robot_model_xml"), env_kwargs.get("controllers_file"))
-
-    def make_env(**batch_kwargs: Any) -> Any:
-        return creator(**env_kwargs, **batch_kwargs)
-
-    return EnvBatch(make_env, num_envs, robot_name=base, sim_mode=sim_mode, max_episode_steps=max_steps,
-                    trusted_paths=trusted, **options)
+        make(env_id)  # raises the helpful error
+    return make_env_batch(env_id, num_envs, batch_options, **kwargs)

@@ -22,7 +22,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
-from multiros.envs.batch import EnvBatch
+from multiros.envs.batch import EnvBatch, make_env_batch
 
 
 class BatchedVectorEnv(VectorEnv):
@@ -153,3 +153,18 @@ class BatchedVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         self.batch.close()
+
+
+def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: dict[str, Any] | None = None,
+                            **kwargs: Any) -> BatchedVectorEnv:
+    """A :class:`BatchedVectorEnv` of ``num_envs`` envs of the registered ID ``env_id``.
+
+    ``vector_options`` holds ``autoreset_mode``, ``copy`` and the batch's options (``num_nodes``,
+    ``spacing``, ``timeout_sec``, ``node_name``, ``connect_kwargs``); ``kwargs`` go to each env. This
+    is what ``uniros.make_vec(..., vectorization_mode="batched")`` and the IDs' Gymnasium
+    ``vector_entry_point`` build.
+    """
+    options = dict(vector_options or {})
+    autoreset = options.pop("autoreset_mode", AutoresetMode.NEXT_STEP)
+    copy = options.pop("copy", True)
+    return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)
