@@ -48,13 +48,18 @@ class Subscription:
         self._queue.append(msg)
         self._notify()
 
-    def _deliver_directly(self) -> None:
+    def _deliver_directly(self, wire_inline: bool = False) -> None:
         """Run the callback in the delivering thread instead of queueing it for an executor.
 
         Action clients use this so feedback and status need no spinning (as service replies
         need none). The callback runs without the node lock; it must be short and thread-safe.
+        ``wire_inline``: over a wire transport, also run it on the transport's receive thread
+        (Zenoh: in order with the service requests that arrive after the message on the same
+        link) instead of a delivery thread per subscription; it must then never block.
         """
         self._enqueue = self._run_now  # type: ignore[method-assign]  # shadows the queueing method
+        if wire_inline and self._wire is not None and hasattr(self._wire, "deliver_inline"):
+            self._wire.deliver_inline()
         while True:
             ok, msg = self._take()
             if not ok:

@@ -162,6 +162,12 @@ class SimulationNode(Node):
             self.create_subscription(MarkerArray, "/visualization_marker_array",
                                      lambda msg: [self._on_marker(m) for m in msg.markers], 10),
         ]
+        # A marker applies when it arrives, in the delivering thread (the publisher's in-process; over
+        # Zenoh its receive thread, in order with the requests behind it), never later from a topic
+        # executor: the goal marker an env publishes in reset() is in the very next rendered image.
+        self._renderer_lock = threading.Lock()
+        for sub in self._marker_subs:
+            sub._deliver_directly(wire_inline=True)
         self._services: list[Any] = []
         if serve:
             self.start_serving()
@@ -500,20 +506,21 @@ class SimulationNode(Node):
         return response
 
     def _get_renderer(self) -> Any:
-        if self._renderer is None:
-            from multiros.sim.render_service import Renderer
+        with self._renderer_lock:
+            if self._renderer is None:
+                from multiros.sim.render_service import Renderer
 
-            self._renderer = Renderer(self.world)
-        return self._renderer
+                self._renderer = Renderer(self.world)
+            return self._renderer
 
     def _on_marker(self, marker: Any) -> None:
+        # Runs in the delivering thread without the world lock: the renderer guards its markers.
         from multiros.sim.render_service import apply_marker
 
-        with self.lock:
-            try:
-                apply_marker(self._get_renderer(), marker)
-            except ValueError as exc:
-                self.get_logger().warning("marker %s/%s ignored: %s", marker.ns, marker.id, exc)
+        try:
+            apply_marker(self._get_renderer(), marker)
+        except ValueError as exc:
+            self.get_logger().warning("marker %s/%s ignored: %s", marker.ns, marker.id, exc)
 
     def _srv_render_camera(self, request: Any, response: Any) -> Any:
         from multiros.sim.render_service import render_image_msgs
@@ -571,9 +578,10 @@ class SimulationNode(Node):
             self._executor = None
         for name in list(self._robots):
             self._detach_robot(name)
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        with self._renderer_lock:
+            if self._renderer is not None:
+                self._renderer.close()
+                self._renderer = None
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None

@@ -8,6 +8,7 @@ scene with ``mjv_initGeom``: they never take part in physics.
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -16,7 +17,7 @@ import numpy as np
 
 from multiros.sim.errors import RenderError
 
-__all__ = ["FreeCamera", "Marker", "Renderer", "open_viewer", "display_available"]
+__all__ = ["FreeCamera", "Marker", "Renderer", "camera_pose", "project_points", "open_viewer", "display_available"]
 
 
 def display_available() -> bool:
@@ -50,6 +51,69 @@ _KINDS = {"sphere": mujoco.mjtGeom.mjGEOM_SPHERE, "box": mujoco.mjtGeom.mjGEOM_B
           "arrow": mujoco.mjtGeom.mjGEOM_ARROW}
 
 
+def camera_pose(model: mujoco.MjModel, data: mujoco.MjData,
+                camera: str | int | FreeCamera) -> tuple[np.ndarray, np.ndarray, float]:
+    """Where a camera is: its position, its axes as matrix columns (x right, y up, looking along -z,
+    MuJoCo's convention) and its vertical field of view in degrees. ``data`` must be after a forward
+    pass (any stepped or rendered state is)."""
+    if isinstance(camera, FreeCamera):
+        az, el = np.radians(camera.azimuth), np.radians(camera.elevation)
+        forward = np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+        up = np.array([-np.sin(el) * np.cos(az), -np.sin(el) * np.sin(az), np.cos(el)])
+        pos = np.asarray(camera.lookat, dtype=float) - camera.distance * forward
+        axes = np.column_stack([np.cross(forward, up), up, -forward])
+        return pos, axes, float(model.vis.global_.fovy)
+    cid = camera if isinstance(camera, int) else mujoco.mj_name2id(model, int(mujoco.mjtObj.mjOBJ_CAMERA), camera)
+    if not 0 <= cid < model.ncam:
+        raise RenderError(f"camera {camera!r} not found; cameras: {[model.camera(i).name for i in range(model.ncam)]}")
+    return data.cam_xpos[cid].copy(), data.cam_xmat[cid].reshape(3, 3).copy(), float(model.cam_fovy[cid])
+
+
+def project_points(model: mujoco.MjModel, data: mujoco.MjData, camera: str | int | FreeCamera,
+                   points: Sequence[Sequence[float]] | np.ndarray, *, width: int = 640,
+                   height: int = 480) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel coordinates ``(column, row)`` (N x 2, float, origin at the top-left corner) of world
+    points in a ``width`` x ``height`` image of ``camera``, and their depth along the view axis in
+    metres (negative: behind the camera). The vertical field of view is the camera's; the
+    horizontal one follows the image's aspect ratio, as in rendered images."""
+    pos, axes, fovy = camera_pose(model, data, camera)
+    local = (np.atleast_2d(np.asarray(points, dtype=float)) - pos) @ axes
+    depth = -local[:, 2]
+    focal = 0.5 * height / np.tan(np.radians(fovy) / 2.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cols = 0.5 * width + focal * local[:, 0] / depth
+        rows = 0.5 * height - focal * local[:, 1] / depth
+    return np.column_stack([cols, rows]), depth
+
+
+def _release_gl(renderer: mujoco.Renderer) -> None:
+    """Leave ``renderer``'s GL context current in no thread.
+
+    ``mujoco.Renderer`` makes its context current in the thread that creates or renders with it and
+    leaves it there; EGL (and GLFW, OSMesa) then refuse it to every other thread, and the node
+    renders in one service's thread but frees renderers after a recompile in another's.
+    """
+    ctx = getattr(renderer, "_gl_context", None)
+    modules = [base.__module__ for base in type(ctx).__mro__] if ctx is not None else []
+    try:
+        if any(m.startswith("mujoco.egl") for m in modules):
+            from mujoco import egl
+
+            if egl.EGL_DISPLAY is not None:
+                egl.EGL.eglMakeCurrent(egl.EGL_DISPLAY, egl.EGL.EGL_NO_SURFACE, egl.EGL.EGL_NO_SURFACE,
+                                       egl.EGL.EGL_NO_CONTEXT)
+        elif any(m.startswith("mujoco.glfw") for m in modules):
+            import glfw
+
+            glfw.make_context_current(None)
+        elif any(m.startswith("mujoco.osmesa") for m in modules):
+            from mujoco import osmesa
+
+            osmesa.osmesa.OSMesaMakeCurrent(None, None, osmesa.GL.GL_FLOAT, 0, 0)
+    except Exception:  # noqa: BLE001 - best effort: a context left current only matters across threads
+        pass
+
+
 class Renderer:
     """Renders images of a world; one MuJoCo renderer per image size, rebuilt after recompiles.
 
@@ -63,6 +127,9 @@ class Renderer:
         self.max_geom = max_geom
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._markers: dict[str, Marker] = {}
+        # Markers change from the node's marker topic, in whichever thread delivers it, while an
+        # image may be rendering in a service thread: this lock alone guards them (not the world's).
+        self._markers_lock = threading.Lock()
         self._default_camera = FreeCamera(*world.options.camera) if hasattr(world, "options") else FreeCamera()
         world.add_change_callback(self._drop_renderers)
 
@@ -78,23 +145,27 @@ class Renderer:
             raise ValueError(f"marker '{marker_id}': position/size/rgba must be finite")
         if kind == "arrow" and direction is None:
             raise ValueError(f"marker '{marker_id}': an arrow needs a direction")
-        self._markers[marker_id] = Marker(kind, tuple(position), tuple(size), tuple(rgba),
-                                          tuple(direction) if direction is not None else None)
+        marker = Marker(kind, tuple(position), tuple(size), tuple(rgba),
+                        tuple(direction) if direction is not None else None)
+        with self._markers_lock:
+            self._markers[marker_id] = marker
 
     def delete_marker(self, marker_id: str | None = None) -> None:
         """Remove one marker, or all of them when ``marker_id`` is None."""
-        if marker_id is None:
-            self._markers.clear()
-        else:
-            self._markers.pop(marker_id, None)
+        with self._markers_lock:
+            if marker_id is None:
+                self._markers.clear()
+            else:
+                self._markers.pop(marker_id, None)
 
     @property
     def markers(self) -> dict[str, Marker]:
-        return dict(self._markers)
+        with self._markers_lock:
+            return dict(self._markers)
 
     def add_markers_to_scene(self, scene: mujoco.MjvScene) -> None:
         """Append the markers to a scene (also used by the viewer's user scene)."""
-        for marker in self._markers.values():
+        for marker in self.markers.values():
             if scene.ngeom >= scene.maxgeom:
                 break
             geom = scene.geoms[scene.ngeom]
@@ -125,6 +196,7 @@ class Renderer:
             except Exception as exc:  # GL context creation fails with assorted errors
                 raise RenderError(f"offscreen rendering is unavailable ({exc}); on a headless machine set "
                                   f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
+            _release_gl(r)
             self._renderers[key] = r
         return r
 
@@ -157,13 +229,16 @@ class Renderer:
         r = self._renderer(width, height)
         r.update_scene(self.world.data, camera=self._camera(camera))
         self.add_markers_to_scene(r.scene)
-        if depth:
-            r.enable_depth_rendering()
-            try:
-                return r.render().copy()
-            finally:
-                r.disable_depth_rendering()
-        return r.render().copy()
+        try:
+            if depth:
+                r.enable_depth_rendering()
+                try:
+                    return r.render().copy()
+                finally:
+                    r.disable_depth_rendering()
+            return r.render().copy()
+        finally:
+            _release_gl(r)
 
     def rgb(self, camera: str | int | FreeCamera | None = None, *, width: int = 640, height: int = 480) -> np.ndarray:
         """An RGB image (uint8, HxWx3)."""
@@ -173,6 +248,12 @@ class Renderer:
               height: int = 480) -> np.ndarray:
         """A depth image in metres (float32, HxW)."""
         return self.render(camera, width=width, height=height, depth=True)
+
+    def project(self, points: Sequence[Sequence[float]] | np.ndarray, camera: str | int | FreeCamera | None = None,
+                *, width: int = 640, height: int = 480) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`project_points` for this world and ``camera`` (None: the default view)."""
+        camera = self._default_camera if camera is None else camera
+        return project_points(self.world.model, self.world.data, camera, points, width=width, height=height)
 
     def _drop_renderers(self) -> None:
         for r in self._renderers.values():

@@ -74,3 +74,30 @@ def test_viewer_refuses_without_display(arm_world, monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(RenderError, match="needs a display"):
         open_viewer(arm_world)
+
+
+def test_renderer_is_usable_from_another_thread(renderer, arm_world):
+    # The node renders in one service's thread and recompiles (which frees renderers) in another's:
+    # a GL context left current in the rendering thread made the spawn fail (EGL_BAD_ACCESS).
+    import threading
+
+    images = []
+    worker = threading.Thread(target=lambda: images.append(renderer.rgb(width=32, height=24)))
+    worker.start()
+    worker.join(timeout=30)
+    assert len(images) == 1
+    arm_world.spawn("ball", BALL, pose=([0.3, 0, 0.3], [1, 0, 0, 0]))
+    assert renderer.rgb(width=32, height=24).shape == (24, 32, 3)
+
+
+def test_projected_points_land_on_their_markers(renderer):
+    from multiros.sim.render import FreeCamera
+
+    for camera in (None, FreeCamera(lookat=(0.2, 0.1, 0.3), distance=1.2, azimuth=60, elevation=-30)):
+        for point in ((0.3, 0.2, 0.5), (-0.4, 0.1, 0.2)):
+            renderer.show_marker("p", "sphere", point, size=(0.02, 0.02, 0.02), rgba=(0, 1, 0, 1))
+            image = renderer.rgb(camera, width=320, height=200).astype(int)
+            rows, cols = np.nonzero((image[..., 1] > 100) & (image[..., 1] > image[..., 0] + 60))
+            (uv,), (depth,) = renderer.project([point], camera, width=320, height=200)
+            assert depth > 0 and len(cols) > 0
+            assert abs(cols.mean() + 0.5 - uv[0]) < 2 and abs(rows.mean() + 0.5 - uv[1]) < 2

@@ -387,20 +387,33 @@ class _SubscriptionHandle(_Token):
         self._msg_type = sub.msg_type
         self._codec = transport.codec
         self.key = key
-        qos = sub.qos_profile
-        session = transport.session
+        self._session = transport.session
+        self._inline = False
+        self._sub = self._declare(self._on_sample)
+        super().__init__(transport, token_key)
+
+    def _declare(self, handler: Any) -> Any:
         # Samples from this session are delivered in-process by the registry already.
+        qos = self._sub_entity.qos_profile
         if qos.durability == DurabilityPolicy.TRANSIENT_LOCAL:
             reliable = qos.reliability == ReliabilityPolicy.RELIABLE
-            self._sub = zext.declare_advanced_subscriber(
-                session, key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE,
+            return zext.declare_advanced_subscriber(
+                self._session, self.key, handler, allowed_origin=zenoh.Locality.REMOTE,
                 history=zext.HistoryConfig(detect_late_publishers=True, max_samples=qos.depth),
                 recovery=zext.RecoveryConfig(heartbeat=True) if reliable else None,
                 subscriber_detection=True,
             )
-        else:
-            self._sub = session.declare_subscriber(key, self._on_sample, allowed_origin=zenoh.Locality.REMOTE)
-        super().__init__(transport, token_key)
+        return self._session.declare_subscriber(self.key, handler, allowed_origin=zenoh.Locality.REMOTE)
+
+    def deliver_inline(self) -> None:
+        """Decode and hand over samples on Zenoh's receive thread instead of a Python thread of
+        this subscriber's own: a sample is then delivered before any query that follows it on the
+        same link reaches its queryable (whose thread could otherwise answer first)."""
+        if self._inline:
+            return
+        old, self._sub = self._sub, self._declare(_direct_callback(self._on_sample))
+        self._inline = True
+        old.undeclare()
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
         att = sample.attachment
