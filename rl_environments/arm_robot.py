@@ -27,9 +27,9 @@ def _chain(package: str, xacro_file: str, args: tuple[tuple[str, str], ...], bas
 
 
 class ArmRobot:
-    """Robot-layer behaviour of a fixed-base arm.
+    """Robot-layer behaviour of a fixed-base arm. A robot sets the class attributes below.
 
-    Class attributes a robot sets:
+    Attributes:
         ROBOT_NAME: entity name and default namespace.
         DESCRIPTION_PACKAGE: the ROS package name (``package://`` URI host).
         DESCRIPTION_MODULE: the Python package shipping it (for local kinematics).

@@ -3,17 +3,15 @@
 :class:`ScriptedPush` and :class:`ScriptedPickAndPlace` read only the observation (EE and object
 positions, finger positions, the goal) and return end-effector-delta actions with a gripper
 command (the tasks' default action space). They prove the physics and the task fit together
-(tests check their success over fixed seeds) and seed off-policy training:
+(tests check their success over fixed seeds) and seed off-policy training::
 
-```python
-import uniros
-from rl_environments.manipulation_scripted import fill_replay_buffer, scripted_policy
+    import uniros
+    from rl_environments.manipulation_scripted import fill_replay_buffer, scripted_policy
 
-env = uniros.make("RX200PushGoalSim-v0")
-model = TQC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, ...)
-stats = fill_replay_buffer(model, env, episodes=20, seed=0)   # 20 scripted episodes, HER-relabelled too
-model.learn(...)                                               # starts from a buffer with successes
-```
+    env = uniros.make("RX200PushGoalSim-v0")
+    model = TQC("MultiInputPolicy", env, replay_buffer_class=HerReplayBuffer, ...)
+    stats = fill_replay_buffer(model, env, episodes=20, seed=0)   # 20 scripted episodes, HER-relabelled too
+    model.learn(...)                                               # starts from a buffer with successes
 
 Phases: above the object, descend with open fingers, close (re-open and retry after a miss), carry
 to the goal (over the table for push, whose goals lie on it; into the air for pick-and-place), hold
