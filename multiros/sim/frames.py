@@ -106,6 +106,7 @@ class FrameSet:
     def poses(self) -> np.ndarray:
         """Return an (n, 7) array ``[x, y, z, qw, qx, qy, qz]`` per frame (a preallocated buffer)."""
         self._check()
+        self._world.sync_kinematics()
         data, out = self._world.data, self._out
         if self._b_ids.size:
             out[self._b_rows, :3] = data.xpos[self._b_ids]
@@ -118,6 +119,7 @@ class FrameSet:
     def positions(self) -> np.ndarray:
         """Return an (n, 3) array of frame positions (a preallocated buffer)."""
         self._check()
+        self._world.sync_kinematics()
         data = self._world.data
         if self._b_ids.size:
             self._pos[self._b_rows] = data.xpos[self._b_ids]

@@ -318,6 +318,7 @@ class World(WorldStepping):
 
     def get_entity_state(self, name: str) -> EntityState:
         """Root pose and twist of an entity in the world frame (fresh arrays)."""
+        self.sync_kinematics()
         return root_state(self._data, self._get(name))
 
     def set_entity_state(self, name: str, *, position: Sequence[float] | None = None,
@@ -342,6 +343,7 @@ class World(WorldStepping):
 
     def bounds(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Axis-aligned world bounding box ``(lower xyz, upper xyz)`` of an entity's geoms."""
+        self.sync_kinematics()
         return geom_bounds(self._model, self._data, self._get(name))
 
     # ------------------------------------------------------------------ joints

@@ -36,6 +36,7 @@ class WorldStepping:
     _snap: np.ndarray  # integration state at the start of the current step call
     _state_spec: int
     _warn_counts: np.ndarray
+    _kinematics_stale: bool = False  # frame poses trail qpos by one physics step (after a step call)
 
     @property
     def time(self) -> float:
@@ -80,9 +81,22 @@ class WorldStepping:
             ent.snap_countdown = ent.countdown
             if ent.hw is not None:
                 write_actuators(m, d, ent)
+        self._kinematics_stale = True
         self._advance(n)
         if self._warnings_changed():
             self._recover(n)
+
+    def sync_kinematics(self) -> None:
+        """Bring frame poses (bodies, sites, geoms) up to the joint positions, once per step call.
+
+        ``mj_step`` computes positions before it integrates, so after a step call the frame poses
+        trail ``qpos`` (and the joint states read from it) by one physics step: about 2 mm of end
+        effector travel for an arm in motion. Frame readers call this first. It changes no physics:
+        the next ``mj_step`` recomputes positions from ``qpos`` anyway.
+        """
+        if self._kinematics_stale:
+            mujoco.mj_kinematics(self._model, self._data)
+            self._kinematics_stale = False
 
     def _advance(self, n: int) -> None:
         m, d = self._model, self._data

@@ -168,6 +168,30 @@ def test_frame_set_survives_recompile(make_world):
         fs.poses()
 
 
+def test_frames_agree_with_the_joint_state_after_a_step(make_world):
+    """mj_step computes positions before integrating: without a kinematics pass after the step call
+    the frames would show the arm one physics step behind its joint state."""
+    import mujoco
+
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    fs = world.frame_set(["ee_link", "link2"], "arm")
+    world.set_command("arm", "arm_controller", [0.9, -0.6, 0.8])
+    trajectory = []
+    for _ in range(5):
+        world.step(7)
+        lagging = world.data.xpos[world.model.body("arm/ee_link").id].copy()  # before any frame read
+        poses = fs.poses().copy()
+        check = mujoco.MjData(world.model)
+        check.qpos[:] = world.data.qpos
+        check.mocap_pos[:], check.mocap_quat[:] = world.data.mocap_pos, world.data.mocap_quat
+        mujoco.mj_kinematics(world.model, check)
+        np.testing.assert_allclose(poses[0, :3], check.xpos[world.model.body("arm/ee_link").id], atol=1e-12)
+        np.testing.assert_allclose(poses[1, 3:], check.xquat[world.model.body("arm/link2").id], atol=1e-12)
+        trajectory.append((lagging, poses[0, :3].copy()))
+    assert max(np.linalg.norm(lag - now) for lag, now in trajectory) > 1e-5  # the arm moved within one step
+
+
 def test_mjcf_site_frame(make_world):
     world = make_world()
     world.spawn("pend", PENDULUM, pose=([0, 0, 1], [1, 0, 0, 0]))
