@@ -43,6 +43,8 @@ class ArmRobot:
         SIM_TIMESTEP: physics time step in seconds.
         NUM_SIM_STEPS: physics steps per env step (lockstep). The control period is
             ``SIM_TIMESTEP * NUM_SIM_STEPS`` (40 ms, Fetch's, by default).
+        RENDER_CAMERA: the description's camera ``render()`` uses unless ``render_camera`` is
+            given (in the world: ``"<robot_name>/<camera>"``); empty = the node's default view.
     """
 
     ROBOT_NAME: ClassVar[str]
@@ -61,6 +63,7 @@ class ArmRobot:
     # cost of a 40 ms control period compared with MuJoCo's 2 ms default.
     SIM_TIMESTEP: ClassVar[float] = 0.004
     NUM_SIM_STEPS: ClassVar[int] = 10
+    RENDER_CAMERA: ClassVar[str] = "render_camera"
 
     @classmethod
     def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -76,6 +79,8 @@ class ArmRobot:
             "sim_timestep": cls.SIM_TIMESTEP,
         }
         kwargs.update(overrides)
+        if cls.RENDER_CAMERA and "render_camera" not in overrides and kwargs.get("spawn_robot", True):
+            kwargs["render_camera"] = f"{kwargs['robot_name']}/{cls.RENDER_CAMERA}"
         return kwargs
 
     @classmethod

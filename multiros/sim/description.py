@@ -3,8 +3,9 @@
 Why the URDF -> MjSpec conversion is written here instead of using MuJoCo's URDF importer: the
 importer fuses fixed-joint links (end-effector frames vanish), discards visuals, knows nothing of
 ``package://`` and ``<ros2_control>``, and cannot fix degenerate inertias; we need all of those.
-Parsing is done by :mod:`multiros.sim.urdf_model` (ElementTree; see there why not yourdfpy), which
-also reads the ``<ros2_control>`` and ``<gazebo>`` tags. A ``<mimic>`` joint becomes a MuJoCo joint
+Parsing is done by :mod:`multiros.sim.urdf_model` (ElementTree; see there why not yourdfpy), and
+the ``<ros2_control>`` and ``<gazebo>`` tags by :mod:`multiros.sim.urdf_tags` (joints, the controllers
+file, camera sensors as MuJoCo cameras). A ``<mimic>`` joint becomes a MuJoCo joint
 equality (``q = offset + multiplier * q_leader``), so a gripper's second finger follows the first.
 
 xacro runs in :mod:`multiros.sim.xacro_runner` (``xacro_to_urdf`` is re-exported here).
@@ -23,7 +24,6 @@ before it reaches a world. The checks live in :mod:`multiros.sim.trust`.
 from __future__ import annotations
 
 import hashlib
-import math
 import os
 import re
 import threading
@@ -47,6 +47,7 @@ from multiros.sim.trust import (
     screen_mjcf_text,
 )
 from multiros.sim.urdf_model import parse_urdf
+from multiros.sim.urdf_tags import Ros2ControlJoint, add_gazebo_cameras, parse_controllers_file, parse_ros2_control
 from multiros.sim.xacro_runner import xacro_to_urdf
 
 __all__ = [
@@ -91,16 +92,6 @@ class JointInfo:
     damping: float
     friction: float
     armature: float
-
-
-@dataclass(frozen=True)
-class Ros2ControlJoint:
-    """A ``<joint>`` of the URDF's ``<ros2_control>`` tag."""
-
-    name: str
-    command_interfaces: tuple[str, ...]
-    state_interfaces: tuple[str, ...]
-    initial_position: float | None = None
 
 
 @dataclass
@@ -345,11 +336,12 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
         raise DescriptionError(f"{source_name}: {len(links) - built} link(s) are not connected to the root "
                                f"'{roots[0]}' (a cycle of joints?)", source=source_name)
     _add_mimics(spec, robot.joints, {j.name for j in joint_infos})
-    rc_joints = _parse_ros2_control(xml_root, source_name)
+    add_gazebo_cameras(spec, xml_root, {name: link_bodies.get(name, name) for name in links}, source_name, limits)
+    rc_joints = parse_ros2_control(xml_root, source_name)
     return RobotDescription(name=spec.modelname, format="urdf", spec=spec, source=source_name, text=urdf,
                             root=roots[0], joints=tuple(joint_infos), links=tuple(links),
                             ros2_control=rc_joints, link_bodies=link_bodies,
-                            controllers_yaml=_parse_gazebo_parameters(xml_root, index, source_name, policy))
+                            controllers_yaml=parse_controllers_file(xml_root, index, source_name, policy))
 
 
 def _add_mimics(spec: mujoco.MjSpec, joints: Sequence[object], movable: set[str]) -> None:
@@ -519,47 +511,6 @@ def _mat_to_quat(rot: np.ndarray) -> np.ndarray:
 def _mat_to_pos_quat(matrix: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     matrix = np.eye(4) if matrix is None else np.asarray(matrix, dtype=float)
     return matrix[:3, 3].copy(), _mat_to_quat(matrix[:3, :3])
-
-
-def _parse_ros2_control(root: ET.Element, source: str = "<string>") -> tuple[Ros2ControlJoint, ...]:
-    joints: list[Ros2ControlJoint] = []
-    for tag in root.iter("ros2_control"):
-        for j in tag.findall("joint"):
-            initial = None
-            for si in j.findall("state_interface"):
-                if si.get("name") == "position":
-                    for param in si.findall("param"):
-                        if param.get("name") == "initial_value" and param.text:
-                            try:
-                                initial = float(param.text.strip())
-                            except ValueError:
-                                initial = None
-                            if initial is not None and not math.isfinite(initial):
-                                raise DescriptionError(f"{source}: ros2_control joint '{j.get('name', '')}' "
-                                                       f"initial_value {param.text.strip()!r} is not finite",
-                                                       source=source)
-            joints.append(Ros2ControlJoint(
-                name=j.get("name", ""),
-                command_interfaces=tuple(c.get("name", "") for c in j.findall("command_interface")),
-                state_interfaces=tuple(s.get("name", "") for s in j.findall("state_interface")),
-                initial_position=initial))
-    return tuple(joints)
-
-
-def _parse_gazebo_parameters(root: ET.Element, index: PackageIndex, source: str,
-                             policy: SourcePolicy | None = None) -> Path | None:
-    for plugin in root.iter("plugin"):
-        for param in plugin.iter("parameters"):
-            text = (param.text or "").strip()
-            if text.endswith((".yaml", ".yml")):
-                try:
-                    if policy is not None:
-                        return policy.resolve(text, index, what="controllers file")
-                    return index.resolve_uri(text)
-                except PackageNotFoundError as exc:
-                    raise DescriptionError(f"{source}: controllers file '{text}': {exc}", source=source,
-                                           missing_assets=True) from exc
-    return None
 
 
 # ---------------------------------------------------------------------------------------- MJCF

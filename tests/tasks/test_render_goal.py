@@ -9,6 +9,8 @@ hides from the camera (a ray from the camera hits a geom first) is not expected 
 
 from __future__ import annotations
 
+import itertools
+
 import mujoco
 import numpy as np
 import pytest
@@ -144,3 +146,63 @@ def test_first_frame_after_reset_shows_the_goal_marker_in_process_mode(env_id):
         env.close()
         twin.close()
     assert seen >= RESETS // 2, f"only {seen} of {RESETS} goals were in view and unhidden"
+
+
+def _corners(low, high) -> np.ndarray:
+    return np.array(list(itertools.product(*zip(low, high))), dtype=float)
+
+
+def _goal_region(env, samples: int = 1500) -> np.ndarray:
+    """World points the default image must show, each grown by the marker's radius: many sampled
+    goals; manipulation: object starts too, and the corners of the box they span; a reach goal box
+    the arm reaches everywhere (the RX200's): its corners. The IRB120's goal box (1 m, centred on
+    the base) reaches beyond the arm, and the sampler draws from its reachable part only."""
+    rng = np.random.default_rng(0)
+    if hasattr(env, "sampler"):  # manipulation: (object position, yaw, goal) relative to the base
+        draws = [env.sampler.sample(rng) for _ in range(samples)]
+        points = np.array([p for obj, _, goal in draws for p in (obj, goal)]) + env.base_position
+        points = np.vstack([points, _corners(points.min(0), points.max(0))])
+    else:
+        points = np.array([env.goal_sampler.sample(rng) for _ in range(samples)])
+        if env.robot_name == "rx200":
+            points = np.vstack([points, _corners(env.goal_min, env.goal_max)])
+    grow = np.vstack([np.eye(3), -np.eye(3)]) * _marker_radius(env)
+    return (points[:, None, :] + grow[None]).reshape(-1, 3)
+
+
+@pytest.mark.parametrize("env_id", SIM_IDS)
+def test_default_camera_frames_the_robot_and_every_goal(env_id):
+    env = uniros.make(env_id).unwrapped
+    try:
+        env.reset(seed=0)
+        camera = env._render_options[0]
+        assert camera == f"{env.robot_name}/render_camera"
+        world = _world(env)
+        region = _goal_region(env)
+        robot = _corners(*world.bounds(env.robot_name))
+        for width, height in ((480, 480), (640, 480)):  # the envs' default size, the docs' images
+            margin = 0.03 * height
+            uv, depth = project_points(world.model, world.data, camera, region, width=width, height=height)
+            assert np.all(depth > 0)
+            outside = ~((uv[:, 0] >= margin) & (uv[:, 0] <= width - margin)
+                        & (uv[:, 1] >= margin) & (uv[:, 1] <= height - margin))
+            assert not outside.any(), (
+                f"{width}x{height}: goal region points at the image edge or outside: {region[outside][:3].round(3)}")
+            uv, depth = project_points(world.model, world.data, camera, robot, width=width, height=height)
+            lo, hi = np.clip(uv.min(0), 0, (width, height)), np.clip(uv.max(0), 0, (width, height))
+            assert np.all(depth > 0)
+            # The robot (its bounding box at the start pose) spans a good part of the image.
+            assert hi[1] - lo[1] > 0.4 * height and (hi - lo).prod() > 0.15 * width * height, (
+                f"{width}x{height}: the robot spans only {(hi - lo).round().tolist()} pixels")
+    finally:
+        env.close()
+
+
+def test_default_camera_can_be_replaced():
+    env = uniros.make("RX200ReacherGoalSim-v0", render_mode="rgb_array", render_camera="", render_width=64,
+                      render_height=48).unwrapped
+    try:
+        env.reset(seed=0)
+        assert env._render_options[0] == "" and env.render().shape == (48, 64, 3)  # the node's default view
+    finally:
+        env.close()
