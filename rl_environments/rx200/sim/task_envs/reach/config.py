@@ -7,6 +7,13 @@ from typing import Any
 
 from rl_environments.task_config import load_task_config, vector
 
+# Physics steps of 4 ms per env step for the reach envs: a 100 ms control period (MultiROS' RX200 ran
+# its loop at 10 Hz with a 0.1 s action cycle; the Real twins' loop is 10 Hz too). The arm then ends
+# each step on its joint target (within ~0.005 rad of a 0.05 rad delta, moving < 0.4 rad/s); with
+# the robot default of 40 ms it lagged or overshot the target by 20-50 % and was still moving, and
+# HER + SAC needed more steps (docs/tasks.md "Learning speed").
+REACH_NUM_SIM_STEPS = 25
+
 RX200_REACH_SCHEMA = {
     "arm_joints": list,
     "min_joint_pos": vector(5),

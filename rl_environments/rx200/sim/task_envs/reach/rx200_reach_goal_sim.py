@@ -25,7 +25,11 @@ import numpy as np
 from rl_environments.reach import parse_reward_type
 from rl_environments.reach_task import GoalReachTask
 from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotGoalEnv
-from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config, rx200_reach_settings
+from rl_environments.rx200.sim.task_envs.reach.config import (
+    REACH_NUM_SIM_STEPS,
+    load_rx200_reach_config,
+    rx200_reach_settings,
+)
 
 
 class RX200GoalReachTask(GoalReachTask):
@@ -69,3 +73,5 @@ class RX200GoalReachTask(GoalReachTask):
 class RX200ReacherGoalEnv(RX200GoalReachTask, RX200RobotGoalEnv):
     """``RX200ReacherGoalSim-v0``: the goal-conditioned RX200 reach on the simulation node
     (arguments: :class:`RX200GoalReachTask`)."""
+
+    NUM_SIM_STEPS = REACH_NUM_SIM_STEPS

@@ -3,7 +3,10 @@
 ## Description
 The end effector (``rx200/ee_gripper_link``) must come within ``reach_tolerance`` (2 cm) of a goal
 sampled inside the goal box of ``config/rx200_reach_task_config.yaml``, among points the arm can
-reach. One env step is one lockstep round trip to the simulation node (10 physics steps of 4 ms).
+reach. One env step is one lockstep round trip to the simulation node: 25 physics steps of 4 ms,
+100 ms, the control period of MultiROS' RX200 (10 Hz loop, 0.1 s action cycle) and of the Real twin,
+long enough for the arm to settle on each 0.05 rad joint target (``num_sim_steps`` changes it).
+Episodes start at ``init_joint_pos``, with the end effector at the goal box's centre.
 
 ## Action space
 ``Box(-1, 1, (5,))``: joint deltas, ``target = joints + action * delta_coeff`` (0.05 rad), clipped
@@ -36,7 +39,11 @@ from gymnasium import spaces
 from rl_environments.reach import goal_reward, parse_reward_type
 from rl_environments.reach_task import ReachTask
 from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotEnv
-from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config, rx200_reach_settings
+from rl_environments.rx200.sim.task_envs.reach.config import (
+    REACH_NUM_SIM_STEPS,
+    load_rx200_reach_config,
+    rx200_reach_settings,
+)
 
 
 class RX200ReachTask(ReachTask):
@@ -111,3 +118,5 @@ class RX200ReachTask(ReachTask):
 
 class RX200ReacherEnv(RX200ReachTask, RX200RobotEnv):
     """``RX200ReacherSim-v0``: the RX200 reach task on the simulation node (arguments: :class:`RX200ReachTask`)."""
+
+    NUM_SIM_STEPS = REACH_NUM_SIM_STEPS
