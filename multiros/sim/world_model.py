@@ -58,13 +58,36 @@ def base_spec(opts: WorldOptions) -> mujoco.MjSpec:
     spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
     spec.visual.global_.offwidth = 1920
     spec.visual.global_.offheight = 1080
+    _add_scenery(spec, opts)
     if opts.floor:
         spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05],
-                                rgba=[0.8, 0.8, 0.8, 1], contype=_WORLD_CONTYPE,
+                                material="uniros_floor", contype=_WORLD_CONTYPE,
                                 conaffinity=_WORLD_CONAFFINITY)
-    if opts.lights:
-        spec.worldbody.add_light(name="sun", pos=[0, 0, 3], dir=[0, 0, -1], diffuse=[0.8, 0.8, 0.8])
     return spec
+
+
+def _add_scenery(spec: mujoco.MjSpec, opts: WorldOptions) -> None:
+    """What rendered images show besides the entities, none of it physics: a pale sky, a floor of
+    0.5 m light grey tiles, a sun behind the default views' left shoulder and a soft headlight."""
+    spec.add_texture(name="uniros_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+                     builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.96, 0.97, 0.99],
+                     rgb2=[0.72, 0.77, 0.84], width=64, height=384)
+    if opts.floor:
+        spec.add_texture(name="uniros_floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                         builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.86, 0.86, 0.87],
+                         rgb2=[0.8, 0.8, 0.82], mark=mujoco.mjtMark.mjMARK_EDGE, markrgb=[0.68, 0.68, 0.7],
+                         width=256, height=256)
+        floor = spec.add_material(name="uniros_floor", texrepeat=[1, 1], texuniform=True, reflectance=0.0)
+        floor.textures[int(mujoco.mjtTextureRole.mjTEXROLE_RGB)] = "uniros_floor"
+    if opts.lights:
+        spec.visual.headlight.ambient = [0.3, 0.3, 0.3]
+        spec.visual.headlight.diffuse = [0.35, 0.35, 0.35]
+        spec.visual.headlight.specular = [0.1, 0.1, 0.1]
+        spec.visual.quality.shadowsize = 4096
+        spec.visual.map.shadowclip = 3.0  # the sun's shadow map covers the views' whole floor (no speckles)
+        spec.worldbody.add_light(name="sun", pos=[1.0, -1.5, 3.0], dir=[-0.3, 0.45, -0.85],
+                                 type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL, diffuse=[0.65, 0.65, 0.65],
+                                 specular=[0.2, 0.2, 0.2], castshadow=True)
 
 
 def initial_joint_positions(name: str, desc: RobotDescription,
