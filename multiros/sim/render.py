@@ -227,6 +227,7 @@ class Renderer:
             depth: return depth in metres (float32, HxW) instead of RGB (uint8, HxWx3).
         """
         r = self._renderer(width, height)
+        self.world.sync_kinematics()  # the image shows the joint state, not one physics step before it
         r.update_scene(self.world.data, camera=self._camera(camera))
         self.add_markers_to_scene(r.scene)
         try:
@@ -253,6 +254,7 @@ class Renderer:
                 *, width: int = 640, height: int = 480) -> tuple[np.ndarray, np.ndarray]:
         """:func:`project_points` for this world and ``camera`` (None: the default view)."""
         camera = self._default_camera if camera is None else camera
+        self.world.sync_kinematics()
         return project_points(self.world.model, self.world.data, camera, points, width=width, height=height)
 
     def _drop_renderers(self) -> None:

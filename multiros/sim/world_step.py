@@ -87,7 +87,7 @@ class WorldStepping:
             self._recover(n)
 
     def sync_kinematics(self) -> None:
-        """Bring frame poses (bodies, sites, geoms) up to the joint positions, once per step call.
+        """Bring frame poses (bodies, sites, geoms, cameras) up to the joint positions, once per step call.
 
         ``mj_step`` computes positions before it integrates, so after a step call the frame poses
         trail ``qpos`` (and the joint states read from it) by one physics step: about 2 mm of end
@@ -96,6 +96,7 @@ class WorldStepping:
         """
         if self._kinematics_stale:
             mujoco.mj_kinematics(self._model, self._data)
+            mujoco.mj_camlight(self._model, self._data)  # cameras and lights on moving links
             self._kinematics_stale = False
 
     def _advance(self, n: int) -> None:
