@@ -29,6 +29,7 @@ from multiros.envs.real.robot_link import JointState, JointTrajectory
 from multiros.ros import Client, Node
 from multiros.sim.controller_client import ControllerManagerClient
 from multiros.sim.launch import private_context
+from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
 
 from .conftest import StandIn, TopicRecorder
 
@@ -121,7 +122,7 @@ def _check_command(env: Any, positions: np.ndarray, before: np.ndarray, cap: flo
 @pytest.mark.parametrize("mode", ["project", "refuse"])
 def test_commands_beyond_the_rules_never_reach_the_robot(graph, standin: StandIn, mode: str) -> None:
     recorder = TopicRecorder(graph, JointTrajectory, TRAJ_TOPIC)
-    cap, floor = 0.1, 0.22
+    cap, floor = 0.1, 0.12  # the home pose's end effector is at z 0.175
     env = _make(graph, "RX200ReacherReal-v0", delta_action=False, max_joint_delta=cap, floor_z=floor,
                 workspace_mode=mode, environment_loop_rate=20.0)
     try:
@@ -208,8 +209,9 @@ class _Publisher:
     def __init__(self, ctx, topic: str) -> None:
         self.node = Node(f"js_pub_{os.getpid()}_{time.monotonic_ns()}", context=ctx)
         self.pub = self.node.create_publisher(JointState, topic, 10)
+        home = [float(v) for v in load_rx200_reach_config()["init_joint_pos"]]  # the reset finds it there
         self.make = lambda: JointState(name=["waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate"],
-                                       position=[0.0] * 5, velocity=[0.0] * 5)
+                                       position=list(home), velocity=[0.0] * 5)
         self.running = True
         self.stop_event = threading.Event()
         self.thread = threading.Thread(target=self._run, daemon=True)
@@ -237,7 +239,7 @@ def test_malformed_joint_states_are_clear_errors(graph, standin: StandIn, field:
         good = pub.make
         env = _make(graph, joint_states_topic=topic, joint_state_timeout=0.3)
         try:
-            env.reset(seed=0)  # init pose = zeros: already there
+            env.reset(seed=0)  # the published joints are the init pose: already there
             env.step(np.zeros(5, dtype=np.float32))
 
             def bad() -> Any:
