@@ -2,18 +2,18 @@
 
 Task envs (two layers each: a robot env and a task env):
 
-=============================  ========================================================================
-ID                             entry point
-=============================  ========================================================================
-``RX200ReacherSim-v0``         ``rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim:RX200ReacherEnv``
-``RX200ReacherGoalSim-v0``     ``...reach.rx200_reach_goal_sim:RX200ReacherGoalEnv``
-``RX200PushSim-v0``            ``rl_environments.rx200.sim.task_envs.manipulation.rx200_push_sim:RX200PushEnv``
-``RX200PushGoalSim-v0``        ``...manipulation.rx200_push_goal_sim:RX200PushGoalEnv``
-``RX200PnPSim-v0``             ``...manipulation.rx200_pnp_sim:RX200PnPEnv``
-``RX200PnPGoalSim-v0``         ``...manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv``
-``ABBIRB120ReacherEnv-v0``     ``rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv``
-``ABBIRB120ReacherGoalEnv-v0`` ``...reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv``
-=============================  ========================================================================
+==============================  ========================================================================
+ID                              entry point
+==============================  ========================================================================
+``RX200ReacherSim-v0``          ``rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim:RX200ReacherEnv``
+``RX200ReacherGoalSim-v0``      ``...reach.rx200_reach_goal_sim:RX200ReacherGoalEnv``
+``RX200PushSim-v0``             ``rl_environments.rx200.sim.task_envs.manipulation.rx200_push_sim:RX200PushEnv``
+``RX200PushGoalSim-v0``         ``...manipulation.rx200_push_goal_sim:RX200PushGoalEnv``
+``RX200PnPSim-v0``              ``...manipulation.rx200_pnp_sim:RX200PnPEnv``
+``RX200PnPGoalSim-v0``          ``...manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv``
+``ABBIRB120ReacherEnv-v0``      ``rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv``
+``ABBIRB120ReacherGoalEnv-v0``  ``...reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv``
+==============================  ========================================================================
 
 Real-robot twins (same task, same spaces; they need a robot or a stand-in, see ``docs/real_robots.md``):
 
@@ -85,11 +85,16 @@ SIM_TO_REAL: dict[str, str] = {
 }
 
 
+# Gymnasium loads "<module>:<ID>" entry points by name (JSON-able specs); the module makes each ID's.
+VECTOR_ENTRY_MODULE = "rl_environments.vector_entry"
+
+
 def register_envs() -> None:
-    """Register every uniros env ID with gymnasium (idempotent)."""
+    """Register every uniros env ID with gymnasium (idempotent); simulated IDs get a batched vector entry point."""
     for env_id, entry_point in {**ENV_SPECS, **REAL_ENV_SPECS}.items():
         if env_id not in registry:
             register(id=env_id, entry_point=entry_point,
+                     vector_entry_point=f"{VECTOR_ENTRY_MODULE}:{env_id}" if env_id in ENV_SPECS else None,
                      max_episode_steps=EPISODE_STEPS.get(env_id, MAX_EPISODE_STEPS))
 
 
@@ -105,5 +110,6 @@ __all__ = [
     "REAL_ENV_SPECS",
     "REAL_GOAL_ENV_IDS",
     "SIM_TO_REAL",
+    "VECTOR_ENTRY_MODULE",
     "register_envs",
 ]
