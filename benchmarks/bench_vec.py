@@ -15,6 +15,12 @@ core), in env steps/s: ``N * calls/s`` with ``num_sim_steps`` physics steps per 
 composed rate is printed as a fraction of it.
 
     python benchmarks/bench_vec.py [--seconds 2] [--sizes 1,2,4,8,16] [--env RX200ReacherGoalSim-v0]
+                                   [--num-sim-steps 10]
+
+Like for like with FetchReach-v4, whose env step is 40 ms of simulated time (20 x 2 ms), the uniros
+envs run ``--num-sim-steps 10`` (10 x 4 ms) by default. The RX200 reach IDs' own default is 100 ms
+(25 physics steps: MultiROS' 10 Hz and the Real twin's), 2.5x the physics per env step:
+``--num-sim-steps 0`` measures at each env's default.
 
 Goals (issue 13): N = 8 batched composed >= 5x one FetchReach-v4 and >= 2x SubprocVecEnv over 8
 separate uniros envs.
@@ -81,16 +87,16 @@ def batched(env_id: str, n: int, seconds: float, **kwargs) -> tuple[float, float
         vec.close()
 
 
-def _make_uniros(env_id: str) -> Callable[[], object]:
+def _make_uniros(env_id: str, **kwargs) -> Callable[[], object]:
     def make():
-        return uniros.make(env_id)
+        return uniros.make(env_id, **kwargs)
     return make
 
 
-def subproc(env_id: str, n: int, seconds: float) -> float:
+def subproc(env_id: str, n: int, seconds: float, **kwargs) -> float:
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    venv = SubprocVecEnv([_make_uniros(env_id) for _ in range(n)])
+    venv = SubprocVecEnv([_make_uniros(env_id, **kwargs) for _ in range(n)])
     try:
         venv.seed(0)
         venv.reset()
@@ -134,7 +140,10 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=2.0)
     parser.add_argument("--sizes", default="1,2,4,8,16")
     parser.add_argument("--env", default="RX200ReacherGoalSim-v0")
+    parser.add_argument("--num-sim-steps", type=int, default=10,
+                        help="physics steps per env step (10: 40 ms, FetchReach-v4's; 0: the env's default)")
     args = parser.parse_args()
+    knobs = {"num_sim_steps": args.num_sim_steps} if args.num_sim_steps > 0 else {}
     sizes = [int(s) for s in args.sizes.split(",")]
     cols = ["batched composed", "batched process", "batched 2 procs", "SB3 SubprocVecEnv",
             "Async FetchReach", "physics limit", "fraction"]
@@ -142,17 +151,19 @@ def main() -> None:
     rows: dict[int, dict[str, float | None]] = {}
     for n in sizes:
         row: dict[str, float | None] = {}
-        row["batched composed"], row["physics limit"] = batched(args.env, n, args.seconds)
+        row["batched composed"], row["physics limit"] = batched(args.env, n, args.seconds, **knobs)
         row["fraction"] = row["batched composed"] / row["physics limit"]
-        row["batched process"], _ = batched(args.env, n, args.seconds, sim_mode="process")
+        row["batched process"], _ = batched(args.env, n, args.seconds, sim_mode="process", **knobs)
         row["batched 2 procs"] = batched(args.env, n, args.seconds, sim_mode="process",
-                                         vector_kwargs={"num_nodes": 2})[0] if n >= 2 else None
-        row["SB3 SubprocVecEnv"] = subproc(args.env, n, args.seconds)
+                                         vector_kwargs={"num_nodes": 2}, **knobs)[0] if n >= 2 else None
+        row["SB3 SubprocVecEnv"] = subproc(args.env, n, args.seconds, **knobs)
         row["Async FetchReach"] = fetch_async(n, args.seconds)
         rows[n] = row
         print(f"N={n:2d} " + "  ".join(f"{c}={row[c]:.3g}" if row[c] is not None else f"{c}=-" for c in cols),
               flush=True)
-    print(f"\n{args.env}: total env steps/s ({os.cpu_count()} CPUs); one FetchReach-v4: {fetch:,.0f}/s")
+    per_step = f"num_sim_steps={args.num_sim_steps}" if knobs else "the env's default num_sim_steps"
+    print(f"\n{args.env} ({per_step}): total env steps/s ({os.cpu_count()} CPUs); "
+          f"one FetchReach-v4: {fetch:,.0f}/s")
     print(f"{'N':>3} " + " ".join(f"{c:>18}" for c in cols))
     for n, row in rows.items():
         cells = []
