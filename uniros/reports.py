@@ -43,11 +43,14 @@ def _monitor_rows(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         total = 0
         for row in csv.DictReader(lines):
             try:
-                total += int(float(row["l"]))
-                returns.append(float(row["r"]))
-                success.append(float(row.get("is_success") or "nan"))
+                length, ret = int(float(row["l"])), float(row["r"])
+                flag = row.get("is_success") or "nan"  # SB3's Monitor writes True/False
+                ok = 1.0 if flag == "True" else 0.0 if flag == "False" else float(flag)
             except (KeyError, ValueError):
                 continue
+            total += length
+            returns.append(ret)
+            success.append(ok)
             steps.append(total)
     return np.asarray(steps, float), np.asarray(returns, float), np.asarray(success, float)
 
@@ -69,10 +72,11 @@ def plot_learning_curve(evaluations: Sequence[dict[str, float]], path: Path, *, 
     window = 20
     if len(steps) >= 1:
         kernel = np.ones(min(window, len(steps))) / min(window, len(steps))
+        trailing = steps[len(kernel) - 1:]  # the mean of the last episodes at each point (no zero padding)
         if np.isfinite(success).any():
-            ax_s.plot(steps, np.convolve(np.nan_to_num(success), kernel, mode="same"), color="0.6",
+            ax_s.plot(trailing, np.convolve(np.nan_to_num(success), kernel, mode="valid"), color="0.6",
                       lw=1, label=f"training episodes (mean of {len(kernel)})")
-        ax_r.plot(steps, np.convolve(returns, kernel, mode="same"), color="0.6", lw=1,
+        ax_r.plot(trailing, np.convolve(returns, kernel, mode="valid"), color="0.6", lw=1,
                   label=f"training episodes (mean of {len(kernel)})")
     if evaluations:
         e_steps = [row["steps"] for row in evaluations]

@@ -353,7 +353,9 @@ class Session:
 
         filename = None if self.paths.monitor is None else str(self.paths.monitor / name)
         keys = ("is_success",) if self.success_info else ()
-        return Monitor(env, filename=filename, info_keywords=keys, override_existing=False)
+        # A new file gets SB3's header lines (SB3 writes them only when overriding); a resumed run appends.
+        fresh = filename is None or not Path(f"{filename}.{Monitor.EXT}").is_file()
+        return Monitor(env, filename=filename, info_keywords=keys, override_existing=fresh)
 
     def _vec(self, env: Any, *, training: bool, stats: Path | None = None) -> Any:
         from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
