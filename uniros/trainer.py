@@ -55,20 +55,29 @@ class _Signal(KeyboardInterrupt):
 
 
 @contextlib.contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM interrupts like Ctrl-C (raises ``KeyboardInterrupt`` with ``signum``)."""
+def _signal_handler(handler: Callable[[int, Any], None], signals: tuple[int, ...]) -> Iterator[None]:
+    """Within the block, ``handler`` handles ``signals`` (only the main thread can set handlers;
+    elsewhere the block runs with the handlers as they are)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise _Signal(signum)
-
-    previous = signal.signal(signal.SIGTERM, handler)
+    previous = {s: signal.signal(s, handler) for s in signals}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for s, old in previous.items():
+            signal.signal(s, old)
+
+
+def _raise_signal(signum: int, frame: Any) -> None:
+    raise _Signal(signum)
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM interrupts like Ctrl-C (raises ``KeyboardInterrupt`` with ``signum``)."""
+    with _signal_handler(_raise_signal, (signal.SIGTERM,)):
+        yield
 
 
 class _StopRequest:
@@ -87,38 +96,22 @@ def _stop_at_next_step() -> Iterator[_StopRequest]:
     state with ``step`` but no ``exp_avg``, which fails on resume.
     """
     request = _StopRequest()
-    if threading.current_thread() is not threading.main_thread():
-        yield request
-        return
 
     def handler(signum: int, frame: Any) -> None:
-        if request.signum is None:
-            request.signum = signum
-            return
-        raise _Signal(signum)
+        if request.signum is not None:
+            _raise_signal(signum, frame)
+        request.signum = signum
 
-    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-    try:
+    with _signal_handler(handler, (signal.SIGINT, signal.SIGTERM)):
         yield request
-    finally:
-        for s, old in previous.items():
-            signal.signal(s, old)
 
 
 @contextlib.contextmanager
 def _signals_deferred() -> Iterator[list[int]]:
     """Within the block, Ctrl-C and SIGTERM are noted, not raised (a save in progress completes)."""
     pending: list[int] = []
-    if threading.current_thread() is not threading.main_thread():
+    with _signal_handler(lambda signum, frame: pending.append(signum), (signal.SIGINT, signal.SIGTERM)):
         yield pending
-        return
-    previous = {s: signal.signal(s, lambda signum, frame: pending.append(signum)) for s in (signal.SIGINT,
-                                                                                              signal.SIGTERM)}
-    try:
-        yield pending
-    finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
 
 
 # -- building ------------------------------------------------------------------------------------
@@ -477,19 +470,19 @@ class Session:
         except KeyboardInterrupt as exc:
             # A second signal, or Ctrl-C outside the main thread's handler: the model may be mid update,
             # so no checkpoint is written now; the last complete one stands.
-            signum = getattr(exc, "signum", signal.SIGINT)
-            with _signals_deferred():
-                self._write_meta(status="interrupted")
-            found = latest_checkpoint(self.paths.checkpoints) if self.paths.checkpoints is not None else []
-            self._raise_interrupted(signum, found[0] if found else None)
+            self._stop_interrupted(getattr(exc, "signum", signal.SIGINT), save=False)
         if self.stop_request.signum is not None:
-            with _signals_deferred():
-                ckpt = self.checkpoint()
-                self._write_meta(status="interrupted")
-            self._raise_interrupted(self.stop_request.signum, ckpt)
+            self._stop_interrupted(self.stop_request.signum, save=True)
         self.prior_seconds, self._learn_started, self.excluded = self.train_seconds(), 0.0, 0.0
 
-    def _raise_interrupted(self, signum: int, ckpt: Checkpoint | None) -> None:
+    def _stop_interrupted(self, signum: int, *, save: bool) -> None:
+        """Record the interruption (with a new checkpoint when ``save``) and raise ``TrainingInterrupted``."""
+        with _signals_deferred():
+            ckpt = self.checkpoint() if save else None
+            self._write_meta(status="interrupted")
+        if not save and self.paths.checkpoints is not None:
+            found = latest_checkpoint(self.paths.checkpoints)
+            ckpt = found[0] if found else None
         name = signal.Signals(signum).name
         if ckpt is not None:
             where = f"; checkpoint at {ckpt.steps} steps: {ckpt.model}"

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError
 from multiros.ros.graph import type_name_of
 from multiros.ros.qos import QoSProfile
-from multiros.ros.registry import service_type_key
+from multiros.ros.registry import type_key
 from multiros.ros.task import Future
 
 if TYPE_CHECKING:
@@ -35,7 +35,7 @@ class Client:
         self.qos_profile = qos_profile
         self._services = node.context.registry.services
         # In-process servers match on name and type hash, as on the Zenoh wire.
-        self._key = (srv_name, service_type_key(srv_type))
+        self._key = (srv_name, type_key(srv_type))
         self._wire: Any = None  # transport handle: call(), call_async(), service_is_ready(), close()
 
     @property

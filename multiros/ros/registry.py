@@ -21,33 +21,24 @@ if TYPE_CHECKING:
     from multiros.ros.service import Service
     from multiros.ros.subscription import Subscription
 
-__all__ = ["LocalRegistry", "service_type_key"]
+__all__ = ["LocalRegistry", "type_key"]
 
 _log = logging.getLogger(__name__)
 
 
-def service_type_key(srv_type: object) -> str:
-    """What a client and a server of one name must share to be connected.
+def type_key(interface_type: object) -> str:
+    """What the two ends of a topic or service must share to be connected.
 
-    For interface types the RIHS01 type hash, as in the Zenoh key, so the variants of one service
-    from different ROS distributions stay apart in-process too; for any other class its name.
+    For interface types (messages and services) the RIHS01 type hash, as in the Zenoh key, so the
+    variants of one type from different ROS distributions stay apart in-process too; for any other
+    class its name.
     """
-    if getattr(srv_type, "_registry", None) is not None and hasattr(srv_type, "Request"):
+    if getattr(interface_type, "_registry", None) is not None and (
+            hasattr(interface_type, "Request") or hasattr(interface_type, "_type")):
         from multiros.ros.interfaces import type_hash
 
-        return type_hash(srv_type)
-    return type_name_of(srv_type)
-
-
-def message_type_key(msg_type: object) -> str:
-    """What a publisher and a subscription of one topic must share to be connected: as
-    :func:`service_type_key`, the RIHS01 hash for interface messages (one distribution's variant of
-    a message never reaches a subscription of another's, as over Zenoh), else the class name."""
-    if getattr(msg_type, "_registry", None) is not None and hasattr(msg_type, "_type"):
-        from multiros.ros.interfaces import type_hash
-
-        return type_hash(msg_type)
-    return type_name_of(msg_type)
+        return type_hash(interface_type)
+    return type_name_of(interface_type)
 
 
 class LocalRegistry:
@@ -119,7 +110,7 @@ class LocalRegistry:
                         topic, pub.type_name, sub.type_name,
                     )
                     continue
-                if message_type_key(sub.msg_type) != message_type_key(pub.msg_type):
+                if type_key(sub.msg_type) != type_key(pub.msg_type):
                     continue  # two distributions' variants of one type: side by side, as over Zenoh
                 if qos_compatible(pub.qos_profile, sub.qos_profile):
                     matched.append(sub)
@@ -127,23 +118,23 @@ class LocalRegistry:
 
     # -- services ----------------------------------------------------------------------------
     def add_service(self, srv: Service) -> None:
-        key = (srv.srv_name, service_type_key(srv.srv_type))
+        key = (srv.srv_name, type_key(srv.srv_type))
         with self._lock:
             servers = self._service_lists.setdefault(srv.srv_name, [])
             servers.append(srv)
-            same = [s for s in servers if (s.srv_name, service_type_key(s.srv_type)) == key]
+            same = [s for s in servers if (s.srv_name, type_key(s.srv_type)) == key]
             if len(same) > 1:
                 _log.warning("service '%s' (%s) has %d servers in this context; calls go to the first",
                              srv.srv_name, srv.type_name, len(same))
             self.services[key] = same[0]
 
     def remove_service(self, srv: Service) -> None:
-        key = (srv.srv_name, service_type_key(srv.srv_type))
+        key = (srv.srv_name, type_key(srv.srv_type))
         with self._lock:
             servers = self._service_lists.get(srv.srv_name, [])
             if srv in servers:
                 servers.remove(srv)
-            same = [s for s in servers if (s.srv_name, service_type_key(s.srv_type)) == key]
+            same = [s for s in servers if (s.srv_name, type_key(s.srv_type)) == key]
             if same:
                 self.services[key] = same[0]
             else:

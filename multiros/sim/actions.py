@@ -65,8 +65,9 @@ def _other_variants(action: Any) -> list[Any]:
     seen, variants = {type_hash(action)}, []
     for distro in SERVED_DISTROS:
         variant = registry_for(distro).action_class(action._type)
-        if type_hash(variant) not in seen:
-            seen.add(type_hash(variant))
+        key = type_hash(variant)
+        if key not in seen:
+            seen.add(key)
             variants.append(variant)
     return variants
 
