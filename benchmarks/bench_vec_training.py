@@ -32,7 +32,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from bench_training import _Watched
+from bench_training import _spread, _Watched
 from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
 from uniros.factory import make_batch
@@ -118,12 +118,6 @@ def run_one(env_id: str, base: TrainingConfig, n: int, mode: str, seed: int, *, 
     updates = None if first is None else max(0, (first - starts) // n) * grads  # after learning_starts
     return Result(n, mode, seed, first, session.seconds_to_success, updates, held,
                   [r for _, _, r in session.curve], time.perf_counter() - started)
-
-
-def _spread(values: list[float], fmt: str) -> str:
-    if not values:
-        return "-"
-    return f"{statistics.median(values):{fmt}} [{min(values):{fmt}}-{max(values):{fmt}}]"
 
 
 def summarise(results: list[Result], target: float, window: int) -> None:
