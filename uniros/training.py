@@ -16,6 +16,7 @@ import copy
 import importlib
 import json
 import logging
+import os
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -66,11 +67,11 @@ def resolve_env_id(env_id: str) -> str:
         return env_id
     if module not in sys.modules:
         try:
-            importlib.import_module(module)
+            _import_env_module(module)
         except ImportError as exc:
             raise TrainingError(
-                f"cannot import {module!r} (from env ID {env_id!r}): {exc}. Install the package or run from "
-                "the directory that contains it (it must be importable)"
+                f"cannot import {module!r} (from env ID {env_id!r}): {exc}. Install the package, or run from "
+                "the directory that contains it"
             ) from exc
     if bare not in gym.registry:
         import difflib
@@ -79,6 +80,28 @@ def resolve_env_id(env_id: str) -> str:
         raise TrainingError(f"{module!r} was imported but did not register {bare!r}"
                             + (f"; close: {close}" if close else ""))
     return bare
+
+
+def _import_env_module(module: str) -> None:
+    """Import ``module``; if it is not found and the working directory holds it, from there.
+
+    ``python -m`` puts the working directory on ``sys.path``, but an installed console script
+    (``uniros``) puts its own ``bin`` directory there, so a user's ``my_pkg`` next to them would not
+    import. The working directory is added (as uvicorn's ``--app-dir`` does by default) only when
+    the top-level package or module is found in it.
+    """
+    try:
+        importlib.import_module(module)
+        return
+    except ModuleNotFoundError as exc:
+        top = module.split(".")[0]
+        cwd = os.getcwd()
+        local = os.path.isdir(os.path.join(cwd, top)) or os.path.isfile(os.path.join(cwd, top + ".py"))
+        if exc.name != top or not local or cwd in sys.path or "" in sys.path:
+            raise
+    sys.path.insert(0, cwd)
+    importlib.invalidate_caches()
+    importlib.import_module(module)
 
 
 def make_env(env_id: str, **kwargs: Any) -> Any:

@@ -150,3 +150,24 @@ def test_module_colon_id_env_from_the_cli(tmp_path, capsys, monkeypatch):
     capsys.readouterr()
     assert cli_main(["train", "no_such_pkg.mod:X-v0", "--output", str(out)]) == 2
     assert "cannot import 'no_such_pkg.mod'" in capsys.readouterr().err
+
+
+def test_module_colon_id_imports_from_the_working_directory(tmp_path, monkeypatch):
+    """The ``uniros`` console script's sys.path has its bin directory, not the working directory: a
+    user's package in the directory they run from still imports, and only then is the directory added."""
+    from uniros.training import TrainingError, resolve_env_id
+
+    (tmp_path / "my_cwd_pkg").mkdir()
+    (tmp_path / "my_cwd_pkg" / "__init__.py").write_text(
+        "from gymnasium.envs.registration import register, registry\n"
+        "if 'MyCwdTestEnv-v0' not in registry:\n"
+        "    register(id='MyCwdTestEnv-v0', entry_point='gymnasium.envs.classic_control:CartPoleEnv')\n"
+    )
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", os.getcwd(), str(tmp_path))])
+    monkeypatch.delitem(sys.modules, "my_cwd_pkg", raising=False)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(TrainingError, match="cannot import 'absent_pkg'"):
+        resolve_env_id("absent_pkg:X-v0")
+    assert os.getcwd() not in sys.path  # nothing there to import: the path is left alone
+    assert resolve_env_id("my_cwd_pkg:MyCwdTestEnv-v0") == "MyCwdTestEnv-v0"
+    assert sys.path[0] == os.getcwd()
