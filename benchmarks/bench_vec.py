@@ -175,6 +175,11 @@ def main() -> None:
         r = rows[8]
         print(f"\nN=8 batched composed: {r['batched composed'] / fetch:.2f}x one FetchReach-v4 (goal >= 5x), "
               f"{r['batched composed'] / r['SB3 SubprocVecEnv']:.2f}x SubprocVecEnv over 8 uniros envs (goal >= 2x)")
+        # Where the time goes: the goal as a time budget per env step, next to the physics' own cost.
+        budget, physics, total = 1e6 / (5 * fetch), 1e6 / r["physics limit"], 1e6 / r["batched composed"]
+        print(f"per env step at N=8: 5x FetchReach-v4 allows {budget:.0f} us; mj_step of this world takes "
+              f"{physics:.0f} us, leaving {budget - physics:.0f} us for the node, task, client and vector env, "
+              f"which take {total - physics:.0f} us now ({total:.0f} us in all)")
 
 
 if __name__ == "__main__":

@@ -9,7 +9,8 @@
   (PATH_TOLERANCE_VIOLATED); at the end every joint must be within ``goal_tolerance`` by
   ``goal_time_tolerance`` after the last point (GOAL_TOLERANCE_VIOLATED); with no goal time
   tolerance given the node waits at most ``DEFAULT_GOAL_TIME`` seconds of sim time. A tolerance
-  <= 0 is not checked. A cancel holds the joints where they are. A new goal, or a trajectory on the
+  <= 0 is not checked. The checks run in the stepping thread after every step call or real-time
+  chunk, so a result depends on sim time only, never on how soon a goal's thread gets to run. A cancel holds the joints where they are. A new goal, or a trajectory on the
   controller's topic, ends the running goal (ABORTED, "preempted"). Only one goal runs per
   controller; goals for an inactive controller, unknown or missing joints, an empty or malformed
   trajectory, or one that ended in the past are rejected. Goals and results are the same in every
@@ -99,6 +100,47 @@ class _StepSignal:
         return self._generation
 
 
+class _GoalWatch:
+    """What a running goal is checked against, and the check's first verdict.
+
+    The verdict is decided in :meth:`TrajectoryActions.on_step`, in the stepping thread right after
+    each step call or real-time chunk, so that it depends on sim time only: a goal thread that
+    wakes late (a loaded machine, a paused simulation stepped in quick calls) reports what was true
+    when the world was at that time, not what is true when it gets around to looking.
+    """
+
+    __slots__ = ("ctrl", "owner", "jidx", "joints", "start", "end", "deadline", "path_tol", "goal_tol", "verdict")
+
+    def __init__(self, ctrl: Any, owner: Any, jidx: np.ndarray, joints: list[str], start: float, end: float,
+                 deadline: float, path_tol: np.ndarray, goal_tol: np.ndarray) -> None:
+        self.ctrl, self.owner, self.jidx, self.joints = ctrl, owner, jidx, joints
+        self.start, self.end, self.deadline = start, end, deadline
+        self.path_tol, self.goal_tol = path_tol, goal_tol
+        self.verdict: tuple[int, str] | None = None  # (control_msgs code, text), set once
+
+    def check(self, now: float, desired: np.ndarray, actual: np.ndarray) -> None:
+        """Record the verdict if this state decides the goal (caller holds the node lock)."""
+        if self.verdict is not None:
+            return
+        if now < self.end:
+            error = desired - actual
+            bad = np.nonzero((self.path_tol > 0) & (np.abs(error) > self.path_tol))[0]
+            if bad.size:
+                j = bad[0]
+                self.verdict = (_FJT.PATH_TOLERANCE_VIOLATED, f"path tolerance violated by joint {self.joints[j]} "
+                                f"(error {error[j]:.4g}, tolerance {self.path_tol[j]:.4g})")
+            return
+        target = self.ctrl._pos[-1]
+        off = np.nonzero((self.goal_tol > 0) & (np.abs(target - actual) > self.goal_tol))[0]
+        if not off.size:
+            self.verdict = (_FJT.SUCCESSFUL, "")
+        elif now > self.deadline:
+            j = off[0]
+            self.verdict = (_FJT.GOAL_TOLERANCE_VIOLATED,
+                            f"joint {self.joints[j]} is {abs(target[j] - actual[j]):.4g} from its goal "
+                            f"(tolerance {self.goal_tol[j]:.4g}) {now - self.end:.3f} s after the trajectory's end")
+
+
 class TrajectoryActions:
     """FollowJointTrajectory servers of one robot's joint trajectory controllers.
 
@@ -115,6 +157,7 @@ class TrajectoryActions:
         self._servers: dict[str, ActionServer] = {}
         self._active: dict[str, ServerGoalHandle] = {}  # controller -> its running goal
         self._preempted: set[ServerGoalHandle] = set()
+        self._watches: dict[ServerGoalHandle, _GoalWatch] = {}  # running goals' checks (node lock)
         self._signal = _StepSignal()
         self._point = threading.local()  # the trajectory point the feedback being published is at
         self._variants = [(v, lambda fb, cls=v.Feedback: self._converted(fb, cls))
@@ -142,9 +185,17 @@ class TrajectoryActions:
         self._active.pop(controller, None)
 
     def on_step(self) -> None:
-        """The world advanced: wake running goals."""
-        if self._active:
-            self._signal.notify()
+        """The world advanced: decide the running goals' tolerance checks at this sim time, then wake
+        their threads (caller holds the node lock)."""
+        if not self._active:
+            return
+        if self._watches:
+            now = self.world.time
+            position = self.world.joint_state(self.robot).position
+            for watch in self._watches.values():
+                if watch.verdict is None and watch.ctrl._pos is watch.owner:
+                    watch.check(now, watch.ctrl.hw.command[watch.ctrl.idx], position[watch.jidx])
+        self._signal.notify()
 
     def destroy(self) -> None:
         for controller in list(self._servers):
@@ -234,10 +285,22 @@ class TrajectoryActions:
             jidx = np.array([all_joints.index(j) for j in joints], dtype=np.intp)
             owner = ctrl._pos  # the trajectory arrays this goal installed (identity tells if replaced)
         end = start + times[-1]
-        path_tol = self._tolerances(goal.path_tolerance, joints)
-        goal_tol = self._tolerances(goal.goal_tolerance, joints)
         goal_time = _seconds(goal.goal_time_tolerance)
         deadline = end + (goal_time if goal_time > 0 else DEFAULT_GOAL_TIME)
+        watch = _GoalWatch(ctrl, owner, jidx, joints, start, end, deadline,
+                           self._tolerances(goal.path_tolerance, joints), self._tolerances(goal.goal_tolerance, joints))
+        with self.lock:
+            self._watches[handle] = watch
+        try:
+            return self._follow(controller, handle, watch, times, result)
+        finally:
+            with self.lock:
+                self._watches.pop(handle, None)
+
+    def _follow(self, controller: str, handle: ServerGoalHandle, watch: _GoalWatch, times: list[float],
+                result: Any) -> Any:
+        """Feedback after every world advance until the goal is canceled, preempted or decided."""
+        ctrl, owner, jidx, joints, start = watch.ctrl, watch.owner, watch.jidx, watch.joints, watch.start
         generation = self._signal.generation
         while True:
             if handle.is_cancel_requested:
@@ -259,29 +322,18 @@ class TrajectoryActions:
                     state = self.world.joint_state(self.robot)  # hw.position is refreshed only on events
                     actual = state.position[jidx]
                     actual_vel = state.velocity[jidx]
-                    target = ctrl._pos[-1].copy()
+                    verdict = watch.verdict
             if replaced:
                 return self._finish(controller, handle, result, _FJT.INVALID_GOAL,
                                     "preempted: the controller got another trajectory, was deactivated or unloaded")
-            error = desired - actual
             self._point.index = min(int(np.searchsorted(times, now - start)), len(times) - 1)
             handle.publish_feedback(self._feedback(joints, now, now - start, desired, desired_vel, actual,
                                                    actual_vel))
-            if now < end:
-                bad = np.nonzero((path_tol > 0) & (np.abs(error) > path_tol))[0]
-                if bad.size:
-                    return self._hold_and_abort(controller, handle, ctrl, owner, result, _FJT.PATH_TOLERANCE_VIOLATED,
-                                                f"path tolerance violated by joint {joints[bad[0]]} "
-                                                f"(error {error[bad[0]]:.4g}, tolerance {path_tol[bad[0]]:.4g})")
-            else:
-                off = np.nonzero((goal_tol > 0) & (np.abs(target - actual) > goal_tol))[0]
-                if not off.size:
-                    return self._finish(controller, handle, result, _FJT.SUCCESSFUL, "")
-                if now > deadline:
-                    return self._hold_and_abort(
-                        controller, handle, ctrl, owner, result, _FJT.GOAL_TOLERANCE_VIOLATED,
-                        f"joint {joints[off[0]]} is {abs(target[off[0]] - actual[off[0]]):.4g} from its goal "
-                        f"(tolerance {goal_tol[off[0]]:.4g}) {now - end:.3f} s after the trajectory's end")
+            if verdict is not None:
+                code, text = verdict
+                if code == _FJT.SUCCESSFUL:
+                    return self._finish(controller, handle, result, code, text)
+                return self._hold_and_abort(controller, handle, ctrl, owner, result, code, text)
             generation = self._signal.wait(generation, _WAKE_SEC)
 
     def _hold_and_abort(self, controller: str, handle: ServerGoalHandle, ctrl: Any, owner: Any, result: Any,
