@@ -34,6 +34,7 @@ from multiros.hardware.robot_spec import PRESETS, RobotSpec, load_robot_spec, pa
 from multiros.ros import Context, Node
 from multiros.ros.action import GoalResponse
 from multiros.ros.executors import SingleThreadedExecutor
+from multiros.ros.processes import add_child_options, start_child_program
 from multiros.sim.actions import TrajectoryActions
 from multiros.sim.controller_io import ControllerInterfaces
 from multiros.sim.distro_adapters import get_message
@@ -212,18 +213,15 @@ def _parser() -> argparse.ArgumentParser:
                         help="Zenoh router: 'auto' (default: the one at $UNIROS_ZENOH_ROUTER or "
                              "tcp/127.0.0.1:7447, started there if none listens), 'embedded', 'none', or an "
                              "endpoint such as tcp/127.0.0.1:7448")
-    parser.add_argument("--owner-pid", type=int, default=None, help="exit when this process is gone")
-    parser.add_argument("--log-level", default="INFO")
+    add_child_options(parser)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
-    from multiros.ros.processes import stop_event
-
     parser = _parser()
     opts = parser.parse_args(argv)
-    logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    stop = start_child_program(opts)
     if not opts.robot and not opts.description:
         parser.error(f"give --robot (one of {', '.join(sorted(PRESETS))}) or --description")
     try:
@@ -238,7 +236,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(f"cannot load the robot: {exc}")
     options: dict[str, Any] = {"router": opts.router} if opts.router else {}
     ctx = Context(transport=opts.transport, **options).init()
-    stop = stop_event(opts.owner_pid)
     robot = None
     try:
         try:

@@ -9,6 +9,7 @@ ended the owner (``SIGKILL`` included).
 
 from __future__ import annotations
 
+import argparse
 import atexit
 import logging
 import os
@@ -24,6 +25,8 @@ from multiros.ros.exceptions import TransportError
 
 __all__ = [
     "OWNER_POLL_SEC",
+    "add_child_options",
+    "start_child_program",
     "SHARED_GRAPH_PREFIXES",
     "child_environment",
     "free_loopback_endpoint",
@@ -122,6 +125,21 @@ def child_environment(ctx: Context) -> dict[str, str]:
     if endpoint:
         env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
     return env
+
+
+def add_child_options(parser: argparse.ArgumentParser) -> None:
+    """The options every program an owner may start shares: ``--owner-pid`` and ``--log-level``
+    (read back by :func:`start_child_program`)."""
+    parser.add_argument("--owner-pid", type=int, default=None,
+                        help="exit when this process is gone (set by the env or test that starts this program)")
+    parser.add_argument("--log-level", default="INFO")
+
+
+def start_child_program(opts: argparse.Namespace) -> threading.Event:
+    """Configure logging from ``--log-level`` and return the :func:`stop_event` for ``--owner-pid``
+    (call from the main thread, after parsing the options of :func:`add_child_options`)."""
+    logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    return stop_event(opts.owner_pid)
 
 
 def stop_event(owner_pid: int | None = None) -> threading.Event:

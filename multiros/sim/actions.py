@@ -10,7 +10,8 @@
   ``goal_time_tolerance`` after the last point (GOAL_TOLERANCE_VIOLATED); with no goal time
   tolerance given the node waits at most ``DEFAULT_GOAL_TIME`` seconds of sim time. A tolerance
   <= 0 is not checked. The checks run in the stepping thread after every step call or real-time
-  chunk, so a result depends on sim time only, never on how soon a goal's thread gets to run. A cancel holds the joints where they are. A new goal, or a trajectory on the
+  chunk, so a result depends on sim time only, never on how soon a goal's thread gets to run. A
+  cancel holds the joints where they are. A new goal, or a trajectory on the
   controller's topic, ends the running goal (ABORTED, "preempted"). Only one goal runs per
   controller; goals for an inactive controller, unknown or missing joints, an empty or malformed
   trajectory, or one that ended in the past are rejected. Goals and results are the same in every

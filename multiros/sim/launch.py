@@ -34,11 +34,12 @@ from urllib.parse import urlencode
 
 from multiros.ros import Context, Node
 from multiros.ros.processes import (
+    add_child_options,
     child_environment,
     free_loopback_endpoint,
     private_context,
     private_environment,
-    stop_event,
+    start_child_program,
     stop_process,
     track_child,
     untrack_child,
@@ -379,9 +380,7 @@ def _parser() -> argparse.ArgumentParser:
                              "(default 100000); larger requests are refused")
     parser.add_argument("--max-robots", type=int, default=None, metavar="N",
                         help="most robots this node holds (default 256); SpawnEntity refuses more")
-    parser.add_argument("--owner-pid", type=int, default=None,
-                        help="exit when this process is gone (set by envs that start the node)")
-    parser.add_argument("--log-level", default="INFO")
+    add_child_options(parser)
     return parser
 
 
@@ -389,7 +388,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-sim``: run the simulation node standalone until interrupted."""
     parser = _parser()
     opts = parser.parse_args(argv)
-    logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
     robots = []
     for spec in opts.robot:
         name, sep, uri = spec.partition("=")
@@ -400,8 +398,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     transport_options: dict[str, Any] = {}
     if opts.router:
         transport_options["router"] = opts.router
+    stop = start_child_program(opts)
     ctx = Context(transport=opts.transport, **(transport_options if opts.transport == "zenoh" else {})).init()
-    stop = stop_event(opts.owner_pid)
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True
