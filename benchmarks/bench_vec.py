@@ -4,6 +4,8 @@ Cases (random actions, episodes autoreset as they end):
 
 * batched, composed: ``uniros.make_vec(ID, N, vectorization_mode="batched")``: one simulation
   node in this process holds the N robots, one StepRobots request per vector step;
+* batched, composed, K = 2 nodes in this process (N/2 robots each, stepped at once on threads:
+  ``mj_step`` releases the GIL), N >= 2;
 * batched, node in another process (``sim_mode="process"``, one node behind a private router);
 * batched, K = 2 nodes in 2 processes (N/2 robots each), N >= 2;
 * SB3 ``SubprocVecEnv`` over N separate uniros envs (each with its own composed node);
@@ -81,7 +83,8 @@ def batched(env_id: str, n: int, seconds: float, **kwargs) -> tuple[float, float
     vec = uniros.make_vec(env_id, n, vectorization_mode="batched", **kwargs)
     try:
         rate = gym_vec_rate(vec, seconds)
-        limit = physics_limit(vec, seconds / 2) if kwargs.get("sim_mode", "composed") == "composed" else None
+        one_composed_node = kwargs.get("sim_mode", "composed") == "composed" and vec.batch.num_nodes == 1
+        limit = physics_limit(vec, seconds / 2) if one_composed_node else None
         return rate, limit
     finally:
         vec.close()
@@ -145,7 +148,7 @@ def main() -> None:
     args = parser.parse_args()
     knobs = {"num_sim_steps": args.num_sim_steps} if args.num_sim_steps > 0 else {}
     sizes = [int(s) for s in args.sizes.split(",")]
-    cols = ["batched composed", "batched process", "batched 2 procs", "SB3 SubprocVecEnv",
+    cols = ["batched composed", "composed 2 nodes", "batched process", "batched 2 procs", "SB3 SubprocVecEnv",
             "Async FetchReach", "physics limit", "fraction"]
     fetch = fetch_single(args.seconds)
     rows: dict[int, dict[str, float | None]] = {}
@@ -153,6 +156,8 @@ def main() -> None:
         row: dict[str, float | None] = {}
         row["batched composed"], row["physics limit"] = batched(args.env, n, args.seconds, **knobs)
         row["fraction"] = row["batched composed"] / row["physics limit"]
+        row["composed 2 nodes"] = batched(args.env, n, args.seconds, vector_kwargs={"num_nodes": 2},
+                                          **knobs)[0] if n >= 2 else None
         row["batched process"], _ = batched(args.env, n, args.seconds, sim_mode="process", **knobs)
         row["batched 2 procs"] = batched(args.env, n, args.seconds, sim_mode="process",
                                          vector_kwargs={"num_nodes": 2}, **knobs)[0] if n >= 2 else None
@@ -175,6 +180,8 @@ def main() -> None:
         r = rows[8]
         print(f"\nN=8 batched composed: {r['batched composed'] / fetch:.2f}x one FetchReach-v4 (goal >= 5x), "
               f"{r['batched composed'] / r['SB3 SubprocVecEnv']:.2f}x SubprocVecEnv over 8 uniros envs (goal >= 2x)")
+        print(f"N=8 batched composed on 2 nodes: {r['composed 2 nodes'] / fetch:.2f}x one FetchReach-v4, "
+              f"{r['composed 2 nodes'] / r['SB3 SubprocVecEnv']:.2f}x SubprocVecEnv")
         # Where the time goes: the goal as a time budget per env step, next to the physics' own cost.
         budget, physics, total = 1e6 / (5 * fetch), 1e6 / r["physics limit"], 1e6 / r["batched composed"]
         print(f"per env step at N=8: 5x FetchReach-v4 allows {budget:.0f} us; mj_step of this world takes "

@@ -57,7 +57,8 @@ class EnvBatch:
             processes, each behind its own private Zenoh router) or ``"existing"`` (a running node
             named ``node_name``, shared with other clients; pass ``connect_kwargs={"context": ...}``
             to reach it through a given ROS context).
-        num_nodes: K nodes (``process`` mode for K > 1); env ``i`` lives on node ``i * K // N``.
+        num_nodes: K nodes; env ``i`` lives on node ``i * K // N``. Composed nodes share this
+            process and step at once on threads (``mj_step`` releases the GIL).
         spacing: metres between world slots (larger than twice the robot's reach).
         timeout_sec: bound on every request; a node that does not answer in time is named in the error.
         max_episode_steps: truncate episodes after this many steps (``None``: never).
@@ -99,9 +100,6 @@ class EnvBatch:
             raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {num_nodes!r}")
         if sim_mode not in ("composed", "process", "existing"):
             raise ValueError(f"sim_mode must be 'composed', 'process' or 'existing', got {sim_mode!r}")
-        if num_nodes > 1 and sim_mode == "composed":
-            raise ValueError("num_nodes > 1 needs sim_mode='process' (composed nodes would share this process' core), "
-                             "or sim_mode='existing' with a list of node names")
         if sim_mode == "existing" and len(names) != num_nodes:
             raise ValueError(f"num_nodes={num_nodes} running nodes need {num_nodes} node names, got {names}")
         if not (math.isfinite(spacing) and spacing > 0):
@@ -162,53 +160,56 @@ class EnvBatch:
     def step_envs(self, indices: Sequence[int], actions: Sequence[Any]) -> list[StepResult]:
         """Step envs ``indices`` with ``actions``: one ``StepRobots`` request per node, all nodes at once.
 
+        Every env's action hooks run first (a bad action raises before any node steps). With several
+        nodes the requests then go out on worker threads, so the nodes' physics runs at once
+        (``mj_step`` releases the GIL, composed nodes included), and a node's results are handed to
+        its envs while the others may still step.
+
         Robots of envs not in ``indices`` stay in the world and advance too (their controllers
         hold their last commands); such envs are about to be reset, which puts back their whole state.
         """
-        envs = self.envs
-        specs: dict[int, list[RobotStepSpec]] = {}
-        members: dict[int, list[int]] = {}
+        groups: dict[int, list[tuple[int, Any]]] = {}
         for i, action in zip(indices, actions):
-            env = envs[i]
+            groups.setdefault(self.node_of[i], []).append((i, action))
+        requests = {k: self._request(k, members) for k, members in groups.items()}
+        if len(requests) == 1:  # one node: no thread
+            (k, request), = requests.items()
+            outcomes = dict(zip([i for i, _ in groups[k]], self._call(k, request)))
+            return [self._finish(i, outcomes[i]) for i in indices]
+        pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items()}
+        results: dict[int, StepResult] = {}
+        for k, future in pending.items():
+            for i, outcome in zip([i for i, _ in groups[k]], self._wait(k, future)):
+                results[i] = self._finish(i, outcome)
+        return [results[i] for i in indices]
+
+    def _request(self, k: int, members: Sequence[tuple[int, Any]]) -> Any:
+        """Run the action hooks of node ``k``'s envs and build its ``StepRobots`` request."""
+        specs = []
+        for i, action in members:
+            env = self.envs[i]
             env._step_act(action)
             commands, env._pending_commands = env._pending_commands, {}
-            k = self.node_of[i]
-            specs.setdefault(k, []).append(RobotStepSpec(env.robot_name, commands, env.frames))
-            members.setdefault(k, []).append(i)
-        outcomes: dict[int, RobotStepOutcome] = {}
-        for k, result in self._send(specs).items():
-            outcomes.update(zip(members[k], result))
-        results = []
-        for i in indices:
-            results.append(self._finish(i, outcomes[i]))
-        return results
+            specs.append(RobotStepSpec(env.robot_name, commands, env.frames))
+        return self.connections[k].client.step_robots_request(specs, self.num_sim_steps)
 
-    def _send(self, specs: Mapping[int, list[RobotStepSpec]]) -> dict[int, list[RobotStepOutcome]]:
-        # One blocking call per node; with several nodes, all but the last run on worker threads
-        # (a blocking call waits without the GIL and answers sooner than a reply callback would).
-        requests = {k: self.connections[k].client.step_robots_request(items, self.num_sim_steps)
-                    for k, items in specs.items()}
-        last = list(requests)[-1]
-        pending = {k: self._pool().submit(self._call, k, requests[k]) for k in requests if k != last}
-        out = {last: self._call(last, requests[last])}
+    def _wait(self, k: int, future: concurrent.futures.Future) -> list[RobotStepOutcome]:
+        """Node ``k``'s outcomes, or an error naming it if its process exits or it does not answer."""
         deadline = time.monotonic() + self.timeout_sec
-        for k, future in pending.items():
-            process = self.connections[k].process
-            while True:
-                try:
-                    out[k] = future.result(timeout=0.05)
-                    break
-                except concurrent.futures.TimeoutError:
-                    pass
-                if process is not None and process.poll() is not None:
-                    raise SimulationNodeError(
-                        f"simulation node {self._node_label(k)} exited with code {process.returncode} during a "
-                        f"vector step; its robots are lost: close this vector env and make a new one"
-                    )
-                if time.monotonic() >= deadline + 1.0:  # the call's own timeout should have fired
-                    raise SimulationNodeError(f"simulation node {self._node_label(k)} did not answer StepRobots "
-                                              f"within {self.timeout_sec:g} s; is it alive and reachable?")
-        return out
+        process = self.connections[k].process
+        while True:
+            try:
+                return future.result(timeout=0.05)
+            except concurrent.futures.TimeoutError:
+                pass
+            if process is not None and process.poll() is not None:
+                raise SimulationNodeError(
+                    f"simulation node {self._node_label(k)} exited with code {process.returncode} during a "
+                    f"vector step; its robots are lost: close this vector env and make a new one"
+                )
+            if time.monotonic() >= deadline + 1.0:  # the call's own timeout should have fired
+                raise SimulationNodeError(f"simulation node {self._node_label(k)} did not answer StepRobots "
+                                          f"within {self.timeout_sec:g} s; is it alive and reachable?")
 
     def _call(self, k: int, request: Any) -> list[RobotStepOutcome]:
         client = self.connections[k].client
@@ -221,7 +222,7 @@ class EnvBatch:
 
     def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
         if self._executor is None:
-            self._executor = concurrent.futures.ThreadPoolExecutor(max(1, self.num_nodes - 1),
+            self._executor = concurrent.futures.ThreadPoolExecutor(self.num_nodes,
                                                                    thread_name_prefix="uniros-batch")
         return self._executor
 

@@ -29,13 +29,15 @@ def _assert_same(a, b) -> None:
         np.testing.assert_array_equal(a, b)
 
 
-@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
-def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode) -> None:
+@pytest.mark.parametrize(("mode", "num_nodes"), [(AutoresetMode.NEXT_STEP, 1), (AutoresetMode.SAME_STEP, 1),
+                                               (AutoresetMode.NEXT_STEP, 2)])
+def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode, num_nodes: int) -> None:
     """Same seeds and actions: identical observations, rewards, terminations, truncations and
-    autoresets as Gymnasium's SyncVectorEnv over N separate envs (each with its own node)."""
+    autoresets as Gymnasium's SyncVectorEnv over N separate envs (each with its own node); also
+    with the robots on two composed nodes stepped at once on threads."""
     n, horizon = 3, 12
     batched = uniros.make_vec(ENV, n, vectorization_mode="batched", max_episode_steps=horizon,
-                              vector_kwargs={"autoreset_mode": mode})
+                              vector_kwargs={"autoreset_mode": mode, "num_nodes": num_nodes})
     separate = SyncVectorEnv([lambda: uniros.make(ENV, max_episode_steps=horizon) for _ in range(n)],
                              autoreset_mode=mode)
     try:
@@ -140,8 +142,8 @@ def test_diverging_or_refused_robot_ends_its_episode_alone() -> None:
 def test_num_envs_beyond_node_limit_is_refused() -> None:
     with pytest.raises(ValueError, match="max_robots=256"):
         uniros.make_vec(ENV, 300, vectorization_mode="batched")
-    with pytest.raises(ValueError, match="num_nodes > 1 needs sim_mode='process'"):
-        uniros.make_vec(ENV, 4, vectorization_mode="batched", vector_kwargs={"num_nodes": 2})
+    with pytest.raises(ValueError, match="num_nodes must be an integer from 1 to num_envs"):
+        uniros.make_vec(ENV, 2, vectorization_mode="batched", vector_kwargs={"num_nodes": 3})
     with pytest.raises(TypeError, match="unknown batched vector env option"):
         uniros.make_vec(ENV, 2, vectorization_mode="batched", vector_kwargs={"nodes": 2})
 
