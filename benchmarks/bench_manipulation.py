@@ -130,10 +130,13 @@ def main() -> None:
     parser.add_argument("--parallel", action="store_true",
                         help="train the agents at once, one process each (same settings, side by side: on two "
                              "cores a push pair takes the time of one agent)")
+    parser.add_argument("--only", choices=("rx200", "fetch"), default=None,
+                        help="run one side of each pair (e.g. the RX200 without --demos: Fetch's like-for-like twin)")
     parser.add_argument("--out", type=Path, default=Path("bench_manipulation"))
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    env_ids = [env_id for task in args.tasks for env_id in PAIRS[task]]
+    env_ids = [env_id for task in args.tasks for env_id in PAIRS[task]
+               if args.only is None or env_id.startswith("Fetch") == (args.only == "fetch")]
     if args.parallel:
         import multiprocessing
 
