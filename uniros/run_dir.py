@@ -27,6 +27,7 @@ import os
 import pickle
 import re
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -121,6 +122,19 @@ def save_replay_buffer(model: Any, path: Path) -> None:
             pickle.dump(_CompactBuffer(model.replay_buffer), f, protocol=pickle.HIGHEST_PROTOCOL)
 
     atomic_write(path, write)
+
+
+def load_replay_buffer(model: Any, path: Path) -> None:
+    """Load a replay buffer saved by :func:`save_replay_buffer` (or SB3) into ``model`` for a run
+    that goes on with a fresh episode.
+
+    A resumed or reloaded run resets its env, so the episode that was running when the buffer was
+    saved never continues: SB3's HER buffer rightly truncates it, and the advice its warning gives
+    (keep the trajectory when in the same episode) does not apply. That warning alone is silenced.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="The last trajectory in the replay buffer will be truncated")
+        model.load_replay_buffer(str(path), truncate_last_traj=True)
 
 
 # -- checkpoints ---------------------------------------------------------------------------------

@@ -25,6 +25,7 @@ import numpy as np
 from uniros.run_dir import (
     Checkpoint,
     list_checkpoints,
+    load_replay_buffer,
     save_checkpoint,
     save_model_with_stats,
     write_json,
@@ -391,7 +392,7 @@ class Session:
             self.model = load_model(Path(source), venv, algorithm=self.config.algorithm)
             if resume is not None and resume.replay_buffer is not None and hasattr(self.model, "replay_buffer"):
                 try:
-                    self.model.load_replay_buffer(str(resume.replay_buffer))
+                    load_replay_buffer(self.model, resume.replay_buffer)
                 except Exception as exc:  # a corrupt pickle: say which file
                     raise TrainingError(f"replay buffer {resume.replay_buffer} cannot be read ({exc})") from exc
         self._logger()

@@ -17,7 +17,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from uniros.run_dir import normalizer_path, save_model_with_stats, save_replay_buffer
+from uniros.run_dir import load_replay_buffer, normalizer_path, save_model_with_stats, save_replay_buffer
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError, load_training_config
 from uniros.trainer import Paths, Session, load_model
 
@@ -128,7 +128,7 @@ class BasicModel:
             self.session.build(load=model_file)
             buffer = self.save_model_path / f"{self.config.model_name}_replay_buffer.pkl"
             if buffer.is_file() and hasattr(self.session.model, "replay_buffer"):
-                self.session.model.load_replay_buffer(str(buffer))
+                load_replay_buffer(self.session.model, buffer)
         else:
             self.session.build()
         self.model = self.session.model
