@@ -16,6 +16,8 @@ on two cores: ``--steps`` sets the budget.
     .venv/bin/python benchmarks/bench_manipulation.py --steps 120000                 # the issue's run
     .venv/bin/python benchmarks/bench_manipulation.py --steps 4000 --eval-every 1000 \
         --batch-size 256 --net 256,256 --demos 10                                      # a smoke run
+    .venv/bin/python benchmarks/bench_manipulation.py --tasks push --steps 120000 --algo sac \
+        --batch-size 256 --net 256,256 --demos 50 --parallel              # docs/tasks.md's run (2 cores)
 """
 
 from __future__ import annotations
