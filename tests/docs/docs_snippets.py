@@ -22,6 +22,7 @@ in its source)::
 from __future__ import annotations
 
 import re
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -140,3 +141,20 @@ def parse(path: Path) -> list[Block]:
 
 def all_blocks() -> list[Block]:
     return [b for p in pages() for b in parse(p)]
+
+
+def shell_lines(block: Block) -> list[list[str]]:
+    """The block's shell lines as shell words (``\\`` continuations and quotes spanning lines joined,
+    comments dropped); unbalanced quotes are an error naming the block."""
+    found, pending = [], ""
+    for line in block.code.replace("\\\n", " ").splitlines():
+        pending = f"{pending}\n{line}" if pending else line
+        try:
+            words = shlex.split(pending, comments=True)
+        except ValueError:  # a quote spans lines: read on
+            continue
+        pending = ""
+        if words:
+            found.append(words)
+    assert not pending, f"{block.where}: unbalanced quotes"
+    return found

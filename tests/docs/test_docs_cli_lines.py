@@ -14,7 +14,7 @@ import re
 import shlex
 
 import pytest
-from docs_snippets import Block, all_blocks
+from docs_snippets import Block, all_blocks, shell_lines
 
 from multiros.hardware.fake_robot import _parser as fake_robot_parser
 from multiros.sim.launch import _parser as sim_parser
@@ -26,14 +26,8 @@ _ASSIGNMENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*=")
 
 def command_lines(block: Block) -> list[list[str]]:
     """argv lists of the block's commands that start one of PROGRAMS (env assignments, & and ; dropped)."""
-    found, pending = [], ""
-    for line in block.code.replace("\\\n", " ").splitlines():
-        pending = f"{pending}\n{line}" if pending else line
-        try:
-            words = shlex.split(pending, comments=True)
-        except ValueError:
-            continue
-        pending = ""
+    found = []
+    for words in shell_lines(block):
         for part in " ".join(shlex.quote(w) for w in words).replace(" '&&' ", " ; ").split(" ; "):
             argv = [w for w in shlex.split(part) if w not in ("&", ";")]
             while argv and _ASSIGNMENT.match(argv[0]):

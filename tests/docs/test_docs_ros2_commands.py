@@ -10,12 +10,11 @@ with the distribution's own request classes; each must succeed.
 
 from __future__ import annotations
 
-import shlex
 from typing import Any
 
 import pytest
 import yaml
-from docs_snippets import REPO, Block, all_blocks, parse
+from docs_snippets import REPO, Block, all_blocks, parse, shell_lines
 
 from multiros.ros.interfaces import registry_for
 from multiros.sim.services import CONTROLLER_SERVICES, SIM_SERVICES
@@ -26,18 +25,7 @@ RX200 = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
 
 def commands(block: Block) -> list[list[str]]:
     """The block's ``ros2`` command lines as argv lists (continuations and multi-line quotes joined)."""
-    found, pending = [], ""
-    for line in block.code.replace("\\\n", " ").splitlines():
-        pending = f"{pending}\n{line}" if pending else line
-        try:
-            argv = shlex.split(pending, comments=True)
-        except ValueError:  # a quote spans lines: read on
-            continue
-        pending = ""
-        if argv[:1] == ["ros2"]:
-            found.append(argv)
-    assert not pending, f"{block.where}: unbalanced quotes"
-    return found
+    return [argv for argv in shell_lines(block) if argv[0] == "ros2"]
 
 
 def positional(argv: list[str], start: int) -> list[str]:
