@@ -191,12 +191,14 @@ def test_tolerance_verdicts_follow_sim_time_not_the_goal_threads_schedule(sim, m
         return publish(self, feedback)
 
     monkeypatch.setattr(ServerGoalHandle, "publish_feedback", late_feedback)
-    handle = _send(action, _goal([0.3, -0.2, 0.2], 0.2, goal_tol=1e-9, goal_time=0.01))
-    assert stalled.wait(5.0)
-    for _ in range(40):  # 4 s of sim time in 40 calls: every check happens while the thread sleeps
-        client.step_robot("arm", steps=50)
-    settled = np.max(np.abs(_positions(client) - [0.3, -0.2, 0.2]))
-    release.set()
+    try:
+        handle = _send(action, _goal([0.3, -0.2, 0.2], 0.2, goal_tol=1e-9, goal_time=0.01))
+        assert stalled.wait(5.0)
+        for _ in range(40):  # 4 s of sim time in 40 calls: every check happens while the thread sleeps
+            client.step_robot("arm", steps=50)
+        settled = np.max(np.abs(_positions(client) - [0.3, -0.2, 0.2]))
+    finally:
+        release.set()  # never leave the goal thread waiting, whatever failed
     response = _step_until(client, handle.get_result_async(), steps=1)
     assert response.status == STATUS_ABORTED and response.result.error_code == FJT.GOAL_TOLERANCE_VIOLATED, (
         f"joints {settled:.3g} rad from the goal at the end")
