@@ -193,7 +193,7 @@ class TrajectoryActions:
         if self._watches:
             now = self.world.time
             position = self.world.joint_state(self.robot).position
-            for watch in self._watches.values():
+            for watch in tuple(self._watches.values()):  # goal threads remove theirs without the lock
                 if watch.verdict is None and watch.ctrl._pos is watch.owner:
                     watch.check(now, watch.ctrl.hw.command[watch.ctrl.idx], position[watch.jidx])
         self._signal.notify()
@@ -285,18 +285,20 @@ class TrajectoryActions:
             all_joints = list(self.world.joint_names(self.robot))
             jidx = np.array([all_joints.index(j) for j in joints], dtype=np.intp)
             owner = ctrl._pos  # the trajectory arrays this goal installed (identity tells if replaced)
-        end = start + times[-1]
-        goal_time = _seconds(goal.goal_time_tolerance)
-        deadline = end + (goal_time if goal_time > 0 else DEFAULT_GOAL_TIME)
-        watch = _GoalWatch(ctrl, owner, jidx, joints, start, end, deadline,
-                           self._tolerances(goal.path_tolerance, joints), self._tolerances(goal.goal_tolerance, joints))
-        with self.lock:
-            self._watches[handle] = watch
+            end = start + times[-1]
+            goal_time = _seconds(goal.goal_time_tolerance)
+            deadline = end + (goal_time if goal_time > 0 else DEFAULT_GOAL_TIME)
+            watch = _GoalWatch(ctrl, owner, jidx, joints, start, end, deadline,
+                               self._tolerances(goal.path_tolerance, joints),
+                               self._tolerances(goal.goal_tolerance, joints))
+            self._watches[handle] = watch  # checked from the next world advance on
         try:
             return self._follow(controller, handle, watch, times, result)
         finally:
-            with self.lock:
-                self._watches.pop(handle, None)
+            # Without the node lock: a client stepping in a tight loop can hold it for long
+            # stretches, and the goal's result goes out only when this returns. A dict pop is
+            # atomic, and on_step iterates over a snapshot.
+            self._watches.pop(handle, None)
 
     def _follow(self, controller: str, handle: ServerGoalHandle, watch: _GoalWatch, times: list[float],
                 result: Any) -> Any:
