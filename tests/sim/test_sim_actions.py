@@ -71,12 +71,18 @@ def _goal(positions, seconds: float, *, goal_tol: float = 0.0, goal_time: float 
     return goal
 
 
-def _step_until(client: SimulationClient, future, steps: int = 50, limit: int = 200):
-    """Step the paused simulation until ``future`` is done (each call advances sim time)."""
+def _step_until(client: SimulationClient, future, steps: int = 50, limit: int = 200, settle_sec: float = 0.05):
+    """Step the paused simulation until ``future`` is done (each call advances sim time).
+
+    The node decides a goal at the sim time of a step call, but its thread reports the result in
+    wall time: after each call the goal gets up to ``settle_sec`` to answer (the wait ends as soon as
+    it does), so a loaded machine cannot make the loop outrun the goal thread.
+    """
     for _ in range(limit):
         if future.done():
             return future.result()
         client.step_robot("arm", steps=steps)
+        future.wait(settle_sec)
     raise AssertionError("the goal did not finish while the simulation advanced")
 
 
