@@ -100,10 +100,10 @@ class GoalSampler:
         batch = 64
         for _ in range(0, self.max_tries, batch):
             q = rng.uniform(self.joint_low, self.joint_high, size=(batch, self.chain.n_joints))
-            for row in q:
-                p = self.chain.fk_position(row)
-                if np.all(p >= self.low) and np.all(p <= self.high):
-                    return p + self.base_position
+            p = self.chain.fk_position(q)  # the whole batch in one pass; the first row inside wins
+            inside = np.flatnonzero(np.all((p >= self.low) & (p <= self.high), axis=1))
+            if inside.size:
+                return p[inside[0]] + self.base_position
         raise RuntimeError(
             f"no reachable goal inside the box {self.low.tolist()}..{self.high.tolist()} after {self.max_tries} "
             "tries: the goal box does not overlap the robot's workspace"

@@ -148,7 +148,7 @@ class EnvBatch:
             raise ValueError(
                 f"num_envs={self.num_envs} puts {share} robots on simulation node {self._node_label(k)}, which "
                 f"accepts {free} more (max_robots={load['max_robots']}, documented in docs/simulation_node.md); "
-                f"use num_nodes > 1 (sim_mode='process') or fewer envs"
+                f"use num_nodes > 1 (more nodes) or fewer envs"
             )
 
     def _node_label(self, k: int) -> str:
