@@ -11,7 +11,6 @@ Every call has a timeout. A result code other than ``RESULT_OK`` raises
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -25,10 +24,9 @@ from multiros.sim.controller_client import (
     STRICT,
     ControllerManagerClient,
     ControllerManagerError,
+    destroy_clients,
 )
 from multiros.sim.services import SIM_SERVICES
-
-_logger = logging.getLogger(__name__)
 
 DEFAULT_NODE_NAME = "mujoco_sim"
 
@@ -526,12 +524,7 @@ class SimulationClient:
 
     def close(self) -> None:
         """Destroy the clients this object created."""
-        for client in self._clients.values():
-            try:
-                self._node.destroy_client(client)
-            except Exception:  # the node may already be gone
-                _logger.debug("destroy_client failed", exc_info=True)
-        self._clients.clear()
+        destroy_clients(self._node, self._clients)
         for cm in self._controller_managers.values():
             cm.close()
         self._controller_managers.clear()

@@ -31,6 +31,16 @@ class ControllerManagerError(RuntimeError):
     """The controller manager refused a request or did not answer in time."""
 
 
+def destroy_clients(node: Any, clients: dict[Any, Any]) -> None:
+    """Destroy ``clients`` (a dict of service clients of ``node``) and empty it; a node already gone is fine."""
+    for client in clients.values():
+        try:
+            node.destroy_client(client)
+        except Exception:  # the node may already be gone
+            _logger.debug("destroy_client failed", exc_info=True)
+    clients.clear()
+
+
 @dataclass(frozen=True)
 class ControllerInfo:
     """One controller as ``list_controllers`` reports it (``state``: unconfigured, inactive, active)."""
@@ -234,11 +244,6 @@ class ControllerManagerClient:
 
     def close(self) -> None:
         """Destroy the service clients."""
-        for client in self._clients.values():
-            try:
-                self._node.destroy_client(client)
-            except Exception:  # the node may already be gone
-                _logger.debug("destroy_client failed", exc_info=True)
-        self._clients.clear()
+        destroy_clients(self._node, self._clients)
 
 
