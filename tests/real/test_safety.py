@@ -38,6 +38,10 @@ def test_per_command_change_is_capped_from_the_measured_position() -> None:
     assert JOINT_DELTA in d.events
     np.testing.assert_allclose(d.target, [0.3, -0.1, 0.05, 0.0, 0.0])
     assert np.max(np.abs(d.target - current)) <= 0.1 + 1e-12
+    np.testing.assert_array_equal(d.measured, current)  # what the cap was measured against
+    current[0] = 9.0
+    assert d.measured[0] == 0.2  # a copy: the caller's array may change afterwards
+    assert r.check_move([0.1, 0.0, 0.0, 0.0, 0.0], HOME).measured.tolist() == list(HOME)
 
 
 @pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0], [np.inf, 0, 0, 0, 0], [0, 0, 0, 0]])

@@ -18,7 +18,7 @@ from __future__ import annotations
 import os
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -45,6 +45,8 @@ class SafetyDecision:
             ``workspace``, ``floor``), in the order they acted.
         refused: True when nothing may be sent.
         reason: a sentence for logs and ``info`` when a rule acted.
+        ee_position: the target's end-effector position, when the rules computed it.
+        measured: the joint positions the rules were applied against (read just before deciding).
     """
 
     target: np.ndarray | None
@@ -52,6 +54,7 @@ class SafetyDecision:
     refused: bool = False
     reason: str = ""
     ee_position: np.ndarray | None = field(default=None, repr=False)
+    measured: np.ndarray | None = field(default=None, repr=False)
 
     def as_info(self) -> dict[str, object]:
         """The decision as ``info["safety"]``: one flag per rule, ``refused`` and ``reason``."""
@@ -216,6 +219,9 @@ class SafetyRules:
         if cur.shape != (n,) or not np.all(np.isfinite(cur)):
             raise UnsafeCommandError(f"measured joint positions {cur.tolist()} are unusable for "
                                      f"{list(self.joint_names)}; nothing was sent")
+        return replace(self._decide(req, cur), measured=cur.copy())
+
+    def _decide(self, req: np.ndarray, cur: np.ndarray) -> SafetyDecision:
         events: list[str] = []
         reasons: list[str] = []
         safe = np.minimum(np.maximum(req, self.lower), self.upper)
@@ -277,6 +283,9 @@ class SafetyRules:
         if req.shape != (n,) or not np.all(np.isfinite(req)) or cur.shape != (n,) or not np.all(np.isfinite(cur)):
             raise UnsafeCommandError(f"move target {req.tolist()} / measured {cur.tolist()} unusable for "
                                      f"{list(self.joint_names)}; nothing was sent")
+        return replace(self._decide_move(req, cur, samples), measured=cur.copy())
+
+    def _decide_move(self, req: np.ndarray, cur: np.ndarray, samples: int) -> SafetyDecision:
         safe = np.minimum(np.maximum(req, self.lower), self.upper)
         events = (JOINT_LIMITS,) if np.any(safe != req) else ()
         if self.chain is None or (self.workspace_min is None and self.floor_z is None):
