@@ -131,8 +131,10 @@ def test_commands_beyond_the_rules_never_reach_the_robot(graph, standin: StandIn
     try:
         _wait_publisher_matched(env)
         env.reset(seed=0)
-        start = len(recorder.messages)
         sent_before = env.unwrapped.commands_sent
+        # The reset's own commands may still be on their way: count them in before the steps.
+        assert recorder.wait_count(sent_before)
+        start = len(recorder.messages)
         high, low = env.action_space.high, env.action_space.low
         down = np.array([0.0, 1.5, 1.2, 0.0, 0.0], dtype=np.float32)  # reaches for the floor
         events: set[str] = set()
@@ -170,7 +172,9 @@ def test_nan_and_out_of_range_actions_are_errors_and_send_nothing(graph, standin
     try:
         _wait_publisher_matched(env)
         env.reset(seed=0)
-        start, sent = len(recorder.messages), env.unwrapped.commands_sent
+        sent = env.unwrapped.commands_sent
+        assert recorder.wait_count(sent)  # the reset's own commands are in before counting
+        start = len(recorder.messages)
         for bad in ([np.nan, 0, 0, 0, 0], [0, 0, np.inf, 0, 0], [2.0, 0, 0, 0, 0], [0, 0, 0, 0]):
             with pytest.raises(UnsafeCommandError, match="nothing was sent"):
                 env.step(np.asarray(bad, dtype=np.float32))
