@@ -283,7 +283,8 @@ def test_cancel_holds_the_position_and_a_new_goal_preempts(probe):
     _wait_for(lambda: _arm(probe)[0] > 0.1, what="the arm moving")
     assert handle.cancel_goal(timeout_sec=5.0).return_code == 0
     assert handle.get_result(timeout_sec=5.0).status == STATUS_CANCELED
-    time.sleep(0.3)  # the lag settles onto the held position
+    _wait_for(lambda: np.max(np.abs(probe.wait_states(1)[-1][1].velocity)) < 1e-4,
+              what="the arm at rest after the cancel")
     held = _arm(probe)
     assert 0.05 < held[0] < 0.9
     time.sleep(0.5)
