@@ -25,13 +25,13 @@ from multiros.ros.exceptions import TransportError
 
 __all__ = [
     "OWNER_POLL_SEC",
-    "add_child_options",
-    "start_child_program",
     "SHARED_GRAPH_PREFIXES",
+    "add_child_options",
     "child_environment",
     "free_loopback_endpoint",
     "private_context",
     "private_environment",
+    "start_child_program",
     "stop_event",
     "stop_process",
     "track_child",
