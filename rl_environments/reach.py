@@ -7,6 +7,7 @@ call and no side effect, as ``compute_reward`` requires.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Literal
 
@@ -18,9 +19,24 @@ RewardType = Literal["sparse", "dense"]
 
 
 def goal_distance(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.ndarray:
-    """Euclidean distance over the last axis (works for single goals and batches)."""
-    diff = np.asarray(achieved_goal, dtype=np.float64) - np.asarray(desired_goal, dtype=np.float64)
-    return np.sqrt(np.einsum("...i,...i->...", diff, diff))
+    """Euclidean distance over the last axis (works for single goals and batches).
+
+    The squares are summed in axis order on both paths, so a goal scored alone (every env step, as
+    plain floats: numpy's per-call cost would be most of the work) and the same goal inside a HER
+    batch give the same bits.
+    """
+    a, b = np.asarray(achieved_goal), np.asarray(desired_goal)
+    if a.ndim == 1 and a.shape == b.shape:
+        total = 0.0
+        for x, y in zip(a.tolist(), b.tolist()):
+            d = x - y
+            total += d * d
+        return np.float64(math.sqrt(total))
+    diff = a.astype(np.float64) - b.astype(np.float64)
+    total = np.zeros(diff.shape[:-1])
+    for k in range(diff.shape[-1]):
+        total += diff[..., k] * diff[..., k]
+    return np.sqrt(total)
 
 
 def is_success(achieved_goal: np.ndarray, desired_goal: np.ndarray, tolerance: float) -> np.ndarray:
@@ -35,14 +51,17 @@ def goal_reward(
     reward_type: RewardType,
     sparse_values: tuple[float, float] = (0.0, -1.0),
 ) -> np.ndarray | float:
-    """Sparse (``sparse_values`` = (reached, not reached)) or dense (``-distance``) reward, vectorised."""
+    """Sparse (``sparse_values`` = (reached, not reached)) or dense (``-distance``) reward, vectorised;
+    a float32 array for batches, a float (of a float32) for one goal."""
     d = goal_distance(achieved_goal, desired_goal)
+    if np.ndim(d) == 0:
+        value = -d if reward_type == "dense" else sparse_values[0] if d <= tolerance else sparse_values[1]
+        return float(np.float32(value))
     if reward_type == "dense":
         reward = -d
     else:
         reward = np.where(d <= tolerance, sparse_values[0], sparse_values[1])
-    reward = np.asarray(reward, dtype=np.float32)
-    return float(reward) if reward.ndim == 0 else reward
+    return np.asarray(reward, dtype=np.float32)
 
 
 def parse_reward_type(value: str) -> RewardType:

@@ -102,7 +102,7 @@ class ReachTask:
             targets = current + action * self.delta_coeff
         else:
             targets = np.asarray(action, dtype=np.float64)
-        self.joint_targets = np.clip(targets, self.min_joint_pos, self.max_joint_pos)
+        self.joint_targets = np.minimum(np.maximum(targets, self.min_joint_pos), self.max_joint_pos)  # np.clip, faster
         self.set_arm_targets(self.joint_targets)  # type: ignore[attr-defined]
         self.prev_action = np.asarray(action, dtype=np.float64)
 

@@ -349,7 +349,7 @@ class MujocoEnvCore(JointStateAccess):
         other modes it is applied at once.
         """
         values = np.asarray(command, dtype=np.float64)
-        if values.ndim != 1 or not np.all(np.isfinite(values)):
+        if values.ndim != 1 or not np.isfinite(values).all():
             raise ValueError(f"command for controller {controller!r} must be a 1-D finite vector, got {command!r}")
         self._pending_commands[controller] = values
         if self.step_config.mode != "lockstep":

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 import threading
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint, type_name_of
 from multiros.ros.qos import DurabilityPolicy, qos_compatible
@@ -54,6 +54,11 @@ class LocalRegistry:
         self.services: dict[tuple[str, str], Service] = {}
         self._service_lists: dict[str, list[Service]] = {}
         self.clients: dict[str, list[Client]] = {}
+        # kind -> table, for count(): asked per robot per step by lazy publishers
+        self._tables: dict[str, dict[str, list[Any]]] = {
+            PUBLISHER: self.publishers, SUBSCRIPTION: self.subscriptions,
+            SERVICE: self._service_lists, CLIENT: self.clients,
+        }
 
     # -- nodes -------------------------------------------------------------------------------
     def add_node(self, node: Node) -> None:
@@ -153,10 +158,7 @@ class LocalRegistry:
     # -- graph -------------------------------------------------------------------------------
     def count(self, kind: str, name: str) -> int:
         """Entities of ``kind`` called ``name`` in this context (O(1), no graph listing)."""
-        table = {
-            PUBLISHER: self.publishers, SUBSCRIPTION: self.subscriptions,
-            SERVICE: self._service_lists, CLIENT: self.clients,
-        }.get(kind)
+        table = self._tables.get(kind)
         if table is None:
             return sum(1 for e in self.endpoints() if e.kind == kind and e.name == name)
         with self._lock:

@@ -98,7 +98,7 @@ def _check_vector(values: Sequence[float], n: int, what: str) -> np.ndarray:
         raise CommandError(f"{what}: command is not a vector of numbers ({exc})") from exc
     if arr.shape[0] != n:
         raise CommandError(f"{what}: command has {arr.shape[0]} values, expected {n} (one per joint)")
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         raise CommandError(f"{what}: command contains NaN or infinite values: {arr.tolist()}")
     return arr
 
@@ -196,7 +196,7 @@ class ForwardCommandController(Controller):
     def set_command(self, values: Sequence[float], time: float) -> None:
         arr = _check_vector(values, len(self.idx), f"controller '{self.name}'")
         if self.mode == JointMode.POSITION:
-            arr = np.clip(arr, self.hw.lower[self.idx], self.hw.upper[self.idx])
+            arr = np.minimum(np.maximum(arr, self.hw.lower[self.idx]), self.hw.upper[self.idx])  # np.clip, faster
         self.hw.command[self.idx] = arr
 
 
