@@ -176,8 +176,14 @@ class EnvBatch:
             (k, request), = requests.items()
             outcomes = dict(zip([i for i, _ in groups[k]], self._call(k, request)))
             return [self._finish(i, outcomes[i]) for i in indices]
-        pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items()}
+        # One composed node steps on this thread (it would only wait otherwise): one thread hand-off
+        # less per step. Nodes in other processes or on other hosts stay on workers, watched by _wait.
+        inline = next((k for k in requests if self.connections[k].sim_node is not None), None)
+        pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items() if k != inline}
         results: dict[int, StepResult] = {}
+        if inline is not None:
+            for i, outcome in zip([i for i, _ in groups[inline]], self._call(inline, requests[inline])):
+                results[i] = self._finish(i, outcome)
         for k, future in pending.items():
             for i, outcome in zip([i for i, _ in groups[k]], self._wait(k, future)):
                 results[i] = self._finish(i, outcome)

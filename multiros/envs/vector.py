@@ -19,6 +19,7 @@ from copy import deepcopy
 from typing import Any
 
 import numpy as np
+from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
@@ -56,6 +57,29 @@ class BatchedVectorEnv(VectorEnv):
         self._terminations = np.zeros(self.num_envs, dtype=np.bool_)
         self._truncations = np.zeros(self.num_envs, dtype=np.bool_)
         self._autoreset_envs = np.zeros(self.num_envs, dtype=np.bool_)
+        # Box and Dict-of-Box observations (every uniros task) are stacked key by key, without
+        # gymnasium's generic dispatch: it costs about 5 us per env step at N = 8.
+        space = self.single_observation_space
+        self._box_keys: tuple[Any, ...] | None = None
+        if isinstance(space, spaces.Box):
+            self._box_keys = ()
+        elif isinstance(space, spaces.Dict) and all(isinstance(s, spaces.Box) for s in space.spaces.values()):
+            self._box_keys = tuple(space.spaces)
+
+    def _batch_observations(self) -> Any:
+        """The sub-envs' observations stacked into the batch buffer (as gymnasium's ``concatenate``),
+        returned as a copy when ``copy`` is set."""
+        keys, items = self._box_keys, self._env_obs
+        if keys is None:
+            self._observations = concatenate(self.single_observation_space, items, self._observations)
+            return deepcopy(self._observations) if self.copy else self._observations
+        if not keys:
+            np.stack(items, axis=0, out=self._observations)
+            return self._observations.copy() if self.copy else self._observations
+        out = self._observations
+        for key in keys:
+            np.stack([obs[key] for obs in items], axis=0, out=out[key])
+        return {key: out[key].copy() for key in keys} if self.copy else out
 
     # -- gymnasium API ----------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None,
@@ -84,8 +108,7 @@ class BatchedVectorEnv(VectorEnv):
         self._terminations[mask] = False
         self._truncations[mask] = False
         self._autoreset_envs[mask] = False
-        self._observations = concatenate(self.single_observation_space, self._env_obs, self._observations)
-        return (deepcopy(self._observations) if self.copy else self._observations), infos
+        return self._batch_observations(), infos
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every sub-env in one request per node, then reset the ones the autoreset mode says."""
@@ -117,8 +140,7 @@ class BatchedVectorEnv(VectorEnv):
         for i, info in enumerate(per_env):
             infos = self._add_info(infos, info or {}, i)
         self._autoreset_envs = np.logical_or(self._terminations, self._truncations)
-        self._observations = concatenate(self.single_observation_space, self._env_obs, self._observations)
-        obs = deepcopy(self._observations) if self.copy else self._observations
+        obs = self._batch_observations()
         return obs, np.copy(self._rewards), np.copy(self._terminations), np.copy(self._truncations), infos
 
     # -- sub-env access ---------------------------------------------------------------------

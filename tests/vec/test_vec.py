@@ -110,25 +110,29 @@ def _entity_of(m, world, geom: int) -> str | None:
     return next((n for n in world.entity_names() if body.startswith(n + "/")), None)
 
 
-def test_diverging_or_refused_robot_ends_its_episode_alone() -> None:
-    vec = uniros.make_vec(ENV, 3, vectorization_mode="batched")
+@pytest.mark.parametrize(("num_nodes", "bad"), [(1, 1), (2, 1), (2, 2)])
+def test_diverging_or_refused_robot_ends_its_episode_alone(num_nodes: int, bad: int) -> None:
+    """Also on two composed nodes: robot 1 is on node 0 (stepped on the calling thread), robot 2 on
+    node 1 (stepped on a worker thread)."""
+    vec = uniros.make_vec(ENV, 3, vectorization_mode="batched", vector_kwargs={"num_nodes": num_nodes})
     try:
         vec.reset(seed=0)
         actions = np.zeros((3, 5), np.float32)
         vec.step(actions)
-        world = vec.batch.connections[0].sim_node.world
-        ent = world._entities[vec.envs[1].robot_name]
-        world.data.qvel[ent.dof_idx] = np.nan  # robot 1's physics blows up in the next step
+        world = vec.batch.connections[vec.batch.node_of[bad]].sim_node.world
+        ent = world._entities[vec.envs[bad].robot_name]
+        world.data.qvel[ent.dof_idx] = np.nan  # robot `bad`'s physics blows up in the next step
+        expected = [i == bad for i in range(3)]
         obs, _, _, trunc, info = vec.step(actions)
-        assert trunc.tolist() == [False, True, False]
-        assert info["sim_diverged"][1] and info["_sim_diverged"].tolist() == [False, True, False]
-        assert "diverged" in info["sim_error"][1]
+        assert trunc.tolist() == expected
+        assert info["sim_diverged"][bad] and info["_sim_diverged"].tolist() == expected
+        assert "diverged" in info["sim_error"][bad]
         assert np.all(np.isfinite(obs["observation"]))
         # a command the node refuses (wrong length) ends env 0's episode, not the others'
         env0 = vec.envs[0]
         env0.send_command = lambda controller, values: env0._pending_commands.__setitem__(controller, np.ones(2))
-        _, reward, _, trunc, info = vec.step(actions)  # env 1 autoresets here
-        assert trunc.tolist() == [True, False, False] and reward[1] == 0.0
+        _, reward, _, trunc, info = vec.step(actions)  # env `bad` autoresets here
+        assert trunc.tolist() == [True, False, False] and reward[bad] == 0.0
         assert "arm_position_controller" in info["sim_error"][0] or "command" in info["sim_error"][0]
         del env0.send_command
         _, _, _, trunc, _ = vec.step(actions)  # env 0 autoresets, all step on
