@@ -32,6 +32,7 @@ import numpy as np
 
 from multiros.envs.core import EnvError, MujocoEnvCore
 from multiros.sim.client import RobotStepOutcome, RobotStepSpec, SimulationNodeError
+from multiros.sim.node_stepping import step_robots_local
 
 StepResult = tuple[Any, float, bool, bool, dict]
 
@@ -189,15 +190,15 @@ class EnvBatch:
                 results[i] = self._finish(i, outcome)
         return [results[i] for i in indices]
 
-    def _request(self, k: int, members: Sequence[tuple[int, Any]]) -> Any:
-        """Run the action hooks of node ``k``'s envs and build its ``StepRobots`` request."""
+    def _request(self, k: int, members: Sequence[tuple[int, Any]]) -> list[RobotStepSpec]:
+        """Run the action hooks of node ``k``'s envs: its robots' parts of a ``StepRobots`` call."""
         specs = []
         for i, action in members:
             env = self.envs[i]
             env._step_act(action)
             commands, env._pending_commands = env._pending_commands, {}
             specs.append(RobotStepSpec(env.robot_name, commands, env.frames))
-        return self.connections[k].client.step_robots_request(specs, self.num_sim_steps)
+        return specs
 
     def _wait(self, k: int, future: concurrent.futures.Future) -> list[RobotStepOutcome]:
         """Node ``k``'s outcomes, or an error naming it if its process exits or it does not answer."""
@@ -217,8 +218,14 @@ class EnvBatch:
                 raise SimulationNodeError(f"simulation node {self._node_label(k)} did not answer StepRobots "
                                           f"within {self.timeout_sec:g} s; is it alive and reachable?")
 
-    def _call(self, k: int, request: Any) -> list[RobotStepOutcome]:
-        client = self.connections[k].client
+    def _call(self, k: int, specs: Sequence[RobotStepSpec]) -> list[RobotStepOutcome]:
+        """One ``StepRobots`` call to node ``k``: a composed node's without messages
+        (:func:`~multiros.sim.node_stepping.step_robots_local`), others' over the service."""
+        conn = self.connections[k]
+        if conn.sim_node is not None:
+            return step_robots_local(conn.sim_node, specs, self.num_sim_steps)
+        client = conn.client
+        request = client.step_robots_request(specs, self.num_sim_steps)
         try:
             response = client.step_robots_call(request, self.timeout_sec)
         except SimulationNodeError as exc:

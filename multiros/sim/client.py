@@ -92,7 +92,8 @@ def _check(service: str, result: Any) -> None:
         raise SimulationServiceError(service, result.result, result.error_message)
 
 
-def _time_to_sec(stamp: Any) -> float:
+def time_seconds(stamp: Any) -> float:
+    """A ``builtin_interfaces/Time`` in seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
 
 
@@ -105,7 +106,7 @@ def _robot_state(response: Any, sim_time: Any = None) -> RobotState:
     else:
         positions, orientations = np.empty((0, 3)), np.empty((0, 4))
     return RobotState(
-        sim_time=_time_to_sec(response.sim_time if sim_time is None else sim_time),
+        sim_time=time_seconds(response.sim_time if sim_time is None else sim_time),
         names=tuple(js.name),
         position=np.asarray(js.position, dtype=np.float64),
         velocity=np.asarray(js.velocity, dtype=np.float64),

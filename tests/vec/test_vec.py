@@ -200,6 +200,57 @@ def test_node_step_robots_and_load() -> None:
         ctx.try_shutdown()
 
 
+def _outcomes_equal(a, b) -> None:
+    assert [(o.entity, o.status, o.message) for o in a] == [(o.entity, o.status, o.message) for o in b]
+    for x, y in zip(a, b):
+        assert (x.state is None) == (y.state is None)
+        if x.state is not None:
+            assert x.state.sim_time == y.state.sim_time and x.state.names == y.state.names
+            for field in ("position", "velocity", "effort", "frame_positions", "frame_orientations"):
+                np.testing.assert_array_equal(getattr(x.state, field), getattr(y.state, field), err_msg=field)
+
+
+def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
+    """step_robots_local (what a batched vector env uses on a composed node) returns what the
+    StepRobots service returns, bit for bit: two identical nodes, one called each way; also the
+    per-robot failures and the refusals of a whole call."""
+    from multiros.sim.node_stepping import step_robots_local
+
+    ctx = Context(transport="inproc").init()
+    try:
+        nodes, clients = [], []
+        for name in ("sim_service", "sim_local"):
+            nodes.append(compose(name, context=ctx, max_robots=2))
+            clients.append(SimulationClient(Node(f"t_{name}", context=ctx), f"/{name}"))
+            clients[-1].spawn_entity("a", uri=RX200, namespace=f"/{name}/a")
+            clients[-1].spawn_entity("b", uri=RX200, namespace=f"/{name}/b", position=(2.0, 0.0, 0.0))
+        ee = "rx200/ee_gripper_link"
+        calls = [
+            ([RobotStepSpec("a", {"arm_position_controller": [0.3, -0.2, 0.1, 0, 0.4]}, [ee]),
+              RobotStepSpec("b", {"arm_position_controller": [0.3]}, [ee])], 20),  # b: wrong length
+            ([RobotStepSpec("a", {"arm_position_controller": np.array([0.1, 0, 0, 0.2, 0])}, [ee, "rx200/base_link"]),
+              RobotStepSpec("b", {"no_such_controller": [0.0]})], 7),
+            ([RobotStepSpec("nobody"), RobotStepSpec("a", frames=["no_such_link"])], 0),
+            ([RobotStepSpec("a", reset=True, frames=[ee]), RobotStepSpec("b", frames=[ee])], 3),
+        ]
+        for specs, steps in calls:
+            by_service = clients[0].step_robots(specs, steps=steps)
+            local = step_robots_local(nodes[1], specs, steps)
+            _outcomes_equal(by_service, local)
+        assert [o.status for o in local] == [0, 0] and local[0].state.sim_time > 0
+        for specs, match in (([RobotStepSpec("a"), RobotStepSpec("a")], "more than once"),
+                             ([RobotStepSpec("a"), RobotStepSpec("b"), RobotStepSpec("c")], "max_robots=2")):
+            with pytest.raises(SimulationServiceError, match=match):
+                clients[0].step_robots(specs, steps=1)
+            with pytest.raises(SimulationServiceError, match=match) as refused:
+                step_robots_local(nodes[1], specs, 1)
+            assert refused.value.service == "/sim_local/step_robots"
+        with pytest.raises(SimulationServiceError, match="max_steps_per_call"):
+            step_robots_local(nodes[1], [RobotStepSpec("a")], nodes[1].max_steps_per_call + 1)
+    finally:
+        ctx.try_shutdown()
+
+
 def test_batch_interface_hashes_are_pinned() -> None:
     """The wire identity of the new services (changing a definition must be deliberate)."""
     assert type_hash("uniros_interfaces/srv/StepRobots") == (
