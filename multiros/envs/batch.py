@@ -32,7 +32,7 @@ import numpy as np
 
 from multiros.envs.core import EnvError, MujocoEnvCore
 from multiros.sim.client import RobotStepOutcome, RobotStepSpec, SimulationNodeError
-from multiros.sim.node_stepping import step_robots_local
+from multiros.sim.node_stepping import LocalStepRobots, step_robots_local
 
 StepResult = tuple[Any, float, bool, bool, dict]
 
@@ -162,9 +162,10 @@ class EnvBatch:
         """Step envs ``indices`` with ``actions``: one ``StepRobots`` request per node, all nodes at once.
 
         Every env's action hooks run first (a bad action raises before any node steps). With several
-        nodes the requests then go out on worker threads, so the nodes' physics runs at once
-        (``mj_step`` releases the GIL, composed nodes included), and a node's results are handed to
-        its envs while the others may still step.
+        nodes, their physics runs at once (``mj_step`` releases the GIL): requests to nodes in other
+        processes or on other hosts go out on worker threads, and a node's results are handed to its
+        envs while the others may still step; composed nodes are called without messages and only
+        their physics runs on workers (:meth:`_step_composed`).
 
         Robots of envs not in ``indices`` stay in the world and advance too (their controllers
         hold their last commands); such envs are about to be reset, which puts back their whole state.
@@ -177,18 +178,46 @@ class EnvBatch:
             (k, request), = requests.items()
             outcomes = dict(zip([i for i, _ in groups[k]], self._call(k, request)))
             return [self._finish(i, outcomes[i]) for i in indices]
-        # One composed node steps on this thread (it would only wait otherwise): one thread hand-off
-        # less per step. Nodes in other processes or on other hosts stay on workers, watched by _wait.
-        inline = next((k for k in requests if self.connections[k].sim_node is not None), None)
-        pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items() if k != inline}
+        if all(self.connections[k].sim_node is not None for k in requests):
+            return self._step_composed(groups, requests, indices)
+        pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items()}
         results: dict[int, StepResult] = {}
-        if inline is not None:
-            for i, outcome in zip([i for i, _ in groups[inline]], self._call(inline, requests[inline])):
-                results[i] = self._finish(i, outcome)
         for k, future in pending.items():
             for i, outcome in zip([i for i, _ in groups[k]], self._wait(k, future)):
                 results[i] = self._finish(i, outcome)
         return [results[i] for i in indices]
+
+    def _step_composed(self, groups: Mapping[int, Sequence[tuple[int, Any]]],
+                       requests: Mapping[int, Sequence[RobotStepSpec]], indices: Sequence[int]) -> list[StepResult]:
+        """Several composed nodes: this thread prepares each node (its lock, resets, commands) and
+        hands its physics to a worker before preparing the next, steps the last node itself and reads
+        its states (while the workers may still step), then the others'. Only the physics runs on
+        the workers, so the nodes' Python never queues behind each other's on the GIL."""
+        *others, last = list(requests)
+        calls: dict[int, LocalStepRobots] = {}
+        futures: dict[int, concurrent.futures.Future] = {}
+        done = False
+        try:
+            for k in [*others, last]:
+                calls[k] = LocalStepRobots(self.connections[k].sim_node, requests[k], self.num_sim_steps)
+            for k in others:
+                calls[k].prepare()
+                futures[k] = self._pool().submit(calls[k].advance)
+            calls[last].prepare()
+            calls[last].advance()
+            results: dict[int, StepResult] = {}
+            for k in [last, *others]:  # the others' physics may still run meanwhile
+                if k in futures:
+                    self._wait(k, futures[k])
+                for i, outcome in zip([i for i, _ in groups[k]], calls[k].finish()):
+                    results[i] = self._finish(i, outcome)
+            done = True
+            return [results[i] for i in indices]
+        finally:
+            if not done:  # an error: let the physics under way end before the nodes' locks are released
+                concurrent.futures.wait(list(futures.values()), timeout=self.timeout_sec)
+            for call in calls.values():
+                call.close()
 
     def _request(self, k: int, members: Sequence[tuple[int, Any]]) -> list[RobotStepSpec]:
         """Run the action hooks of node ``k``'s envs: its robots' parts of a ``StepRobots`` call."""

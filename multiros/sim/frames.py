@@ -40,6 +40,7 @@ class FrameSet:
         self._pos = np.zeros((n, 3))
         self._stale = ""
         self._others: set[str] = set()  # other entities whose frames this set reads
+        self._bodies_in_order = False
         self._bind()
 
     def _bind(self) -> None:
@@ -81,6 +82,7 @@ class FrameSet:
         self._s_ids = [s for _, s in sites]
         self._s_ids_arr = np.array(self._s_ids, dtype=np.intp)
         self._s_rows_arr = np.array(self._s_rows, dtype=np.intp)
+        self._bodies_in_order = not sites and self._b_rows.tolist() == list(range(len(self.names)))
         self._stale = ""
 
     def _other_entity(self, frame: str) -> tuple[str, str] | None:
@@ -115,6 +117,17 @@ class FrameSet:
             out[row, :3] = data.site_xpos[sid]
             mujoco.mju_mat2Quat(out[row, 3:], data.site_xmat[sid])
         return out
+
+    def pose_arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh ``(n, 3)`` positions and ``(n, 4)`` ``(w, x, y, z)`` orientations: :meth:`poses`
+        split into new arrays, gathered straight from MuJoCo's when every frame is a link."""
+        if self._bodies_in_order:
+            self._check()
+            self._world.sync_kinematics()
+            data = self._world.data
+            return data.xpos[self._b_ids], data.xquat[self._b_ids]
+        rows = self.poses()
+        return rows[:, :3].copy(), rows[:, 3:].copy()
 
     def positions(self) -> np.ndarray:
         """Return an (n, 3) array of frame positions (a preallocated buffer)."""

@@ -10,7 +10,8 @@ are kept in a bounded :class:`FrameSetCache`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import contextlib
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -39,8 +40,7 @@ RobotStepResult = get_message("uniros_interfaces/msg/RobotStepResult")
 T = TypeVar("T")
 
 _MAX_FRAMES = 1024  # frames per StepRobot request
-_MAX_FRAME_SETS = 64
-_NO_POSES = np.empty((0, 7))  # cached frame lists (a new list per call must not grow memory without end)
+_MAX_FRAME_SETS = 64  # cached frame lists (a new list per call must not grow memory without end)
 
 
 class FrameSetCache:
@@ -173,52 +173,106 @@ class RobotStepItem:
     frames: tuple[str, ...]
 
 
+class StepRobotsCall:
+    """One ``StepRobots`` call in three phases: :meth:`prepare` (lock taken, resets and commands),
+    :meth:`advance` (the physics), :meth:`finish` (every robot's state, lock released).
+
+    :meth:`prepare` and :meth:`finish` run on one thread, which owns the node's lock in between;
+    :meth:`advance` may run on another. A batched vector env over several composed nodes thus
+    prepares each node on its own thread and runs each node's physics on a worker thread
+    (``mj_step`` releases the GIL), so the Python of one node never waits for another node's.
+    The lock still keeps every other caller out of the node for the whole call.
+
+    Raises:
+        StepRobotsRefused: from the constructor (nothing applied) or from :meth:`finish` (the node
+            shut down while stepping), when the call as a whole is refused.
+    """
+
+    def __init__(self, node: SimulationNode, items: Sequence[RobotStepItem], steps: int) -> None:
+        if steps > node.max_steps_per_call:
+            raise StepRobotsRefused(FAILED, too_many_steps_message(node, steps))
+        if len(items) > node.max_robots:
+            raise StepRobotsRefused(FAILED, f"{len(items)} robots in one StepRobots request; this node holds "
+                                    f"at most max_robots={node.max_robots}")
+        names = [item.entity for item in items]
+        if len(set(names)) != len(names):
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise StepRobotsRefused(FAILED, f"robots {dup} appear more than once in one StepRobots request; "
+                                    "list each robot once")
+        for item in items:
+            if len(item.frames) > _MAX_FRAMES:
+                raise StepRobotsRefused(FAILED, f"{len(item.frames)} frames requested for {item.entity!r}; at "
+                                        f"most {_MAX_FRAMES}")
+        if steps > 0 and node.simulation_state != SimulationState.STATE_PAUSED:
+            raise StepRobotsRefused(INCORRECT_STATE, "StepRobots with steps > 0 needs a paused simulation "
+                                    "(lockstep mode)")
+        self.node, self.items, self.steps = node, items, steps
+        self.status = [RobotStepResult.OK] * len(items)
+        self.message = [""] * len(items)
+        self._prepared: list[tuple[Any, FrameSet | None]] = []
+        self._interrupted: StepInterruptedError | None = None
+        self._locked = False
+
+    def prepare(self) -> None:
+        """Take the node's lock, then reset and command each robot."""
+        node = self.node
+        node.lock.acquire()
+        self._locked = True
+        world = node.world
+        self._prepared = [_prepare(node, world, item, self.status, self.message, j)
+                          for j, item in enumerate(self.items)]
+
+    def advance(self) -> None:
+        """Step the world (any thread; the preparing thread holds the lock)."""
+        if self.steps <= 0:
+            return
+        try:
+            self.node._step_world(self.steps)
+        except UnstableSimulationError as exc:
+            for j, item in enumerate(self.items):
+                if item.entity in exc.entities:
+                    self.status[j], self.message[j] = RobotStepResult.UNSTABLE, str(exc)
+        except StepInterruptedError as exc:
+            self._interrupted = exc
+
+    def finish(self, read: Callable[[Any, FrameSet | None], T]) -> tuple[list[tuple[int, str, T | None]], float]:
+        """Publish the state topics, ``read`` each robot's state and release the lock.
+
+        Returns:
+            Per robot ``(status, message, read(robot, frame_set))`` (``None`` for an unknown robot),
+            and the simulation time after the steps.
+        """
+        try:
+            if self._interrupted is not None:
+                raise StepRobotsRefused(FAILED, str(self._interrupted)) from self._interrupted
+            if self.steps > 0:
+                self.node._after_step()
+            states = [None if robot is None else read(robot, frame_set) for robot, frame_set in self._prepared]
+            return list(zip(self.status, self.message, states)), self.node.world.time
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        """Release the node's lock if this call holds it (after an error between the phases)."""
+        if self._locked:
+            self._locked = False
+            self.node.lock.release()
+
+
 def run_step_robots(node: SimulationNode, items: Sequence[RobotStepItem], steps: int,
                     read: Callable[[Any, FrameSet | None], T]) -> tuple[list[tuple[int, str, T | None]], float]:
     """Reset and command each robot, advance the world once, and ``read`` each robot's state (lock
     held): the one implementation of ``StepRobots``, for its service and for composed clients.
 
-    Returns:
-        Per robot ``(status, message, read(robot, frame_set))`` (``None`` for an unknown robot),
-        and the simulation time after the steps.
-
-    Raises:
-        StepRobotsRefused: the call as a whole is refused (nothing was applied).
+    Returns and raises as :class:`StepRobotsCall` (whose three phases this runs in a row).
     """
-    if steps > node.max_steps_per_call:
-        raise StepRobotsRefused(FAILED, too_many_steps_message(node, steps))
-    if len(items) > node.max_robots:
-        raise StepRobotsRefused(FAILED, f"{len(items)} robots in one StepRobots request; this node holds at "
-                                f"most max_robots={node.max_robots}")
-    names = [item.entity for item in items]
-    if len(set(names)) != len(names):
-        dup = sorted({n for n in names if names.count(n) > 1})
-        raise StepRobotsRefused(FAILED, f"robots {dup} appear more than once in one StepRobots request; list "
-                                "each robot once")
-    for item in items:
-        if len(item.frames) > _MAX_FRAMES:
-            raise StepRobotsRefused(FAILED, f"{len(item.frames)} frames requested for {item.entity!r}; at most "
-                                    f"{_MAX_FRAMES}")
-    if steps > 0 and node.simulation_state != SimulationState.STATE_PAUSED:
-        raise StepRobotsRefused(INCORRECT_STATE, "StepRobots with steps > 0 needs a paused simulation (lockstep mode)")
-    world = node.world
-    status = [RobotStepResult.OK] * len(items)
-    message = [""] * len(items)
-    with node.lock:
-        prepared = [_prepare(node, world, item, status, message, j) for j, item in enumerate(items)]
-        if steps > 0:
-            try:
-                node._step_world(steps)
-            except UnstableSimulationError as exc:
-                for j, item in enumerate(items):
-                    if item.entity in exc.entities:
-                        status[j], message[j] = RobotStepResult.UNSTABLE, str(exc)
-            except StepInterruptedError as exc:
-                raise StepRobotsRefused(FAILED, str(exc)) from exc
-            node._after_step()
-        states = [None if robot is None else read(robot, frame_set) for robot, frame_set in prepared]
-        sim_time = world.time
-    return list(zip(status, message, states)), sim_time
+    call = StepRobotsCall(node, items, steps)
+    try:
+        call.prepare()
+        call.advance()
+        return call.finish(read)
+    finally:
+        call.close()
 
 
 def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
@@ -282,9 +336,10 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
         return robot, None
 
 
-def step_robots_local(node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> list[RobotStepOutcome]:
+class LocalStepRobots:
     """``StepRobots`` on a node composed in this process, without its messages: what
-    :meth:`SimulationClient.step_robots` returns, from the same :func:`run_step_robots`.
+    :meth:`SimulationClient.step_robots` returns, from the same :class:`StepRobotsCall` and in its
+    phases (see there). :func:`step_robots_local` runs them in a row.
 
     A batched vector env's step on a composed node spends about a third less time outside physics
     this way (no request, result, joint state and pose messages to build and read back per robot).
@@ -292,20 +347,51 @@ def step_robots_local(node: SimulationNode, robots: Sequence[RobotStepSpec], ste
     Raises:
         SimulationServiceError: the call as a whole was refused (as the service would answer).
     """
-    items = [RobotStepItem(spec.entity, bool(spec.reset), list((spec.commands or {}).items()), tuple(spec.frames))
-             for spec in robots]
-    world = node.world
 
-    def read(robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
-        js = world.joint_state(robot.name)
-        rows = frame_set.poses() if frame_set is not None else _NO_POSES
-        return (world.joint_names(robot.name), js.position.copy(), js.velocity.copy(), js.effort.copy(),
-                rows[:, :3].copy(), rows[:, 3:7].copy())
+    def __init__(self, node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> None:
+        self.node = node
+        self.items = [RobotStepItem(spec.entity, bool(spec.reset), list((spec.commands or {}).items()),
+                                    tuple(spec.frames)) for spec in robots]
+        with self._refusals():
+            self.call = StepRobotsCall(node, self.items, int(steps))
 
+    @contextlib.contextmanager
+    def _refusals(self) -> Iterator[None]:
+        try:
+            yield
+        except StepRobotsRefused as exc:
+            raise SimulationServiceError(f"{self.node.get_fully_qualified_name()}/step_robots", exc.code,
+                                         exc.message) from exc
+
+    def prepare(self) -> None:
+        self.call.prepare()
+
+    def advance(self) -> None:
+        self.call.advance()
+
+    def finish(self) -> list[RobotStepOutcome]:
+        world = self.node.world
+
+        def read(robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
+            poses = frame_set.pose_arrays() if frame_set is not None else (np.empty((0, 3)), np.empty((0, 4)))
+            return (world.joint_names(robot.name), *world.joint_state_arrays(robot.name), *poses)
+
+        with self._refusals():
+            parts, sim_time = self.call.finish(read)
+        t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
+        return [RobotStepOutcome(item.entity, int(code), message, None if part is None else RobotState(t, *part))
+                for item, (code, message, part) in zip(self.items, parts)]
+
+    def close(self) -> None:
+        self.call.close()
+
+
+def step_robots_local(node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> list[RobotStepOutcome]:
+    """:class:`LocalStepRobots`' phases in a row: one ``StepRobots`` call on a composed node."""
+    call = LocalStepRobots(node, robots, steps)
     try:
-        parts, sim_time = run_step_robots(node, items, int(steps), read)
-    except StepRobotsRefused as exc:
-        raise SimulationServiceError(f"{node.get_fully_qualified_name()}/step_robots", exc.code, exc.message) from exc
-    t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
-    return [RobotStepOutcome(item.entity, int(code), message, None if part is None else RobotState(t, *part))
-            for item, (code, message, part) in zip(items, parts)]
+        call.prepare()
+        call.advance()
+        return call.finish()
+    finally:
+        call.close()

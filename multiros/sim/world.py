@@ -351,6 +351,14 @@ class World(WorldStepping):
         """The robot's joint names (unprefixed), in the order of :meth:`joint_state`."""
         return self._get(name).info.joint_names
 
+    def joint_state_arrays(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Fresh position, velocity and effort arrays of :meth:`joint_state` (same order)."""
+        ent, d = self._get(name), self._data
+        effort = np.zeros(len(ent.jnt_qadr))
+        if ent.act_ids.size:
+            effort[ent.effort_slot] = d.actuator_force[ent.act_ids]
+        return d.qpos[ent.jnt_qadr], d.qvel[ent.jnt_dadr], effort
+
     def joint_state(self, name: str) -> JointState:
         """Positions, velocities and efforts (actuator forces) of the robot's joints."""
         ent, d = self._get(name), self._data

@@ -192,6 +192,40 @@ def test_frames_agree_with_the_joint_state_after_a_step(make_world):
     assert max(np.linalg.norm(lag - now) for lag, now in trajectory) > 1e-5  # the arm moved within one step
 
 
+def test_frame_set_pose_arrays_are_fresh_copies_of_poses(make_world):
+    """pose_arrays (links only, in order: gathered from MuJoCo; otherwise split from poses) equals
+    poses, after a step too, and returns new arrays each call."""
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    world.spawn("pend", PENDULUM, pose=([1, 0, 1], [1, 0, 0, 0]))
+    sets = [world.frame_set(["ee_link", "link2"], "arm"), world.frame_set(["link2", "ee_link"], "arm"),
+            world.frame_set(["tip", "bob"], "pend"), world.frame_set(["arm/ee_link", "pend/tip"])]
+    world.set_command("arm", "arm_controller", [0.9, -0.6, 0.8])
+    for _ in range(3):
+        world.step(5)
+        for fs in sets:
+            positions, orientations = fs.pose_arrays()
+            rows = fs.poses()
+            np.testing.assert_array_equal(positions, rows[:, :3])
+            np.testing.assert_array_equal(orientations, rows[:, 3:])
+            again = fs.pose_arrays()
+            assert not np.shares_memory(positions, again[0]) and not np.shares_memory(positions, rows)
+    assert sets[0]._bodies_in_order and not sets[2]._bodies_in_order  # both paths ran
+
+
+def test_joint_state_arrays_are_fresh_copies_of_joint_state(make_world):
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    world.set_command("arm", "arm_controller", [0.9, -0.6, 0.8])
+    world.step(20)
+    arrays = world.joint_state_arrays("arm")
+    js = world.joint_state("arm")
+    for a, b in zip(arrays, (js.position, js.velocity, js.effort)):
+        np.testing.assert_array_equal(a, b)
+        assert not np.shares_memory(a, b)
+    assert np.any(arrays[2] != 0)
+
+
 def test_mjcf_site_frame(make_world):
     world = make_world()
     world.spawn("pend", PENDULUM, pose=([0, 0, 1], [1, 0, 0, 0]))
