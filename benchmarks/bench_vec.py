@@ -4,8 +4,8 @@ Cases (random actions, episodes autoreset as they end):
 
 * batched, composed: ``uniros.make_vec(ID, N, vectorization_mode="batched")``: one simulation
   node in this process holds the N robots, one StepRobots request per vector step;
-* batched, composed, K = 2 nodes in this process (N/2 robots each, stepped at once on threads:
-  ``mj_step`` releases the GIL), N >= 2;
+* batched, composed, K = 2 nodes in this process (N/2 robots each; their physics runs at once on
+  worker threads, ``mj_step`` releases the GIL), N >= 2;
 * batched, node in another process (``sim_mode="process"``, one node behind a private router);
 * batched, K = 2 nodes in 2 processes (N/2 robots each), N >= 2;
 * SB3 ``SubprocVecEnv`` over N separate uniros envs (each with its own composed node);
@@ -13,8 +13,8 @@ Cases (random actions, episodes autoreset as they end):
 * one FetchReach-v4, the anchor.
 
 The physics limit is the raw ``mj_step`` rate of the batched env's own world (N robots, one
-core), in env steps/s: ``N * calls/s`` with ``num_sim_steps`` physics steps per call. The batched
-composed rate is printed as a fraction of it.
+core), replayed from states of a random-action rollout, in env steps/s: ``N * calls/s`` with
+``num_sim_steps`` physics steps per call. The batched composed rate is printed as a fraction of it.
 
     python benchmarks/bench_vec.py [--seconds 2] [--sizes 1,2,4,8,16] [--env RX200ReacherGoalSim-v0]
                                    [--num-sim-steps 10]
@@ -65,15 +65,25 @@ def gym_vec_rate(vec, seconds: float) -> float:
 
 
 def physics_limit(vec, seconds: float) -> float:
-    """Env steps/s of raw mj_step on a copy of the batched env's world (all N robots, one core)."""
+    """Env steps/s of raw mj_step in the batched env's world (all N robots, one core), replayed from
+    states a random-action rollout of that env went through (moving arms cost more constraint
+    work than arms at rest)."""
     world = vec.batch.connections[0].sim_node.world
     m = world.model
+    spec = mujoco.mjtState.mjSTATE_INTEGRATION
+    rng = np.random.default_rng(1)
+    space = vec.action_space
+    states = []
+    for _ in range(100):
+        vec.step(rng.uniform(space.low, space.high).astype(space.dtype))
+        state = np.empty(mujoco.mj_stateSize(m, spec))
+        mujoco.mj_getState(m, world.data, state, spec)
+        states.append(state)
     d = mujoco.MjData(m)
-    d.qpos[:] = world.data.qpos
-    d.ctrl[:] = world.data.ctrl
     steps = vec.batch.num_sim_steps
     calls, start = 0, time.perf_counter()
     while time.perf_counter() - start < seconds:
+        mujoco.mj_setState(m, d, states[calls % len(states)], spec)
         mujoco.mj_step(m, d, nstep=steps)
         calls += 1
     return vec.num_envs * calls / (time.perf_counter() - start)
@@ -186,7 +196,8 @@ def main() -> None:
         budget, physics, total = 1e6 / (5 * fetch), 1e6 / r["physics limit"], 1e6 / r["batched composed"]
         print(f"per env step at N=8: 5x FetchReach-v4 allows {budget:.0f} us; mj_step of this world takes "
               f"{physics:.0f} us, leaving {budget - physics:.0f} us for the node, task, client and vector env, "
-              f"which take {total - physics:.0f} us now ({total:.0f} us in all)")
+              f"which take {total - physics:.0f} us now ({total:.0f} us in all); on 2 nodes "
+              f"{1e6 / r['composed 2 nodes']:.0f} us in all")
 
 
 if __name__ == "__main__":
