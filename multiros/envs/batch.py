@@ -229,8 +229,9 @@ class EnvBatch:
             specs.append(RobotStepSpec(env.robot_name, commands, env.frames))
         return specs
 
-    def _wait(self, k: int, future: concurrent.futures.Future) -> list[RobotStepOutcome]:
-        """Node ``k``'s outcomes, or an error naming it if its process exits or it does not answer."""
+    def _wait(self, k: int, future: concurrent.futures.Future) -> Any:
+        """The result of node ``k``'s call (its outcomes, or nothing for a composed node's physics),
+        or an error naming the node if its process exits or it does not answer."""
         deadline = time.monotonic() + self.timeout_sec
         process = self.connections[k].process
         while True:
