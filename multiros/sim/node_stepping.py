@@ -175,7 +175,9 @@ class RobotStepItem:
 
 class StepRobotsCall:
     """One ``StepRobots`` call in three phases: :meth:`prepare` (lock taken, resets and commands),
-    :meth:`advance` (the physics), :meth:`finish` (every robot's state, lock released).
+    :meth:`advance` (the physics), :meth:`finish` (every robot's state, lock released); :meth:`run`
+    runs them in a row. The one implementation of ``StepRobots``, for its service and for composed
+    clients (:class:`LocalStepRobots`).
 
     :meth:`prepare` and :meth:`finish` run on one thread, which owns the node's lock in between;
     :meth:`advance` may run on another. A batched vector env over several composed nodes thus
@@ -258,21 +260,14 @@ class StepRobotsCall:
             self._locked = False
             self.node.lock.release()
 
-
-def run_step_robots(node: SimulationNode, items: Sequence[RobotStepItem], steps: int,
-                    read: Callable[[Any, FrameSet | None], T]) -> tuple[list[tuple[int, str, T | None]], float]:
-    """Reset and command each robot, advance the world once, and ``read`` each robot's state (lock
-    held): the one implementation of ``StepRobots``, for its service and for composed clients.
-
-    Returns and raises as :class:`StepRobotsCall` (whose three phases this runs in a row).
-    """
-    call = StepRobotsCall(node, items, steps)
-    try:
-        call.prepare()
-        call.advance()
-        return call.finish(read)
-    finally:
-        call.close()
+    def run(self, read: Callable[[Any, FrameSet | None], T]) -> tuple[list[tuple[int, str, T | None]], float]:
+        """The three phases in a row on this thread; returns what :meth:`finish` returns."""
+        try:
+            self.prepare()
+            self.advance()
+            return self.finish(read)
+        finally:
+            self.close()
 
 
 def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
@@ -294,7 +289,7 @@ def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
         return out
 
     try:
-        parts, sim_time = run_step_robots(node, items, int(request.steps), read)
+        parts, sim_time = StepRobotsCall(node, items, int(request.steps)).run(read)
     except StepRobotsRefused as exc:
         fail(res, exc.code, exc.message)
         return response
@@ -339,7 +334,7 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
 class LocalStepRobots:
     """``StepRobots`` on a node composed in this process, without its messages: what
     :meth:`SimulationClient.step_robots` returns, from the same :class:`StepRobotsCall` and in its
-    phases (see there). :func:`step_robots_local` runs them in a row.
+    phases (see there); :meth:`run` runs them in a row.
 
     A batched vector env's step on a composed node spends about a third less time outside physics
     this way (no request, result, joint state and pose messages to build and read back per robot).
@@ -370,28 +365,28 @@ class LocalStepRobots:
         self.call.advance()
 
     def finish(self) -> list[RobotStepOutcome]:
-        world = self.node.world
-
-        def read(robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
-            poses = frame_set.pose_arrays() if frame_set is not None else (np.empty((0, 3)), np.empty((0, 4)))
-            return (world.joint_names(robot.name), *world.joint_state_arrays(robot.name), *poses)
-
         with self._refusals():
-            parts, sim_time = self.call.finish(read)
-        t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
-        return [RobotStepOutcome(item.entity, int(code), message, None if part is None else RobotState(t, *part))
-                for item, (code, message, part) in zip(self.items, parts)]
+            return self._outcomes(*self.call.finish(self._read))
+
+    def run(self) -> list[RobotStepOutcome]:
+        """The three phases in a row on this thread."""
+        with self._refusals():
+            return self._outcomes(*self.call.run(self._read))
 
     def close(self) -> None:
         self.call.close()
 
+    def _read(self, robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
+        world = self.node.world
+        poses = frame_set.pose_arrays() if frame_set is not None else (np.empty((0, 3)), np.empty((0, 4)))
+        return (world.joint_names(robot.name), *world.joint_state_arrays(robot.name), *poses)
+
+    def _outcomes(self, parts: list[tuple[int, str, Any]], sim_time: float) -> list[RobotStepOutcome]:
+        t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
+        return [RobotStepOutcome(item.entity, int(code), message, None if part is None else RobotState(t, *part))
+                for item, (code, message, part) in zip(self.items, parts)]
+
 
 def step_robots_local(node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> list[RobotStepOutcome]:
-    """:class:`LocalStepRobots`' phases in a row: one ``StepRobots`` call on a composed node."""
-    call = LocalStepRobots(node, robots, steps)
-    try:
-        call.prepare()
-        call.advance()
-        return call.finish()
-    finally:
-        call.close()
+    """One ``StepRobots`` call on a composed node, without messages (:meth:`LocalStepRobots.run`)."""
+    return LocalStepRobots(node, robots, steps).run()

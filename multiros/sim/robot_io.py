@@ -60,12 +60,9 @@ class RobotInterfaces:
     # -- state topics -----------------------------------------------------------------------
     def fill_joint_state(self, msg: Any) -> Any:
         """Write the robot's joint state (copies) into a ``sensor_msgs/JointState``."""
-        js = self.world.joint_state(self.name)
         msg.header.stamp = convert.time_msg(self.world.time)
         msg.name = self._names
-        msg.position = js.position.copy()
-        msg.velocity = js.velocity.copy()
-        msg.effort = js.effort.copy()
+        msg.position, msg.velocity, msg.effort = self.world.joint_state_arrays(self.name)
         return msg
 
     def publish_state(self) -> None:

@@ -352,12 +352,9 @@ class World(WorldStepping):
         return self._get(name).info.joint_names
 
     def joint_state_arrays(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Fresh position, velocity and effort arrays of :meth:`joint_state` (same order)."""
-        ent, d = self._get(name), self._data
-        effort = np.zeros(len(ent.jnt_qadr))
-        if ent.act_ids.size:
-            effort[ent.effort_slot] = d.actuator_force[ent.act_ids]
-        return d.qpos[ent.jnt_qadr], d.qvel[ent.jnt_dadr], effort
+        """Copies of :meth:`joint_state`'s position, velocity and effort arrays."""
+        js = self.joint_state(name)
+        return js.position.copy(), js.velocity.copy(), js.effort.copy()
 
     def joint_state(self, name: str) -> JointState:
         """Positions, velocities and efforts (actuator forces) of the robot's joints."""
