@@ -8,7 +8,7 @@ A task env mixes this in after its robot env and adds only its spaces, observati
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -120,13 +120,38 @@ class ReachTask:
         return unit, dist
 
 
+OBS_PARTS = ("ee_position", "arm_positions", "prev_action", "arm_velocities")
+
+
 class GoalReachTask(ReachTask):
     """The goal-conditioned reach task: Dict spaces, observation dict, vectorised reward and success.
 
-    The env sets ``self.reward_type`` and calls :meth:`_setup_goal_spaces` after ``_setup_reach``.
+    The env sets ``self.reward_type``, names what its ``observation`` holds in ``OBS_PARTS`` (in
+    order, from :data:`OBS_PARTS`; the EE position first) and calls :meth:`_setup_goal_spaces` after
+    ``_setup_reach``. A batched vector env of such envs runs their step hooks for all its envs at
+    once (:mod:`rl_environments.reach_batch`) unless a subclass replaces one of them.
     """
 
     reward_type: RewardType
+    OBS_PARTS: ClassVar[tuple[str, ...]]
+
+    @classmethod
+    def batch_step_hooks(cls) -> Any:
+        """The batched form of this class's step hooks, or ``None`` where a subclass replaced one
+        (see :class:`rl_environments.reach_batch.GoalReachBatchHooks`)."""
+        from rl_environments.reach_batch import GoalReachBatchHooks
+
+        return GoalReachBatchHooks.for_class(cls)
+
+    def _get_obs(self) -> dict[str, np.ndarray]:
+        return self._goal_obs(np.concatenate([self._obs_part(name) for name in self.OBS_PARTS]))
+
+    def _obs_part(self, name: str) -> np.ndarray:
+        if name == "prev_action":
+            return self.prev_action
+        if name not in OBS_PARTS:
+            raise ValueError(f"{type(self).__name__}.OBS_PARTS names {name!r}; parts: {list(OBS_PARTS)}")
+        return getattr(self, name)()
 
     def _setup_goal_spaces(self, obs_low: np.ndarray, obs_high: np.ndarray) -> None:
         """``observation`` bounds (its first three values are the EE position) and goal boxes."""

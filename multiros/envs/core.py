@@ -404,24 +404,35 @@ class MujocoEnvCore(JointStateAccess):
         """Refuse NaN/infinite values and wrong shapes; clip a Box action into its bounds."""
         space = self.action_space
         if isinstance(space, spaces.Box):
-            bounds = self._action_bounds
-            if bounds is None or bounds[0] is not space:  # the space may be replaced after __init__
-                bounds = self._action_bounds = (space, space.low.astype(np.float64), space.high.astype(np.float64))
+            low, high = self._box_action_bounds()
             arr = np.asarray(action, dtype=np.float64)
             if arr.shape != space.shape:
                 raise ValueError(f"action shape {arr.shape} does not match the action space {space.shape}")
             if not np.isfinite(arr).all():
                 raise ValueError(f"action contains NaN or infinite values: {arr}")
-            return np.minimum(np.maximum(arr, bounds[1]), bounds[2])
+            return np.minimum(np.maximum(arr, low), high)
         if not space.contains(action):
             raise ValueError(f"action {action!r} is not in the action space {space}")
         return np.asarray(action)
+
+    def _box_action_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The Box action space's bounds as float64 arrays (cached per space object)."""
+        space = self.action_space
+        bounds = self._action_bounds
+        if bounds is None or bounds[0] is not space:  # the space may be replaced after __init__
+            bounds = self._action_bounds = (space, space.low.astype(np.float64), space.high.astype(np.float64))
+        return bounds[1], bounds[2]
 
     # -- hook dispatch ----------------------------------------------------------------------
     def _hook(self, base: type, *names: str) -> Any:
         """The bound hook a subclass implements under one of ``names`` (see :func:`_hook_name`), or ``None``."""
         name = _hook_name(type(self), base, names)
         return None if name is None else getattr(self, name)
+
+    @classmethod
+    def _hook_implemented(cls, base: type, *names: str) -> str | None:
+        """Which of ``names`` (aliases of one hook) this class implements below ``base``, or ``None``."""
+        return _hook_name(cls, base, names)
 
     def _run_reset_hooks(self, base: type, options: dict[str, Any] | None) -> None:
         ready = self._hook(base, "_check_connection_and_readiness", "_check_subs_and_pubs_connection")

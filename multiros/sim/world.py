@@ -477,9 +477,8 @@ class World(WorldStepping):
             EntityError: unknown entity; ControllerError: unknown or inactive controller;
             CommandError: wrong length, NaN/inf (nothing is applied).
         """
-        ent = self._robot(name)
-        ent.cm.set_command(controller, command, self._data.time)
-        write_actuators(self._model, self._data, ent)
+        # No write to ctrl here: every step call writes each robot's actuators before it steps.
+        self._robot(name).cm.set_command(controller, command, self._data.time)
 
     def set_trajectory(self, name: str, controller: str, joint_names: Sequence[str],
                        positions: Sequence[Sequence[float]], times_from_start: Sequence[float],

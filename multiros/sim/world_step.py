@@ -76,11 +76,11 @@ class WorldStepping:
         if n == 0:
             return
         m, d = self._model, self._data
-        mujoco.mj_getState(m, d, self._snap, self._state_spec)
         for ent in self._entities.values():
             ent.snap_countdown = ent.countdown
             if ent.hw is not None:
-                write_actuators(m, d, ent)
+                write_actuators(m, d, ent)  # before the snapshot: a replay from it uses these commands
+        mujoco.mj_getState(m, d, self._snap, self._state_spec)
         self._kinematics_stale = True
         self._advance(n)
         if self._warnings_changed():

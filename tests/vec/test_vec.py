@@ -41,6 +41,7 @@ def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode, num_nod
     separate = SyncVectorEnv([lambda: uniros.make(ENV, max_episode_steps=horizon) for _ in range(n)],
                              autoreset_mode=mode)
     try:
+        assert batched.batch.hooks is not None  # the goal reach task's batched step hooks
         assert batched.metadata["autoreset_mode"] == mode
         assert batched.single_observation_space == separate.single_observation_space
         assert batched.action_space == separate.action_space

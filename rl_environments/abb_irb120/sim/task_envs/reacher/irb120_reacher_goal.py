@@ -40,6 +40,8 @@ class IRB120GoalReachTask(GoalReachTask):
         **kwargs: robot/base-env knobs.
     """
 
+    OBS_PARTS = ("ee_position", "arm_positions", "prev_action")
+
     def __init__(
         self, reward_type: str = "sparse", config_file: str = "irb120_reacher_task_config.yaml", **kwargs: Any
     ) -> None:
@@ -52,8 +54,6 @@ class IRB120GoalReachTask(GoalReachTask):
             np.concatenate([np.asarray(EE_HIGH) + self.base_position, self.chain.upper, self.action_space.high]),
         )
 
-    def _get_obs(self) -> dict[str, np.ndarray]:
-        return self._goal_obs(np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action]))
 
 
 class ABBIRB120ReacherGoalEnv(IRB120GoalReachTask, ABBIRB120RobotGoalEnv):

@@ -44,6 +44,8 @@ class RX200GoalReachTask(GoalReachTask):
         **kwargs: robot/base-env knobs (``sim_mode``, ``transport``, ``num_sim_steps``, ``seed``, ...).
     """
 
+    OBS_PARTS = ("ee_position", "arm_positions", "prev_action", "arm_velocities")
+
     def __init__(
         self,
         reward_type: str = "sparse",
@@ -64,10 +66,6 @@ class RX200GoalReachTask(GoalReachTask):
             np.concatenate([ee_high, self.chain.upper, self.action_space.high, vel]),
         )
 
-    def _get_obs(self) -> dict[str, np.ndarray]:
-        return self._goal_obs(
-            np.concatenate([self.ee_position(), self.arm_positions(), self.prev_action, self.arm_velocities()])
-        )
 
 
 class RX200ReacherGoalEnv(RX200GoalReachTask, RX200RobotGoalEnv):
