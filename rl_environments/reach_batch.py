@@ -28,7 +28,7 @@ from multiros.envs.base_env import GoalStepTemplate, MujocoGoalEnv
 from multiros.envs.core import MujocoEnvCore
 from rl_environments.arm_robot import ArmRobot
 from rl_environments.reach import goal_reward, is_success
-from rl_environments.reach_task import OBS_PARTS, GoalReachTask, ReachTask
+from rl_environments.reach_task import GoalReachTask, ReachTask
 
 StepResult = tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]
 
@@ -84,9 +84,8 @@ class GoalReachBatchHooks:
         """The hooks for ``env_cls``, or ``None`` when it replaces a step hook they reproduce."""
         if not (issubclass(env_cls, GoalReachTask) and issubclass(env_cls, MujocoGoalEnv)):
             return None
-        parts = getattr(env_cls, "OBS_PARTS", ())
-        if not parts or any(name not in OBS_PARTS for name in parts):
-            return None  # the env's own _get_obs reports the bad name
+        if not getattr(env_cls, "OBS_PARTS", ()):
+            return None
         if any(getattr(env_cls, name, None) is not fn for name, fn in _STOCK.items()):
             return None
         if any(env_cls._hook_implemented(MujocoGoalEnv, *names) != name for names, name in _HOOKS.items()):
@@ -106,9 +105,9 @@ class GoalReachBatchHooks:
             raw = np.asarray(actions, dtype=np.float64)
             bounds = [e._box_action_bounds() for e in envs]
             low, high = _stack([b[0] for b in bounds]), _stack([b[1] for b in bounds])
-        except (TypeError, ValueError):  # ragged input or spaces of different shapes
+        except (AttributeError, TypeError, ValueError):  # not Box spaces, ragged input, spaces of different shapes
             return False
-        if raw.shape != shape or low.shape != shape or not np.isfinite(raw).all():
+        if raw.shape != shape or not np.isfinite(raw).all():
             return False
         action = np.minimum(np.maximum(raw, low), high)
         if e0.delta_action:
@@ -158,6 +157,4 @@ class GoalReachBatchHooks:
 
     @staticmethod
     def _part(name: str, envs: Sequence[Any]) -> np.ndarray:
-        if name == "prev_action":
-            return _stack([e.prev_action for e in envs])
-        return _stack([getattr(e, name)() for e in envs])
+        return _stack([e._obs_part(name) for e in envs])

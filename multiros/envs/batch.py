@@ -35,7 +35,7 @@ import numpy as np
 
 from multiros.envs.core import EnvError, MujocoEnvCore
 from multiros.sim.client import RobotStepOutcome, RobotStepSpec, SimulationNodeError
-from multiros.sim.node_stepping import LocalStepRobots
+from multiros.sim.node_stepping import LocalStepRobots, step_robots_local
 
 StepResult = tuple[Any, float, bool, bool, dict]
 
@@ -282,10 +282,10 @@ class EnvBatch:
 
     def _call(self, k: int, specs: Sequence[RobotStepSpec]) -> list[RobotStepOutcome]:
         """One ``StepRobots`` call to node ``k``: a composed node's without messages
-        (:meth:`~multiros.sim.node_stepping.LocalStepRobots.run`), others' over the service."""
+        (:func:`~multiros.sim.node_stepping.step_robots_local`), others' over the service."""
         conn = self.connections[k]
         if conn.sim_node is not None:
-            return LocalStepRobots(conn.sim_node, specs, self.num_sim_steps).run()
+            return step_robots_local(conn.sim_node, specs, self.num_sim_steps)
         client = conn.client
         request = client.step_robots_request(specs, self.num_sim_steps)
         try:
