@@ -53,7 +53,16 @@ def goal_reward(
 ) -> np.ndarray | float:
     """Sparse (``sparse_values`` = (reached, not reached)) or dense (``-distance``) reward, vectorised;
     a float32 array for batches, a float (of a float32) for one goal."""
-    d = goal_distance(achieved_goal, desired_goal)
+    return reward_from_distance(goal_distance(achieved_goal, desired_goal), tolerance, reward_type, sparse_values)
+
+
+def reward_from_distance(
+    d: np.ndarray,
+    tolerance: float | np.ndarray,
+    reward_type: RewardType,
+    sparse_values: tuple[float, float] = (0.0, -1.0),
+) -> np.ndarray | float:
+    """:func:`goal_reward` from the goal distance(s) ``d`` (:func:`goal_distance`)."""
     if np.ndim(d) == 0:
         value = -d if reward_type == "dense" else sparse_values[0] if d <= tolerance else sparse_values[1]
         return float(np.float32(value))

@@ -26,8 +26,9 @@ import numpy as np
 
 from multiros.envs.base_env import GoalStepTemplate, MujocoGoalEnv
 from multiros.envs.core import MujocoEnvCore
+from multiros.sim.state_gather import StackedStates
 from rl_environments.arm_robot import ArmRobot
-from rl_environments.reach import goal_reward, is_success
+from rl_environments.reach import goal_distance, reward_from_distance
 from rl_environments.reach_task import GoalReachTask, ReachTask
 
 StepResult = tuple[dict[str, np.ndarray], float, bool, bool, dict[str, Any]]
@@ -56,6 +57,23 @@ _STOCK = {
 _ACT_NAMES = frozenset({"_step_act", "_check_action", "_box_action_bounds", "_set_action", "_send_action",
                         "set_arm_targets", "send_command"})
 _RESULT_NAMES = frozenset(_STOCK) - _ACT_NAMES
+# What the observation parts read from the robot's state: where a class or an env instance replaces
+# one of these, the parts come from each env's ``_obs_part`` instead of the stacked states.
+_STATE_READERS = {
+    "_accept_state": MujocoEnvCore._accept_state,
+    "robot_state": MujocoEnvCore.robot_state,
+    "frame_position": MujocoEnvCore.frame_position,
+    "_frame": MujocoEnvCore._frame,
+    "joint_positions": MujocoEnvCore.joint_positions,
+    "joint_velocities": MujocoEnvCore.joint_velocities,
+    "_select": MujocoEnvCore._select,
+    "_joint_indices": MujocoEnvCore._joint_indices,
+    "arm_positions": ArmRobot.arm_positions,
+    "arm_velocities": ArmRobot.arm_velocities,
+    "ee_position": ArmRobot.ee_position,
+}
+_STATE_NAMES = frozenset({*_STATE_READERS, "ARM_JOINTS", "EE_LINK"})
+_RESULT_OR_STATE_NAMES = _RESULT_NAMES | _STATE_NAMES
 # Hooks looked up by name (MultiROS aliases included): each must resolve to the stock one.
 _HOOKS = {
     ("_set_action", "_send_action"): "_set_action",
@@ -78,6 +96,9 @@ class GoalReachBatchHooks:
     def __init__(self, cls: type) -> None:
         self.cls = cls
         self.parts = tuple(cls.OBS_PARTS)  # type: ignore[attr-defined]
+        self.reads_stacked = all(getattr(cls, name, None) is fn for name, fn in _STATE_READERS.items())
+        # (envs, their states, stacked) of each results call since the last act (one per node)
+        self._held: list[tuple[list[Any], list[Any], StackedStates]] = []
 
     @classmethod
     def for_class(cls, env_cls: type) -> GoalReachBatchHooks | None:
@@ -96,10 +117,12 @@ class GoalReachBatchHooks:
     def act(self, envs: Sequence[Any], actions: Sequence[Any]) -> bool:
         """Each env's ``_step_act(action)``, for all at once; False (nothing changed) when the batch
         is not one this can take whole, so the envs' own hooks run instead (and raise any error)."""
+        held, self._held = self._held, []
         e0 = envs[0]
-        if any(type(e) is not self.cls or e.ee_action_type or e.delta_action != e0.delta_action
-               or not _ACT_NAMES.isdisjoint(vars(e)) for e in envs):
-            return False
+        cls, delta = self.cls, e0.delta_action
+        for e in envs:
+            if type(e) is not cls or e.ee_action_type or e.delta_action != delta or not _ACT_NAMES.isdisjoint(vars(e)):
+                return False
         shape = (len(envs), *e0.action_space.shape)
         try:
             raw = np.asarray(actions, dtype=np.float64)
@@ -110,8 +133,10 @@ class GoalReachBatchHooks:
         if raw.shape != shape or not np.isfinite(raw).all():
             return False
         action = np.minimum(np.maximum(raw, low), high)
-        if e0.delta_action:
-            current = _stack([e.arm_positions() for e in envs])
+        if delta:
+            current = self._held_positions(envs, held)
+            if current is None:
+                current = _stack([e.arm_positions() for e in envs])
             coeff = np.array([e.delta_coeff for e in envs])[:, None]
             targets = current + action * coeff
         else:
@@ -130,22 +155,60 @@ class GoalReachBatchHooks:
             env.prev_action = action[j]
         return True
 
-    # -- observations, rewards, episode ends --------------------------------------------------
-    def results(self, envs: Sequence[Any]) -> list[StepResult] | None:
-        """Each env's ``_step_result()`` from the state it holds, for all at once; ``None`` (each env
-        scores itself) when the envs do not share a reward type or one carries its own hooks."""
-        e0 = envs[0]
-        if any(e.reward_type != e0.reward_type or not _RESULT_NAMES.isdisjoint(vars(e)) for e in envs):
+    @staticmethod
+    def _held_positions(envs: Sequence[Any], held: Sequence[tuple[list[Any], list[Any], StackedStates]]
+                        ) -> np.ndarray | None:
+        """Each env's ``arm_positions()``, sliced from the stacked states :meth:`results` read last
+        step (one per node) if the envs still hold those states (none was reset since) and read them
+        the stock way; else ``None``."""
+        if not held or sum(len(group) for group, _, _ in held) != len(envs):
             return None
-        raw = np.concatenate([self._part(name, envs) for name in self.parts], axis=1)
+        e0 = envs[0]
+        arm = e0._joint_indices(e0.ARM_JOINTS)
+        first = {id(e): j for j, e in enumerate(envs)}
+        current = np.empty((len(envs), len(arm)))
+        for group, states, stacked in held:
+            j0 = first.get(id(group[0]), -1)
+            if j0 < 0 or j0 + len(group) > len(envs):
+                return None
+            for j, (e, state) in enumerate(zip(group, states), j0):
+                if envs[j] is not e or e._state is not state or not _STATE_NAMES.isdisjoint(vars(e)):
+                    return None
+            current[j0:j0 + len(group)] = stacked.position[:, arm]
+        return current
+
+    # -- observations, rewards, episode ends --------------------------------------------------
+    def results(self, envs: Sequence[Any], stacked: StackedStates | None = None) -> list[StepResult] | None:
+        """Each env's ``_step_result()`` from the state it holds, for all at once; ``None`` (each env
+        scores itself) when the envs do not share a reward type or one carries its own hooks.
+
+        ``stacked`` holds the states the envs hold as rows of one array each (a composed node's
+        read): the joint and frame parts of the observations are then sliced from it whole.
+        """
+        e0 = envs[0]
+        reward_type, names, frames = e0.reward_type, e0.robot_state.names, e0.frames
+        alike = stacked is not None and self.reads_stacked and len(envs) == len(stacked.position)
+        for e in envs:
+            if e.reward_type != reward_type:
+                return None
+            if not _RESULT_OR_STATE_NAMES.isdisjoint(vars(e)):
+                if not _RESULT_NAMES.isdisjoint(vars(e)):
+                    return None
+                alike = False  # the env reads its state its own way: its parts come from _obs_part
+            elif alike and (e.robot_state.names != names or e.frames != frames):
+                alike = False
+        sliced = self._stacked_parts(e0, stacked) if alike and stacked is not None else {}
+        raw = np.concatenate([sliced[name] if name in sliced else self._part(name, envs) for name in self.parts],
+                             axis=1)
         boxes = [e.observation_space["observation"] for e in envs]
         obs = np.minimum(np.maximum(raw.astype(np.float32), _stack([b.low for b in boxes])),
                          _stack([b.high for b in boxes]))
         achieved = obs[:, :3].copy()
         desired = _stack([e.goal for e in envs]).astype(np.float32)
         tolerance = np.array([e.tolerance for e in envs])
-        success = is_success(achieved, desired, tolerance)
-        reward = goal_reward(achieved, desired, tolerance, e0.reward_type)
+        distance = goal_distance(achieved, desired)  # what is_success and goal_reward each compute
+        success = distance <= tolerance
+        reward = reward_from_distance(distance, tolerance, reward_type)
         out: list[StepResult] = []
         for j, env in enumerate(envs):
             done = bool(success[j])
@@ -153,8 +216,18 @@ class GoalReachBatchHooks:
             info.setdefault("is_success", done)
             observation = {"observation": obs[j], "achieved_goal": achieved[j], "desired_goal": desired[j]}
             out.append((observation, float(reward[j]), done, False, info))
+        if alike and stacked is not None:
+            self._held.append((list(envs), [e._state for e in envs], stacked))
         return out
 
     @staticmethod
     def _part(name: str, envs: Sequence[Any]) -> np.ndarray:
         return _stack([e._obs_part(name) for e in envs])
+
+    @staticmethod
+    def _stacked_parts(e0: Any, stacked: StackedStates) -> dict[str, np.ndarray]:
+        """The observation parts read from the robot state (``ee_position``, ``arm_positions``,
+        ``arm_velocities``), sliced from the stacked states of envs alike ``e0``."""
+        arm = e0._joint_indices(e0.ARM_JOINTS)
+        return {"ee_position": stacked.frame_positions[:, e0._frame(e0.EE_LINK)],
+                "arm_positions": stacked.position[:, arm], "arm_velocities": stacked.velocity[:, arm]}

@@ -35,7 +35,8 @@ import numpy as np
 
 from multiros.envs.core import EnvError, MujocoEnvCore
 from multiros.sim.client import RobotStepOutcome, RobotStepSpec, SimulationNodeError
-from multiros.sim.node_stepping import LocalStepRobots, step_robots_local
+from multiros.sim.node_stepping import LocalStepRobots
+from multiros.sim.state_gather import StackedStates
 
 StepResult = tuple[Any, float, bool, bool, dict]
 
@@ -56,8 +57,9 @@ class BatchStepHooks(Protocol):
     def act(self, envs: Sequence[Any], actions: Sequence[Any]) -> bool:
         """Each env's ``_step_act(action)``; False, changing nothing, to let the envs act one by one."""
 
-    def results(self, envs: Sequence[Any]) -> list[StepResult] | None:
-        """Each env's ``_step_result()``; ``None`` to let the envs score themselves."""
+    def results(self, envs: Sequence[Any], stacked: StackedStates | None) -> list[StepResult] | None:
+        """Each env's ``_step_result()``; ``None`` to let the envs score themselves. ``stacked``, when
+        given, holds the states the envs just accepted as rows of one array each (row ``j``: ``envs[j]``)."""
 
 
 def batch_step_hooks(envs: Sequence[Any]) -> BatchStepHooks | None:
@@ -203,14 +205,14 @@ class EnvBatch:
         requests = {k: self._request(members) for k, members in groups.items()}
         if len(requests) == 1:  # one node: no thread
             (k, request), = requests.items()
-            outcomes = dict(zip(groups[k], self._finish(groups[k], self._call(k, request))))
+            outcomes = dict(zip(groups[k], self._finish(groups[k], *self._call(k, request))))
             return [outcomes[i] for i in indices]
         if all(self.connections[k].sim_node is not None for k in requests):
             return self._step_composed(groups, requests, indices)
         pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items()}
         results: dict[int, StepResult] = {}
         for k, future in pending.items():
-            results.update(zip(groups[k], self._finish(groups[k], self._wait(k, future))))
+            results.update(zip(groups[k], self._finish(groups[k], *self._wait(k, future))))
         return [results[i] for i in indices]
 
     def _step_composed(self, groups: Mapping[int, Sequence[int]],
@@ -235,7 +237,7 @@ class EnvBatch:
             for k in [last, *others]:  # the others' physics may still run meanwhile
                 if k in futures:
                     self._wait(k, futures[k])
-                results.update(zip(groups[k], self._finish(groups[k], calls[k].finish())))
+                results.update(zip(groups[k], self._finish(groups[k], calls[k].finish(), calls[k].stacked)))
             done = True
             return [results[i] for i in indices]
         finally:
@@ -262,7 +264,7 @@ class EnvBatch:
         return specs
 
     def _wait(self, k: int, future: concurrent.futures.Future) -> Any:
-        """The result of node ``k``'s call (its outcomes, or nothing for a composed node's physics),
+        """The result of node ``k``'s call (what :meth:`_call` returns, or nothing for a composed node's physics),
         or an error naming the node if its process exits or it does not answer."""
         deadline = time.monotonic() + self.timeout_sec
         process = self.connections[k].process
@@ -280,12 +282,14 @@ class EnvBatch:
                 raise SimulationNodeError(f"simulation node {self._node_label(k)} did not answer StepRobots "
                                           f"within {self.timeout_sec:g} s; is it alive and reachable?")
 
-    def _call(self, k: int, specs: Sequence[RobotStepSpec]) -> list[RobotStepOutcome]:
-        """One ``StepRobots`` call to node ``k``: a composed node's without messages
-        (:func:`~multiros.sim.node_stepping.step_robots_local`), others' over the service."""
+    def _call(self, k: int, specs: Sequence[RobotStepSpec]) -> tuple[list[RobotStepOutcome], StackedStates | None]:
+        """One ``StepRobots`` call to node ``k``: its outcomes and, from a composed node (called
+        without messages, :class:`~multiros.sim.node_stepping.LocalStepRobots`), the robots' states
+        stacked; others' over the service."""
         conn = self.connections[k]
         if conn.sim_node is not None:
-            return step_robots_local(conn.sim_node, specs, self.num_sim_steps)
+            call = LocalStepRobots(conn.sim_node, specs, self.num_sim_steps)
+            return call.run(), call.stacked
         client = conn.client
         request = client.step_robots_request(specs, self.num_sim_steps)
         try:
@@ -293,7 +297,7 @@ class EnvBatch:
         except SimulationNodeError as exc:
             raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
                                       f"{self._exit_note(k)}: {exc}") from exc
-        return client.step_robots_outcomes(request, response)
+        return client.step_robots_outcomes(request, response), None
 
     def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
         if self._executor is None:
@@ -306,16 +310,18 @@ class EnvBatch:
         code = process.poll() if process is not None else None
         return "" if code is None else f" (its process exited with code {code}; close this vector env)"
 
-    def _finish(self, members: Sequence[int], outcomes: Sequence[RobotStepOutcome]) -> list[StepResult]:
+    def _finish(self, members: Sequence[int], outcomes: Sequence[RobotStepOutcome],
+                stacked: StackedStates | None = None) -> list[StepResult]:
         """Hand envs ``members`` their robots' states and run their result hooks (all at once through
-        the task's batched hooks when it has them), then apply the batch's episode limit and faults."""
+        the task's batched hooks when it has them, which may read ``stacked``, the states as rows of
+        one array each), then apply the batch's episode limit and faults."""
         envs = [self.envs[i] for i in members]
         for i, env, outcome in zip(members, envs, outcomes):
             if outcome.state is None:
                 raise EnvError(f"env {i}: robot {outcome.entity!r} is gone from simulation node "
                                f"{self._node_label(self.node_of[i])}: {outcome.message}")
             env._accept_state(outcome.state)
-        results = self.hooks.results(envs) if self.hooks is not None else None
+        results = self.hooks.results(envs, stacked) if self.hooks is not None else None
         if results is None:
             results = [env._step_result() for env in envs]
         return [self._end(i, outcome, result) for i, outcome, result in zip(members, outcomes, results)]

@@ -44,6 +44,10 @@ class JointStateAccess:
     def _select(self, values: np.ndarray, names: Sequence[str] | None) -> np.ndarray:
         if names is None:
             return values.copy()
+        return values[self._joint_indices(names)]
+
+    def _joint_indices(self, names: Sequence[str]) -> np.ndarray:
+        """Where the joints ``names`` sit in the joint arrays (EnvError for an unknown joint)."""
         key = tuple(names)
         idx = self._select_cache.get(key)
         if idx is None:
@@ -52,4 +56,4 @@ class JointStateAccess:
             except KeyError as exc:
                 raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: "
                                f"{self.joint_names}") from None
-        return values[idx]
+        return idx

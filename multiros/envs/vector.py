@@ -138,8 +138,12 @@ class BatchedVectorEnv(VectorEnv):
             self._env_obs[i], per_env[i] = self.batch.reset_env(int(i))
             self._rewards[i] = 0.0
             self._terminations[i] = self._truncations[i] = False
-        for i, info in enumerate(per_env):
-            infos = self._add_info(infos, info or {}, i)
+        merged = None if infos else _merge_plain_infos(per_env, self.num_envs)
+        if merged is not None:
+            infos = merged
+        else:
+            for i, info in enumerate(per_env):
+                infos = self._add_info(infos, info or {}, i)
         self._autoreset_envs = np.logical_or(self._terminations, self._truncations)
         obs = self._batch_observations()
         return obs, np.copy(self._rewards), np.copy(self._terminations), np.copy(self._truncations), infos
@@ -176,6 +180,40 @@ class BatchedVectorEnv(VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         self.batch.close()
+
+
+_PLAIN_TYPES = (bool, int, float)
+
+
+def _merge_plain_infos(per_env: list[dict[str, Any] | None], num_envs: int) -> dict[str, Any] | None:
+    """The vector info of the sub-envs' infos, as ``VectorEnv._add_info`` env by env makes it
+    (same keys in the same order, same arrays and masks), when every value is a Python bool, int or
+    float or a numpy number (a step's usual ``is_success``); ``None`` for any other info.
+
+    ``_add_info`` costs about 1.5 us per env step at N = 8; this builds each key's arrays once.
+    """
+    columns: dict[str, tuple[list[int], list[Any]]] = {}
+    for i, info in enumerate(per_env):
+        if not info:
+            continue
+        for key, value in info.items():
+            kind = type(value)
+            if key == "final_obs" or not (kind in _PLAIN_TYPES or issubclass(kind, np.number)):
+                return None
+            column = columns.get(key)
+            if column is None:
+                column = columns[key] = ([], [])
+            column[0].append(i)
+            column[1].append(value)
+    infos: dict[str, Any] = {}
+    for key, (rows, values) in columns.items():
+        array = np.zeros(num_envs, dtype=type(values[0]))  # the first env's type, as _add_info
+        for row, value in zip(rows, values):
+            array[row] = value
+        mask = np.zeros(num_envs, dtype=np.bool_)
+        mask[rows] = True
+        infos[key], infos[f"_{key}"] = array, mask
+    return infos
 
 
 def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: dict[str, Any] | None = None,

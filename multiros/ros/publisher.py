@@ -36,6 +36,8 @@ class Publisher:
         )
         self._wire: Any = None  # transport handle with .publish(msg) and .close()
         self._destroyed = False
+        self._listened_at: int | None = -1  # graph version of the cached has_subscribers answer
+        self._listened = False
 
     @property
     def topic(self) -> str:
@@ -61,6 +63,15 @@ class Publisher:
         wire = self._wire
         if wire is not None:
             wire.publish(msg)
+
+    def has_subscribers(self) -> bool:
+        """Whether any subscription listens on this topic: ``get_subscription_count() > 0``, asked
+        again only when the graph changed (a lazy publisher's check on every step)."""
+        version = self.node.context.transport.graph_version()
+        if version is None or version != self._listened_at:
+            self._listened = self.get_subscription_count() > 0  # counted after reading the version
+            self._listened_at = version
+        return self._listened
 
     def get_subscription_count(self) -> int:
         """Subscriptions on this topic in the graph (this process and, with Zenoh, the wire)."""

@@ -46,6 +46,7 @@ class LocalRegistry:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
+        self.version = 0  # changes with every entity added or removed (Transport.graph_version)
         self.nodes: list[Node] = []
         self.publishers: dict[str, list[Publisher]] = {}
         self.subscriptions: dict[str, list[Subscription]] = {}
@@ -63,21 +64,25 @@ class LocalRegistry:
     # -- nodes -------------------------------------------------------------------------------
     def add_node(self, node: Node) -> None:
         with self._lock:
+            self.version += 1
             self.nodes.append(node)
 
     def remove_node(self, node: Node) -> None:
         with self._lock:
+            self.version += 1
             if node in self.nodes:
                 self.nodes.remove(node)
 
     # -- topics ------------------------------------------------------------------------------
     def add_publisher(self, pub: Publisher) -> None:
         with self._lock:
+            self.version += 1
             self.publishers.setdefault(pub.topic_name, []).append(pub)
             self._rewire(pub.topic_name)
 
     def remove_publisher(self, pub: Publisher) -> None:
         with self._lock:
+            self.version += 1
             pubs = self.publishers.get(pub.topic_name, [])
             if pub in pubs:
                 pubs.remove(pub)
@@ -85,6 +90,7 @@ class LocalRegistry:
 
     def add_subscription(self, sub: Subscription) -> None:
         with self._lock:
+            self.version += 1
             self.subscriptions.setdefault(sub.topic_name, []).append(sub)
             self._rewire(sub.topic_name)
             late = [
@@ -99,6 +105,7 @@ class LocalRegistry:
 
     def remove_subscription(self, sub: Subscription) -> None:
         with self._lock:
+            self.version += 1
             subs = self.subscriptions.get(sub.topic_name, [])
             if sub in subs:
                 subs.remove(sub)
@@ -125,6 +132,7 @@ class LocalRegistry:
     def add_service(self, srv: Service) -> None:
         key = (srv.srv_name, type_key(srv.srv_type))
         with self._lock:
+            self.version += 1
             servers = self._service_lists.setdefault(srv.srv_name, [])
             servers.append(srv)
             same = [s for s in servers if (s.srv_name, type_key(s.srv_type)) == key]
@@ -136,6 +144,7 @@ class LocalRegistry:
     def remove_service(self, srv: Service) -> None:
         key = (srv.srv_name, type_key(srv.srv_type))
         with self._lock:
+            self.version += 1
             servers = self._service_lists.get(srv.srv_name, [])
             if srv in servers:
                 servers.remove(srv)
@@ -147,10 +156,12 @@ class LocalRegistry:
 
     def add_client(self, cli: Client) -> None:
         with self._lock:
+            self.version += 1
             self.clients.setdefault(cli.srv_name, []).append(cli)
 
     def remove_client(self, cli: Client) -> None:
         with self._lock:
+            self.version += 1
             clients = self.clients.get(cli.srv_name, [])
             if cli in clients:
                 clients.remove(cli)

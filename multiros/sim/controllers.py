@@ -174,6 +174,7 @@ class ForwardCommandController(Controller):
                                   f"position, velocity, effort")
         self.mode = {"position": JointMode.POSITION, "velocity": JointMode.VELOCITY,
                      "effort": JointMode.EFFORT}[self.interface]
+        self._limit_cache: tuple[RobotHardware, np.ndarray, np.ndarray, np.ndarray] | None = None  # see _limits
 
     @property
     def command_interfaces(self) -> tuple[str, ...]:
@@ -196,8 +197,17 @@ class ForwardCommandController(Controller):
     def set_command(self, values: Sequence[float], time: float) -> None:
         arr = _check_vector(values, len(self.idx), f"controller '{self.name}'")
         if self.mode == JointMode.POSITION:
-            arr = np.minimum(np.maximum(arr, self.hw.lower[self.idx]), self.hw.upper[self.idx])  # np.clip, faster
+            lower, upper = self._limits()
+            arr = np.minimum(np.maximum(arr, lower), upper)  # np.clip, faster
         self.hw.command[self.idx] = arr
+
+    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """The position limits of this controller's joints (the hardware's never change in place),
+        gathered again only when its hardware or joints do."""
+        cached = self._limit_cache
+        if cached is None or cached[0] is not self.hw or cached[1] is not self.idx:
+            cached = self._limit_cache = (self.hw, self.idx, self.hw.lower[self.idx], self.hw.upper[self.idx])
+        return cached[2], cached[3]
 
 
 class JointGroupPositionController(ForwardCommandController):

@@ -44,6 +44,7 @@ from multiros.sim.node_spawn import spawn_entity
 from multiros.sim.node_stepping import FrameSetCache, step_robot, step_robots, step_simulation
 from multiros.sim.robot_io import RobotInterfaces
 from multiros.sim.services import SIM_SERVICES
+from multiros.sim.state_gather import StateGather
 from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
 
 SimulationState = get_message("simulation_interfaces/msg/SimulationState")
@@ -154,6 +155,7 @@ class SimulationNode(Node):
         self._state = SimulationState.STATE_PAUSED
         self._robots: dict[str, RobotInterfaces] = {}
         self._frame_sets = FrameSetCache(max(64, 2 * self.max_robots))  # StepRobot(s)' frame sets
+        self.state_gather = StateGather(self.world)  # composed StepRobots calls read all robots at once
         self._renderer: Any = None
         self._viewer: Any = None
         self._clock_pub = self.create_publisher(Clock, "/clock", qos_profile_clock)
@@ -197,7 +199,7 @@ class SimulationNode(Node):
             fn()
 
     def _publish_clock(self) -> None:
-        if self._clock_pub.get_subscription_count() > 0:
+        if self._clock_pub.has_subscribers():
             self._clock_pub.publish(Clock(clock=convert.time_msg(self.world.time)))
 
     def _after_step(self) -> None:

@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -28,6 +27,7 @@ from multiros.sim.errors import (
     UnstableSimulationError,
 )
 from multiros.sim.node_results import FAILED, INCORRECT_STATE, NOT_FOUND, fail, ok
+from multiros.sim.state_gather import StackedStates
 
 if TYPE_CHECKING:
     from multiros.sim.frames import FrameSet
@@ -163,8 +163,7 @@ class StepRobotsRefused(Exception):
         self.message = message
 
 
-@dataclass(frozen=True)
-class RobotStepItem:
+class RobotStepItem(NamedTuple):
     """One robot's part of a ``StepRobots`` call, out of its message (or straight from a composed client)."""
 
     entity: str
@@ -237,19 +236,22 @@ class StepRobotsCall:
         except StepInterruptedError as exc:
             self._interrupted = exc
 
-    def finish(self, read: Callable[[Any, FrameSet | None], T]) -> tuple[list[tuple[int, str, T | None]], float]:
-        """Publish the state topics, ``read`` each robot's state and release the lock.
+    def finish(self, read: Callable[[Sequence[tuple[Any, FrameSet | None]]], Sequence[T | None]]
+               ) -> tuple[list[tuple[int, str, T | None]], float]:
+        """Publish the state topics, ``read`` the robots' states and release the lock.
+
+        ``read`` gets each robot's ``(interfaces, frame set)`` (``(None, None)`` for an unknown
+        robot) and returns their states in order (``None`` for an unknown robot).
 
         Returns:
-            Per robot ``(status, message, read(robot, frame_set))`` (``None`` for an unknown robot),
-            and the simulation time after the steps.
+            Per robot ``(status, message, state)``, and the simulation time after the steps.
         """
         try:
             if self._interrupted is not None:
                 raise StepRobotsRefused(FAILED, str(self._interrupted)) from self._interrupted
             if self.steps > 0:
                 self.node._after_step()
-            states = [None if robot is None else read(robot, frame_set) for robot, frame_set in self._prepared]
+            states = read(self._prepared)
             return list(zip(self.status, self.message, states)), self.node.world.time
         finally:
             self.close()
@@ -260,7 +262,8 @@ class StepRobotsCall:
             self._locked = False
             self.node.lock.release()
 
-    def run(self, read: Callable[[Any, FrameSet | None], T]) -> tuple[list[tuple[int, str, T | None]], float]:
+    def run(self, read: Callable[[Sequence[tuple[Any, FrameSet | None]]], Sequence[T | None]]
+            ) -> tuple[list[tuple[int, str, T | None]], float]:
         """The three phases in a row on this thread; returns what :meth:`finish` returns."""
         try:
             self.prepare()
@@ -281,12 +284,15 @@ def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
     items = [RobotStepItem(item.entity, bool(item.reset), [(c.controller, c.command) for c in item.commands],
                            tuple(item.frames)) for item in request.robots]
 
-    def read(robot: Any, frame_set: FrameSet | None) -> Any:
+    def read_one(robot: Any, frame_set: FrameSet | None) -> Any:
         out = RobotStepResult()
         robot.fill_joint_state(out.joint_state)
         if frame_set is not None:
             out.frame_poses = [convert.pose_from_row(row) for row in frame_set.poses()]
         return out
+
+    def read(prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[Any]:
+        return [None if robot is None else read_one(robot, frame_set) for robot, frame_set in prepared]
 
     try:
         parts, sim_time = StepRobotsCall(node, items, int(request.steps)).run(read)
@@ -338,6 +344,8 @@ class LocalStepRobots:
 
     A batched vector env's step on a composed node spends about a third less time outside physics
     this way (no request, result, joint state and pose messages to build and read back per robot).
+    The robots' states are read all at once where they are alike (:class:`~multiros.sim.state_gather.StateGather`): each
+    outcome's arrays are then rows of :attr:`stacked`, which the task's batched hooks read whole.
 
     Raises:
         SimulationServiceError: the call as a whole was refused (as the service would answer).
@@ -345,6 +353,7 @@ class LocalStepRobots:
 
     def __init__(self, node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> None:
         self.node = node
+        self.stacked: StackedStates | None = None  # the robots' states stacked, after finish (when alike)
         self.items = [RobotStepItem(spec.entity, bool(spec.reset), list((spec.commands or {}).items()),
                                     tuple(spec.frames)) for spec in robots]
         with self._refusals():
@@ -376,7 +385,23 @@ class LocalStepRobots:
     def close(self) -> None:
         self.call.close()
 
-    def _read(self, robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
+    def _read(self, prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[tuple[Any, ...] | None]:
+        """Every robot's ``RobotState`` fields but the time: rows of one :class:`StackedStates`
+        (kept as :attr:`stacked`) when all the robots are known and alike, else robot by robot."""
+        world = self.node.world
+        self.stacked = None
+        if prepared and all(robot is not None for robot, _ in prepared):
+            stacked = self.node.state_gather.read([robot.name for robot, _ in prepared],
+                                                  [frame_set for _, frame_set in prepared])
+            if stacked is not None:
+                self.stacked = stacked
+                return [(world.joint_names(robot.name), *row)
+                        for (robot, _), row in zip(prepared, zip(stacked.position, stacked.velocity, stacked.effort,
+                                                                 stacked.frame_positions,
+                                                                 stacked.frame_orientations))]
+        return [None if robot is None else self._read_one(robot, frame_set) for robot, frame_set in prepared]
+
+    def _read_one(self, robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
         world = self.node.world
         poses = frame_set.pose_arrays() if frame_set is not None else (np.empty((0, 3)), np.empty((0, 4)))
         return (world.joint_names(robot.name), *world.joint_state_arrays(robot.name), *poses)

@@ -68,9 +68,9 @@ class RobotInterfaces:
     def publish_state(self) -> None:
         """Publish ``joint_states`` and ``/tf`` if anyone listens (caller holds the lock)."""
         self._actions.on_step()
-        if self._joint_pub.get_subscription_count() > 0:
+        if self._joint_pub.has_subscribers():
             self._joint_pub.publish(self.fill_joint_state(JointState()))
-        if self._frames is not None and self._tf_pub.get_subscription_count() > 0:
+        if self._frames is not None and self._tf_pub.has_subscribers():
             stamp = convert.time_msg(self.world.time)
             transforms = []
             for child, row in zip(self._frame_names, self._frames.poses()):

@@ -110,11 +110,13 @@ class World(WorldStepping):
         self._data = mujoco.MjData(self._model)
         self._varying: tuple[EntityRecord, ...] = ()
         self._closed = False
+        self.binding = 0  # counts the id bindings (one per compile): ids cached against it stay valid
         self._bind()
 
     # ------------------------------------------------------------------ binding (after each compile)
     def _bind(self) -> None:
         m = self._model
+        self.binding += 1
         for ent in self._entities.values():
             self._bind_entity(ent)
         self._varying = tuple(e for e in self._entities.values() if e.cm is not None and e.cm.time_varying)

@@ -57,6 +57,21 @@ def test_pubsub_delivers_same_object_without_copy(ctx: ros.Context) -> None:
         pub.publish("not a Msg")
 
 
+def test_has_subscribers_follows_the_graph(ctx: ros.Context) -> None:
+    """The lazy publishers' check answers from a cache only while the graph stays as it was."""
+    talker, listener = ros.Node("talker", context=ctx), ros.Node("listener", context=ctx)
+    pub = talker.create_publisher(Msg, "/state", 10)
+    assert not pub.has_subscribers() and not pub.has_subscribers()
+    sub = listener.create_subscription(Msg, "state", lambda m: None, 10)
+    assert pub.has_subscribers() and pub.has_subscribers()
+    other = listener.create_subscription(Msg, "other", lambda m: None, 10)
+    assert pub.has_subscribers()  # a change elsewhere in the graph: counted again, same answer
+    listener.destroy_subscription(sub)
+    assert not pub.has_subscribers()
+    listener.destroy_subscription(other)
+    assert not pub.has_subscribers() and pub.get_subscription_count() == 0
+
+
 def test_keep_last_drops_oldest(ctx: ros.Context) -> None:
     node = ros.Node("n", context=ctx)
     got: list[int] = []

@@ -192,7 +192,9 @@ def test_foreign_rmw_zenoh_peer_sees_and_uses_our_node(zenoh_ctx: ros.Context, r
         sub_tok = peer.liveliness().declare_token(
             f"@ros2_lv/0/{peer.zid()}/0/1/MS/%/%/listener/%robot1%chatter/std_msgs::msg::dds_::String_/"
             f"{STRING_HASH}/::,10:,:,:,,")
+        assert not pub.has_subscribers() or pub.get_subscription_count() == 1  # no token seen yet, or seen now
         assert zenoh_ctx.wait_for(lambda: pub.get_subscription_count() == 1, 5.0)
+        assert pub.has_subscribers()  # the token arrival moved the graph version
         pub.publish(String(data="hello ros"))
         assert _wait(lambda: samples)
         sample = samples[0]

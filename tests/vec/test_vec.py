@@ -215,13 +215,13 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
     """step_robots_local (what a batched vector env uses on a composed node) returns what the
     StepRobots service returns, bit for bit: two identical nodes, one called each way; also the
     per-robot failures and the refusals of a whole call."""
-    from multiros.sim.node_stepping import step_robots_local
+    from multiros.sim.node_stepping import LocalStepRobots, step_robots_local
 
     ctx = Context(transport="inproc").init()
     try:
         nodes, clients = [], []
         for name in ("sim_service", "sim_local"):
-            nodes.append(compose(name, context=ctx, max_robots=2))
+            nodes.append(compose(name, context=ctx, max_robots=3))
             clients.append(SimulationClient(Node(f"t_{name}", context=ctx), f"/{name}"))
             clients[-1].spawn_entity("a", uri=RX200, namespace=f"/{name}/a")
             clients[-1].spawn_entity("b", uri=RX200, namespace=f"/{name}/b", position=(2.0, 0.0, 0.0))
@@ -234,13 +234,30 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
             ([RobotStepSpec("nobody"), RobotStepSpec("a", frames=["no_such_link"])], 0),
             ([RobotStepSpec("a", reset=True, frames=[ee]), RobotStepSpec("b", frames=[ee])], 3),
         ]
+        two_frames = [ee, "rx200/base_link"]
+        alike = [
+            ([RobotStepSpec("a", {"arm_position_controller": [0.2, 0.1, 0, 0, 0.3]}, two_frames),
+              RobotStepSpec("b", {"arm_position_controller": [-0.2, 0.3, 0.1, 0, 0]}, two_frames)], 5),
+            ([RobotStepSpec("a"), RobotStepSpec("b")], 2),  # no frames
+        ]
         for specs, steps in calls:
             by_service = clients[0].step_robots(specs, steps=steps)
             local = step_robots_local(nodes[1], specs, steps)
             _outcomes_equal(by_service, local)
         assert [o.status for o in local] == [0, 0] and local[0].state.sim_time > 0
+        # Alike robots are read in one gather per array (StateGather), also after a spawn moved
+        # every id (its cached indices must follow), and robot by robot otherwise.
+        for spawn in (False, True):
+            if spawn:
+                for name, client in zip(("sim_service", "sim_local"), clients):
+                    client.spawn_entity("c", uri=RX200, namespace=f"/{name}/c", position=(-2.0, 0.0, 0.0))
+            for specs, steps in [*alike, calls[0], calls[1]]:
+                by_service = clients[0].step_robots(specs, steps=steps)
+                call = LocalStepRobots(nodes[1], specs, steps)
+                _outcomes_equal(by_service, call.run())
+                assert (call.stacked is not None) == (specs is not calls[1][0])  # calls[1]: frames differ
         for specs, match in (([RobotStepSpec("a"), RobotStepSpec("a")], "more than once"),
-                             ([RobotStepSpec("a"), RobotStepSpec("b"), RobotStepSpec("c")], "max_robots=2")):
+                             ([RobotStepSpec(n) for n in "abcd"], "max_robots=3")):
             with pytest.raises(SimulationServiceError, match=match):
                 clients[0].step_robots(specs, steps=1)
             with pytest.raises(SimulationServiceError, match=match) as refused:

@@ -112,3 +112,35 @@ def test_batched_hooks_step_env_by_env_where_they_do_not_apply() -> None:
     finally:
         fast.close()
         slow.close()
+
+
+def test_envs_reading_their_state_their_own_way_are_served_their_own_parts() -> None:
+    """The joint and frame parts are sliced from the node's stacked states only for envs that read
+    their state the stock way: an env instance (or a class) with its own ``ee_position`` gets the
+    parts its own ``_obs_part`` gives, and the results stay bit for bit equal."""
+    class OwnVelocities(RX200ReacherGoalEnv):
+        def arm_velocities(self):
+            return 0.5 * super().arm_velocities()
+
+    assert RX200ReacherGoalEnv.batch_step_hooks().reads_stacked
+    assert not OwnVelocities.batch_step_hooks().reads_stacked
+    fast, slow = _pair("RX200ReacherGoalSim-v0", 3)
+    try:
+        for vec in (fast, slow):
+            vec.reset(seed=9)
+            env = vec.envs[1]
+            env.ee_position = lambda env=env: env.frame_position(env.EE_LINK) + 0.01
+        rng = np.random.default_rng(4)
+        for _ in range(5):
+            actions = rng.uniform(-1, 1, (3, 5)).astype(np.float32)
+            (of, rf, *_), (os_, rs, *_) = fast.step(actions), slow.step(actions)
+            for key in of:
+                np.testing.assert_array_equal(of[key], os_[key], err_msg=key)
+            np.testing.assert_array_equal(rf, rs)
+        env = fast.envs[1]
+        np.testing.assert_allclose(of["achieved_goal"][1], np.clip(
+            env.frame_position(env.EE_LINK) + 0.01, env.observation_space["achieved_goal"].low,
+            env.observation_space["achieved_goal"].high).astype(np.float32))
+    finally:
+        fast.close()
+        slow.close()

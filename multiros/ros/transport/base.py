@@ -73,6 +73,11 @@ class Transport(ABC):
     def add_client(self, cli: Client) -> ClientHandle | None:
         return None
 
+    def graph_version(self) -> int | None:
+        """A number that changes whenever :meth:`count` may answer differently; ``None`` when the
+        transport keeps none (callers then ask :meth:`count` every time)."""
+        return None
+
     def count(self, kind: str, name: str) -> int:
         """How many graph entities of ``kind`` are called ``name``.
 

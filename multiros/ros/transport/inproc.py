@@ -28,3 +28,6 @@ class InprocTransport(Transport):
 
     def count(self, kind: str, name: str) -> int:
         return self.context.registry.count(kind, name)
+
+    def graph_version(self) -> int | None:
+        return self.context.registry.version

@@ -70,6 +70,7 @@ class ZenohTransport(Transport):
         self._lock = threading.Lock()
         self._graph: dict[str, Endpoint] = {}
         self._counts: dict[tuple[str, str], int] = {}  # (kind, name) -> entities in _graph
+        self._graph_version = 0  # changes with _counts (graph_version)
         self._graph_lock = threading.Lock()
         self._servers: dict[str, int] = {}
         self._remote_subs: dict[str, int] = {}  # ROS subscriptions of other sessions, per topic
@@ -190,6 +191,7 @@ class ZenohTransport(Transport):
                     return
                 delta = -1
             self._counts[(ep.kind, ep.name)] = self._counts.get((ep.kind, ep.name), 0) + delta
+            self._graph_version += 1
             if ep.kind == SERVICE:
                 self._servers[ep.name] = self._servers.get(ep.name, 0) + delta
             elif ep.kind == SUBSCRIPTION and ep.origin != self.zid:
@@ -203,6 +205,9 @@ class ZenohTransport(Transport):
     def count(self, kind: str, name: str) -> int:
         with self._graph_lock:
             return self._counts.get((kind, name), 0)
+
+    def graph_version(self) -> int | None:
+        return self._graph_version
 
     def has_remote_subscriber(self, topic: str) -> bool:
         """Whether a ROS subscription of another session is known on ``topic`` (from its token)."""
