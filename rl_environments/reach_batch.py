@@ -19,6 +19,7 @@ action, whose error the env's own hook raises), the hooks decline and the envs s
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Sequence
 from typing import Any
 
@@ -74,6 +75,8 @@ _STATE_READERS = {
 }
 _STATE_NAMES = frozenset({*_STATE_READERS, "ARM_JOINTS", "EE_LINK"})
 _RESULT_OR_STATE_NAMES = _RESULT_NAMES | _STATE_NAMES
+_ACT_OR_STATE_NAMES = _ACT_NAMES | _STATE_NAMES
+_STATE_OF = operator.attrgetter("_state")
 # Hooks looked up by name (MultiROS aliases included): each must resolve to the stock one.
 _HOOKS = {
     ("_set_action", "_send_action"): "_set_action",
@@ -120,9 +123,15 @@ class GoalReachBatchHooks:
         held, self._held = self._held, []
         e0 = envs[0]
         cls, delta = self.cls, e0.delta_action
+        stock_reads = self.reads_stacked
         for e in envs:
-            if type(e) is not cls or e.ee_action_type or e.delta_action != delta or not _ACT_NAMES.isdisjoint(vars(e)):
+            if type(e) is not cls or e.ee_action_type or e.delta_action != delta:
                 return False
+            own = vars(e).keys()
+            if not own.isdisjoint(_ACT_OR_STATE_NAMES):
+                if not own.isdisjoint(_ACT_NAMES):
+                    return False
+                stock_reads = False  # it reads its state its own way: its arm_positions() is asked
         shape = (len(envs), *e0.action_space.shape)
         try:
             raw = np.asarray(actions, dtype=np.float64)
@@ -134,7 +143,7 @@ class GoalReachBatchHooks:
             return False
         action = np.minimum(np.maximum(raw, low), high)
         if delta:
-            current = self._held_positions(envs, held)
+            current = self._held_positions(envs, held) if stock_reads else None
             if current is None:
                 current = _stack([e.arm_positions() for e in envs])
             coeff = np.array([e.delta_coeff for e in envs])[:, None]
@@ -159,21 +168,24 @@ class GoalReachBatchHooks:
     def _held_positions(envs: Sequence[Any], held: Sequence[tuple[list[Any], list[Any], StackedStates]]
                         ) -> np.ndarray | None:
         """Each env's ``arm_positions()``, sliced from the stacked states :meth:`results` read last
-        step (one per node) if the envs still hold those states (none was reset since) and read them
-        the stock way; else ``None``."""
+        step (one per node) if the envs still hold those states (none was reset since); else
+        ``None``. The caller has checked that the envs read their states the stock way."""
         if not held or sum(len(group) for group, _, _ in held) != len(envs):
             return None
         e0 = envs[0]
         arm = e0._joint_indices(e0.ARM_JOINTS)
-        first = {id(e): j for j, e in enumerate(envs)}
         current = np.empty((len(envs), len(arm)))
+        index = {id(group[0]): None for group, _, _ in held}
+        for j, e in enumerate(envs):
+            if id(e) in index:
+                index[id(e)] = j
         for group, states, stacked in held:
-            j0 = first.get(id(group[0]), -1)
-            if j0 < 0 or j0 + len(group) > len(envs):
+            j0 = index[id(group[0])]
+            if j0 is None:
                 return None
-            for j, (e, state) in enumerate(zip(group, states), j0):
-                if envs[j] is not e or e._state is not state or not _STATE_NAMES.isdisjoint(vars(e)):
-                    return None
+            part = envs[j0:j0 + len(group)]
+            if part != group or not all(map(operator.is_, map(_STATE_OF, part), states)):
+                return None
             current[j0:j0 + len(group)] = stacked.position[:, arm]
         return current
 
@@ -191,8 +203,9 @@ class GoalReachBatchHooks:
         for e in envs:
             if e.reward_type != reward_type:
                 return None
-            if not _RESULT_OR_STATE_NAMES.isdisjoint(vars(e)):
-                if not _RESULT_NAMES.isdisjoint(vars(e)):
+            own = vars(e).keys()
+            if not own.isdisjoint(_RESULT_OR_STATE_NAMES):
+                if not own.isdisjoint(_RESULT_NAMES):
                     return None
                 alike = False  # the env reads its state its own way: its parts come from _obs_part
             elif alike and (e.robot_state.names != names or e.frames != frames):

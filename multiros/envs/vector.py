@@ -120,8 +120,8 @@ class BatchedVectorEnv(VectorEnv):
             raise RuntimeError(f"envs {ended} ended their episodes and autoreset is disabled: reset them with "
                                "reset(options={'reset_mask': mask}) before stepping")
         next_step = mode == AutoresetMode.NEXT_STEP
-        resetting = self._autoreset_envs.copy() if next_step else np.zeros_like(self._autoreset_envs)
-        stepping = [i for i in range(self.num_envs) if not resetting[i]]
+        resetting = self._autoreset_envs.tolist() if next_step else [False] * self.num_envs
+        stepping = [i for i, reset in enumerate(resetting) if not reset]
         # Step first, reset after: a reset robot's state is put back whole, so the physics its
         # robot went through in this request does not matter, and it starts its episode unstepped.
         results = self.batch.step_envs(stepping, [acts[i] for i in stepping]) if stepping else []
@@ -134,8 +134,8 @@ class BatchedVectorEnv(VectorEnv):
             if mode == AutoresetMode.SAME_STEP and (terminated or truncated):
                 infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
                 self._env_obs[i], per_env[i] = self.batch.reset_env(i)
-        for i in np.flatnonzero(resetting):
-            self._env_obs[i], per_env[i] = self.batch.reset_env(int(i))
+        for i in (i for i, reset in enumerate(resetting) if reset):
+            self._env_obs[i], per_env[i] = self.batch.reset_env(i)
             self._rewards[i] = 0.0
             self._terminations[i] = self._truncations[i] = False
         merged = None if infos else _merge_plain_infos(per_env, self.num_envs)
@@ -207,11 +207,14 @@ def _merge_plain_infos(per_env: list[dict[str, Any] | None], num_envs: int) -> d
             column[1].append(value)
     infos: dict[str, Any] = {}
     for key, (rows, values) in columns.items():
-        array = np.zeros(num_envs, dtype=type(values[0]))  # the first env's type, as _add_info
-        for row, value in zip(rows, values):
-            array[row] = value
-        mask = np.zeros(num_envs, dtype=np.bool_)
-        mask[rows] = True
+        kind = type(values[0])  # the array's type is the first env's, as _add_info makes it
+        if len(rows) == num_envs and all(type(value) is kind for value in values):
+            array, mask = np.array(values, dtype=kind), np.ones(num_envs, dtype=np.bool_)
+        else:  # value by value, converted into the first one's type as _add_info converts them
+            array, mask = np.zeros(num_envs, dtype=kind), np.zeros(num_envs, dtype=np.bool_)
+            for row, value in zip(rows, values):
+                array[row] = value
+            mask[rows] = True
         infos[key], infos[f"_{key}"] = array, mask
     return infos
 

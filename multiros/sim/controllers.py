@@ -14,6 +14,7 @@ strings, lifecycle states and claiming rules follow ros2_control.
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -98,9 +99,17 @@ def _check_vector(values: Sequence[float], n: int, what: str) -> np.ndarray:
         raise CommandError(f"{what}: command is not a vector of numbers ({exc})") from exc
     if arr.shape[0] != n:
         raise CommandError(f"{what}: command has {arr.shape[0]} values, expected {n} (one per joint)")
-    if not np.isfinite(arr).all():
+    if not _all_finite(arr):
         raise CommandError(f"{what}: command contains NaN or infinite values: {arr.tolist()}")
     return arr
+
+
+def _all_finite(arr: np.ndarray) -> bool:
+    """``np.isfinite(arr).all()`` of a 1-D float array; for the few values of one robot's command
+    (every robot, every step) through Python floats, in a fifth of numpy's time."""
+    if arr.shape[0] > 64:
+        return bool(np.isfinite(arr).all())
+    return all(map(math.isfinite, arr.tolist()))
 
 
 # ------------------------------------------------------------------------------------------ controllers

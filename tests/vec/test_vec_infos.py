@@ -30,6 +30,8 @@ def _gymnasium(per_env: list[dict[str, Any] | None]) -> dict[str, Any]:
     [{"a": 1}, {"a": 2.5}, {"a": True}],  # the first env's type makes the array's dtype
     [{"a": 1.5}, {"a": 2}, {"b": np.float32(0.25)}],
     [{"n": np.int64(3), "x": 0.5}, {"x": -1.0, "n": np.int64(-4)}, {}],
+    [{"d": np.float32(0.5)}, {"d": np.float32(-2.0)}, {"d": np.float32(1e-8)}],
+    [{"d": 7}, {"d": -3}, {"d": 2**40}],
 ])
 def test_plain_infos_merge_as_gymnasium_does(per_env: list[dict[str, Any] | None]) -> None:
     merged = _merge_plain_infos(per_env, len(per_env))
@@ -51,3 +53,11 @@ def test_plain_infos_merge_as_gymnasium_does(per_env: list[dict[str, Any] | None
 ])
 def test_other_infos_are_left_to_gymnasium(per_env: list[dict[str, Any] | None]) -> None:
     assert _merge_plain_infos(per_env, len(per_env)) is None
+
+
+def test_a_value_its_array_cannot_hold_fails_as_in_gymnasium() -> None:
+    per_env = [{"steps": 1}, {"steps": float("nan")}]
+    with pytest.raises(ValueError, match="NaN"):
+        _gymnasium(per_env)
+    with pytest.raises(ValueError, match="NaN"):
+        _merge_plain_infos(per_env, 2)
