@@ -17,7 +17,7 @@ core), replayed from states of a random-action rollout, in env steps/s: ``N * ca
 ``num_sim_steps`` physics steps per call. The batched composed rate is printed as a fraction of it.
 
     python benchmarks/bench_vec.py [--seconds 2] [--sizes 1,2,4,8,16] [--env RX200ReacherGoalSim-v0]
-                                   [--num-sim-steps 10]
+                                   [--num-sim-steps 10] [--goal-rounds 5]
 
 Like for like with FetchReach-v4, whose env step is 40 ms of simulated time (20 x 2 ms), the uniros
 envs run ``--num-sim-steps 10`` (10 x 4 ms) by default. The RX200 reach IDs' own default is 100 ms
@@ -25,7 +25,10 @@ envs run ``--num-sim-steps 10`` (10 x 4 ms) by default. The RX200 reach IDs' own
 ``--num-sim-steps 0`` measures at each env's default.
 
 Goals (issue 13): N = 8 batched composed >= 5x one FetchReach-v4 and >= 2x SubprocVecEnv over 8
-separate uniros envs.
+separate uniros envs. The table runs its cases one after another, so on a machine whose load
+changes (a shared one) its ratios drift with the load; the 5x goal is then measured again
+interleaved (``--goal-rounds``): one FetchReach-v4 and the batched env on one and on two composed
+nodes, all open at once and stepped in turn, with the ratios taken within each round.
 """
 
 from __future__ import annotations
@@ -148,6 +151,57 @@ def fetch_single(seconds: float) -> float:
         env.close()
 
 
+class _Stepper:
+    """An env kept open across rounds: ``rate(seconds)`` steps it with random actions (autoreset)."""
+
+    def __init__(self, vec, single: bool = False) -> None:
+        self.vec, self.single = vec, single
+        vec.reset(seed=0)
+        rng = np.random.default_rng(0)
+        space = vec.action_space
+        self.actions = [rng.uniform(space.low, space.high).astype(space.dtype) for _ in range(64)]
+        self.n = 1 if single else vec.num_envs
+
+    def step(self, action: np.ndarray) -> None:
+        if self.single:
+            _, _, term, trunc, _ = self.vec.step(action)
+            if term or trunc:
+                self.vec.reset()
+        else:
+            self.vec.step(action)
+
+    def rate(self, seconds: float) -> float:
+        return _rate(self.step, iter(self.actions * 2).__next__, self.n, seconds)
+
+
+def interleaved_goal(env_id: str, rounds: int, seconds: float, **knobs) -> None:
+    """The 5x goal measured side by side: one FetchReach-v4 and the batched env at N = 8 (one and
+    two composed nodes), all open at once and stepped in turn, round after round, so a change in
+    the machine's load hits each about equally; ratios are taken within a round."""
+    contenders = {
+        "1 node": _Stepper(uniros.make_vec(env_id, 8, vectorization_mode="batched", **knobs)),
+        "2 nodes": _Stepper(uniros.make_vec(env_id, 8, vectorization_mode="batched",
+                                            vector_kwargs={"num_nodes": 2}, **knobs)),
+    }
+    fetch = _Stepper(make_fetch_reach(), single=True)
+    ratios: dict[str, list[float]] = {name: [] for name in contenders}
+    try:
+        for _ in range(rounds):
+            anchor = fetch.rate(seconds / 2)
+            rates = {name: c.rate(seconds) for name, c in contenders.items()}
+            anchor = (anchor + fetch.rate(seconds / 2)) / 2  # before and after the contenders
+            for name, rate in rates.items():
+                ratios[name].append(rate / anchor)
+    finally:
+        for c in contenders.values():
+            c.vec.close()
+        fetch.vec.close()
+    print(f"\nN=8 batched composed vs one FetchReach-v4, interleaved over {rounds} rounds (ratio within each round):")
+    for name, values in ratios.items():
+        print(f"  {name}: median {np.median(values):.2f}x (rounds: {', '.join(f'{v:.2f}' for v in values)}; "
+              "goal >= 5x)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=2.0)
@@ -155,6 +209,8 @@ def main() -> None:
     parser.add_argument("--env", default="RX200ReacherGoalSim-v0")
     parser.add_argument("--num-sim-steps", type=int, default=10,
                         help="physics steps per env step (10: 40 ms, FetchReach-v4's; 0: the env's default)")
+    parser.add_argument("--goal-rounds", type=int, default=5,
+                        help="rounds of the interleaved 5x-goal comparison at N = 8 (0: skip it)")
     args = parser.parse_args()
     knobs = {"num_sim_steps": args.num_sim_steps} if args.num_sim_steps > 0 else {}
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -198,6 +254,8 @@ def main() -> None:
               f"{physics:.0f} us, leaving {budget - physics:.0f} us for the node, task, client and vector env, "
               f"which take {total - physics:.0f} us now ({total:.0f} us in all); on 2 nodes "
               f"{1e6 / r['composed 2 nodes']:.0f} us in all")
+    if args.goal_rounds > 0:
+        interleaved_goal(args.env, args.goal_rounds, args.seconds, **knobs)
 
 
 if __name__ == "__main__":
