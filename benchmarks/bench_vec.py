@@ -60,11 +60,32 @@ def _rate(step: Callable[[np.ndarray], object], sample: Callable[[], np.ndarray]
     return n * calls / (time.perf_counter() - start)
 
 
+class _Stepper:
+    """An env (or a vector env) kept open: ``rate(seconds)`` steps it with random actions, a single
+    env reset as its episodes end."""
+
+    def __init__(self, env, single: bool = False) -> None:
+        self.vec, self.single = env, single
+        env.reset(seed=0)
+        rng = np.random.default_rng(0)
+        space = env.action_space
+        self.sample = lambda: rng.uniform(space.low, space.high).astype(space.dtype)
+        self.n = 1 if single else env.num_envs
+
+    def step(self, action: np.ndarray) -> None:
+        if self.single:
+            _, _, term, trunc, _ = self.vec.step(action)
+            if term or trunc:
+                self.vec.reset()
+        else:
+            self.vec.step(action)
+
+    def rate(self, seconds: float) -> float:
+        return _rate(self.step, self.sample, self.n, seconds)
+
+
 def gym_vec_rate(vec, seconds: float) -> float:
-    vec.reset(seed=0)
-    rng = np.random.default_rng(0)
-    space = vec.action_space
-    return _rate(vec.step, lambda: rng.uniform(space.low, space.high).astype(space.dtype), vec.num_envs, seconds)
+    return _Stepper(vec).rate(seconds)
 
 
 def physics_limit(vec, seconds: float) -> float:
@@ -137,41 +158,9 @@ def fetch_async(n: int, seconds: float) -> float:
 def fetch_single(seconds: float) -> float:
     env = make_fetch_reach()
     try:
-        env.reset(seed=0)
-        rng = np.random.default_rng(0)
-        space = env.action_space
-
-        def step(a):
-            _, _, term, trunc, _ = env.step(a)
-            if term or trunc:
-                env.reset()
-
-        return _rate(step, lambda: rng.uniform(space.low, space.high).astype(space.dtype), 1, seconds)
+        return _Stepper(env, single=True).rate(seconds)
     finally:
         env.close()
-
-
-class _Stepper:
-    """An env kept open across rounds: ``rate(seconds)`` steps it with random actions (autoreset)."""
-
-    def __init__(self, vec, single: bool = False) -> None:
-        self.vec, self.single = vec, single
-        vec.reset(seed=0)
-        rng = np.random.default_rng(0)
-        space = vec.action_space
-        self.actions = [rng.uniform(space.low, space.high).astype(space.dtype) for _ in range(64)]
-        self.n = 1 if single else vec.num_envs
-
-    def step(self, action: np.ndarray) -> None:
-        if self.single:
-            _, _, term, trunc, _ = self.vec.step(action)
-            if term or trunc:
-                self.vec.reset()
-        else:
-            self.vec.step(action)
-
-    def rate(self, seconds: float) -> float:
-        return _rate(self.step, iter(self.actions * 2).__next__, self.n, seconds)
 
 
 def interleaved_goal(env_id: str, rounds: int, seconds: float, **knobs) -> None:

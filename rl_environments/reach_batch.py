@@ -15,6 +15,12 @@ hooks read (action bounds, joint limits, delta coefficient, tolerance, reward ty
 bounds, goal) is read from each env at each step, so ``set_attr`` on one env is honoured. When a
 batch cannot be taken whole (end-effector actions, which run IK per env; mixed settings; a bad
 action, whose error the env's own hook raises), the hooks decline and the envs step one by one.
+
+From a composed node the envs' states arrive as rows of stacked arrays
+(:class:`~multiros.sim.state_gather.StackedStates`): the joint and end-effector parts of the
+observations, and the next step's delta targets while no env was reset in between, are sliced from
+them whole. Envs that read their state their own way (``_STATE_READERS`` replaced) are asked
+through their own methods.
 """
 
 from __future__ import annotations

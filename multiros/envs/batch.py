@@ -237,7 +237,8 @@ class EnvBatch:
             for k in [last, *others]:  # the others' physics may still run meanwhile
                 if k in futures:
                     self._wait(k, futures[k])
-                results.update(zip(groups[k], self._finish(groups[k], calls[k].finish(), calls[k].stacked)))
+                outcomes = calls[k].finish()  # sets calls[k].stacked
+                results.update(zip(groups[k], self._finish(groups[k], outcomes, calls[k].stacked)))
             done = True
             return [results[i] for i in indices]
         finally:

@@ -146,12 +146,18 @@ def step_robot(node: SimulationNode, request: Any, response: Any) -> Any:
                 fail(res, FAILED, str(exc))
                 return response
             node._after_step()
-        robot.fill_joint_state(response.joint_state)
+        _fill_robot_state(response, robot, frame_set)
         response.sim_time = convert.time_msg(world.time)
-        if frame_set is not None:
-            response.frame_poses = [convert.pose_from_row(row) for row in frame_set.poses()]
     ok(res)
     return response
+
+
+def _fill_robot_state(out: Any, robot: Any, frame_set: FrameSet | None) -> Any:
+    """Write a robot's joint state and frame poses into a StepRobot response or a ``RobotStepResult``."""
+    robot.fill_joint_state(out.joint_state)
+    if frame_set is not None:
+        out.frame_poses = [convert.pose_from_row(row) for row in frame_set.poses()]
+    return out
 
 
 class StepRobotsRefused(Exception):
@@ -284,15 +290,9 @@ def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
     items = [RobotStepItem(item.entity, bool(item.reset), [(c.controller, c.command) for c in item.commands],
                            tuple(item.frames)) for item in request.robots]
 
-    def read_one(robot: Any, frame_set: FrameSet | None) -> Any:
-        out = RobotStepResult()
-        robot.fill_joint_state(out.joint_state)
-        if frame_set is not None:
-            out.frame_poses = [convert.pose_from_row(row) for row in frame_set.poses()]
-        return out
-
     def read(prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[Any]:
-        return [None if robot is None else read_one(robot, frame_set) for robot, frame_set in prepared]
+        return [None if robot is None else _fill_robot_state(RobotStepResult(), robot, frame_set)
+                for robot, frame_set in prepared]
 
     try:
         parts, sim_time = StepRobotsCall(node, items, int(request.steps)).run(read)

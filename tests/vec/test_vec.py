@@ -212,9 +212,9 @@ def _outcomes_equal(a, b) -> None:
 
 
 def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
-    """step_robots_local (what a batched vector env uses on a composed node) returns what the
-    StepRobots service returns, bit for bit: two identical nodes, one called each way; also the
-    per-robot failures and the refusals of a whole call."""
+    """step_robots_local (LocalStepRobots.run, what a batched vector env calls on a composed node)
+    returns what the StepRobots service returns, bit for bit: two identical nodes, one called each
+    way; also the per-robot failures and the refusals of a whole call."""
     from multiros.sim.node_stepping import LocalStepRobots, step_robots_local
 
     ctx = Context(transport="inproc").init()
