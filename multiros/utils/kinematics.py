@@ -272,6 +272,9 @@ class KinematicChain:
                 k = _skew(j.axis)
                 self._p1[i, :3, :3] = rot.dot(k)
                 self._p2[i, :3, :3] = rot.dot(k).dot(k)
+        # Each joint's three matrices side by side, transposed: a batch of points (rows) goes
+        # through all three in one product (see fk_position).
+        self._point_maps = np.concatenate([self._p0, self._p1, self._p2], axis=1).transpose(0, 2, 1).copy()
         # Joint axis and origin in the frame of the previous joint's motion (for the Jacobian).
         self._pre_axis = np.einsum("nij,nj->ni", pre_arr[:, :3, :3], axes)
         self._pre_origin = pre_arr[:, :3, 3].copy()
@@ -406,8 +409,23 @@ class KinematicChain:
         return tf[..., :3, 3].copy(), quat_from_matrix(tf[..., :3, :3])
 
     def fk_position(self, q: np.ndarray) -> np.ndarray:
-        """Tip position(s) only, shape ``(..., 3)``."""
-        return self.fk_matrix(q)[..., :3, 3].copy()
+        """Tip position(s) only, shape ``(..., 3)``.
+
+        A batch carries the tip point back to the base, one joint at a time (``P0 x + u P1 x + v P2 x``,
+        see ``_local``), instead of multiplying 4x4 transforms: a quarter of the work, and a third of
+        :meth:`fk_matrix`'s time for a goal sampler's 512 configurations. The results equal
+        ``fk_matrix``'s to rounding (about 1e-16 m), not bit for bit.
+        """
+        q = self._check_q(q)
+        if q.ndim == 1:
+            return self.fk_matrix(q)[:3, 3].copy()
+        u = np.where(self._prismatic, q, np.sin(q))
+        v = np.where(self._prismatic, 0.0, 1.0 - np.cos(q))
+        x = np.broadcast_to(self._tip[:, 3], (*q.shape[:-1], 4))
+        for i in range(self.n_joints - 1, -1, -1):
+            y = x @ self._point_maps[i]  # (..., 12): P0 x, P1 x and P2 x of joint i
+            x = y[..., 0:4] + u[..., i, None] * y[..., 4:8] + v[..., i, None] * y[..., 8:12]
+        return x[..., :3].copy()
 
     # ------------------------------------------------------------------ differential kinematics
     def jacobian(self, q: np.ndarray) -> np.ndarray:

@@ -249,3 +249,14 @@ def test_sample_reachable_uses_the_given_generator(rx):
     np.testing.assert_array_equal(a, b)
     assert a.shape == (10, 3)
     assert np.all(np.linalg.norm(a - [0, 0, 0.10457], axis=1) <= 0.2062 + 0.2 + 0.158575 + 1e-9)
+
+
+@pytest.mark.parametrize("tip", ["rx200/ee_gripper_link", "rx200/left_finger_link"])  # the finger: a prismatic joint
+def test_batched_fk_position_matches_the_transforms(tip):
+    chain = KinematicChain.from_urdf(rx200.URDF_XACRO, "rx200/base_link", tip)
+    q = chain.sample_configurations(np.random.default_rng(4), 96)
+    expected = chain.fk_matrix(q)[:, :3, 3]
+    np.testing.assert_allclose(chain.fk_position(q), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(chain.fk_position(q.reshape(8, 12, -1)), expected.reshape(8, 12, 3), rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(chain.fk_position(q[5]), chain.fk_matrix(q[5])[:3, 3])
+    assert chain.fk_position(q[:0]).shape == (0, 3)
