@@ -26,9 +26,10 @@ envs run ``--num-sim-steps 10`` (10 x 4 ms) by default. The RX200 reach IDs' own
 
 Goals (issue 13): N = 8 batched composed >= 5x one FetchReach-v4 and >= 2x SubprocVecEnv over 8
 separate uniros envs. The table runs its cases one after another, so on a machine whose load
-changes (a shared one) its ratios drift with the load; the 5x goal is then measured again
-interleaved (``--goal-rounds``): one FetchReach-v4 and the batched env on one and on two composed
-nodes, all open at once and stepped in turn, with the ratios taken within each round.
+changes (a shared one) its ratios drift with the load; both goals are then measured again
+interleaved (``--goal-rounds``): one FetchReach-v4, ``SubprocVecEnv`` over 8 uniros envs and the
+batched env on one and on two composed nodes, all open at once and stepped in turn, with the
+ratios taken within each round.
 """
 
 from __future__ import annotations
@@ -130,17 +131,28 @@ def _make_uniros(env_id: str, **kwargs) -> Callable[[], object]:
     return make
 
 
-def subproc(env_id: str, n: int, seconds: float, **kwargs) -> float:
-    from stable_baselines3.common.vec_env import SubprocVecEnv
+class _SB3Stepper(_Stepper):
+    """An SB3 ``VecEnv`` kept open (its action space is one env's: actions are drawn for all N)."""
 
-    venv = SubprocVecEnv([_make_uniros(env_id, **kwargs) for _ in range(n)])
-    try:
+    def __init__(self, venv) -> None:
+        self.vec, self.single, self.n = venv, False, venv.num_envs
         venv.seed(0)
         venv.reset()
         rng = np.random.default_rng(0)
         space = venv.action_space
-        return _rate(lambda a: venv.step(a),
-                     lambda: rng.uniform(space.low, space.high, (n, *space.shape)).astype(space.dtype), n, seconds)
+        self.sample = lambda: rng.uniform(space.low, space.high, (self.n, *space.shape)).astype(space.dtype)
+
+
+def _subproc_venv(env_id: str, n: int, **kwargs):
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    return SubprocVecEnv([_make_uniros(env_id, **kwargs) for _ in range(n)])
+
+
+def subproc(env_id: str, n: int, seconds: float, **kwargs) -> float:
+    venv = _subproc_venv(env_id, n, **kwargs)
+    try:
+        return _SB3Stepper(venv).rate(seconds)
     finally:
         venv.close()
 
@@ -164,31 +176,39 @@ def fetch_single(seconds: float) -> float:
 
 
 def interleaved_goal(env_id: str, rounds: int, seconds: float, **knobs) -> None:
-    """The 5x goal measured side by side: one FetchReach-v4 and the batched env at N = 8 (one and
-    two composed nodes), all open at once and stepped in turn, round after round, so a change in
-    the machine's load hits each about equally; ratios are taken within a round."""
+    """Both goals measured side by side: one FetchReach-v4, SB3 ``SubprocVecEnv`` over 8 uniros envs
+    and the batched env at N = 8 (one and two composed nodes), all open at once and stepped in turn,
+    round after round, so a change in the machine's load hits each about equally; ratios are taken
+    within a round (FetchReach's rate is taken before and after the others)."""
     contenders = {
         "1 node": _Stepper(uniros.make_vec(env_id, 8, vectorization_mode="batched", **knobs)),
         "2 nodes": _Stepper(uniros.make_vec(env_id, 8, vectorization_mode="batched",
                                             vector_kwargs={"num_nodes": 2}, **knobs)),
     }
+    subprocs = _SB3Stepper(_subproc_venv(env_id, 8, **knobs))
     fetch = _Stepper(make_fetch_reach(), single=True)
-    ratios: dict[str, list[float]] = {name: [] for name in contenders}
+    vs_fetch: dict[str, list[float]] = {name: [] for name in contenders}
+    vs_subproc: dict[str, list[float]] = {name: [] for name in contenders}
     try:
         for _ in range(rounds):
             anchor = fetch.rate(seconds / 2)
             rates = {name: c.rate(seconds) for name, c in contenders.items()}
-            anchor = (anchor + fetch.rate(seconds / 2)) / 2  # before and after the contenders
+            subproc_rate = subprocs.rate(seconds)
+            anchor = (anchor + fetch.rate(seconds / 2)) / 2
             for name, rate in rates.items():
-                ratios[name].append(rate / anchor)
+                vs_fetch[name].append(rate / anchor)
+                vs_subproc[name].append(rate / subproc_rate)
     finally:
         for c in contenders.values():
             c.vec.close()
+        subprocs.vec.close()
         fetch.vec.close()
-    print(f"\nN=8 batched composed vs one FetchReach-v4, interleaved over {rounds} rounds (ratio within each round):")
-    for name, values in ratios.items():
-        print(f"  {name}: median {np.median(values):.2f}x (rounds: {', '.join(f'{v:.2f}' for v in values)}; "
-              "goal >= 5x)")
+    print(f"\nN=8 batched composed, interleaved over {rounds} rounds (ratios within each round):")
+    for name in contenders:
+        print(f"  {name}: median {np.median(vs_fetch[name]):.2f}x one FetchReach-v4 (goal >= 5x; rounds: "
+              f"{', '.join(f'{v:.2f}' for v in vs_fetch[name])})")
+        print(f"  {name}: median {np.median(vs_subproc[name]):.2f}x SubprocVecEnv over 8 uniros envs (goal >= 2x; "
+              f"rounds: {', '.join(f'{v:.2f}' for v in vs_subproc[name])})")
 
 
 def main() -> None:
@@ -199,7 +219,7 @@ def main() -> None:
     parser.add_argument("--num-sim-steps", type=int, default=10,
                         help="physics steps per env step (10: 40 ms, FetchReach-v4's; 0: the env's default)")
     parser.add_argument("--goal-rounds", type=int, default=5,
-                        help="rounds of the interleaved 5x-goal comparison at N = 8 (0: skip it)")
+                        help="rounds of the interleaved comparison of both goals at N = 8 (0: skip it)")
     args = parser.parse_args()
     knobs = {"num_sim_steps": args.num_sim_steps} if args.num_sim_steps > 0 else {}
     sizes = [int(s) for s in args.sizes.split(",")]
