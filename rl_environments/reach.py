@@ -8,6 +8,7 @@ call and no side effect, as ``compute_reward`` requires.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Sequence
 from typing import Literal
 
@@ -129,9 +130,10 @@ class GoalSampler:
         self.joint_low = np.where(np.isfinite(jl), jl, -np.pi)
         self.joint_high = np.where(np.isfinite(jh), jh, np.pi)
         self.max_tries = int(max_tries)
-        if batch_size is not None and (not isinstance(batch_size, int) or batch_size < 1):
+        if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, numbers.Integral)
+                                       or batch_size < 1):
             raise ValueError(f"batch_size must be a positive integer, got {batch_size!r}")
-        self.batch_size = self._probe_batch_size() if batch_size is None else batch_size
+        self.batch_size = self._probe_batch_size() if batch_size is None else int(batch_size)
         # Rows drawn ahead of the generator: their tip positions, whether each is inside, and the
         # generator and its state they start from.
         self._ahead: tuple[np.ndarray, np.ndarray] | None = None

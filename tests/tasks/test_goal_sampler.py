@@ -99,9 +99,10 @@ def test_a_generator_used_in_between_or_rewound_gets_the_goals_of_its_state(chai
 
 
 def test_batch_size_is_checked_and_bounded_by_max_tries(chain):
-    for bad in (0, -3, 2.5, "8"):
+    for bad in (0, -3, 2.5, "8", True):
         with pytest.raises(ValueError, match="batch_size must be a positive integer"):
             _sampler(chain, batch_size=bad)
+    assert _sampler(chain, batch_size=np.int64(32)).batch_size == 32
     counting = _Counting(chain)
     outside = GoalSampler(counting, [5, 5, 5], [6, 6, 6], max_tries=100, batch_size=64)
     assert outside.batch_size == 64
