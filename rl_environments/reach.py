@@ -136,8 +136,7 @@ class GoalSampler:
         self.batch_size = self._probe_batch_size() if batch_size is None else int(batch_size)
         # Rows drawn ahead of the generator: their tip positions, whether each is inside, and the
         # generator and its state they start from.
-        self._ahead: tuple[np.ndarray, np.ndarray] | None = None
-        self._ahead_of: tuple[np.random.Generator, dict] | None = None
+        self._ahead: tuple[np.ndarray, np.ndarray, np.random.Generator, dict] | None = None
 
     def _positions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Tip positions of configurations ``q`` and whether each falls inside the box."""
@@ -165,20 +164,17 @@ class GoalSampler:
         Raises:
             RuntimeError: no configuration landed in the box within ``max_tries`` draws.
         """
-        ahead, ahead_of, self._ahead, self._ahead_of = self._ahead, self._ahead_of, None, None
-        if ahead is None or ahead_of is None or ahead_of[0] is not rng or rng.bit_generator.state != ahead_of[1]:
+        ahead, self._ahead = self._ahead, None
+        if ahead is not None and (ahead[2] is not rng or rng.bit_generator.state != ahead[3]):
             ahead = None
         tried = 0
         while tried < self.max_tries:
             if ahead is None:
-                start = rng.bit_generator.state
-                ahead = self._positions(self._draw(rng, max(1, min(self.batch_size, self.max_tries - tried))))
-                if not ahead[1].any():  # no goal: the generator is past these rows already
-                    tried += len(ahead[1])
-                    ahead = None
-                    continue
+                start, rows = rng.bit_generator.state, max(1, min(self.batch_size, self.max_tries - tried))
+                positions, inside = self._positions(self._draw(rng, rows))
                 rng.bit_generator.state = start  # back to the first row: rows are taken one by one below
-            positions, inside = ahead
+            else:
+                positions, inside = ahead[0], ahead[1]
             hits = np.flatnonzero(inside)
             if not hits.size:
                 self._skip(rng, len(inside))
@@ -188,7 +184,7 @@ class GoalSampler:
             row = int(hits[0])
             self._skip(rng, row + 1)  # the generator moves past the goal's row, as if drawn one at a time
             if row + 1 < len(inside):
-                self._ahead, self._ahead_of = (positions[row + 1:], inside[row + 1:]), (rng, rng.bit_generator.state)
+                self._ahead = positions[row + 1:], inside[row + 1:], rng, rng.bit_generator.state
             return positions[row] + self.base_position
         raise RuntimeError(
             f"no reachable goal inside the box {self.low.tolist()}..{self.high.tolist()} after {self.max_tries} "
