@@ -410,8 +410,3 @@ class LocalStepRobots:
         t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
         return [RobotStepOutcome(item.entity, int(code), message, None if part is None else RobotState(t, *part))
                 for item, (code, message, part) in zip(self.items, parts)]
-
-
-def step_robots_local(node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> list[RobotStepOutcome]:
-    """One ``StepRobots`` call on a composed node, without messages (:meth:`LocalStepRobots.run`)."""
-    return LocalStepRobots(node, robots, steps).run()

@@ -212,10 +212,10 @@ def _outcomes_equal(a, b) -> None:
 
 
 def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
-    """step_robots_local (LocalStepRobots.run, what a batched vector env calls on a composed node)
-    returns what the StepRobots service returns, bit for bit: two identical nodes, one called each
-    way; also the per-robot failures and the refusals of a whole call."""
-    from multiros.sim.node_stepping import LocalStepRobots, step_robots_local
+    """LocalStepRobots.run (what a batched vector env calls on a composed node) returns what the
+    StepRobots service returns, bit for bit: two identical nodes, one called each way; also the
+    per-robot failures and the refusals of a whole call."""
+    from multiros.sim.node_stepping import LocalStepRobots
 
     ctx = Context(transport="inproc").init()
     try:
@@ -242,7 +242,7 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
         ]
         for specs, steps in calls:
             by_service = clients[0].step_robots(specs, steps=steps)
-            local = step_robots_local(nodes[1], specs, steps)
+            local = LocalStepRobots(nodes[1], specs, steps).run()
             _outcomes_equal(by_service, local)
         assert [o.status for o in local] == [0, 0] and local[0].state.sim_time > 0
         # Alike robots are read in one gather per array (StateGather), also after a spawn moved
@@ -261,10 +261,10 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
             with pytest.raises(SimulationServiceError, match=match):
                 clients[0].step_robots(specs, steps=1)
             with pytest.raises(SimulationServiceError, match=match) as refused:
-                step_robots_local(nodes[1], specs, 1)
+                LocalStepRobots(nodes[1], specs, 1).run()
             assert refused.value.service == "/sim_local/step_robots"
         with pytest.raises(SimulationServiceError, match="max_steps_per_call"):
-            step_robots_local(nodes[1], [RobotStepSpec("a")], nodes[1].max_steps_per_call + 1)
+            LocalStepRobots(nodes[1], [RobotStepSpec("a")], nodes[1].max_steps_per_call + 1).run()
     finally:
         ctx.try_shutdown()
 
