@@ -68,7 +68,8 @@ def make_vec(
     ``vectorization_mode="batched"`` returns a :class:`~multiros.envs.vector.BatchedVectorEnv`: one
     simulation node holds all ``num_envs`` robots (each in its own namespace and world slot) and one
     request steps them all. ``sim_mode="process"`` puts the node in a child process;
-    ``vector_kwargs`` takes ``num_nodes`` (K nodes in K processes, N/K robots each), ``spacing``
+    ``vector_kwargs`` takes ``num_nodes`` (K nodes, N/K robots each: composed in this process and
+    stepped at once on threads, or in K processes with ``sim_mode="process"``), ``spacing``
     (metres between world slots), ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and
     ``"async"`` (Gymnasium's, one node per env) work as before. The default (``None``) is
     Gymnasium's: the ID's ``vector_entry_point`` when it has one (the simulated IDs: batched),
