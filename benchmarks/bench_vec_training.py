@@ -3,14 +3,16 @@
 One run trains the shipped config of ``--env`` (``config/training/<ID>.yaml``: HER + SAC, the
 config's hyperparameters, normalised observations, one torch thread) on an SB3
 ``uniros.vec_env.BatchedVecEnv`` of N envs (one composed simulation node, one ``StepRobots``
-request per vector step), for each N and seed, everything else equal. Two ways to count updates:
+request per vector step; the training env of ``uniros train --n-envs N``), for each N and seed,
+everything else equal. Two ways to count updates:
 
 * ``same`` (the config as it is): ``train_freq`` 1 step, ``gradient_steps`` 1, so one gradient step
   per *vector* step: N env steps per update.
 * ``per-env``: ``gradient_steps`` N, the same updates per env step as N = 1.
 
 One setting must grow with N: HER samples only from ended episodes, so ``learning_starts`` is at
-least N episodes' steps (N x 100 for the reach IDs: N >= 6 with the shipped 500).
+least N episodes' steps (N x 100 for the reach IDs: N >= 6 with the shipped 500), as ``uniros train``
+raises it (``uniros.training.fit_learning_starts``).
 
 For every run: env steps and training seconds (evaluation excluded) to the first evaluation with
 success >= ``--target`` (evaluation every ``--eval-freq`` env steps, ``--eval-episodes`` episodes of
@@ -26,53 +28,16 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import statistics
 import sys
 import time
 from dataclasses import dataclass
-from typing import Any
 
 from bench_training import _spread, _Watched
-from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 
-from uniros.factory import make_batch
 from uniros.train_config import TrainingConfig, default_config_for
-from uniros.vec_env import BatchedVecEnv
-
-
-class _SeededVecEnv(BatchedVecEnv):
-    """``reset(seed=...)`` on the SB3 batched VecEnv (the session seeds its env that way)."""
-
-    def reset(self, seed: int | None = None) -> Any:  # type: ignore[override]
-        if seed is not None:
-            self.seed(seed)
-        return super().reset()
-
-
-class _VecSession(_Watched):
-    """The benchmark's session, training on a VecEnv (the evaluation env stays one plain env).
-
-    The training env is ``VecNormalize`` over the VecEnv alone, as the evaluation env is
-    ``VecNormalize`` over one ``DummyVecEnv``: SB3 syncs the statistics along the same wrapper chain.
-    """
-
-    def _monitored(self, env: Any, name: str) -> Any:
-        return env if isinstance(env, VecEnv) else super()._monitored(env, name)
-
-    def _vec(self, env: Any, *, training: bool, stats: Any = None) -> Any:
-        if not isinstance(env, VecEnv):
-            return super()._vec(env, training=training, stats=stats)
-        if not self.config.normalize:
-            return env
-        return VecNormalize(env, gamma=float(self.config.algo_params.get("gamma", 0.99)), norm_reward=False,
-                            training=training)
-
-
-def episode_steps(env_id: str, config: TrainingConfig) -> int:
-    """The episode length of ``env_id`` with the config's env kwargs."""
-    import gymnasium as gym
-
-    return int(config.env_kwargs.get("max_episode_steps", gym.spec(env_id).max_episode_steps))
+from uniros.training import fit_learning_starts, make_train_env
 
 
 @dataclass
@@ -93,19 +58,16 @@ def run_one(env_id: str, base: TrainingConfig, n: int, mode: str, seed: int, *, 
     import uniros
 
     config = copy.deepcopy(base)
-    config.seed, config.training_steps = seed, max_steps
-    config.eval_freq = max(1, eval_freq // n)  # the eval callback counts vector steps
+    config.seed, config.training_steps, config.n_envs = seed, max_steps, n
+    config.eval_freq = eval_freq  # env steps (the session evaluates every eval_freq // n vector steps)
     config.eval_episodes = eval_episodes
     config.progress_bar, config.stop_at_success = False, None
     if mode == "per-env":
         config.algo_params["gradient_steps"] = n * int(config.algo_params.get("gradient_steps", 1))
-    # HER samples only from ended episodes: learning must not start before every env ended one.
-    config.algo_params["learning_starts"] = max(int(config.algo_params.get("learning_starts", 100)),
-                                                n * episode_steps(env_id, config))
+    fit_learning_starts(env_id, config)  # as uniros train does: HER needs an ended episode first
     started = time.perf_counter()
-    venv = _SeededVecEnv(make_batch(env_id, n, **config.env_kwargs))
-    session = _VecSession(config, venv, make_eval_env=lambda: uniros.make(env_id, **config.env_kwargs),
-                          target=target, window=window)
+    session = _Watched(config, make_train_env(env_id, config),
+                       make_eval_env=lambda: uniros.make(env_id, **config.env_kwargs), target=target, window=window)
     try:
         session.build()
         session.learn()
@@ -157,11 +119,10 @@ def main() -> None:
     base = default_config_for(args.env)
     if not base.use_her or base.algorithm != "sac":
         print(f"note: the shipped config of {args.env} is {base.algorithm}{' + HER' if base.use_her else ''}")
-    starts = int(base.algo_params.get("learning_starts", 100))
-    raised = [n for n in args.n if n * episode_steps(args.env, base) > starts]
-    if raised:
-        print(f"note: learning_starts {starts} is raised to N x {episode_steps(args.env, base)} (one ended episode "
-              f"per env, which HER needs before it samples) for N = {raised}")
+    for n in args.n:
+        raised = fit_learning_starts(args.env, dataclasses.replace(base, n_envs=n, algo_params=dict(base.algo_params)))
+        if raised:
+            print(f"note: N = {n}: {raised}")
     print(f"{args.env}, shipped config ({base.algorithm}, {base.algo_params}); N = {args.n}; seeds {args.seeds}; "
           f"modes {args.modes}; eval every {args.eval_freq} env steps over {args.eval_episodes} episodes; stop "
           f"{args.window} steps after the first success >= {args.target} or at {args.max_steps}", flush=True)

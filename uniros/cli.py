@@ -40,6 +40,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         TrainingInterrupted,
         default_config_for,
         evaluate,
+        fit_learning_starts,
         load_for_eval,
         load_training_config,
         make_env,
@@ -67,12 +68,23 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config.training_steps = args.steps
     if args.seed is not None:
         config.seed = args.seed
+    if args.n_envs is not None:
+        if args.n_envs < 1:
+            raise TrainingError(f"--n-envs must be at least 1, got {args.n_envs}")
+        if args.resume and args.n_envs != config.n_envs:
+            raise TrainingError(f"{run.root} trains on n_envs: {config.n_envs}, and a resumed run keeps it "
+                                f"(its replay buffer holds {config.n_envs} envs' transitions); drop --n-envs")
+        config.n_envs = args.n_envs
     config.env_kwargs.update(_env_overrides(args))
+    changed = fit_learning_starts(env_id, config)
+    if changed:
+        print(f"note: {changed}", flush=True)
     config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
     if not args.resume:
         run = start_run(env_id, config, output=args.output, name=args.name, command=["uniros", *sys.argv[1:]])
     print(f"{'resuming' if args.resume else 'training'} {config.algorithm.upper()}{' + HER' if config.use_her else ''} "
-          f"on {env_id} for {config.training_steps} steps (config: {config.source})", flush=True)
+          f"on {env_id}{f' x {config.n_envs} envs' if config.n_envs > 1 else ''} for {config.training_steps} steps "
+          f"(config: {config.source})", flush=True)
     print(f"run directory: {run.root}", flush=True)
 
     def report(steps: int, seconds: float, rate: float) -> None:
@@ -180,6 +192,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--config", help="training YAML (default: the one shipped for the env ID)")
     p.add_argument("--steps", type=int, help="override training_steps")
     p.add_argument("--seed", type=int, help="override the seed")
+    p.add_argument("--n-envs", type=int, help="override n_envs: envs trained on at once, in one batched vector env")
     p.add_argument("--target", type=float, default=0.9, help="success rate that counts as solved")
     p.add_argument("--eval-episodes", type=int, default=50, help="episodes of the final evaluation")
     p.add_argument("--output", default="runs", help="parent of the run directories (default: %(default)s)")

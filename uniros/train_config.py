@@ -40,6 +40,7 @@ _TOP: dict[str, tuple[Any, Any]] = {
     "training_steps": (int, ...),
     "seed": (int, 0),
     "torch_threads": (int, 1),
+    "n_envs": (int, 1),
     "normalize": (bool, False),
     "eval_freq": (int, 1000),
     "eval_episodes": (int, 20),
@@ -99,13 +100,19 @@ class TrainingConfig:
             (``action_noise_type``: ``normal`` or ``ornstein``).
         use_sde, sde_params: generalised state-dependent exploration (SAC, PPO, A2C).
         env_kwargs: keyword arguments for ``uniros.make``.
-        eval_freq, eval_episodes: evaluation schedule (env steps; 0 disables evaluation).
+        n_envs: envs trained on at once, in one batched vector env (all their robots in one
+            simulation node, one request per step: :class:`uniros.vec_env.BatchedVecEnv`). Each
+            vector step is ``n_envs`` env steps; ``train_freq`` and ``gradient_steps`` count vector
+            steps, as in SB3.
+        eval_freq, eval_episodes: evaluation schedule (env steps; 0 disables evaluation). With
+            ``n_envs`` N, every ``eval_freq // N`` vector steps.
         stop_at_success: stop once this eval success rate is reached (``None``: never).
         normalize: normalise observations with ``VecNormalize``; evaluation uses the training
             statistics, frozen.
         seed: seed of the algorithm and of the training env's first reset.
         torch_threads: torch CPU threads (1 is fastest for these small networks).
         save_freq: env steps between checkpoints (model, replay buffer, normalisation); 0: none.
+            With ``n_envs`` N, every ``save_freq // N`` vector steps.
         save_prefix, trained_model_name, save_replay_buffer, load_model, model_name, log_folder,
             log_interval, reset_num_timesteps: as in sb3_ros_support (see docs/training.md).
         video, video_episodes: record an MP4 of the best model after a run.
@@ -129,6 +136,7 @@ class TrainingConfig:
     normalize: bool = False
     seed: int | None = 0
     torch_threads: int = 1
+    n_envs: int = 1
     save_freq: int = 1000
     save_prefix: str = "model"
     trained_model_name: str = "trained_model"
@@ -151,7 +159,8 @@ class TrainingConfig:
             params["train_freq"] = {"freq": freq, "unit": unit}
         out: dict[str, Any] = {
             "algorithm": self.algorithm, "training_steps": self.training_steps, "seed": self.seed,
-            "torch_threads": self.torch_threads, "normalize": self.normalize, "eval_freq": self.eval_freq,
+            "torch_threads": self.torch_threads, "n_envs": self.n_envs, "normalize": self.normalize,
+            "eval_freq": self.eval_freq,
             "eval_episodes": self.eval_episodes, "stop_at_success": self.stop_at_success,
             "save_freq": self.save_freq, "save_prefix": self.save_prefix,
             "trained_model_name": self.trained_model_name, "save_replay_buffer": self.save_replay_buffer,
@@ -277,13 +286,14 @@ def parse_training_config(
     if use_sde and algo not in _SDE:
         raise TrainingConfigError(f"{source}: use_sde works with sac, ppo and a2c, not {algo!r}")
     stop = _typed(data, "stop_at_success", source)
-    positive = {k: _typed(data, k, source) for k in ("training_steps", "eval_episodes", "log_interval")}
+    positive = {k: _typed(data, k, source) for k in ("training_steps", "eval_episodes", "log_interval", "n_envs")}
     for key, value in positive.items():
-        if value < 1:
+        if value is None or value < 1:
             raise TrainingConfigError(f"{source}: {key} must be at least 1, got {value}")
     for key in ("eval_freq", "save_freq"):
-        if _typed(data, key, source) < 0:
-            raise TrainingConfigError(f"{source}: {key} must be 0 (off) or positive")
+        value = _typed(data, key, source)
+        if value is None or value < 0:
+            raise TrainingConfigError(f"{source}: {key} must be 0 (off) or positive, got {value}")
     return TrainingConfig(
         algorithm=algo,
         training_steps=positive["training_steps"],
@@ -302,6 +312,7 @@ def parse_training_config(
         normalize=_typed(data, "normalize", source),
         seed=seed,
         torch_threads=_typed(data, "torch_threads", source),
+        n_envs=positive["n_envs"],
         save_freq=_typed(data, "save_freq", source),
         save_prefix=_typed(data, "save_prefix", source),
         trained_model_name=_typed(data, "trained_model_name", source),

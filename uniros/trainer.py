@@ -242,6 +242,11 @@ def _aligned(cls: type) -> type:
     return Aligned
 
 
+def _per_vector_step(env_steps: int, n_envs: int) -> int:
+    """A schedule in env steps as SB3's callbacks count it, in vector steps (calls): at least 1."""
+    return max(1, env_steps // max(1, n_envs))
+
+
 def _callback_classes() -> tuple[type, type, type]:
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
@@ -259,7 +264,8 @@ def _callback_classes() -> tuple[type, type, type]:
         """SB3's ``CheckpointCallback``, saving through the session (atomic files, ``latest.json``)."""
 
         def __init__(self, session: Session, save_freq: int) -> None:
-            super().__init__(save_freq=save_freq, save_path=str(session.paths.checkpoints),
+            super().__init__(save_freq=_per_vector_step(save_freq, session.config.n_envs),
+                             save_path=str(session.paths.checkpoints),
                              name_prefix=session.paths.prefix, save_replay_buffer=True, save_vecnormalize=True)
             self.session = session
 
@@ -273,7 +279,8 @@ def _callback_classes() -> tuple[type, type, type]:
 
         def __init__(self, session: Session, eval_env: Any) -> None:
             config = session.config
-            super().__init__(eval_env, n_eval_episodes=config.eval_episodes, eval_freq=config.eval_freq,
+            super().__init__(eval_env, n_eval_episodes=config.eval_episodes,
+                             eval_freq=_per_vector_step(config.eval_freq, config.n_envs),
                              deterministic=True, verbose=0, warn=False)
             self.session = session
 
@@ -285,10 +292,11 @@ def _callback_classes() -> tuple[type, type, type]:
                 return False
             if s.config.seed is not None:
                 self.eval_env.seed(s.config.seed + 10_000 + len(s.evaluations))
-            started = time.perf_counter()
+            started, seconds = time.perf_counter(), s.train_seconds()  # before this evaluation
             keep_going = super()._on_step()
             rate = float(np.mean(self._is_success_buffer)) if self._is_success_buffer else float("nan")
-            keep_going = s.after_eval(int(self.num_timesteps), rate, float(self.last_mean_reward)) and keep_going
+            keep_going = s.after_eval(int(self.num_timesteps), rate, float(self.last_mean_reward),
+                                      seconds=seconds) and keep_going
             s.excluded += time.perf_counter() - started
             return keep_going
 
@@ -315,7 +323,7 @@ class Session:
 
     Args:
         config: the training config.
-        env: the training env (a gymnasium env).
+        env: the training env: a gymnasium env, or an SB3 ``VecEnv`` of ``config.n_envs`` envs.
         make_eval_env: builds the evaluation env (``None``: no evaluation).
         paths: output locations.
         on_eval: ``callback(steps, train_seconds, success_rate)`` after each evaluation.
@@ -343,18 +351,35 @@ class Session:
 
     # -- environments --
     def _monitored(self, env: Any, name: str) -> Any:
+        """``env`` as an SB3 ``VecEnv`` whose episodes go to ``<monitor>/<name>.monitor.csv``.
+
+        A gymnasium env gets SB3's ``Monitor`` in a ``DummyVecEnv``. When the training env is a
+        ``VecEnv`` (``n_envs`` > 1: the batched vector env), every env gets ``VecMonitor`` (the
+        evaluation env in a ``DummyVecEnv`` first), which writes the same file: SB3 copies the
+        ``VecNormalize`` statistics to the evaluation env along the wrappers, so both chains match.
+        """
         from stable_baselines3.common.monitor import Monitor
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
 
         filename = None if self.paths.monitor is None else str(self.paths.monitor / name)
         keys = ("is_success",) if self.success_info else ()
         # A new file gets SB3's header lines (SB3 writes them only when overriding); a resumed run appends.
         fresh = filename is None or not Path(f"{filename}.{Monitor.EXT}").is_file()
-        return Monitor(env, filename=filename, info_keywords=keys, override_existing=fresh)
+        if isinstance(self.env, VecEnv):
+            from stable_baselines3.common.monitor import ResultsWriter
 
-    def _vec(self, env: Any, *, training: bool, stats: Path | None = None) -> Any:
-        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+            venv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])
+            monitored = VecMonitor(venv, info_keywords=keys)
+            if filename is not None:  # VecMonitor would always start a new file: a resumed run appends
+                monitored.results_writer = ResultsWriter(filename, header={"t_start": monitored.t_start},
+                                                         extra_keys=keys, override_existing=fresh)
+            return monitored
+        monitored = Monitor(env, filename=filename, info_keywords=keys, override_existing=fresh)
+        return DummyVecEnv([lambda: monitored])
 
-        venv = DummyVecEnv([lambda: env])
+    def _vec(self, venv: Any, *, training: bool, stats: Path | None = None) -> Any:
+        from stable_baselines3.common.vec_env import VecNormalize
+
         if not self.config.normalize:
             return venv
         gamma = float(self.config.algo_params.get("gamma", 0.99))
@@ -375,8 +400,13 @@ class Session:
     # -- model --
     def build(self, resume: Checkpoint | None = None, load: Path | None = None) -> Any:
         """Create the model, or load it from a checkpoint (``resume``) or a saved model (``load``)."""
+        from stable_baselines3.common.vec_env import VecEnv
+
         apply_torch_threads(self.config.torch_threads)
-        self.env.reset(seed=self.config.seed)
+        if not isinstance(self.env, VecEnv):
+            self.env.reset(seed=self.config.seed)
+        elif self.config.seed is not None:
+            self.env.seed(self.config.seed)  # env i's first reset gets seed + i (SB3's convention)
         source = resume.model if resume is not None else load
         stats = resume.vecnormalize if resume is not None else None
         if source is not None and stats is None and self.config.normalize:
@@ -425,9 +455,13 @@ class Session:
         RunDir(self.paths.meta.parent).update_meta(steps=int(self.model.num_timesteps),
                                                    train_seconds=round(self.train_seconds(), 3), **values)
 
-    def after_eval(self, steps: int, rate: float, mean_return: float) -> bool:
-        """Record an evaluation, keep the best model; False stops training (``stop_at_success``)."""
-        seconds = self.train_seconds()
+    def after_eval(self, steps: int, rate: float, mean_return: float, *, seconds: float | None = None) -> bool:
+        """Record an evaluation, keep the best model; False stops training (``stop_at_success``).
+
+        ``seconds``: training seconds at ``steps`` (default: now; the evaluation callback passes the
+        time before it evaluated, which is not training).
+        """
+        seconds = self.train_seconds() if seconds is None else seconds
         best = max(self.evaluations, key=_eval_key, default=None)
         row = {"steps": steps, "train_seconds": round(seconds, 3), "success_rate": rate, "mean_return": mean_return}
         self.evaluations.append(row)

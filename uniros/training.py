@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from multiros.envs.real.core import SIMULATION_KNOBS
+from multiros.envs.real.core import SIMULATION_KNOBS, RealEnvCore
 from rl_environments import SIM_TO_REAL
 from uniros.run_dir import RunDir, RunDirError, normalizer_path, save_model_with_stats
 from uniros.train_config import (
@@ -114,13 +114,88 @@ def make_env(env_id: str, **kwargs: Any) -> Any:
 _make_env = make_env  # ``train`` has a parameter of that name
 
 
-def _reports_success(env: Any) -> bool:
+def make_train_env(env_id: str, config: TrainingConfig, factory: Callable[[], Any] | None = None) -> Any:
+    """The env ``config`` trains on: one env, or with ``n_envs`` > 1 a batched vector env.
+
+    ``n_envs`` envs ``env_id`` share one simulation node and one request per step
+    (:func:`uniros.vec_env.make_batched_vec_env`, ``env_kwargs`` to each env). With ``factory`` (a
+    baseline's own env builder) they are ``factory``'s envs in SB3's ``DummyVecEnv`` instead.
+
+    Raises:
+        TrainingConfigError: ``n_envs`` > 1 for an env that cannot be batched (a real robot's).
+    """
+    n = config.n_envs
+    if n == 1:
+        return factory() if factory is not None else make_env(env_id, **config.env_kwargs)
+    if factory is not None:
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        return DummyVecEnv([factory] * n)
+    from uniros.vec_env import make_batched_vec_env
+
+    resolved = resolve_env_id(env_id)
+    if not _simulated(resolved):
+        raise TrainingConfigError(
+            f"{config.source}: n_envs: {n} batches {n} envs of {env_id} in one simulation node, but {env_id} "
+            "drives a real robot; train real-robot envs with n_envs: 1"
+        )
+    return make_batched_vec_env(resolved, n, **config.env_kwargs)
+
+
+def fit_learning_starts(env_id: str, config: TrainingConfig) -> str | None:
+    """Raise HER's ``learning_starts`` to ``n_envs`` episodes, so learning starts after an ended one.
+
+    SB3's ``HerReplayBuffer`` samples only from ended episodes and raises before the first. One env
+    ends its first episode (at the latest) after ``max_episode_steps`` steps; ``n_envs`` envs step
+    together, so that takes ``n_envs * max_episode_steps`` env steps. Returns what was changed, or
+    ``None``.
+    """
+    import gymnasium as gym
+
+    if not config.use_her or config.n_envs == 1:
+        return None
+    resolved = resolve_env_id(env_id)
+    limit = config.env_kwargs.get("max_episode_steps") or \
+        (gym.spec(resolved).max_episode_steps if resolved in gym.registry else None)
+    starts = int(config.algo_params.get("learning_starts", 100))
+    if limit is None or starts >= config.n_envs * int(limit):
+        return None
+    config.algo_params["learning_starts"] = config.n_envs * int(limit)
+    return (f"learning_starts {starts} -> {config.n_envs * int(limit)}: HER samples only ended episodes, and "
+            f"{config.n_envs} envs of {limit}-step episodes end their first after {config.n_envs} x {limit} steps")
+
+
+def _simulated(env_id: str) -> bool:
+    """Whether the registered ``env_id``'s env class is a simulated env (not a real robot's)."""
+    import gymnasium as gym
+
+    if env_id not in gym.registry:
+        return True  # not ours to judge: building it raises the helpful error
+    entry = gym.spec(env_id).entry_point
+    creator = gym.envs.registration.load_env_creator(entry) if isinstance(entry, str) else entry
+    return not (isinstance(creator, type) and issubclass(creator, RealEnvCore))
+
+
+def _first_env(env: Any) -> Any:
+    """``env``, or the first sub-env of an SB3 ``VecEnv`` (``DummyVecEnv`` or ``BatchedVecEnv``)."""
+    from stable_baselines3.common.vec_env import VecEnv
+
+    return env.envs[0] if isinstance(env, VecEnv) else env
+
+
+def reports_success(env: Any, env_id: str | None = None) -> bool:
+    """Whether ``env`` (or the first sub-env of a ``VecEnv``) puts ``is_success`` in its infos.
+
+    ``env_id`` names the registered ID when the env has no ``spec`` (a batched vector env's envs).
+    """
     from gymnasium_robotics.core import GoalEnv
 
     import rl_environments
 
+    env = _first_env(env)
     spec = getattr(env, "spec", None)
-    return isinstance(env.unwrapped, GoalEnv) or (spec is not None and spec.id in rl_environments.ENV_IDS)
+    spec_id = spec.id if spec is not None else env_id
+    return isinstance(env.unwrapped, GoalEnv) or spec_id in rl_environments.ENV_IDS
 
 
 # -- evaluation ------------------------------------------------------------------------------------
@@ -210,11 +285,12 @@ def train(
         make_env: build the train and eval envs with this instead of ``uniros.make`` (baselines).
     """
     factory = make_env if make_env is not None else (lambda: _make_env(env_id, **config.env_kwargs))
-    config = copy.copy(config)
+    config = copy.deepcopy(config)
     config.progress_bar = False
-    env = factory()
+    fit_learning_starts(env_id, config)
+    env = make_train_env(env_id, config, make_env)
     session = Session(config, env, make_eval_env=factory, on_eval=on_eval, target=target, verbose=verbose,
-                      success_info=_reports_success(env))
+                      success_info=reports_success(env, None if make_env is not None else resolve_env_id(env_id)))
     try:
         session.build()
         session.learn()
@@ -269,9 +345,13 @@ def run_training(
     paths = Paths(checkpoints=run.checkpoints, prefix=config.save_prefix, logs=run.tensorboard,
                   monitor=run.monitor, evaluations=run.evaluations, best_model=run.best_model, meta=run.meta)
     with sigterm_as_interrupt():
-        env = make_env(env_id, **config.env_kwargs)
+        changed = fit_learning_starts(env_id, config)
+        if changed:
+            _logger.warning("%s", changed)
+        env = make_train_env(env_id, config)
         session = Session(config, env, make_eval_env=lambda: make_env(env_id, **config.env_kwargs), paths=paths,
-                          on_eval=on_eval, target=target, verbose=verbose, success_info=_reports_success(env))
+                          on_eval=on_eval, target=target, verbose=verbose,
+                          success_info=reports_success(env, resolve_env_id(env_id)))
         try:
             if resume:
                 session.evaluations = read_evaluations(run.evaluations)

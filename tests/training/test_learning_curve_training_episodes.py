@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
+import pytest
 
 from uniros.reports import plot_learning_curve
 from uniros.train_config import TrainingConfig
@@ -36,24 +37,32 @@ class _Episodic(gym.Env):
 
 
 def _run_episodes(monitored, n: int) -> None:
+    """``n`` episodes of each env of the monitored ``VecEnv`` (it resets ended envs itself)."""
     monitored.reset()
     for _ in range(n * 5):
-        _, _, terminated, truncated, _ = monitored.step(np.zeros(1, np.float32))
-        if terminated or truncated:
-            monitored.reset()
+        monitored.step(np.zeros((monitored.num_envs, 1), np.float32))
 
 
-def test_monitor_csv_has_header_and_appends_on_resume(tmp_path):
-    session = Session(config=TrainingConfig(training_steps=10), env=_Episodic(), paths=Paths(monitor=tmp_path))
-    monitored = session._monitored(_Episodic(), "train")
+@pytest.mark.parametrize("vector", [False, True], ids=["one env (Monitor)", "VecEnv (VecMonitor)"])
+def test_monitor_csv_has_header_and_appends_on_resume(tmp_path, vector):
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    def env():
+        return DummyVecEnv([_Episodic, _Episodic]) if vector else _Episodic()
+
+    session = Session(config=TrainingConfig(training_steps=10), env=env(), paths=Paths(monitor=tmp_path))
+    monitored = session._monitored(env(), "train")
     _run_episodes(monitored, 3)
     monitored.close()
-    again = session._monitored(_Episodic(), "train")  # a resumed run
+    again = session._monitored(env(), "train")  # a resumed run
     _run_episodes(again, 2)
     again.close()
     lines = (tmp_path / "train.monitor.csv").read_text().splitlines()
     assert lines[0].startswith("#{") and lines[1] == "r,l,t,is_success"
-    assert len(lines) == 2 + 5 and sum(line.startswith("#") for line in lines) == 1
+    envs = 2 if vector else 1
+    assert len(lines) == 2 + 5 * envs and sum(line.startswith("#") for line in lines) == 1
+    assert [line.split(",")[-1] for line in lines[2:]] == ["False"] * envs + ["True"] * envs + ["False"] * envs + \
+        ["False"] * envs + ["True"] * envs  # each run's episodes 1, 2, 3: success on even ones
 
 
 def test_plot_shows_training_episodes_as_a_trailing_mean(tmp_path):

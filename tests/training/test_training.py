@@ -57,6 +57,14 @@ def test_frobs_style_yaml_parses(tmp_path):
         ({"model_params": {"training_steps": 10}, "extra": 1}, "unknown key 'extra'"),
         ({"algorithm": "sac", "training_steps": 10, "td3_params": {}}, "has td3_params but the algorithm is 'sac'"),
         ({"algorithm": "td3", "training_steps": 10, "use_sde": True}, "use_sde works with"),
+        ({"training_steps": 10, "n_envs": 0}, "n_envs must be at least 1, got 0"),
+        ({"training_steps": 10, "n_envs": -2}, "n_envs must be at least 1"),
+        ({"training_steps": 10, "n_envs": "four"}, "'n_envs' must be int"),
+        ({"training_steps": 10, "n_envs": True}, "'n_envs' must be int"),
+        ({"training_steps": 10, "n_envs": 2.5}, "'n_envs' must be int"),
+        ({"training_steps": 10, "n_envs": None}, "n_envs must be at least 1, got None"),
+        ({"training_steps": None}, "training_steps must be at least 1, got None"),
+        ({"training_steps": 10, "eval_freq": None}, "eval_freq must be 0 .off. or positive, got None"),
     ],
 )
 def test_bad_training_yaml_names_the_key(data, match):

@@ -20,6 +20,7 @@ from typing import Any
 from uniros.run_dir import load_replay_buffer, normalizer_path, save_model_with_stats, save_replay_buffer
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError, load_training_config
 from uniros.trainer import Paths, Session, load_model
+from uniros.training import reports_success
 
 _logger = logging.getLogger(__name__)
 
@@ -116,8 +117,9 @@ class BasicModel:
             self.config.seed = seed
         self.config.use_her = bool(self.goal and (use_her or self.config.use_her))
         self.config.progress_bar = False
+        self.config.n_envs = _n_envs_of(env, self.config)
         self.session = Session(self.config, env, make_eval_env=(lambda: eval_env) if eval_env is not None else None,
-                               verbose=verbose, success_info=_has_success(env))
+                               verbose=verbose, success_info=reports_success(env))
         if load_trained:
             target = _under(root, load_model_path) if load_model_path else self.save_model_path
             self.session.build(load=target)
@@ -226,14 +228,20 @@ class BasicModel:
     load_trained = load_trained_model  # FRobs_RL's name
 
 
-def _has_success(env: Any) -> bool:
-    from gymnasium_robotics.core import GoalEnv
+def _n_envs_of(env: Any, config: TrainingConfig) -> int:
+    """How many envs ``env`` steps at once: the env given decides, and the YAML's ``n_envs`` must agree.
 
-    import rl_environments
+    A trainer class trains the env it is given; a YAML ``n_envs`` of 1 (the default) takes any env.
+    """
+    from stable_baselines3.common.vec_env import VecEnv
 
-    spec = getattr(env, "spec", None)
-    return isinstance(getattr(env, "unwrapped", env), GoalEnv) or (spec is not None and spec.id in
-                                                                    rl_environments.ENV_IDS)
+    n = env.num_envs if isinstance(env, VecEnv) else 1
+    if config.n_envs not in (1, n):
+        raise TrainingConfigError(
+            f"{config.source}: n_envs is {config.n_envs} but the env given steps {n}; a trainer class trains the "
+            f"env it is given: pass uniros.vec_env.make_batched_vec_env(ID, {config.n_envs}), or drop n_envs"
+        )
+    return n
 
 
 __all__ = ["BasicModel", "normalizer_path", "resolve_config_path"]

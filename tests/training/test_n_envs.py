@@ -1,0 +1,129 @@
+"""`n_envs`: `uniros train` on a batched vector env (N robots in one simulation node), its schedule in
+env steps, HER's learning_starts, the monitor file across a resume, and what is refused."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+import uniros
+from uniros.cli import main as cli_main
+from uniros.train_config import TrainingConfig, TrainingConfigError, parse_training_config
+from uniros.training import fit_learning_starts, make_train_env
+
+TINY = (
+    "algorithm: sac\ntraining_steps: 800\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"
+    "use_HER: true\nsac_params: {learning_starts: 100, batch_size: 32, buffer_size: 50000}\n"
+    "env_kwargs: {ee_action_type: true, max_episode_steps: 50}\n"
+)
+
+
+def _monitor_rows(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    lines = path.read_text().splitlines()
+    comments = [line for line in lines if line.startswith("#")]
+    rows = list(csv.DictReader(line for line in lines if not line.startswith("#")))
+    return comments, rows
+
+
+def test_n_envs_round_trips_through_the_resolved_config():
+    config = parse_training_config({"training_steps": 10, "n_envs": 6}, "cfg.yaml")
+    assert config.n_envs == 6
+    assert parse_training_config(config.to_dict(), "again.yaml").n_envs == 6
+    assert parse_training_config({"training_steps": 10}, "cfg.yaml").n_envs == 1
+
+
+def test_learning_starts_waits_for_an_ended_episode_of_n_envs():
+    her = parse_training_config({"training_steps": 10, "use_HER": True, "n_envs": 8,
+                                 "sac_params": {"learning_starts": 500}}, "cfg.yaml")
+    changed = fit_learning_starts("RX200ReacherGoalSim-v0", her)  # registered with 100-step episodes
+    assert her.algo_params["learning_starts"] == 800
+    assert changed is not None and "500 -> 800" in changed
+    assert fit_learning_starts("RX200ReacherGoalSim-v0", her) is None  # already enough: untouched
+
+    short = parse_training_config({"training_steps": 10, "use_HER": True, "n_envs": 4,
+                                   "env_kwargs": {"max_episode_steps": 30}}, "cfg.yaml")
+    fit_learning_starts("RX200ReacherGoalSim-v0", short)
+    assert short.algo_params["learning_starts"] == 120  # SB3's default 100 < 4 x 30
+
+    for untouched in (TrainingConfig(use_her=True, n_envs=1, algo_params={"learning_starts": 10}),
+                      TrainingConfig(use_her=False, n_envs=8, algo_params={"learning_starts": 10})):
+        assert fit_learning_starts("RX200ReacherGoalSim-v0", untouched) is None
+        assert untouched.algo_params == {"learning_starts": 10}
+
+
+def test_a_real_robot_env_is_not_batched():
+    with pytest.raises(TrainingConfigError, match="drives a real robot; train real-robot envs with n_envs: 1"):
+        make_train_env("RX200ReacherGoalReal-v0", TrainingConfig(n_envs=2, source="cfg.yaml"))
+
+
+@pytest.mark.slow
+def test_train_resume_on_a_batched_vector_env(tmp_path, capsys):
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(TINY)
+    run = tmp_path / "runs" / "r4"
+    args = ["train", "RX200ReacherGoalSim-v0", "--config", str(cfg), "--n-envs", "4", "--output",
+            str(tmp_path / "runs"), "--name", "r4", "--eval-episodes", "2", "--no-video", "--no-progress"]
+    assert cli_main(args) == 0
+    out = capsys.readouterr().out
+    assert "x 4 envs" in out
+    assert "note: learning_starts 100 -> 200" in out  # 4 envs x 50-step episodes
+
+    saved = yaml.safe_load((run / "config.yaml").read_text())["model_params"]
+    assert saved["n_envs"] == 4 and saved["sac_params"]["learning_starts"] == 200
+    meta = json.loads((run / "run.json").read_text())
+    assert meta["status"] == "finished" and meta["steps"] == 800
+
+    from uniros.reports import read_evaluations
+
+    rows = read_evaluations(run / "evaluations.csv")
+    # eval_freq and save_freq are env steps: 4 envs evaluate every 50 vector steps.
+    assert [r["steps"] for r in rows] == [200, 400, 600, 800]
+    # An evaluation's own time is not training time: the row at the last step is not past the total.
+    assert rows[-1]["train_seconds"] <= meta["train_seconds"]
+    latest = json.loads((run / "checkpoints" / "latest.json").read_text())
+    assert latest["steps"] == 800
+
+    comments, episodes = _monitor_rows(run / "monitor" / "train.monitor.csv")
+    assert len(comments) == 1 and len(episodes) >= 800 // 50  # 200 steps of each env, episodes of <= 50
+    assert {row["is_success"] for row in episodes} <= {"True", "False"}
+    assert all(1 <= int(row["l"]) <= 50 for row in episodes)
+
+    # A resumed run keeps its n_envs (its replay buffer holds 4 envs' transitions) ...
+    assert cli_main(["train", "--resume", str(run), "--n-envs", "2"]) == 2
+    assert "a resumed run keeps it" in capsys.readouterr().err
+    # ... and carries on, appending to the monitor file.
+    assert cli_main(["train", "--resume", str(run), "--steps", "1200", "--eval-episodes", "0", "--no-video",
+                     "--no-progress"]) == 0
+    assert json.loads((run / "run.json").read_text())["steps"] == 1200
+    assert [r["steps"] for r in read_evaluations(run / "evaluations.csv")] == [200, 400, 600, 800, 1000, 1200]
+    comments_after, episodes_after = _monitor_rows(run / "monitor" / "train.monitor.csv")
+    assert len(comments_after) == 1 and episodes_after[:len(episodes)] == episodes
+    assert len(episodes_after) > len(episodes)
+
+
+def test_trainer_classes_train_the_env_they_are_given(tmp_path):
+    from uniros.sb3 import SAC_GOAL
+    from uniros.vec_env import make_batched_vec_env
+
+    cfg = tmp_path / "sac.yaml"
+    cfg.write_text("training_steps: 120\nsave_freq: 0\nuse_HER: true\nn_envs: 3\n"
+                   "sac_params: {learning_starts: 60, batch_size: 16, buffer_size: 2000}\n")
+    env = make_batched_vec_env("RX200ReacherGoalSim-v0", 3, max_episode_steps=20)
+    try:
+        model = SAC_GOAL(env, tmp_path / "m", tmp_path / "l", abs_config_path=str(cfg), verbose=0)
+        assert model.config.n_envs == 3 and model.model.n_envs == 3
+        model.train()
+        assert model.model.num_timesteps == 120 and model.model.replay_buffer.n_envs == 3
+    finally:
+        env.close()
+    # The YAML's n_envs and the env given must agree: a trainer class does not build envs itself.
+    single = uniros.make("RX200ReacherGoalSim-v0")
+    try:
+        with pytest.raises(TrainingConfigError, match="n_envs is 3 but the env given steps 1"):
+            SAC_GOAL(single, tmp_path / "m", tmp_path / "l", abs_config_path=str(cfg), verbose=0)
+    finally:
+        single.close()
