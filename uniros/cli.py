@@ -239,8 +239,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     logging.basicConfig(level=args.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    from uniros.interrupts import sigterm_as_interrupt
     from uniros.train_config import TrainingError
-    from uniros.trainer import sigterm_as_interrupt
 
     try:
         with sigterm_as_interrupt():

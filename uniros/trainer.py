@@ -13,15 +13,15 @@ from __future__ import annotations
 import contextlib
 import logging
 import signal
-import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
 from uniros.run_dir import (
     Checkpoint,
     list_checkpoints,
@@ -33,86 +33,6 @@ from uniros.run_dir import (
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError
 
 _logger = logging.getLogger(__name__)
-
-
-class TrainingInterrupted(TrainingError, KeyboardInterrupt):
-    """Training stopped on Ctrl-C or SIGTERM; a checkpoint was saved (``checkpoint``) when possible."""
-
-    def __init__(self, message: str, signum: int, checkpoint: Checkpoint | None) -> None:
-        super().__init__(message)
-        self.signum = signum
-        self.checkpoint = checkpoint
-
-    @property
-    def exit_code(self) -> int:
-        """128 + the signal number (130 for Ctrl-C, 143 for SIGTERM), as shells report it."""
-        return 128 + int(self.signum)
-
-
-class _Signal(KeyboardInterrupt):
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
-@contextlib.contextmanager
-def _signal_handler(handler: Callable[[int, Any], None], signals: tuple[int, ...]) -> Iterator[None]:
-    """Within the block, ``handler`` handles ``signals`` (only the main thread can set handlers;
-    elsewhere the block runs with the handlers as they are)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {s: signal.signal(s, handler) for s in signals}
-    try:
-        yield
-    finally:
-        for s, old in previous.items():
-            signal.signal(s, old)
-
-
-def _raise_signal(signum: int, frame: Any) -> None:
-    raise _Signal(signum)
-
-
-@contextlib.contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM interrupts like Ctrl-C (raises ``KeyboardInterrupt`` with ``signum``)."""
-    with _signal_handler(_raise_signal, (signal.SIGTERM,)):
-        yield
-
-
-class _StopRequest:
-    """The signal that asked training to stop, once one has."""
-
-    def __init__(self) -> None:
-        self.signum: int | None = None
-
-
-@contextlib.contextmanager
-def _stop_at_next_step() -> Iterator[_StopRequest]:
-    """Within the block, the first Ctrl-C or SIGTERM asks training to stop; a second one interrupts at once.
-
-    The request is honoured at the next env step, where the model is whole. Raising from the handler
-    instead lands anywhere, mid optimizer update included, and a checkpoint saved then can hold Adam
-    state with ``step`` but no ``exp_avg``, which fails on resume.
-    """
-    request = _StopRequest()
-
-    def handler(signum: int, frame: Any) -> None:
-        if request.signum is not None:
-            _raise_signal(signum, frame)
-        request.signum = signum
-
-    with _signal_handler(handler, (signal.SIGINT, signal.SIGTERM)):
-        yield request
-
-
-@contextlib.contextmanager
-def _signals_deferred() -> Iterator[list[int]]:
-    """Within the block, Ctrl-C and SIGTERM are noted, not raised (a save in progress completes)."""
-    pending: list[int] = []
-    with _signal_handler(lambda signum, frame: pending.append(signum), (signal.SIGINT, signal.SIGTERM)):
-        yield pending
 
 
 # -- building ------------------------------------------------------------------------------------
@@ -251,9 +171,9 @@ def _callback_classes() -> tuple[type, type, type]:
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
     class StopOnRequest(BaseCallback):  # type: ignore[misc]
-        """Ends ``learn`` at the first env step after a stop was requested (see ``_stop_at_next_step``)."""
+        """Ends ``learn`` at the first env step after a stop was requested (see ``stop_at_next_step``)."""
 
-        def __init__(self, request: _StopRequest) -> None:
+        def __init__(self, request: StopRequest) -> None:
             super().__init__()
             self.request = request
 
@@ -345,7 +265,7 @@ class Session:
     seconds_to_success: float | None = None
     prior_seconds: float = 0.0
     excluded: float = 0.0
-    stop_request: _StopRequest = field(default_factory=_StopRequest)
+    stop_request: StopRequest = field(default_factory=StopRequest)
     _eval_env: Any = None
     _learn_started: float = 0.0
 
@@ -494,7 +414,7 @@ class Session:
         bar = self.config.progress_bar if progress_bar is None else progress_bar
         self._learn_started, self.excluded = time.perf_counter(), 0.0
         try:
-            with _stop_at_next_step() as self.stop_request:
+            with stop_at_next_step() as self.stop_request:
                 callbacks: list[Any] = [stop_cls(self.stop_request)]
                 if self.paths.checkpoints is not None and self.config.save_freq > 0:
                     callbacks.append(checkpoint_cls(self, self.config.save_freq))
@@ -512,7 +432,7 @@ class Session:
 
     def _stop_interrupted(self, signum: int, *, save: bool) -> None:
         """Record the interruption (with a new checkpoint when ``save``) and raise ``TrainingInterrupted``."""
-        with _signals_deferred():
+        with signals_deferred():
             ckpt = self.checkpoint() if save else None
             self._write_meta(status="interrupted")
         if not save and self.paths.checkpoints is not None:

@@ -27,6 +27,7 @@ import numpy as np
 
 from multiros.envs.real.core import SIMULATION_KNOBS, RealEnvCore
 from rl_environments import SIM_TO_REAL
+from uniros.interrupts import TrainingInterrupted, sigterm_as_interrupt
 from uniros.run_dir import RunDir, RunDirError, normalizer_path, save_model_with_stats
 from uniros.train_config import (
     ALGORITHMS,
@@ -42,11 +43,9 @@ from uniros.trainer import (
     ModelFileError,
     Paths,
     Session,
-    TrainingInterrupted,
     build_model,
     latest_checkpoint,
     load_model,
-    sigterm_as_interrupt,
 )
 
 _logger = logging.getLogger(__name__)
@@ -195,7 +194,7 @@ def reports_success(env: Any, env_id: str | None = None) -> bool:
     env = _first_env(env)
     spec = getattr(env, "spec", None)
     spec_id = spec.id if spec is not None else env_id
-    return isinstance(env.unwrapped, GoalEnv) or spec_id in rl_environments.ENV_IDS
+    return isinstance(getattr(env, "unwrapped", env), GoalEnv) or spec_id in rl_environments.ENV_IDS
 
 
 # -- evaluation ------------------------------------------------------------------------------------

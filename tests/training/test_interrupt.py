@@ -10,8 +10,9 @@ import signal
 import gymnasium as gym
 import pytest
 
+from uniros.interrupts import TrainingInterrupted
 from uniros.train_config import parse_training_config
-from uniros.trainer import Paths, Session, TrainingInterrupted, latest_checkpoint
+from uniros.trainer import Paths, Session, latest_checkpoint
 
 CONFIG = {"algorithm": "sac", "training_steps": 400, "eval_freq": 0, "save_freq": 100, "progress_bar": False,
           "sac_params": {"learning_starts": 50, "batch_size": 16, "buffer_size": 1000}}
