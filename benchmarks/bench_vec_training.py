@@ -1,10 +1,10 @@
 """What N envs buy in wall clock to 0.9 success: HER + SAC on a batched vector env, N side by side.
 
 One run trains the shipped config of ``--env`` (``config/training/<ID>.yaml``: HER + SAC, the
-config's hyperparameters, normalised observations, one torch thread) on an SB3
-``uniros.vec_env.BatchedVecEnv`` of N envs (one composed simulation node, one ``StepRobots``
-request per vector step; the training env of ``uniros train --n-envs N``), for each N and seed,
-everything else equal. Two ways to count updates:
+config's hyperparameters, normalised observations, one torch thread) on what ``uniros train
+--n-envs N`` trains on, for each N and seed, everything else equal: one env for N = 1, and for
+N > 1 an SB3 ``uniros.vec_env.BatchedVecEnv`` of N envs (one composed simulation node, one
+``StepRobots`` request per vector step). Two ways to count updates:
 
 * ``same`` (the config as it is): ``train_freq`` 1 step, ``gradient_steps`` 1, so one gradient step
   per *vector* step: N env steps per update.

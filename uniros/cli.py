@@ -38,6 +38,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from uniros.training import (
         TrainingError,
         TrainingInterrupted,
+        check_n_envs,
         default_config_for,
         evaluate,
         fit_learning_starts,
@@ -72,10 +73,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
         if args.n_envs < 1:
             raise TrainingError(f"--n-envs must be at least 1, got {args.n_envs}")
         if args.resume and args.n_envs != config.n_envs:
-            raise TrainingError(f"{run.root} trains on n_envs: {config.n_envs}, and a resumed run keeps it "
-                                f"(its replay buffer holds {config.n_envs} envs' transitions); drop --n-envs")
+            raise TrainingError(f"{run.root} was started with n_envs: {config.n_envs}, and a resumed run keeps it "
+                                "(an off-policy algorithm's replay buffer holds that many envs' transitions); "
+                                "drop --n-envs")
         config.n_envs = args.n_envs
     config.env_kwargs.update(_env_overrides(args))
+    check_n_envs(env_id, config, None if args.n_envs is None else f"--n-envs {args.n_envs}")
     changed = fit_learning_starts(env_id, config)
     if changed:
         print(f"note: {changed}", flush=True)

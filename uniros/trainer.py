@@ -28,7 +28,6 @@ from uniros.run_dir import (
     load_replay_buffer,
     save_checkpoint,
     save_model_with_stats,
-    write_json,
 )
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError
 
@@ -163,8 +162,9 @@ def _aligned(cls: type) -> type:
 
 
 def _per_vector_step(env_steps: int, n_envs: int) -> int:
-    """A schedule in env steps as SB3's callbacks count it, in vector steps (calls): at least 1."""
-    return max(1, env_steps // max(1, n_envs))
+    """A schedule in env steps as SB3's callbacks count it, in vector steps (calls): at least 1, and
+    0 (off) for 0."""
+    return 0 if env_steps <= 0 else max(1, env_steps // max(1, n_envs))
 
 
 def _callback_classes() -> tuple[type, type, type]:
@@ -184,7 +184,7 @@ def _callback_classes() -> tuple[type, type, type]:
         """SB3's ``CheckpointCallback``, saving through the session (atomic files, ``latest.json``)."""
 
         def __init__(self, session: Session, save_freq: int) -> None:
-            super().__init__(save_freq=_per_vector_step(save_freq, session.config.n_envs),
+            super().__init__(save_freq=_per_vector_step(save_freq, session.model.n_envs),
                              save_path=str(session.paths.checkpoints),
                              name_prefix=session.paths.prefix, save_replay_buffer=True, save_vecnormalize=True)
             self.session = session
@@ -200,7 +200,7 @@ def _callback_classes() -> tuple[type, type, type]:
         def __init__(self, session: Session, eval_env: Any) -> None:
             config = session.config
             super().__init__(eval_env, n_eval_episodes=config.eval_episodes,
-                             eval_freq=_per_vector_step(config.eval_freq, config.n_envs),
+                             eval_freq=_per_vector_step(config.eval_freq, session.model.n_envs),
                              deterministic=True, verbose=0, warn=False)
             self.session = session
 
@@ -522,8 +522,3 @@ def latest_checkpoint(folder: Path, prefix: str | None = None) -> list[Checkpoin
         except (ValueError, KeyError, TypeError):
             _logger.warning("%s is unreadable; using the newest checkpoint files", latest)
     return found
-
-
-def write_run_meta(path: Path, **values: Any) -> None:
-    """Write ``run.json``."""
-    write_json(path, values)

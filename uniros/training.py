@@ -49,7 +49,6 @@ from uniros.trainer import (
 )
 
 _logger = logging.getLogger(__name__)
-_OFF_POLICY = {"sac", "td3", "ddpg", "dqn"}
 
 
 # -- envs ------------------------------------------------------------------------------------------
@@ -132,30 +131,56 @@ def make_train_env(env_id: str, config: TrainingConfig, factory: Callable[[], An
         return DummyVecEnv([factory] * n)
     from uniros.vec_env import make_batched_vec_env
 
+    check_n_envs(env_id, config)
+    return make_batched_vec_env(resolve_env_id(env_id), n, **config.env_kwargs)
+
+
+def check_n_envs(env_id: str, config: TrainingConfig, origin: str | None = None) -> None:
+    """Refuse an ``n_envs`` above 1 that cannot work, before anything is built or written.
+
+    ``origin`` says where ``n_envs`` came from in the message (default: the config file).
+
+    Raises:
+        TrainingConfigError: the env cannot share a simulation node (a real robot's, or not a uniros
+            env), or ``train_freq`` counts episodes (SB3 trains episodically with one env only).
+    """
+    import gymnasium as gym
+
+    from multiros.envs.batch import batchable, env_creator
+
+    n = config.n_envs
+    if n == 1:
+        return
+    where = origin or f"{config.source}: n_envs: {n}"
     resolved = resolve_env_id(env_id)
-    if not _simulated(resolved):
-        raise TrainingConfigError(
-            f"{config.source}: n_envs: {n} batches {n} envs of {env_id} in one simulation node, but {env_id} "
-            "drives a real robot; train real-robot envs with n_envs: 1"
-        )
-    return make_batched_vec_env(resolved, n, **config.env_kwargs)
+    if resolved in gym.registry and not batchable(resolved):
+        kind = "drives a real robot" if issubclass(env_creator(resolved), RealEnvCore) else \
+            "is not a uniros simulated env"
+        raise TrainingConfigError(f"{where} trains {n} envs of {env_id} in one simulation node, but {env_id} {kind}; "
+                                  "train it with n_envs: 1")
+    train_freq = config.algo_params.get("train_freq")
+    if isinstance(train_freq, (tuple, list)) and len(train_freq) == 2 and str(train_freq[1]) == "episode":
+        raise TrainingConfigError(f"{where}: train_freq counts episodes ({train_freq[0]}, episode), which SB3 does "
+                                  "with one env only; count steps (train_freq: {freq: 1, unit: step}) or use n_envs: 1")
 
 
-def fit_learning_starts(env_id: str, config: TrainingConfig) -> str | None:
+def fit_learning_starts(env_id: str | None, config: TrainingConfig, *, episode_steps: int | None = None) -> str | None:
     """Raise HER's ``learning_starts`` to ``n_envs`` episodes, so learning starts after an ended one.
 
     SB3's ``HerReplayBuffer`` samples only from ended episodes and raises before the first. One env
     ends its first episode (at the latest) after ``max_episode_steps`` steps; ``n_envs`` envs step
-    together, so that takes ``n_envs * max_episode_steps`` env steps. Returns what was changed, or
-    ``None``.
+    together, so that takes ``n_envs * max_episode_steps`` env steps. The episode limit is
+    ``episode_steps``, else the config's ``env_kwargs`` or ``env_id``'s registration. Returns what
+    was changed, or ``None``.
     """
     import gymnasium as gym
 
     if not config.use_her or config.n_envs == 1:
         return None
-    resolved = resolve_env_id(env_id)
-    limit = config.env_kwargs.get("max_episode_steps") or \
-        (gym.spec(resolved).max_episode_steps if resolved in gym.registry else None)
+    limit = episode_steps or config.env_kwargs.get("max_episode_steps")
+    if limit is None and env_id is not None:
+        resolved = resolve_env_id(env_id)
+        limit = gym.spec(resolved).max_episode_steps if resolved in gym.registry else None
     starts = int(config.algo_params.get("learning_starts", 100))
     if limit is None or starts >= config.n_envs * int(limit):
         return None
@@ -164,34 +189,25 @@ def fit_learning_starts(env_id: str, config: TrainingConfig) -> str | None:
             f"{config.n_envs} envs of {limit}-step episodes end their first after {config.n_envs} x {limit} steps")
 
 
-def _simulated(env_id: str) -> bool:
-    """Whether the registered ``env_id``'s env class is a simulated env (not a real robot's)."""
-    import gymnasium as gym
-
-    if env_id not in gym.registry:
-        return True  # not ours to judge: building it raises the helpful error
-    entry = gym.spec(env_id).entry_point
-    creator = gym.envs.registration.load_env_creator(entry) if isinstance(entry, str) else entry
-    return not (isinstance(creator, type) and issubclass(creator, RealEnvCore))
-
-
-def _first_env(env: Any) -> Any:
-    """``env``, or the first sub-env of an SB3 ``VecEnv`` (``DummyVecEnv`` or ``BatchedVecEnv``)."""
-    from stable_baselines3.common.vec_env import VecEnv
-
-    return env.envs[0] if isinstance(env, VecEnv) else env
-
-
 def reports_success(env: Any, env_id: str | None = None) -> bool:
-    """Whether ``env`` (or the first sub-env of a ``VecEnv``) puts ``is_success`` in its infos.
+    """Whether ``env`` (or the sub-envs of an SB3 ``VecEnv``) puts ``is_success`` in its infos.
 
     ``env_id`` names the registered ID when the env has no ``spec`` (a batched vector env's envs).
+    Sub-envs in other processes (``SubprocVecEnv``) are judged by their spec and their spaces.
     """
+    import gymnasium as gym
     from gymnasium_robotics.core import GoalEnv
+    from stable_baselines3.common.vec_env import VecEnv
 
     import rl_environments
 
-    env = _first_env(env)
+    if isinstance(env, VecEnv) and not hasattr(env, "envs"):
+        space = env.observation_space
+        goal = isinstance(space, gym.spaces.Dict) and {"achieved_goal", "desired_goal"} <= set(space.spaces)
+        spec = env.get_attr("spec", [0])[0]
+        return goal or (spec.id if spec is not None else env_id) in rl_environments.ENV_IDS
+    if isinstance(env, VecEnv):
+        env = env.envs[0]
     spec = getattr(env, "spec", None)
     spec_id = spec.id if spec is not None else env_id
     return isinstance(getattr(env, "unwrapped", env), GoalEnv) or spec_id in rl_environments.ENV_IDS

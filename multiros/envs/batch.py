@@ -366,6 +366,23 @@ class EnvBatch:
 BATCH_OPTIONS = ("num_nodes", "spacing", "timeout_sec", "node_name", "connect_kwargs")
 
 
+def env_creator(env_id: str) -> Any:
+    """What the registered Gymnasium ID ``env_id`` builds its env with (the env class, for uniros IDs)."""
+    import gymnasium as gym
+
+    entry = gym.spec(env_id).entry_point
+    return entry if not isinstance(entry, str) else gym.envs.registration.load_env_creator(entry)
+
+
+def batchable(env_id: str) -> bool:
+    """Whether envs of ``env_id`` can share a simulation node in a batch: its env class is a
+    :class:`~multiros.envs.core.MujocoEnvCore` (not a real robot's or another library's env). A
+    creator that is a function is only known once it has built an env: ``True`` here, checked then.
+    """
+    creator = env_creator(env_id)
+    return not isinstance(creator, type) or issubclass(creator, MujocoEnvCore)
+
+
 def make_env_batch(env_id: str, num_envs: int, batch_options: Mapping[str, Any] | None = None,
                    **kwargs: Any) -> EnvBatch:
     """The :class:`EnvBatch` of ``num_envs`` envs of the registered Gymnasium ID ``env_id``.
@@ -386,8 +403,10 @@ def make_env_batch(env_id: str, num_envs: int, batch_options: Mapping[str, Any] 
         if key in kwargs:
             raise TypeError(f"{key!r} is set by the batched vector env itself; do not pass it")
     spec = gym.spec(env_id)
-    creator = spec.entry_point if not isinstance(spec.entry_point, str) else \
-        gym.envs.registration.load_env_creator(spec.entry_point)
+    creator = env_creator(env_id)
+    if not batchable(env_id):
+        raise TypeError(f"a batched vector env needs uniros envs on the simulation node; {env_id} is "
+                        f"{creator.__name__}: use vectorization_mode='sync' or 'async' for it")
     sim_mode = kwargs.pop("sim_mode", "composed")
     max_steps = kwargs.pop("max_episode_steps", spec.max_episode_steps)
     base = kwargs.pop("robot_name", getattr(creator, "ROBOT_NAME", "robot"))

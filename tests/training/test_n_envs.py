@@ -13,7 +13,7 @@ import yaml
 import uniros
 from uniros.cli import main as cli_main
 from uniros.train_config import TrainingConfig, TrainingConfigError, parse_training_config
-from uniros.training import fit_learning_starts, make_train_env
+from uniros.training import check_n_envs, fit_learning_starts, make_train_env
 
 TINY = (
     "algorithm: sac\ntraining_steps: 800\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"
@@ -55,9 +55,28 @@ def test_learning_starts_waits_for_an_ended_episode_of_n_envs():
         assert untouched.algo_params == {"learning_starts": 10}
 
 
-def test_a_real_robot_env_is_not_batched():
-    with pytest.raises(TrainingConfigError, match="drives a real robot; train real-robot envs with n_envs: 1"):
+def test_what_cannot_be_batched_is_refused_before_anything_is_built(capsys, tmp_path):
+    with pytest.raises(TrainingConfigError, match="cfg.yaml: n_envs: 2 trains 2 envs .* drives a real robot"):
         make_train_env("RX200ReacherGoalReal-v0", TrainingConfig(n_envs=2, source="cfg.yaml"))
+    with pytest.raises(TrainingConfigError, match="--n-envs 3 trains 3 envs of Pendulum-v1 .* not a uniros simulated"):
+        check_n_envs("Pendulum-v1", TrainingConfig(n_envs=3), "--n-envs 3")
+    episodic = parse_training_config({"training_steps": 10, "n_envs": 2, "sac_params": {
+        "train_freq": {"freq": 1, "unit": "episode"}}}, "ep.yaml")
+    with pytest.raises(TrainingConfigError, match="ep.yaml: n_envs: 2: train_freq counts episodes"):
+        check_n_envs("RX200ReacherGoalSim-v0", episodic)
+    check_n_envs("Pendulum-v1", TrainingConfig(n_envs=1))  # one env: anything goes
+    # The batched vector env itself refuses another library's env before it starts a node.
+    import uniros
+
+    with pytest.raises(TypeError, match="needs uniros envs on the simulation node; Pendulum-v1 is PendulumEnv"):
+        uniros.make_vec("Pendulum-v1", 2, vectorization_mode="batched")
+    # From the command line: refused before a run directory is written.
+    cfg = tmp_path / "real.yaml"
+    cfg.write_text("training_steps: 10\n")
+    assert cli_main(["train", "RX200ReacherGoalReal-v0", "--config", str(cfg), "--n-envs", "2",
+                     "--output", str(tmp_path / "runs")]) == 2
+    assert "--n-envs 2 trains 2 envs of RX200ReacherGoalReal-v0" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
 
 
 @pytest.mark.slow
@@ -86,6 +105,9 @@ def test_train_resume_on_a_batched_vector_env(tmp_path, capsys):
     assert rows[-1]["train_seconds"] <= meta["train_seconds"]
     latest = json.loads((run / "checkpoints" / "latest.json").read_text())
     assert latest["steps"] == 800
+    # save_freq counts env steps too: a checkpoint every 25 vector steps of 4 envs.
+    saved_steps = sorted(int(p.name.split("_")[1]) for p in (run / "checkpoints").glob("model_*_steps.zip"))
+    assert saved_steps == list(range(100, 801, 100))
 
     comments, episodes = _monitor_rows(run / "monitor" / "train.monitor.csv")
     assert len(comments) == 1 and len(episodes) >= 800 // 50  # 200 steps of each env, episodes of <= 50
@@ -111,7 +133,7 @@ def test_trainer_classes_train_the_env_they_are_given(tmp_path):
 
     cfg = tmp_path / "sac.yaml"
     cfg.write_text("training_steps: 120\nsave_freq: 0\nuse_HER: true\nn_envs: 3\n"
-                   "sac_params: {learning_starts: 60, batch_size: 16, buffer_size: 2000}\n")
+                   "sac_params: {learning_starts: 20, batch_size: 16, buffer_size: 2000}\n")
     env = make_batched_vec_env("RX200ReacherGoalSim-v0", 3, max_episode_steps=20)
     try:
         model = SAC_GOAL(env, tmp_path / "m", tmp_path / "l", abs_config_path=str(cfg), verbose=0)
@@ -120,6 +142,8 @@ def test_trainer_classes_train_the_env_they_are_given(tmp_path):
         assert model.model.num_timesteps == 120 and model.model.replay_buffer.n_envs == 3
     finally:
         env.close()
+    # With HER, learning waits for an ended episode of every env: 3 envs of 20 steps.
+    assert model.config.algo_params["learning_starts"] == 60 and model.model.learning_starts == 60
     # The YAML's n_envs and the env given must agree: a trainer class does not build envs itself.
     single = uniros.make("RX200ReacherGoalSim-v0")
     try:

@@ -20,7 +20,7 @@ from typing import Any
 from uniros.run_dir import load_replay_buffer, normalizer_path, save_model_with_stats, save_replay_buffer
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError, load_training_config
 from uniros.trainer import Paths, Session, load_model
-from uniros.training import reports_success
+from uniros.training import fit_learning_starts, reports_success
 
 _logger = logging.getLogger(__name__)
 
@@ -118,6 +118,9 @@ class BasicModel:
         self.config.use_her = bool(self.goal and (use_her or self.config.use_her))
         self.config.progress_bar = False
         self.config.n_envs = _n_envs_of(env, self.config)
+        changed = fit_learning_starts(None, self.config, episode_steps=_episode_limit(env))
+        if changed:
+            _logger.warning("%s", changed)
         self.session = Session(self.config, env, make_eval_env=(lambda: eval_env) if eval_env is not None else None,
                                verbose=verbose, success_info=reports_success(env))
         if load_trained:
@@ -226,6 +229,18 @@ class BasicModel:
         return load_model(path, DummyVecEnv([lambda: env]), algorithm=cls.algorithm)
 
     load_trained = load_trained_model  # FRobs_RL's name
+
+
+def _episode_limit(env: Any) -> int | None:
+    """The episode step limit of a ``VecEnv``'s envs (a batch's, or the first env's spec), if known."""
+    from stable_baselines3.common.vec_env import VecEnv
+
+    batch = getattr(env, "batch", None)
+    if batch is not None:
+        return batch.max_episode_steps
+    if isinstance(env, VecEnv):
+        return getattr(env.get_attr("spec", [0])[0], "max_episode_steps", None)
+    return None
 
 
 def _n_envs_of(env: Any, config: TrainingConfig) -> int:
