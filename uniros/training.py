@@ -321,7 +321,16 @@ def train(
 # -- runs with a run directory (uniros train) -------------------------------------------------------
 def start_run(env_id: str, config: TrainingConfig, *, output: str | Path = "runs", name: str | None = None,
               command: list[str] | None = None) -> RunDir:
-    """Create the run directory and write the resolved config and ``run.json``."""
+    """Create the run directory and write the resolved config and ``run.json``.
+
+    An ``n_envs`` that cannot work is refused first (:func:`check_n_envs`), and HER's
+    ``learning_starts`` is raised for it (:func:`fit_learning_starts`), so ``config.yaml`` holds
+    what the run trains with.
+    """
+    check_n_envs(env_id, config)
+    changed = fit_learning_starts(env_id, config)
+    if changed:
+        _logger.warning("%s", changed)
     run = RunDir.create(output, name, env_id, config.algorithm)
     save_training_config(config, run.config)
     run.update_meta(env_id=env_id, algorithm=config.algorithm, env_kwargs=config.env_kwargs, status="created",

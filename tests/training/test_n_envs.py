@@ -13,7 +13,7 @@ import yaml
 import uniros
 from uniros.cli import main as cli_main
 from uniros.train_config import TrainingConfig, TrainingConfigError, parse_training_config
-from uniros.training import check_n_envs, fit_learning_starts, make_train_env
+from uniros.training import check_n_envs, fit_learning_starts, make_train_env, start_run
 
 TINY = (
     "algorithm: sac\ntraining_steps: 800\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"
@@ -77,6 +77,17 @@ def test_what_cannot_be_batched_is_refused_before_anything_is_built(capsys, tmp_
                      "--output", str(tmp_path / "runs")]) == 2
     assert "--n-envs 2 trains 2 envs of RX200ReacherGoalReal-v0" in capsys.readouterr().err
     assert not (tmp_path / "runs").exists()
+
+
+def test_start_run_writes_what_the_run_trains_with(tmp_path):
+    config = parse_training_config({"training_steps": 10, "use_HER": True, "n_envs": 4,
+                                    "sac_params": {"learning_starts": 100}}, "cfg.yaml")
+    run = start_run("RX200ReacherGoalSim-v0", config, output=tmp_path, name="r")
+    saved = yaml.safe_load(run.config.read_text())["model_params"]
+    assert saved["n_envs"] == 4 and saved["sac_params"]["learning_starts"] == 400
+    with pytest.raises(TrainingConfigError, match="drives a real robot"):
+        start_run("RX200ReacherGoalReal-v0", TrainingConfig(n_envs=2), output=tmp_path, name="r2")
+    assert not (tmp_path / "r2").exists()
 
 
 @pytest.mark.slow
