@@ -153,9 +153,9 @@ def check_n_envs(env_id: str, config: TrainingConfig, origin: str | None = None)
         return
     where = origin or f"{config.source}: n_envs: {n}"
     resolved = resolve_env_id(env_id)
-    if resolved in gym.registry and not batchable(resolved):
-        kind = "drives a real robot" if issubclass(env_creator(resolved), RealEnvCore) else \
-            "is not a uniros simulated env"
+    creator = env_creator(resolved) if resolved in gym.registry else None
+    if creator is not None and not batchable(creator):
+        kind = "drives a real robot" if issubclass(creator, RealEnvCore) else "is not a uniros simulated env"
         raise TrainingConfigError(f"{where} trains {n} envs of {env_id} in one simulation node, but {env_id} {kind}; "
                                   "train it with n_envs: 1")
     train_freq = config.algo_params.get("train_freq")

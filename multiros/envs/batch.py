@@ -374,12 +374,12 @@ def env_creator(env_id: str) -> Any:
     return entry if not isinstance(entry, str) else gym.envs.registration.load_env_creator(entry)
 
 
-def batchable(env_id: str) -> bool:
-    """Whether envs of ``env_id`` can share a simulation node in a batch: its env class is a
-    :class:`~multiros.envs.core.MujocoEnvCore` (not a real robot's or another library's env). A
-    creator that is a function is only known once it has built an env: ``True`` here, checked then.
+def batchable(creator: Any) -> bool:
+    """Whether the envs an ID's ``creator`` (:func:`env_creator`) builds can share a simulation node
+    in a batch: it is a :class:`~multiros.envs.core.MujocoEnvCore` class (not a real robot's or another
+    library's env). A creator that is a function is only known once it has built an env: ``True``
+    here, checked then.
     """
-    creator = env_creator(env_id)
     return not isinstance(creator, type) or issubclass(creator, MujocoEnvCore)
 
 
@@ -404,7 +404,7 @@ def make_env_batch(env_id: str, num_envs: int, batch_options: Mapping[str, Any] 
             raise TypeError(f"{key!r} is set by the batched vector env itself; do not pass it")
     spec = gym.spec(env_id)
     creator = env_creator(env_id)
-    if not batchable(env_id):
+    if not batchable(creator):
         raise TypeError(f"a batched vector env needs uniros envs on the simulation node; {env_id} is "
                         f"{creator.__name__}: use vectorization_mode='sync' or 'async' for it")
     sim_mode = kwargs.pop("sim_mode", "composed")
