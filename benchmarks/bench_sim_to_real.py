@@ -60,7 +60,7 @@ def _start_standin(kind: str, env: dict[str, str], cwd: Path) -> subprocess.Pope
 
 def _wait_ready(ctx, proc: subprocess.Popen, timeout: float = 60.0) -> None:
     from multiros.ros import Node
-    from multiros.sim.controller_client import ControllerManagerClient
+    from multiros.ros.controller_manager import ControllerManagerClient
 
     node = Node(f"bench_probe_{os.getpid()}", context=ctx)
     try:

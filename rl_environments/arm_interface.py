@@ -1,65 +1,112 @@
-"""What a reach-type task needs from the robot layer, whichever robot layer it is.
+"""What a task needs from the robot layer of an arm, whichever robot layer it is.
 
-The task classes (:mod:`rl_environments.reach_task` and the RX200/IRB120 task mixins) use only
-these members, so the same task composes with the simulated robot envs
-(:class:`~rl_environments.arm_robot.ArmRobot` on :class:`~multiros.envs.MujocoBaseEnv`) and the real
-ones (:class:`~rl_environments.real_arm_robot.RealArmRobot` on :class:`~multiros.envs.RealBaseEnv`).
+The task classes (:mod:`rl_environments.reach_task`, :mod:`rl_environments.manipulation_task` and the
+robots' task mixins) use only these members, so the same task composes with the simulated robot
+envs (:class:`~rl_environments.arm_robot.ArmRobot` on :class:`~multiros.envs.MujocoBaseEnv`) and the
+real ones (:class:`~rl_environments.real_arm_robot.RealArmRobot` on :class:`~multiros.envs.RealBaseEnv`).
+
+Tasks are written batch-first (:mod:`multiros.envs.batch_task`): the robot layer answers for N envs
+of one class at once (``arm_positions_of(states)`` and friends, on ``(N, ...)`` arrays) and for one
+env (``arm_positions()``, for scripted policies and user code). Task and robot layer both derive
+from :class:`ArmInterface`; its declarations give a type checker the robot's members, and the
+robot layer, earlier in every task env's method resolution order, implements them.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from multiros.robot_state import RobotState, RobotStates
 from multiros.utils.kinematics import KinematicChain
+
+__all__ = ["ArmInterface", "ARM_INTERFACE_MEMBERS"]
 
 # The members a task may use (tests check both robot layers provide them).
 ARM_INTERFACE_MEMBERS = (
-    "ARM_JOINTS", "kinematic_chain", "base_position", "arm_positions", "arm_velocities", "ee_position",
-    "set_arm_targets", "move_to_initial_pose", "node", "info", "np_random",
+    "ARM_JOINTS", "EE_LINK", "ARM_CONTROLLER", "kinematic_chain", "base_position", "arm_positions", "arm_velocities",
+    "ee_position", "set_arm_targets", "move_to_initial_pose", "node", "info", "np_random", "arm_positions_of",
+    "arm_velocities_of", "ee_positions_of", "set_arm_targets_of", "send_command", "robot_state", "joint_positions",
+    "joint_velocities",
 )
 
 
-@runtime_checkable
-class ArmInterface(Protocol):
-    """The robot layer of an arm, as a task sees it.
+class ArmInterface:
+    """The robot layer of an arm, as a task sees it (see the module docstring).
 
     Positions are in the world frame of the task (the robot base at ``base_position``); joint
     arrays follow ``ARM_JOINTS``.
     """
 
     ARM_JOINTS: ClassVar[tuple[str, ...]]
-    node: Any  # a multiros.ros Node (goal markers)
-    info: dict[str, Any]  # this step's info dict
+    EE_LINK: ClassVar[str]
+    ARM_CONTROLLER: ClassVar[str]
+    info: dict[str, Any]
+    np_random: np.random.Generator
 
+    if TYPE_CHECKING:  # provided by the env core below the robot layer; declared for type checkers only
+        node: Any
+        robot_name: str
+        connection: Any
+
+        @property
+        def robot_state(self) -> RobotState: ...
+
+        def send_command(self, controller: str, command: Sequence[float] | np.ndarray) -> None: ...
+
+        def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float],
+                                 tolerance: float = 1e-3) -> None: ...
+
+        def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray: ...
+
+        def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray: ...
+
+    # -- the robot layer, batch-first ---------------------------------------------------------------
     @classmethod
     def kinematic_chain(cls) -> KinematicChain:
         """The arm's chain from its base link to the end effector."""
-        ...
+        raise NotImplementedError
 
+    @classmethod
+    def arm_positions_of(cls, states: RobotStates) -> np.ndarray:
+        """``(N, arm joints)`` arm joint positions of N robots' states."""
+        raise NotImplementedError
+
+    @classmethod
+    def arm_velocities_of(cls, states: RobotStates) -> np.ndarray:
+        """``(N, arm joints)`` arm joint velocities."""
+        raise NotImplementedError
+
+    @classmethod
+    def ee_positions_of(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
+        """``(N, 3)`` end-effector world positions of ``envs``' robots (``states``: their states, in order)."""
+        raise NotImplementedError
+
+    @classmethod
+    def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
+        """Command each env's arm to its row of ``targets`` (through a real robot's safety rules)."""
+        raise NotImplementedError
+
+    # -- the same for one env ------------------------------------------------------------------------
     @property
     def base_position(self) -> np.ndarray:
         """World position of the robot base."""
-        ...
+        raise NotImplementedError
 
     def arm_positions(self) -> np.ndarray:
         """Arm joint positions observed after the last step."""
-        ...
+        raise NotImplementedError
 
     def arm_velocities(self) -> np.ndarray:
         """Arm joint velocities observed after the last step."""
-        ...
+        raise NotImplementedError
 
     def ee_position(self) -> np.ndarray:
         """World position of the end effector after the last step."""
-        ...
+        raise NotImplementedError
 
     def set_arm_targets(self, targets: np.ndarray) -> None:
         """Command arm joint targets (the real layer passes them through its safety rules)."""
-        ...
-
-    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
-        """Bring the arm to an episode's initial pose (teleport in simulation, a slow move on a robot)."""
-        ...
+        raise NotImplementedError

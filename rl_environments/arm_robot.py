@@ -8,7 +8,7 @@ into :class:`~multiros.envs.MujocoBaseEnv` or :class:`~multiros.envs.MujocoGoalE
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from importlib import import_module
 from pathlib import Path
 from typing import Any, ClassVar
@@ -16,7 +16,11 @@ from typing import Any, ClassVar
 import numpy as np
 
 from multiros.envs import EnvError
+from multiros.robot_state import RobotStates
 from multiros.utils.kinematics import KinematicChain
+from rl_environments.arm_interface import ArmInterface
+
+_ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray] = {}
 
 
 @functools.lru_cache(maxsize=8)
@@ -26,7 +30,7 @@ def _chain(package: str, xacro_file: str, args: tuple[tuple[str, str], ...], bas
     return KinematicChain.from_urdf(root / "urdf" / xacro_file, base, tip, xacro_args=dict(args))
 
 
-class ArmRobot:
+class ArmRobot(ArmInterface):
     """Robot-layer behaviour of a fixed-base arm. A robot sets the class attributes below.
 
     Attributes:
@@ -89,7 +93,41 @@ class ArmRobot:
         return _chain(cls.DESCRIPTION_MODULE, cls.XACRO_FILE, tuple(sorted(cls.XACRO_ARGS.items())),
                       cls.BASE_LINK, cls.EE_LINK)
 
-    # -- robot-level helpers for task envs -------------------------------------------------
+    # -- the robot layer, batch-first (see rl_environments.arm_interface) -----------------------------
+    @classmethod
+    def arm_index(cls, names: tuple[str, ...]) -> np.ndarray:
+        """Where ``ARM_JOINTS`` sit in joint arrays ordered as ``names`` (cached per class and order)."""
+        key = (cls, names)
+        idx = _ARM_INDEX.get(key)
+        if idx is None:
+            where = {name: i for i, name in enumerate(names)}
+            missing = [j for j in cls.ARM_JOINTS if j not in where]
+            if missing:
+                raise EnvError(f"{cls.__name__}: the robot reports no joints {missing}; joints: {names}")
+            idx = _ARM_INDEX[key] = np.array([where[j] for j in cls.ARM_JOINTS], dtype=np.intp)
+        return idx
+
+    @classmethod
+    def arm_positions_of(cls, states: RobotStates) -> np.ndarray:
+        return states.position[:, cls.arm_index(states.names)]
+
+    @classmethod
+    def arm_velocities_of(cls, states: RobotStates) -> np.ndarray:
+        return states.velocity[:, cls.arm_index(states.names)]
+
+    @classmethod
+    def ee_positions_of(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
+        """The ``EE_LINK`` frame of each state (relative to each env's world slot: the env's own numbers)."""
+        return states.frame_positions[:, envs[0].connection.frame_index(cls.EE_LINK)]
+
+    @classmethod
+    def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
+        """Queue each env's arm command (it travels with the next physics step)."""
+        controller = cls.ARM_CONTROLLER
+        for env, row in zip(envs, targets):
+            env.connection.command(controller, row)
+
+    # -- the same for one env (scripted policies, user code) -------------------------------------------
     @property
     def base_position(self) -> np.ndarray:
         """World position of the robot base (its spawn position)."""
@@ -97,25 +135,23 @@ class ArmRobot:
 
     def arm_positions(self) -> np.ndarray:
         """Arm joint positions after the last step, in ``ARM_JOINTS`` order."""
-        return self.joint_positions(self.ARM_JOINTS)  # type: ignore[attr-defined]
+        return self.arm_positions_of(self.connection.states)[0]
 
     def arm_velocities(self) -> np.ndarray:
         """Arm joint velocities after the last step."""
-        return self.joint_velocities(self.ARM_JOINTS)  # type: ignore[attr-defined]
+        return self.arm_velocities_of(self.connection.states)[0]
 
     def ee_position(self) -> np.ndarray:
         """World position of the end effector after the last step."""
-        return self.frame_position(self.EE_LINK)  # type: ignore[attr-defined]
+        return self.ee_positions_of([self], self.connection.states)[0].copy()
 
     def set_arm_targets(self, targets: np.ndarray) -> None:
         """Command the arm's position controller (sent with the next physics step)."""
-        self.send_command(self.ARM_CONTROLLER, targets)  # type: ignore[attr-defined]
+        self.set_arm_targets_of([self], np.asarray(targets, dtype=np.float64)[None])
 
     def _check_connection_and_readiness(self) -> bool:
-        missing = [j for j in self.ARM_JOINTS if j not in self.joint_names]  # type: ignore[attr-defined]
+        names = self.robot_state.names
+        missing = [j for j in self.ARM_JOINTS if j not in names]
         if missing:
-            raise EnvError(
-                f"robot {self.robot_name!r} reports no joints {missing}; "  # type: ignore[attr-defined]
-                f"joints: {self.joint_names}"  # type: ignore[attr-defined]
-            )
+            raise EnvError(f"robot {self.robot_name!r} reports no joints {missing}; joints: {names}")
         return True

@@ -12,8 +12,12 @@ Faults (each truncates the episode with ``info["truncated_reason"]``):
 
 * ``"object_fell_off_table"``: the object's centre is ``fall_margin`` below the table top;
 * ``"object_out_of_reach"``: it is farther than ``max_object_distance`` (horizontally) from the base;
-* ``"sim_diverged"`` (also ``info["sim_diverged"] = True``): MuJoCo diverged in the step; the node
-  restored the diverging entity at rest, and the next reset starts a clean episode.
+* ``"sim_diverged"`` (also ``info["sim_diverged"] = True``, set by the env core): MuJoCo diverged in
+  the step; the node restored the diverging entity at rest, and the next reset starts a clean episode.
+
+The task is written batch-first (:mod:`multiros.envs.batch_task`): actions to commands
+(:meth:`ManipulationTask.batch_act`) and the raw observation (:meth:`ManipulationTask.batch_raw_observation`)
+for N envs in one numpy pass; the end-effector IK and the object's angular velocity go row by row.
 
 Gripper commands: the action's last value in ``[-1, 1]`` maps linearly to the finger target,
 -1 closed (``gripper_min``), +1 open (``gripper_max``); values outside ``[-1, 1]`` are clipped to
@@ -22,19 +26,21 @@ it (the action space's bounds, like every Box action).
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any, Literal
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from gymnasium import spaces
 
-from multiros.sim.client import SimulationServiceError
+from multiros.envs.batch_task import BatchTask
+from multiros.robot_state import RobotStates
 from multiros.utils.ros_markers import goal_marker
+from rl_environments.arm_interface import ArmInterface
 from rl_environments.manipulation import ObjectGoalSampler, RX200TopDownIK, quat_to_euler, rotation_velocity, yaw_quat
+from rl_environments.reach_task import stack_rows
 
 TaskKind = Literal["push", "pnp"]
 
-_UNSTABLE = 104  # uniros_interfaces StepRobot UNSTABLE
 TABLE_URI = "package://rx200_description/mjcf/table.xml"
 OBJECT_URI = "package://rx200_description/mjcf/cube.xml"
 GRIPPER_CONTROLLER = "gripper_controller"
@@ -42,13 +48,29 @@ FINGER_JOINTS = ("left_finger", "right_finger")
 OBS_SIZE = 30  # see ManipulationTask.raw_observation
 
 
-class ManipulationTask:
+class ManipulationTask(BatchTask, ArmInterface):
     """Push / pick-and-place behaviour on top of the RX200 robot env (see the module docstring).
 
     The task env calls :meth:`_setup_manipulation` after the robot env's constructor.
     """
 
     task: TaskKind
+    cfg: dict[str, Any]
+    goal: np.ndarray
+    prev_action: np.ndarray
+    joint_targets: np.ndarray
+    gripper_target: float
+    action_space: spaces.Box
+
+    if TYPE_CHECKING:  # the simulated env core's, below the robot layer
+        def set_joint_positions(self, names: Sequence[str], positions: Sequence[float], hold: bool = True) -> None: ...
+
+        @property
+        def sim_time(self) -> float: ...
+
+        def frame_position(self, frame: str) -> np.ndarray: ...
+
+        def frame_orientation(self, frame: str) -> np.ndarray: ...
 
     @staticmethod
     def manipulation_kwargs(cfg: Mapping[str, Any], kwargs: dict[str, Any]) -> dict[str, Any]:
@@ -60,7 +82,7 @@ class ManipulationTask:
                             distance_threshold: float | None = None) -> None:
         self.cfg = dict(cfg)
         self.task = task
-        self.chain = self.kinematic_chain()  # type: ignore[attr-defined]
+        self.chain = self.kinematic_chain()
         self.ee_action_type = bool(ee_action_type)
         self.delta_coeff = float(cfg["delta_coeff"])
         self.ee_delta_coeff = float(cfg["ee_delta_coeff"])
@@ -69,7 +91,7 @@ class ManipulationTask:
         self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
         self.ik = RX200TopDownIK(np.maximum(self.chain.lower, self.min_joint_pos),
                                  np.minimum(self.chain.upper, self.max_joint_pos))
-        base = self.base_position  # type: ignore[attr-defined]
+        base = self.base_position
         self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
         self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
         self.gripper_range = (float(cfg["gripper_min"]), float(cfg["gripper_max"]))
@@ -84,50 +106,45 @@ class ManipulationTask:
             yaw_range=float(cfg["object_yaw_range"]),
         )
         self.init_joint_pos = self.ik.solve(np.asarray(cfg["init_ee_position"], dtype=np.float64))
-        n = len(self.ARM_JOINTS)  # type: ignore[attr-defined]
+        n = len(self.ARM_JOINTS)
         n_act = (3 if self.ee_action_type else n) + 1
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
         self.prev_action = np.zeros(n_act)
-        # -- the scene: table and object through SpawnEntity, their root bodies as extra frames
-        name = self.robot_name  # type: ignore[attr-defined]
+        # -- the scene: table and object through SpawnEntity into the robot's namespace (a shared
+        # world's reset puts them back with the robot), their root bodies as extra frames
+        name = self.robot_name
         self.table_entity, self.object_entity = f"{name}_table", f"{name}_object"
         self.table_pose = np.asarray(cfg["table_center"], dtype=np.float64) + base
-        self._spawn_object(self.table_entity, TABLE_URI, self.table_pose)
+        self.connection.spawn_entity(self.table_entity, TABLE_URI, self.table_pose)
         self.goal = np.array([*self.sampler.goal_low, rest_z]) + base
-        self._spawn_object(self.object_entity, OBJECT_URI, np.array([*self.sampler.object_low, rest_z]) + base)
+        self.connection.spawn_entity(self.object_entity, OBJECT_URI,
+                                     np.array([*self.sampler.object_low, rest_z]) + base)
         self.object_frame, self.table_frame = f"{self.object_entity}/object", f"{self.table_entity}/table"
-        self.frames = (*self.frames, self.object_frame, self.table_frame)  # type: ignore[has-type]
-        self._frame_index = {}  # rebuilt from self.frames by the next state
-        self._refresh_state(0)  # type: ignore[attr-defined]
+        self.connection.add_frames((self.object_frame, self.table_frame))
+        self.connection.refresh(0)
         self._track_reset()
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
 
-    def _spawn_object(self, entity: str, uri: str, position: np.ndarray) -> None:
-        slot = self._slot if self._slot is not None else 0.0  # type: ignore[attr-defined]
-        self.sim.spawn_entity(entity, uri=uri, position=tuple(position + slot),  # type: ignore[attr-defined]
-                              timeout_sec=max(self.timeout_sec, 30.0))  # type: ignore[attr-defined]
-
     def _place(self, entity: str, position: np.ndarray, quat: np.ndarray) -> None:
         """SetEntityState: the pose (and, on Jazzy/Kilted definitions, zero twist)."""
-        slot = self._slot if self._slot is not None else 0.0  # type: ignore[attr-defined]
-        self.sim.set_entity_pose(entity, tuple(position + slot), tuple(quat))  # type: ignore[attr-defined]
+        self.connection.place_entity(entity, position, quat)
 
-    # -- hooks ------------------------------------------------------------------------------
+    # -- reset hooks (one env at a time) ----------------------------------------------------------------
     def _set_init_pose(self) -> None:
-        self.move_to_initial_pose(self.ARM_JOINTS, self.init_joint_pos)  # type: ignore[attr-defined]
-        self.set_joint_positions(["left_finger"], [self.gripper_range[1]])  # type: ignore[attr-defined]
+        self.move_to_initial_pose(self.ARM_JOINTS, self.init_joint_pos)
+        self.set_joint_positions(["left_finger"], [self.gripper_range[1]])
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
-        self.send_command(GRIPPER_CONTROLLER, [self.gripper_target])  # type: ignore[attr-defined]
+        self.send_command(GRIPPER_CONTROLLER, [self.gripper_target])
 
     def _set_episode_init_params(self) -> None:
-        rng = self.np_random  # type: ignore[attr-defined]
-        base = self.base_position  # type: ignore[attr-defined]
+        rng = self.np_random
+        base = self.base_position
         obj, yaw, goal = self.sampler.sample(rng)
         self.goal = goal + base
-        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:  # type: ignore[attr-defined]
-            self._place(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))  # knocked (shared world)
+        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
+            self._place(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))  # knocked over
         self._place(self.object_entity, obj + base, yaw_quat(yaw))
         self.prev_action = np.zeros(self.action_space.shape)
         self._episode_start = True  # velocities restart from the first observation
@@ -135,84 +152,104 @@ class ManipulationTask:
 
     def _show_goal(self) -> None:
         """A sphere the size of the cube at the goal (rendered images, the viewer, RViz); once per episode."""
-        slot = self._slot if self._slot is not None else 0.0  # type: ignore[attr-defined]
+        at = self.connection.to_world(self.goal)
         marker = getattr(self, "_goal_marker", None)
         if marker is None:
-            self._goal_marker = goal_marker(self.node, self.goal + slot, diameter=2 * self.half,  # type: ignore[attr-defined]
-                                            ns=f"goal_{self.robot_name}")  # type: ignore[attr-defined]
+            self._goal_marker = goal_marker(self.node, at, diameter=2 * self.half, ns=f"goal_{self.robot_name}")
         else:
-            marker.update(position=self.goal + slot)
+            marker.update(position=at)
+
+    # -- actions, batch-first -------------------------------------------------------------------------
+    @classmethod
+    def batch_act(cls, envs: Sequence[Any], actions: np.ndarray, states: RobotStates) -> None:
+        """Joint targets (through each env's top-down IK for EE actions, row by row) and gripper targets
+        of N envs; both sent to each robot."""
+        current = cls.arm_positions_of(states)
+        if all(env.ee_action_type for env in envs):
+            ee = cls.ee_positions_of(envs, states)
+            targets = np.array([env.ik.solve(np.clip(ee[j] - env.base_position + actions[j, :3] * env.ee_delta_coeff,
+                                                     env.ee_low, env.ee_high)) for j, env in enumerate(envs)])
+        elif not any(env.ee_action_type for env in envs):
+            targets = current + actions[:, :-1] * stack_rows(envs, "delta_coeff")[:, None]
+        else:
+            ee = cls.ee_positions_of(envs, states)
+            targets = np.array([
+                env.ik.solve(np.clip(ee[j] - env.base_position + actions[j, :3] * env.ee_delta_coeff, env.ee_low,
+                                     env.ee_high))
+                if env.ee_action_type else current[j] + actions[j, :-1] * env.delta_coeff
+                for j, env in enumerate(envs)])
+        targets = np.clip(targets, stack_rows(envs, "min_joint_pos"), stack_rows(envs, "max_joint_pos"))
+        cls.set_arm_targets_of(envs, targets)
+        for j, env in enumerate(envs):
+            env.joint_targets = targets[j]
+            lo, hi = env.gripper_range
+            env.gripper_target = lo + (float(np.clip(actions[j, -1], -1.0, 1.0)) + 1.0) * 0.5 * (hi - lo)
+            env.send_command(GRIPPER_CONTROLLER, [env.gripper_target])
+            env.prev_action = actions[j]
 
     def _set_action(self, action: np.ndarray) -> None:
-        current = self.arm_positions()  # type: ignore[attr-defined]
-        if self.ee_action_type:
-            base = self.base_position  # type: ignore[attr-defined]
-            target = self.ee_position() - base + action[:3] * self.ee_delta_coeff  # type: ignore[attr-defined]
-            targets = self.ik.solve(np.clip(target, self.ee_low, self.ee_high))
-        else:
-            targets = current + action[:-1] * self.delta_coeff
-        self.joint_targets = np.clip(targets, self.min_joint_pos, self.max_joint_pos)
-        self.set_arm_targets(self.joint_targets)  # type: ignore[attr-defined]
-        lo, hi = self.gripper_range
-        self.gripper_target = lo + (float(np.clip(action[-1], -1.0, 1.0)) + 1.0) * 0.5 * (hi - lo)
-        self.send_command(GRIPPER_CONTROLLER, [self.gripper_target])  # type: ignore[attr-defined]
-        self.prev_action = np.asarray(action, dtype=np.float64)
+        type(self).batch_act([self], np.asarray(action, dtype=np.float64)[None], self.connection.states)
 
-    def _advance(self) -> None:
-        """The step's round trip; a diverging contact ends the episode (truncated) instead of raising."""
-        try:
-            super()._advance()  # type: ignore[misc]
-        except SimulationServiceError as exc:
-            if exc.code != _UNSTABLE:
-                raise
-            self.info["sim_diverged"] = True
-            self.info["sim_error"] = exc.message
-            self.info["truncated_reason"] = "sim_diverged"
-            self._refresh_state(0)  # type: ignore[attr-defined]
+    # -- state, batch-first ---------------------------------------------------------------------------
+    @classmethod
+    def batch_raw_observation(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
+        """N envs' raw observations (30 values each: see :meth:`raw_observation`), and each env's
+        velocity tracking moved on to this state."""
+        e0 = envs[0]
+        ee = cls.ee_positions_of(envs, states)
+        fi = e0.connection.frame_index(e0.object_frame)
+        obj, obj_q = states.frame_positions[:, fi], states.frame_orientations[:, fi]
+        t = states.sim_time
+        vel = np.empty((len(envs), 9))
+        for j, env in enumerate(envs):
+            if env._episode_start:
+                env._episode_start = False
+                env._last = (t, ee[j].copy(), obj[j].copy(), obj_q[j].copy())
+                env._vel = (np.zeros(3), np.zeros(3), np.zeros(3))
+            vel[j] = np.concatenate(env._moved_to(t, ee[j], obj[j], obj_q[j]))
+        finger = cls.finger_index(states.names)
+        arm = cls.arm_positions_of(states)
+        return np.concatenate([ee, obj, obj - ee, states.position[:, finger], quat_to_euler(obj_q), vel[:, 3:6],
+                               vel[:, 6:9], vel[:, 0:3], states.velocity[:, finger], arm], axis=1)
 
-    # -- state --------------------------------------------------------------------------------
-    def object_position(self) -> np.ndarray:
-        """World position of the object's centre after the last step."""
-        return self.frame_position(self.object_frame)  # type: ignore[attr-defined]
+    @classmethod
+    def finger_index(cls, names: tuple[str, ...]) -> list[int]:
+        where = {name: i for i, name in enumerate(names)}
+        return [where[f] for f in FINGER_JOINTS]
 
-    def object_orientation(self) -> np.ndarray:
-        """World orientation ``(w, x, y, z)`` of the object after the last step."""
-        return self.frame_orientation(self.object_frame)  # type: ignore[attr-defined]
-
-    def _track_reset(self) -> None:
-        self._last = (self.sim_time, self.ee_position(), self.object_position(),  # type: ignore[attr-defined]
-                      self.object_orientation())
-        self._vel = (np.zeros(3), np.zeros(3), np.zeros(3))
-
-    def _velocities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """EE linear, object linear and object angular velocity since the previous state."""
-        t = self.sim_time  # type: ignore[attr-defined]
+    def _moved_to(self, t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, ...]:
+        """EE linear, object linear and object angular velocity since the previous state (finite
+        differences over the sim time between them); the tracking moves on to this state."""
         t0, ee0, p0, q0 = self._last
         if t != t0:
             dt = t - t0
-            ee, p, q = self.ee_position(), self.object_position(), self.object_orientation()  # type: ignore[attr-defined]
             self._vel = ((ee - ee0) / dt, (p - p0) / dt, rotation_velocity(q0, q, dt)) if dt > 0 else (
                 np.zeros(3), np.zeros(3), np.zeros(3))
-            self._last = (t, ee, p, q)
+            self._last = (t, ee.copy(), p.copy(), q.copy())
         return self._vel
+
+    def object_position(self) -> np.ndarray:
+        """World position of the object's centre after the last step."""
+        return self.frame_position(self.object_frame)
+
+    def object_orientation(self) -> np.ndarray:
+        """World orientation ``(w, x, y, z)`` of the object after the last step."""
+        return self.frame_orientation(self.object_frame)
+
+    def _track_reset(self) -> None:
+        self._episode_start = False
+        self._last = (self.sim_time, self.ee_position(), self.object_position(), self.object_orientation())
+        self._vel = (np.zeros(3), np.zeros(3), np.zeros(3))
 
     def raw_observation(self) -> np.ndarray:
         """Fetch's observation plus the arm joints (30 values): EE position, object position, object
         minus EE, the two finger positions, object roll/pitch/yaw, object linear and angular velocity,
         EE velocity, finger velocities, arm joint positions."""
-        if getattr(self, "_episode_start", False):
-            self._episode_start = False
-            self._track_reset()
-        ee, obj = self.ee_position(), self.object_position()  # type: ignore[attr-defined]
-        ee_vel, obj_vel, obj_rot_vel = self._velocities()
-        fingers = self.joint_positions(FINGER_JOINTS)  # type: ignore[attr-defined]
-        finger_vel = self.joint_velocities(FINGER_JOINTS)  # type: ignore[attr-defined]
-        return np.concatenate([ee, obj, obj - ee, fingers, quat_to_euler(self.object_orientation()), obj_vel,
-                               obj_rot_vel, ee_vel, finger_vel, self.arm_positions()])  # type: ignore[attr-defined]
+        return type(self).batch_raw_observation([self], self.connection.states)[0]
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of :meth:`raw_observation` (values outside are clipped into them)."""
-        base = self.base_position  # type: ignore[attr-defined]
+        base = self.base_position
         reach = float(self.cfg["max_object_distance"]) + 0.1
         pos_lo = base + np.array([-reach, -reach, -0.5])
         pos_hi = base + np.array([reach, reach, 0.7])
@@ -229,15 +266,17 @@ class ManipulationTask:
         assert low.shape == (OBS_SIZE,)
         return low, high
 
-    def check_faults(self) -> None:
-        """Set ``info["truncated_reason"]`` when the object fell off the table or left the arm's reach."""
-        if self.info.get("truncated_reason"):  # type: ignore[attr-defined]
+    def check_faults(self, obj: np.ndarray | None = None) -> None:
+        """Set ``info["truncated_reason"]`` when the object fell off the table or left the arm's reach
+        (``obj``: the object's position after the step, read from the state when not given)."""
+        if self.info.get("truncated_reason"):
             return
-        obj = self.object_position() - self.base_position  # type: ignore[attr-defined]
-        if obj[2] + self.base_position[2] < self.table_top - float(self.cfg["fall_margin"]):  # type: ignore[attr-defined]
-            self.info["truncated_reason"] = "object_fell_off_table"  # type: ignore[attr-defined]
-        elif float(np.hypot(obj[0], obj[1])) > float(self.cfg["max_object_distance"]):
-            self.info["truncated_reason"] = "object_out_of_reach"  # type: ignore[attr-defined]
+        base = self.base_position
+        rel = (self.object_position() if obj is None else obj) - base
+        if rel[2] + base[2] < self.table_top - float(self.cfg["fall_margin"]):
+            self.info["truncated_reason"] = "object_fell_off_table"
+        elif float(np.hypot(rel[0], rel[1])) > float(self.cfg["max_object_distance"]):
+            self.info["truncated_reason"] = "object_out_of_reach"
 
     def object_goal_distance(self) -> float:
         """Distance of the object's centre from the goal."""

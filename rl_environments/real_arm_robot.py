@@ -9,11 +9,12 @@ package's URDF (a real robot offers no end-effector service); arm targets go thr
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from multiros.envs.real.safety import SafetyRules
+from multiros.robot_state import RobotStates
 from rl_environments.arm_robot import ArmRobot
 
 
@@ -36,6 +37,11 @@ class RealArmRobot(ArmRobot):
     WORKSPACE_MAX: ClassVar[tuple[float, float, float]]
     FLOOR_Z: ClassVar[float] = 0.02
     MAX_JOINT_DELTA: ClassVar[float] = 0.15
+
+    if TYPE_CHECKING:  # the real env core's, below this layer
+        safety: SafetyRules | None
+
+        def send_joint_targets(self, targets: Sequence[float] | np.ndarray) -> Any: ...
 
     @classmethod
     def real_robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -79,15 +85,31 @@ class RealArmRobot(ArmRobot):
 
     def apply_task_joint_limits(self, lower: Sequence[float], upper: Sequence[float]) -> None:
         """Tighten the safety rules' joint limits to the task config's (the tighter bound wins)."""
-        rules: SafetyRules = self.safety  # type: ignore[attr-defined]
-        self.safety = SafetyRules(  # type: ignore[attr-defined]
+        rules = self.safety
+        assert rules is not None, "a real arm's env has safety rules"
+        self.safety = SafetyRules(
             rules.joint_names, lower=lower, upper=upper, description_lower=rules.lower, description_upper=rules.upper,
             max_joint_delta=rules.max_joint_delta, chain=rules.chain, base_position=rules.base_position,
             workspace_min=rules.workspace_min, workspace_max=rules.workspace_max, floor_z=rules.floor_z,
             workspace_mode=rules.workspace_mode, path_samples=rules.path_samples,
         )
 
-    # -- ArmInterface -------------------------------------------------------------------------
+    # -- the robot layer, batch-first (see rl_environments.arm_interface) -----------------------------
+    @classmethod
+    def ee_positions_of(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
+        """End-effector world positions: forward kinematics of the observed arm joint positions (a real
+        robot offers no end-effector pose; the sim's frame is the same link of the same description)."""
+        chain = cls.kinematic_chain()
+        base = np.array([env.base_position for env in envs])
+        return chain.fk_position(cls.arm_positions_of(states)) + base
+
+    @classmethod
+    def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
+        """Command each env's arm through its safety rules (``info["safety"]`` says what they did)."""
+        for env, row in zip(envs, targets):
+            env.send_joint_targets(row)
+
+    # -- the same for one env ------------------------------------------------------------------------
     @property
     def base_position(self) -> np.ndarray:
         """World position of the robot base (``base_position`` option; the origin by default)."""
@@ -95,14 +117,10 @@ class RealArmRobot(ArmRobot):
 
     def ee_position(self) -> np.ndarray:
         """End-effector world position: forward kinematics of the observed arm joint positions."""
-        state = self.robot_state  # type: ignore[attr-defined]
+        state = self.robot_state
         cached = self._ee_cache
         if cached is not None and cached[0] is state:
             return cached[1].copy()
         ee = self.kinematic_chain().fk_position(self.arm_positions()) + self._base_position
         self._ee_cache = (state, ee)
         return ee.copy()
-
-    def set_arm_targets(self, targets: np.ndarray) -> None:
-        """Command the arm through the safety rules (``info["safety"]`` says what they did)."""
-        self.send_joint_targets(targets)  # type: ignore[attr-defined]

@@ -66,13 +66,17 @@ class BatchedVecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         if self.actions is None:
             raise RuntimeError("step_wait() called without step_async(actions)")
-        results = self.batch.step_envs(range(self.num_envs), list(self.actions))
-        for i, (obs, reward, terminated, truncated, info) in enumerate(results):
-            self.buf_rews[i] = reward
+        res = self.batch.step_envs(range(self.num_envs), self.actions)
+        for i in range(self.num_envs):
+            info = res.infos[i]
+            truncated, terminated = bool(res.truncated[i]), bool(res.terminated[i])
+            self.buf_rews[i] = res.reward[i]
             self.buf_dones[i] = terminated or truncated
             info["TimeLimit.truncated"] = truncated and not terminated
+            obs = res.obs_row(i)
             if self.buf_dones[i]:
-                info["terminal_observation"] = obs
+                info["terminal_observation"] = {k: np.copy(v) for k, v in obs.items()} if isinstance(
+                    obs, dict) else np.copy(obs)
                 obs, self.reset_infos[i] = self.batch.reset_env(i)
             self.buf_infos[i] = info
             self._save_obs(i, obs)

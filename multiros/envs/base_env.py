@@ -1,60 +1,105 @@
 """MujocoBaseEnv and MujocoGoalEnv: gymnasium environments on the MuJoCo simulation node.
 
-Both share :class:`multiros.envs.core.MujocoEnvCore`; this module adds only what differs: the
-``step``/``reset`` templates of a plain ``gymnasium.Env`` and of a goal-conditioned
-``gymnasium_robotics.GoalEnv`` (observation dict, vectorised ``compute_reward`` for HER).
+The step and reset of every env are written here once, for both robot connections: the plain
+template (:class:`PlainStepTemplate`, a ``gymnasium.Env``'s) and the goal-conditioned one
+(:class:`GoalStepTemplate`, a ``gymnasium_robotics.GoalEnv``'s, with the vectorised
+``compute_reward`` HER calls). ``MujocoBaseEnv``/``MujocoGoalEnv`` put them on the simulated core
+(:class:`~multiros.envs.sim_env.MujocoEnvCore`), ``RealBaseEnv``/``RealGoalEnv``
+(:mod:`multiros.envs.real.envs`) on the real one. A task written batch-first
+(:mod:`multiros.envs.batch_task`) steps through its batch functions, as a batch of one.
 """
 
 from __future__ import annotations
 
-import inspect
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium_robotics.core import GoalEnv
 
-from multiros.envs.core import EnvError, MujocoEnvCore
+from multiros.envs.batch_task import StepResults, batch_route, uses_own_hooks
+from multiros.envs.core import EnvCore, EnvError, call_hook
+from multiros.envs.sim_env import MujocoEnvCore
+
+__all__ = ["MujocoBaseEnv", "MujocoGoalEnv", "PlainStepTemplate", "GoalStepTemplate", "StepTemplate"]
 
 _GOAL_KEYS = ("observation", "achieved_goal", "desired_goal")
+StepResult = tuple[Any, float, bool, bool, dict]
 
 
-def _call(fn: Any, *args: Any) -> Any:
-    """Call a hook with as many of ``args`` as its signature takes (MultiROS hooks take ``info``)."""
-    try:
-        params = inspect.signature(fn).parameters.values()
-    except (TypeError, ValueError):
-        return fn(*args)
-    if any(p.kind is p.VAR_POSITIONAL for p in params):
-        return fn(*args)
-    n = sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
-    return fn(*args[:n])
-
-
-class PlainStepTemplate:
-    """Observation, reward and termination of a plain env's step, from its hooks.
-
-    Shared by :class:`MujocoBaseEnv` and :class:`~multiros.envs.real.RealBaseEnv`: ``_template`` is
-    the concrete template class, below which hooks are looked up (see ``MujocoEnvCore._hook``).
-    """
+class StepTemplate(EnvCore):
+    """``step`` and ``reset`` of every env (the plain and goal templates add their halves)."""
 
     _template: ClassVar[type]
 
-    def _step_result(self) -> tuple[Any, float, bool, bool, dict]:
-        """Observation, reward, termination and info from the state after the action."""
+    def step(self, action: Any) -> StepResult:
+        cls: Any = type(self)
+        if batch_route(cls) is not None and not uses_own_hooks(self):  # the task's batch functions, as a batch of one
+            actions = self.check_actions(np.asarray(action, dtype=np.float64)[None], single=True)
+            self.info = {}
+            self.connection.before_act()
+            cls.batch_act([self], actions, self.connection.states)
+            self.step_advance()
+            return end_on_fault(cls.batch_results([self], self.connection.states)).row(0)
+        self.step_act(action)
+        self.step_advance()
+        return self.step_result()
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
+        self._reset_gym(self._take_seed(seed))
+        self._reset_episode(options)
+        obs = self._observe()
+        info = self.info
+        info.setdefault("is_success", self._reset_success(obs, info))
+        return obs, info
+
+    # -- the halves the templates fill in ---------------------------------------------------------
+    def _reset_gym(self, seed: int | None) -> None:
+        raise NotImplementedError
+
+    def _reset_success(self, obs: Any, info: dict[str, Any]) -> bool:
+        return False
+
+    def _observe(self) -> Any:
+        raise NotImplementedError
+
+    def step_result(self) -> StepResult:
+        """Observation, reward, termination and info from the state after the action (the hooks)."""
+        raise NotImplementedError
+
+
+def end_on_fault(results: StepResults) -> StepResults:
+    """A step the node reported wrong (``info["sim_status"]``) ends that env's episode, truncated."""
+    for j, info in enumerate(results.infos):
+        if "sim_status" in info:
+            results.truncated[j] = True
+    return results
+
+
+class PlainStepTemplate(StepTemplate):
+    """Observation, reward and termination of a plain env's step, from its hooks.
+
+    Shared by :class:`MujocoBaseEnv` and :class:`~multiros.envs.real.RealBaseEnv`: ``_template`` is
+    the concrete template class, below which hooks are looked up (see :func:`~multiros.envs.core.hook_name`).
+    """
+
+    def _reset_gym(self, seed: int | None) -> None:
+        gym.Env.reset(self, seed=seed)  # type: ignore[arg-type]
+
+    def step_result(self) -> StepResult:
         base = self._template
         obs = self._observe()
         info = self.info
         reward = self._hook(base, "_get_reward")
         if reward is None:
             raise NotImplementedError(f"{type(self).__name__} must implement _get_reward()")
-        reward_value = float(_call(reward, info))
+        reward_value = float(call_hook(reward, info))
         done = self._hook(base, "_check_if_done", "_compute_terminated")
-        terminated = bool(_call(done, info)) if done is not None else False
+        terminated = bool(call_hook(done, info)) if done is not None else False
         trunc = self._hook(base, "_compute_truncated")
-        truncated = bool(_call(trunc, info)) if trunc is not None else False
+        truncated = bool(call_hook(trunc, info)) if trunc is not None else False
         info.setdefault("is_success", False)
-        return obs, reward_value, terminated, truncated, info
+        return obs, reward_value, terminated, truncated or "sim_status" in info, info
 
     def _observe(self) -> Any:
         hook = self._hook(self._template, "_get_obs", "_get_observation")
@@ -63,14 +108,18 @@ class PlainStepTemplate:
         return hook()
 
 
-class GoalStepTemplate:
+class GoalStepTemplate(StepTemplate):
     """The goal-env half shared by :class:`MujocoGoalEnv` and :class:`~multiros.envs.real.RealGoalEnv`:
     vectorised ``compute_reward``/``compute_terminated``/``compute_truncated`` (HER) and the
     observation, reward and termination of a step, from the hooks below ``_template``."""
 
-    _template: ClassVar[type]
+    def _reset_gym(self, seed: int | None) -> None:
+        GoalEnv.reset(self, seed=seed)  # type: ignore[arg-type]
 
-    # -- vectorised goal functions (HER) ----------------------------------------------------
+    def _reset_success(self, obs: Any, info: dict[str, Any]) -> bool:
+        return self._success(obs, info)
+
+    # -- vectorised goal functions (HER) ----------------------------------------------------------
     def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
         hook = self._hook(self._template, "_compute_reward")
         if hook is None:
@@ -90,9 +139,8 @@ class GoalStepTemplate:
             return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool)
         return False
 
-    # -- one step ---------------------------------------------------------------------------
-    def _step_result(self) -> tuple[dict, float, bool, bool, dict]:
-        """Observation, reward, termination and info from the state after the action."""
+    # -- one step -------------------------------------------------------------------------------
+    def step_result(self) -> StepResult:
         base = self._template
         obs = self._observe()
         info = self.info
@@ -110,7 +158,7 @@ class GoalStepTemplate:
         if extra is not None:
             terminated = terminated or bool(extra())
         truncated = bool(self.compute_truncated(ag, dg, info))
-        return obs, reward, terminated, truncated, info
+        return obs, reward, terminated, truncated or "sim_status" in info, info
 
     def _success(self, obs: dict, info: dict) -> bool:
         hook = self._hook(self._template, "_is_success")
@@ -142,7 +190,7 @@ class MujocoBaseEnv(MujocoEnvCore, PlainStepTemplate, gym.Env):
 
     Subclass it twice, as in MultiROS: a robot env (spawning, controllers, readiness) and a task env
     (spaces, action, observation, reward, termination). Constructor knobs are documented on
-    :class:`multiros.envs.core.MujocoEnvCore`.
+    :class:`multiros.envs.sim_env.MujocoEnvCore`.
 
     Hooks to implement (canonical names; MultiROS/FRobs_RL names in brackets also work):
         ``_set_action(action)`` [``_send_action``], ``_get_obs()`` [``_get_observation``],
@@ -155,31 +203,6 @@ class MujocoBaseEnv(MujocoEnvCore, PlainStepTemplate, gym.Env):
     def __init__(self, **kwargs: Any) -> None:
         gym.Env.__init__(self)
         self._init_core(**kwargs)
-
-    # -- gymnasium API ----------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        if seed is None and self._pending_seed is not None:
-            seed = self._pending_seed
-        self._pending_seed = None
-        gym.Env.reset(self, seed=seed)
-        self._core_reset(MujocoBaseEnv, seed, options)
-        obs = self._observe()
-        info = self.info
-        info.setdefault("is_success", False)
-        return obs, info
-
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
-        self._step_act(action)
-        self._advance()
-        return self._step_result()
-
-    # The two halves of a step around the simulation's advance; a vector env (multiros.envs.batch)
-    # runs the first for each of its envs, advances all their robots in one request, then the second.
-    def _step_act(self, action: Any) -> None:
-        """Check the action and run the action hook (commands become pending)."""
-        action = self._check_action(action)
-        self.info = {}
-        self._set_action_hook(MujocoBaseEnv, action)
 
 
 class MujocoGoalEnv(MujocoEnvCore, GoalStepTemplate, GoalEnv):
@@ -202,29 +225,6 @@ class MujocoGoalEnv(MujocoEnvCore, GoalStepTemplate, GoalEnv):
     def __init__(self, **kwargs: Any) -> None:
         gym.Env.__init__(self)
         self._init_core(**kwargs)
-
-    # -- gymnasium API ----------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
-        if seed is None and self._pending_seed is not None:
-            seed = self._pending_seed
-        self._pending_seed = None
-        GoalEnv.reset(self, seed=seed)
-        self._core_reset(MujocoGoalEnv, seed, options)
-        obs = self._observe()
-        info = self.info
-        info.setdefault("is_success", self._success(obs, info))
-        return obs, info
-
-    def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
-        self._step_act(action)
-        self._advance()
-        return self._step_result()
-
-    def _step_act(self, action: Any) -> None:
-        """Check the action and run the action hook (commands become pending)."""
-        action = self._check_action(action)
-        self.info = {}
-        self._set_action_hook(MujocoGoalEnv, action)
 
 
 MujocoBaseEnv._template = MujocoBaseEnv

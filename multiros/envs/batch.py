@@ -1,16 +1,21 @@
-"""A batch of envs whose robots share simulation nodes: one ``StepRobots`` round trip per node per step.
+"""A batch of envs whose robots share simulation nodes: one step call per node per step.
 
-:class:`EnvBatch` holds N ordinary task-env instances (the task logic is written once, in the task
-env) spread over K simulation nodes (N/K robots each). Each env spawns its robot in its own
-namespace and **world slot**: a spatial offset (a grid, ``spacing`` metres apart) far beyond an
-arm's reach, so robots never touch, and frame positions reported relative to the slot, so each env
-sees exactly the numbers it would see alone in its own world. A step runs each env's action hook
-(its commands become pending), sends one ``uniros_interfaces/srv/StepRobots`` request per node
-(all K at once), then hands each env its robot's state for its observation, reward and
-termination hooks. A reset puts back only that env's robot (``RobotStep.reset``), never the world.
-Where the task env class offers batched step hooks (``batch_step_hooks()``, e.g. the goal reach
-tasks', :mod:`rl_environments.reach_batch`), the action and result hooks of all the envs run in one
-numpy pass instead of N small ones, with the same results bit for bit.
+:class:`EnvBatch` holds N ordinary task-env instances spread over K simulation nodes (N/K robots
+each). Each env spawns its robot in its own namespace and **world slot** (an offset far beyond an
+arm's reach, so robots never touch, with frame positions reported relative to it: each env sees
+exactly the numbers it would see alone). A step:
+
+1. runs the envs' action hooks: for a task written batch-first (:mod:`multiros.envs.batch_task`)
+   once for all N, on ``(N, ...)`` arrays; for envs with hooks of their own (a user's MultiROS
+   env), env by env. Either way each env's commands wait in its connection;
+2. steps every node's robots with one call per node (:class:`~multiros.sim.stepper.RobotStepper`:
+   direct into a node composed in this process, the ``StepRobots`` service otherwise), all K at
+   once: the physics of composed nodes runs on worker threads (``mj_step`` releases the GIL),
+   calls to other processes or hosts go out on workers;
+3. hands each env's connection its robot's state and scores the step, batch-first or env by env.
+
+The batch drives the envs only through their public seam (``connection``, ``step_act``,
+``step_result``, ``check_actions``, ``note_step_status``, ``reset``); it never reads their private state.
 
 The vector envs on top (:class:`multiros.envs.vector.BatchedVectorEnv` for Gymnasium,
 ``uniros.vec_env.BatchedVecEnv`` for Stable-Baselines3) add the autoreset rules.
@@ -29,18 +34,21 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from multiros.envs.core import EnvError, MujocoEnvCore
-from multiros.sim.client import RobotStepOutcome, RobotStepSpec, SimulationNodeError
-from multiros.sim.node_stepping import LocalStepRobots
-from multiros.sim.state_gather import StackedStates
+from multiros.envs.base_env import end_on_fault
+from multiros.envs.batch_task import StepResults, batch_route, uses_own_hooks
+from multiros.envs.errors import EnvError
+from multiros.envs.sim_env import MujocoEnvCore
+from multiros.robot_state import RobotStates
+from multiros.sim.client import SimulationNodeError
+from multiros.sim.stepper import PendingStep, RobotStepper, StepReply
 
-StepResult = tuple[Any, float, bool, bool, dict]
+__all__ = ["EnvBatch", "slot_offset", "make_env_batch", "env_creator", "batchable", "default_num_nodes",
+           "BATCH_OPTIONS"]
 
-_OK, _UNSTABLE = 0, 104
 _batch_ids = itertools.count()
 
 
@@ -50,41 +58,31 @@ def slot_offset(index: int, count: int, spacing: float) -> tuple[float, float, f
     return (float(index % cols) * spacing, float(index // cols) * spacing, 0.0)
 
 
-class BatchStepHooks(Protocol):
-    """A task's step hooks for many envs of one class at once (``batch_step_hooks()`` of the env
-    class returns one, or ``None``). Each must give every env exactly what its own hooks would."""
-
-    def act(self, envs: Sequence[Any], actions: Sequence[Any]) -> bool:
-        """Each env's ``_step_act(action)``; False, changing nothing, to let the envs act one by one."""
-
-    def results(self, envs: Sequence[Any], stacked: StackedStates | None) -> list[StepResult] | None:
-        """Each env's ``_step_result()``; ``None`` to let the envs score themselves. ``stacked``, when
-        given, holds the states the envs just accepted as rows of one array each (row ``j``: ``envs[j]``)."""
-
-
-def batch_step_hooks(envs: Sequence[Any]) -> BatchStepHooks | None:
-    """The batched step hooks of ``envs`` (all of one class), or ``None`` (each env runs its own)."""
-    cls = type(envs[0])
-    factory = getattr(cls, "batch_step_hooks", None)
-    if factory is None or any(type(env) is not cls for env in envs):
-        return None
-    return factory()
+def default_num_nodes(num_envs: int, sim_mode: str = "composed") -> int:
+    """The number of simulation nodes a batch of ``num_envs`` uses unless told: one per core this
+    process may run on (``os.sched_getaffinity``), at most one per env. Composed nodes step their
+    physics at once on threads, so on a 2-core machine 8 envs step about twice as fast on 2 nodes."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, min(num_envs, cores))
 
 
 class EnvBatch:
-    """N envs over K simulation nodes, stepped with one ``StepRobots`` request per node.
+    """N envs over K simulation nodes, stepped with one call per node (see the module docstring).
 
     Args:
-        make_env: ``make_env(**kwargs)`` creates one env (a :class:`~multiros.envs.core.MujocoEnvCore`
+        make_env: ``make_env(**kwargs)`` creates one env (a :class:`~multiros.envs.sim_env.MujocoEnvCore`
             task env); it is called with ``sim_connection``, ``world_slot``, ``robot_name`` and ``seed``.
         num_envs: N, the number of envs (robots).
         robot_name: base of the robots' entity names (each gets ``<base>_<batch>_<i>``, its namespace too).
-        sim_mode: ``"composed"`` (one node in this process), ``"process"`` (nodes in child
-            processes, each behind its own private Zenoh router) or ``"existing"`` (a running node
-            named ``node_name``, shared with other clients; pass ``connect_kwargs={"context": ...}``
-            to reach it through a given ROS context).
-        num_nodes: K nodes; env ``i`` lives on node ``i * K // N``. Composed nodes share this
-            process and step at once on threads (``mj_step`` releases the GIL).
+        sim_mode: ``"composed"`` (nodes in this process), ``"process"`` (nodes in child processes, each
+            behind its own private Zenoh router) or ``"existing"`` (running nodes named ``node_name``,
+            shared with other clients; pass ``connect_kwargs={"context": ...}`` to reach them through a
+            given ROS context).
+        num_nodes: K nodes (default: :func:`default_num_nodes`, one per core); env ``i`` lives on node
+            ``i * K // N``.
         spacing: metres between world slots (larger than twice the robot's reach).
         timeout_sec: bound on every request; a node that does not answer in time is named in the error.
         max_episode_steps: truncate episodes after this many steps (``None``: never).
@@ -105,7 +103,7 @@ class EnvBatch:
         *,
         robot_name: str = "robot",
         sim_mode: str = "composed",
-        num_nodes: int = 1,
+        num_nodes: int | None = None,
         spacing: float = 2.0,
         timeout_sec: float = 10.0,
         max_episode_steps: int | None = None,
@@ -116,13 +114,15 @@ class EnvBatch:
         from multiros.sim.launch import connect  # the sim layer's launcher (DESIGN §2)
 
         names = [node_name] if isinstance(node_name, str) else list(node_name)
+        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if not isinstance(node_name, str):
             if sim_mode != "existing" or not names:
                 raise ValueError("a list of node names needs sim_mode='existing' and at least one name")
             num_nodes = len(names)
-        if not isinstance(num_envs, int) or num_envs < 1:
-            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        if not isinstance(num_nodes, int) or not 1 <= num_nodes <= num_envs:
+        if num_nodes is None:
+            num_nodes = 1 if sim_mode == "existing" else default_num_nodes(num_envs, sim_mode)
+        if not isinstance(num_nodes, int) or isinstance(num_nodes, bool) or not 1 <= num_nodes <= num_envs:
             raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {num_nodes!r}")
         if sim_mode not in ("composed", "process", "existing"):
             raise ValueError(f"sim_mode must be 'composed', 'process' or 'existing', got {sim_mode!r}")
@@ -135,9 +135,11 @@ class EnvBatch:
         self.timeout_sec = float(timeout_sec)
         self.max_episode_steps = max_episode_steps
         self.node_of = [i * num_nodes // num_envs for i in range(num_envs)]
+        self.members: list[list[int]] = [[i for i in range(num_envs) if self.node_of[i] == k] for k in range(num_nodes)]
         self.connections: list[Any] = []
+        self.steppers: list[RobotStepper] = []
         self.envs: list[Any] = []
-        self.hooks: BatchStepHooks | None = None
+        self.task: type | None = None
         self._elapsed = np.zeros(num_envs, dtype=np.int64)
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         tag = f"{os.getpid()}x{next(_batch_ids)}"
@@ -146,12 +148,12 @@ class EnvBatch:
                 name = names[k] if sim_mode == "existing" else names[0]
                 self.connections.append(connect(sim_mode, node_name=name, timeout_sec=max(self.timeout_sec, 30.0),
                                                  trusted_paths=trusted_paths, **dict(connect_kwargs or {})))
+                self.steppers.append(self.connections[-1].stepper(self.timeout_sec))
             for k, conn in enumerate(self.connections):
-                self._check_capacity(k, conn, self.node_of.count(k))
+                self._check_capacity(k, conn, len(self.members[k]))
             for i in range(num_envs):
-                k = self.node_of[i]
-                members = [j for j in range(num_envs) if self.node_of[j] == k]
-                env = make_env(sim_connection=self.connections[k], robot_name=f"{robot_name}_{tag}_{i}",
+                members = self.members[self.node_of[i]]
+                env = make_env(sim_connection=self.connections[self.node_of[i]], robot_name=f"{robot_name}_{tag}_{i}",
                                world_slot=slot_offset(members.index(i), len(members), spacing))
                 if not isinstance(env, MujocoEnvCore):
                     raise TypeError(f"a batched vector env needs uniros envs on the simulation node; got "
@@ -164,7 +166,9 @@ class EnvBatch:
             if len(steps) != 1:
                 raise ValueError(f"the envs of one batch must share num_sim_steps, got {sorted(steps)}")
             self.num_sim_steps = steps.pop()
-            self.hooks = batch_step_hooks(self.envs)
+            cls = type(self.envs[0])
+            if all(type(env) is cls for env in self.envs) and batch_route(cls) is not None:
+                self.task = cls  # its batch functions step all the envs at once
         except BaseException:
             self.close()
             raise
@@ -184,94 +188,136 @@ class EnvBatch:
         pid = f", pid {conn.pid}" if conn.pid is not None else ""
         return f"{k} of {self.num_nodes} ({conn.client.sim_node}{pid})"
 
-    # -- stepping -----------------------------------------------------------------------------
-    def step_envs(self, indices: Sequence[int], actions: Sequence[Any]) -> list[StepResult]:
-        """Step envs ``indices`` with ``actions``: one ``StepRobots`` request per node, all nodes at once.
+    @property
+    def hooks(self) -> type | None:
+        """The env class whose batch-first task functions step these envs (``None``: env by env)."""
+        return self.task
 
-        Every env's action hooks run first (a bad action raises before any node steps). With several
-        nodes, their physics runs at once (``mj_step`` releases the GIL): requests to nodes in other
-        processes or on other hosts go out on worker threads, and a node's results are handed to its
-        envs while the others may still step; composed nodes are called without messages and only
-        their physics runs on workers (:meth:`_step_composed`).
+    # -- stepping -------------------------------------------------------------------------------
+    def step_envs(self, indices: Sequence[int], actions: Any) -> StepResults:
+        """Step envs ``indices`` with ``actions`` (one per index): one call per node, all nodes at once.
 
-        Robots of envs not in ``indices`` stay in the world and advance too (their controllers
-        hold their last commands); such envs are about to be reset, which puts back their whole state.
+        Every env's action hooks run first (a bad action raises before any node steps). Robots of
+        envs not in ``indices`` stay in the world and advance too (their controllers hold their
+        last commands); such envs are about to be reset, which puts back their whole state.
         """
         indices = list(indices)
-        self._act(indices, actions)
+        envs = [self.envs[i] for i in indices]
+        task = self.task if self.task is not None and not any(map(uses_own_hooks, envs)) else None
+        self._act(envs, actions, task)
         groups: dict[int, list[int]] = {}
-        for i in indices:
-            groups.setdefault(self.node_of[i], []).append(i)
-        requests = {k: self._request(members) for k, members in groups.items()}
-        if len(requests) == 1:  # one node: no thread
-            (k, request), = requests.items()
-            outcomes = dict(zip(groups[k], self._finish(groups[k], *self._call(k, request))))
-            return [outcomes[i] for i in indices]
-        if all(self.connections[k].sim_node is not None for k in requests):
-            return self._step_composed(groups, requests, indices)
-        pending = {k: self._pool().submit(self._call, k, request) for k, request in requests.items()}
-        results: dict[int, StepResult] = {}
-        for k, future in pending.items():
-            results.update(zip(groups[k], self._finish(groups[k], *self._wait(k, future))))
-        return [results[i] for i in indices]
+        for j, i in enumerate(indices):
+            groups.setdefault(self.node_of[i], []).append(j)
+        stacked = self._advance(envs, groups)
+        if task is not None:
+            states = stacked if stacked is not None else RobotStates.of([env.robot_state for env in envs])
+            if states is None:
+                raise EnvError(f"the robots of {type(envs[0]).__name__} report different joints; a batch-first task "
+                               "needs robots alike")
+            results = task.batch_results(envs, states)  # type: ignore[attr-defined]
+        else:
+            results = StepResults.of([env.step_result() for env in envs])
+        end_on_fault(results)
+        elapsed = self._elapsed
+        for j, i in enumerate(indices):
+            elapsed[i] += 1
+            if self.max_episode_steps is not None and elapsed[i] >= self.max_episode_steps:
+                results.truncated[j] = True
+        return results
 
-    def _step_composed(self, groups: Mapping[int, Sequence[int]],
-                       requests: Mapping[int, Sequence[RobotStepSpec]], indices: Sequence[int]) -> list[StepResult]:
-        """Several composed nodes: this thread prepares each node (its lock, resets, commands) and
-        hands its physics to a worker before preparing the next, steps the last node itself and reads
-        its states (while the workers may still step), then the others'. Only the physics runs on
-        the workers, so the nodes' Python never queues behind each other's on the GIL."""
-        *others, last = list(requests)
-        calls: dict[int, LocalStepRobots] = {}
+    def _act(self, envs: Sequence[Any], actions: Any, task: type | None) -> None:
+        """The envs' action hooks: all at once for a batch-first task, else env by env (either way
+        a bad action raises before anything is sent)."""
+        if task is None:
+            for env, action in zip(envs, actions):
+                env.step_act(action)
+            return
+        checked = envs[0].check_actions(np.asarray(actions, dtype=np.float64))
+        states = RobotStates.of([env.robot_state for env in envs])
+        if states is None:
+            raise EnvError(f"the robots of {type(envs[0]).__name__} report different joints; a batch-first task "
+                           "needs robots alike")
+        for env in envs:
+            env.info = {}
+        task.batch_act(envs, checked, states)  # type: ignore[attr-defined]
+
+    def _advance(self, envs: Sequence[Any], groups: Mapping[int, list[int]]) -> RobotStates | None:
+        """One call per node for the envs of ``groups`` (node -> positions in ``envs``); hands each
+        env its robot's state and status. Returns the states as rows in ``envs``' order when every
+        node stacked its robots alike (one node: its own stack; several: concatenated)."""
+        items = list(groups.items())
+        if len(items) == 1:
+            (k, group), = items
+            reply = self._call(k, [envs[j] for j in group])
+            return self._hand_out(envs, group, reply)
+        replies = self._call_all(envs, items)
+        stacks = [self._hand_out(envs, group, replies[k]) for k, group in items]
+        if any(s is None for s in stacks):
+            return None
+        order = [j for _, group in items for j in group]
+        parts: list[RobotStates] = [s for s in stacks if s is not None]
+        if order != sorted(order) or any(p.names != parts[0].names or p.frame_positions.shape[1:] !=
+                                         parts[0].frame_positions.shape[1:] for p in parts):
+            return None
+        return RobotStates(parts[0].sim_time, parts[0].names, *(np.concatenate([getattr(p, f) for p in parts]) for f in
+                                                                 ("position", "velocity", "effort", "frame_positions",
+                                                                  "frame_orientations")))
+
+    def _hand_out(self, envs: Sequence[Any], group: Sequence[int], reply: StepReply) -> RobotStates | None:
+        for j, pos in enumerate(group):
+            env = envs[pos]
+            env.note_step_status(env.connection.accept_reply(reply, j))
+        return reply.stacked
+
+    def _call(self, k: int, envs: Sequence[Any]) -> StepReply:
+        """One call to node ``k`` for ``envs``' robots, on this thread."""
+        try:
+            return self.steppers[k].step([env.connection.step_spec() for env in envs], self.num_sim_steps)
+        except SimulationNodeError as exc:
+            raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
+                                      f"{self._exit_note(k)}: {exc}") from exc
+
+    def _call_all(self, envs: Sequence[Any], items: Sequence[tuple[int, list[int]]]) -> dict[int, StepReply]:
+        """One call per node, at once: each call begins on this thread (a composed node's lock is taken
+        and its commands applied there), its physics or request runs on a worker, except the last
+        node's, which runs here; then each call finishes here, in order."""
+        calls: dict[int, PendingStep] = {}
         futures: dict[int, concurrent.futures.Future] = {}
         done = False
         try:
-            for k in [*others, last]:
-                calls[k] = LocalStepRobots(self.connections[k].sim_node, requests[k], self.num_sim_steps)
-            for k in others:
-                calls[k].prepare()
+            *others, (last, last_group) = items
+            for k, group in others:
+                calls[k] = self.steppers[k].begin([envs[j].connection.step_spec() for j in group], self.num_sim_steps)
                 futures[k] = self._pool().submit(calls[k].advance)
-            calls[last].prepare()
+            calls[last] = self.steppers[last].begin([envs[j].connection.step_spec() for j in last_group],
+                                                    self.num_sim_steps)
             calls[last].advance()
-            results: dict[int, StepResult] = {}
-            for k in [last, *others]:  # the others' physics may still run meanwhile
+            replies: dict[int, StepReply] = {}
+            for k, _ in items:
                 if k in futures:
                     self._wait(k, futures[k])
-                outcomes = calls[k].finish()  # sets calls[k].stacked
-                results.update(zip(groups[k], self._finish(groups[k], outcomes, calls[k].stacked)))
+                try:
+                    replies[k] = calls[k].finish()
+                except SimulationNodeError as exc:
+                    raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
+                                              f"{self._exit_note(k)}: {exc}") from exc
             done = True
-            return [results[i] for i in indices]
+            return replies
         finally:
-            if not done:  # an error: let the physics under way end before the nodes' locks are released
+            if not done:  # an error: let the work under way end before the nodes' locks are released
                 concurrent.futures.wait(list(futures.values()), timeout=self.timeout_sec)
             for call in calls.values():
                 call.close()
 
-    def _act(self, indices: Sequence[int], actions: Sequence[Any]) -> None:
-        """Run the envs' action hooks (their commands become pending): all at once through the
-        task's batched hooks when it has them and takes the batch, else env by env."""
-        envs = [self.envs[i] for i in indices]
-        if self.hooks is None or not self.hooks.act(envs, actions):
-            for env, action in zip(envs, actions):
-                env._step_act(action)
-
-    def _request(self, members: Sequence[int]) -> list[RobotStepSpec]:
-        """The pending commands of envs ``members``: their robots' parts of a ``StepRobots`` call."""
-        specs = []
-        for i in members:
-            env = self.envs[i]
-            commands, env._pending_commands = env._pending_commands, {}
-            specs.append(RobotStepSpec(env.robot_name, commands, env.frames))
-        return specs
-
-    def _wait(self, k: int, future: concurrent.futures.Future) -> Any:
-        """The result of node ``k``'s call (what :meth:`_call` returns, or nothing for a composed node's physics),
-        or an error naming the node if its process exits or it does not answer."""
+    def _wait(self, k: int, future: concurrent.futures.Future) -> None:
+        """Wait for node ``k``'s work on a worker, or raise an error naming the node if its process
+        exits or it does not answer."""
         deadline = time.monotonic() + self.timeout_sec
         process = self.connections[k].process
         while True:
             try:
-                return future.result(timeout=0.05)
+                future.result(timeout=0.05)
+                return
             except concurrent.futures.TimeoutError:
                 pass
             if process is not None and process.poll() is not None:
@@ -283,27 +329,9 @@ class EnvBatch:
                 raise SimulationNodeError(f"simulation node {self._node_label(k)} did not answer StepRobots "
                                           f"within {self.timeout_sec:g} s; is it alive and reachable?")
 
-    def _call(self, k: int, specs: Sequence[RobotStepSpec]) -> tuple[list[RobotStepOutcome], StackedStates | None]:
-        """One ``StepRobots`` call to node ``k``: its outcomes and, from a composed node (called
-        without messages, :class:`~multiros.sim.node_stepping.LocalStepRobots`), the robots' states
-        stacked; others' over the service."""
-        conn = self.connections[k]
-        if conn.sim_node is not None:
-            call = LocalStepRobots(conn.sim_node, specs, self.num_sim_steps)
-            return call.run(), call.stacked
-        client = conn.client
-        request = client.step_robots_request(specs, self.num_sim_steps)
-        try:
-            response = client.step_robots_call(request, self.timeout_sec)
-        except SimulationNodeError as exc:
-            raise SimulationNodeError(f"simulation node {self._node_label(k)} failed a vector step"
-                                      f"{self._exit_note(k)}: {exc}") from exc
-        return client.step_robots_outcomes(request, response), None
-
     def _pool(self) -> concurrent.futures.ThreadPoolExecutor:
         if self._executor is None:
-            self._executor = concurrent.futures.ThreadPoolExecutor(self.num_nodes,
-                                                                   thread_name_prefix="uniros-batch")
+            self._executor = concurrent.futures.ThreadPoolExecutor(self.num_nodes, thread_name_prefix="uniros-batch")
         return self._executor
 
     def _exit_note(self, k: int) -> str:
@@ -311,38 +339,9 @@ class EnvBatch:
         code = process.poll() if process is not None else None
         return "" if code is None else f" (its process exited with code {code}; close this vector env)"
 
-    def _finish(self, members: Sequence[int], outcomes: Sequence[RobotStepOutcome],
-                stacked: StackedStates | None = None) -> list[StepResult]:
-        """Hand envs ``members`` their robots' states and run their result hooks (all at once through
-        the task's batched hooks when it has them, which may read ``stacked``, the states as rows of
-        one array each), then apply the batch's episode limit and faults."""
-        envs = [self.envs[i] for i in members]
-        for i, env, outcome in zip(members, envs, outcomes):
-            if outcome.state is None:
-                raise EnvError(f"env {i}: robot {outcome.entity!r} is gone from simulation node "
-                               f"{self._node_label(self.node_of[i])}: {outcome.message}")
-            env._accept_state(outcome.state)
-        results = self.hooks.results(envs, stacked) if self.hooks is not None else None
-        if results is None:
-            results = [env._step_result() for env in envs]
-        return [self._end(i, outcome, result) for i, outcome, result in zip(members, outcomes, results)]
-
-    def _end(self, i: int, outcome: RobotStepOutcome, result: StepResult) -> StepResult:
-        obs, reward, terminated, truncated, info = result
-        self._elapsed[i] += 1
-        if self.max_episode_steps is not None and self._elapsed[i] >= self.max_episode_steps:
-            truncated = True
-        if outcome.status != _OK:
-            # This robot alone ends its episode; the vector env's autoreset puts it back.
-            truncated = True
-            info["sim_error"] = outcome.message
-            info["sim_status"] = outcome.status
-            if outcome.status == _UNSTABLE:
-                info["sim_diverged"] = True
-        return obs, reward, bool(terminated), bool(truncated), info
-
+    # -- episodes ---------------------------------------------------------------------------------
     def reset_env(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        """Reset env ``i`` alone (its robot back to its spawn state, then its reset hooks)."""
+        """Reset env ``i`` alone (its robot and its objects back to their spawn state, then its reset hooks)."""
         self._elapsed[i] = 0
         return self.envs[i].reset(seed=seed, options=options)
 
@@ -376,7 +375,7 @@ def env_creator(env_id: str) -> Any:
 
 def batchable(creator: Any) -> bool:
     """Whether the envs an ID's ``creator`` (:func:`env_creator`) builds can share a simulation node
-    in a batch: it is a :class:`~multiros.envs.core.MujocoEnvCore` class (not a real robot's or another
+    in a batch: it is a :class:`~multiros.envs.sim_env.MujocoEnvCore` class (not a real robot's or another
     library's env). A creator that is a function is only known once it has built an env: ``True``
     here, checked then.
     """

@@ -113,27 +113,34 @@ class BatchedVectorEnv(VectorEnv):
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         """Step every sub-env in one request per node, then reset the ones the autoreset mode says."""
-        acts = list(iterate(self.action_space, actions))
         mode = self.autoreset_mode
         if mode == AutoresetMode.DISABLED and self._autoreset_envs.any():
             ended = np.flatnonzero(self._autoreset_envs).tolist()
             raise RuntimeError(f"envs {ended} ended their episodes and autoreset is disabled: reset them with "
                                "reset(options={'reset_mask': mask}) before stepping")
+        acts = self._actions(actions)
         next_step = mode == AutoresetMode.NEXT_STEP
         resetting = self._autoreset_envs.tolist() if next_step else [False] * self.num_envs
         stepping = [i for i, reset in enumerate(resetting) if not reset]
         # Step first, reset after: a reset robot's state is put back whole, so the physics its
         # robot went through in this request does not matter, and it starts its episode unstepped.
-        results = self.batch.step_envs(stepping, [acts[i] for i in stepping]) if stepping else []
-        infos: dict[str, Any] = {}
         per_env: list[dict[str, Any] | None] = [None] * self.num_envs
-        for i, (obs, reward, terminated, truncated, info) in zip(stepping, results):
-            self._env_obs[i], self._rewards[i] = obs, reward
-            self._terminations[i], self._truncations[i] = terminated, truncated
-            per_env[i] = info
-            if mode == AutoresetMode.SAME_STEP and (terminated or truncated):
-                infos = self._add_info(infos, {"final_obs": obs, "final_info": info}, i)
-                self._env_obs[i], per_env[i] = self.batch.reset_env(i)
+        infos: dict[str, Any] = {}
+        if stepping:
+            if len(stepping) < self.num_envs:
+                acts = acts[stepping] if isinstance(acts, np.ndarray) else [acts[i] for i in stepping]
+            res = self.batch.step_envs(stepping, acts)
+            for j, i in enumerate(stepping):
+                self._env_obs[i] = res.obs_row(j)
+                per_env[i] = res.infos[j]
+            self._rewards[stepping] = res.reward
+            self._terminations[stepping] = res.terminated
+            self._truncations[stepping] = res.truncated
+            if mode == AutoresetMode.SAME_STEP:
+                for j, i in enumerate(stepping):
+                    if res.terminated[j] or res.truncated[j]:
+                        infos = self._add_info(infos, {"final_obs": res.obs_row(j), "final_info": res.infos[j]}, i)
+                        self._env_obs[i], per_env[i] = self.batch.reset_env(i)
         for i in (i for i, reset in enumerate(resetting) if reset):
             self._env_obs[i], per_env[i] = self.batch.reset_env(i)
             self._rewards[i] = 0.0
@@ -147,6 +154,24 @@ class BatchedVectorEnv(VectorEnv):
         self._autoreset_envs = np.logical_or(self._terminations, self._truncations)
         obs = self._batch_observations()
         return obs, np.copy(self._rewards), np.copy(self._terminations), np.copy(self._truncations), infos
+
+    def _actions(self, actions: Any) -> Any:
+        """The batch of actions as one array per env row (a Box space's), or gymnasium's iteration.
+
+        Raises:
+            ValueError: not one action per sub-env, or of the wrong shape.
+        """
+        space = self.single_action_space
+        if isinstance(space, spaces.Box):
+            arr = np.asarray(actions)
+            if arr.shape != (self.num_envs, *space.shape):
+                raise ValueError(f"actions of shape {arr.shape} for {self.num_envs} envs with action space "
+                                 f"{space.shape}: give an array of shape {(self.num_envs, *space.shape)}")
+            return arr
+        acts = list(iterate(self.action_space, actions))
+        if len(acts) != self.num_envs:
+            raise ValueError(f"{len(acts)} actions for {self.num_envs} envs")
+        return acts
 
     # -- sub-env access ---------------------------------------------------------------------
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:

@@ -22,6 +22,7 @@ from collections.abc import Sequence
 
 from multiros.hardware.robot_spec import PRESETS
 from multiros.ros import Context, Node
+from multiros.ros.controller_manager import ControllerManagerClient, ControllerManagerError
 from multiros.ros.processes import (
     child_environment,
     private_environment,
@@ -29,7 +30,6 @@ from multiros.ros.processes import (
     track_child,
     untrack_child,
 )
-from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
 
 __all__ = ["FakeRobotProcess", "FakeRobotError"]
 

@@ -17,15 +17,16 @@ from typing import Any
 
 import numpy as np
 
-from multiros.ros.exceptions import ServiceCallError
-from multiros.ros.interfaces import get_message, get_service
-from multiros.sim.controller_client import (
+from multiros.robot_state import RobotState
+from multiros.ros.controller_manager import (
     BEST_EFFORT,
     STRICT,
     ControllerManagerClient,
     ControllerManagerError,
     destroy_clients,
 )
+from multiros.ros.exceptions import ServiceCallError
+from multiros.ros.interfaces import get_message, get_service
 from multiros.sim.services import SIM_SERVICES
 
 DEFAULT_NODE_NAME = "mujoco_sim"
@@ -66,27 +67,6 @@ class SimulationServiceError(RuntimeError):
         super().__init__(f"{service} failed ({label}): {message}")
 
 
-@dataclass(frozen=True)
-class RobotState:
-    """What one lockstep step returns for one robot.
-
-    Attributes:
-        sim_time: simulation time in seconds after the step.
-        names: joint names, in the node's order for this robot.
-        position, velocity, effort: joint state arrays aligned with ``names``.
-        frame_positions: ``(len(frames), 3)`` world positions of the requested frames.
-        frame_orientations: ``(len(frames), 4)`` world orientations, quaternions ``(w, x, y, z)``.
-    """
-
-    sim_time: float
-    names: tuple[str, ...]
-    position: np.ndarray
-    velocity: np.ndarray
-    effort: np.ndarray
-    frame_positions: np.ndarray
-    frame_orientations: np.ndarray
-
-
 def _check(service: str, result: Any) -> None:
     if result.result != Result.RESULT_OK:
         raise SimulationServiceError(service, result.result, result.error_message)
@@ -105,7 +85,7 @@ def _robot_state(response: Any, sim_time: Any = None) -> RobotState:
         orientations = np.array([(p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z) for p in poses])
     else:
         positions, orientations = np.empty((0, 3)), np.empty((0, 4))
-    return RobotState(
+    return RobotState(  # multiros.robot_state: the one state record of sim and real robots
         sim_time=time_seconds(response.sim_time if sim_time is None else sim_time),
         names=tuple(js.name),
         position=np.asarray(js.position, dtype=np.float64),

@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 from urllib.parse import urlencode
 
 from multiros.ros import Context, Node
@@ -45,6 +45,9 @@ from multiros.ros.processes import (
     untrack_child,
 )
 from multiros.sim.client import DEFAULT_NODE_NAME, SimulationClient, SimulationNodeError
+
+if TYPE_CHECKING:
+    from multiros.sim.stepper import RobotStepper
 
 _logger = logging.getLogger(__name__)
 _env_ids = itertools.count()
@@ -113,6 +116,15 @@ class SimulationConnection:
     def pid(self) -> int | None:
         """PID of the child process running the node (``process`` mode)."""
         return self.process.pid if self.process is not None else None
+
+    def stepper(self, timeout_sec: float | None = None) -> RobotStepper:
+        """How to step robots on this node: directly when it is composed in this process, else over
+        its services (:mod:`multiros.sim.stepper`)."""
+        from multiros.sim.stepper import ComposedStepper, ServiceStepper
+
+        if self.sim_node is not None:
+            return ComposedStepper(self.sim_node)
+        return ServiceStepper(self.client, timeout_sec)
 
     def show_viewer(self) -> None:
         """Open (or refresh) the interactive viewer of a composed node."""

@@ -10,14 +10,10 @@ are kept in a bounded :class:`FrameSetCache`.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
 
-import numpy as np
-
 from multiros.sim import convert
-from multiros.sim.client import RobotState, RobotStepOutcome, RobotStepSpec, SimulationServiceError, time_seconds
 from multiros.sim.distro_adapters import get_message
 from multiros.sim.errors import (
     CommandError,
@@ -27,7 +23,6 @@ from multiros.sim.errors import (
     UnstableSimulationError,
 )
 from multiros.sim.node_results import FAILED, INCORRECT_STATE, NOT_FOUND, fail, ok
-from multiros.sim.state_gather import StackedStates
 
 if TYPE_CHECKING:
     from multiros.sim.frames import FrameSet
@@ -318,9 +313,13 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
     if robot is None:
         status[j], message[j] = RobotStepResult.UNKNOWN_ROBOT, f"no robot {entity!r}"
         return None, None
-    if item.reset:
-        world.reset_entity(entity)
-        robot.on_reset()
+    if item.reset:  # the robot and the objects spawned into its namespace (its task's table, cube, ...)
+        group = world.entities_in_namespace(robot.ns) if robot.ns else ()
+        world.reset_entities(group or (entity,))
+        for name in group or (entity,):
+            member = node._robots.get(name)
+            if member is not None:
+                member.on_reset()
     try:
         for controller, command in item.commands:
             world.set_command(entity, controller, command)
@@ -335,78 +334,3 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
     except EntityError as exc:
         status[j], message[j] = RobotStepResult.UNKNOWN_FRAME, str(exc)
         return robot, None
-
-
-class LocalStepRobots:
-    """``StepRobots`` on a node composed in this process, without its messages: what
-    :meth:`SimulationClient.step_robots` returns, from the same :class:`StepRobotsCall` and in its
-    phases (see there); :meth:`run` runs them in a row.
-
-    A batched vector env's step on a composed node spends about a third less time outside physics
-    this way (no request, result, joint state and pose messages to build and read back per robot).
-    The robots' states are read all at once where they are alike (:class:`~multiros.sim.state_gather.StateGather`): each
-    outcome's arrays are then rows of :attr:`stacked`, which the task's batched hooks read whole.
-
-    Raises:
-        SimulationServiceError: the call as a whole was refused (as the service would answer).
-    """
-
-    def __init__(self, node: SimulationNode, robots: Sequence[RobotStepSpec], steps: int) -> None:
-        self.node = node
-        self.stacked: StackedStates | None = None  # the robots' states stacked, after finish (when alike)
-        self.items = [RobotStepItem(spec.entity, bool(spec.reset), list((spec.commands or {}).items()),
-                                    tuple(spec.frames)) for spec in robots]
-        with self._refusals():
-            self.call = StepRobotsCall(node, self.items, int(steps))
-
-    @contextlib.contextmanager
-    def _refusals(self) -> Iterator[None]:
-        try:
-            yield
-        except StepRobotsRefused as exc:
-            raise SimulationServiceError(f"{self.node.get_fully_qualified_name()}/step_robots", exc.code,
-                                         exc.message) from exc
-
-    def prepare(self) -> None:
-        self.call.prepare()
-
-    def advance(self) -> None:
-        self.call.advance()
-
-    def finish(self) -> list[RobotStepOutcome]:
-        with self._refusals():
-            return self._outcomes(*self.call.finish(self._read))
-
-    def run(self) -> list[RobotStepOutcome]:
-        """The three phases in a row on this thread."""
-        with self._refusals():
-            return self._outcomes(*self.call.run(self._read))
-
-    def close(self) -> None:
-        self.call.close()
-
-    def _read(self, prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[tuple[Any, ...] | None]:
-        """Every robot's ``RobotState`` fields but the time: rows of one :class:`StackedStates`
-        (kept as :attr:`stacked`) when all the robots are known and alike, else robot by robot."""
-        world = self.node.world
-        self.stacked = None
-        if prepared and all(robot is not None for robot, _ in prepared):
-            stacked = self.node.state_gather.read([robot.name for robot, _ in prepared],
-                                                  [frame_set for _, frame_set in prepared])
-            if stacked is not None:
-                self.stacked = stacked
-                return [(world.joint_names(robot.name), *row)
-                        for (robot, _), row in zip(prepared, zip(stacked.position, stacked.velocity, stacked.effort,
-                                                                 stacked.frame_positions,
-                                                                 stacked.frame_orientations))]
-        return [None if robot is None else self._read_one(robot, frame_set) for robot, frame_set in prepared]
-
-    def _read_one(self, robot: Any, frame_set: FrameSet | None) -> tuple[Any, ...]:
-        world = self.node.world
-        poses = frame_set.pose_arrays() if frame_set is not None else (np.empty((0, 3)), np.empty((0, 4)))
-        return (world.joint_names(robot.name), *world.joint_state_arrays(robot.name), *poses)
-
-    def _outcomes(self, parts: list[tuple[int, str, Any]], sim_time: float) -> list[RobotStepOutcome]:
-        t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
-        return [RobotStepOutcome(item.entity, int(code), message, None if part is None else RobotState(t, *part))
-                for item, (code, message, part) in zip(self.items, parts)]

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+# Per robot, under ``<robot namespace>/controller_manager/<name>``: the ROS layer's ros2_control client has them.
+from multiros.ros.controller_manager import CONTROLLER_SERVICES
+
 # Name under the node (``~/<name>``) -> service type.
 SIM_SERVICES: dict[str, str] = {
     "get_simulator_features": "simulation_interfaces/srv/GetSimulatorFeatures",
@@ -25,11 +28,4 @@ SIM_SERVICES: dict[str, str] = {
     "render_camera": "uniros_interfaces/srv/RenderCamera",
 }
 
-# Per robot, under ``<robot namespace>/controller_manager/<name>``.
-CONTROLLER_SERVICES: dict[str, str] = {
-    "list_controllers": "controller_manager_msgs/srv/ListControllers",
-    "switch_controller": "controller_manager_msgs/srv/SwitchController",
-    "load_controller": "controller_manager_msgs/srv/LoadController",
-    "configure_controller": "controller_manager_msgs/srv/ConfigureController",
-    "unload_controller": "controller_manager_msgs/srv/UnloadController",
-}
+__all__ = ["SIM_SERVICES", "CONTROLLER_SERVICES"]

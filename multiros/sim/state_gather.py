@@ -1,10 +1,10 @@
 """Many robots' joint states and frame poses read in one gather per array: the read of a
-``StepRobots`` call on a composed node (:class:`~multiros.sim.node_stepping.LocalStepRobots`).
+``StepRobots`` call on a composed node (:class:`~multiros.sim.stepper.ComposedStepper`).
 
 Read robot by robot, a vector env's step at N = 8 spends more time indexing small arrays than the
 node spends in anything else outside physics: per robot, a gather and a copy for each of
 positions, velocities, efforts, frame positions and orientations. :class:`StateGather` reads them
-for all the robots of a call at once into ``(N, ...)`` arrays (:class:`StackedStates`), whose rows
+for all the robots of a call at once into ``(N, ...)`` arrays (:class:`~multiros.robot_state.RobotStates`), whose rows
 are the robots' states, equal to what :meth:`World.joint_state_arrays` and
 :meth:`FrameSet.pose_arrays` give robot by robot. The index arrays are built once per robot list
 and kept while the world's ids are (``World.binding``) and the frame sets are the same objects.
@@ -13,33 +13,17 @@ and kept while the world's ids are (``World.binding``) and the frame sets are th
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from multiros.robot_state import RobotStates
 
 if TYPE_CHECKING:
     from multiros.sim.frames import FrameSet
     from multiros.sim.world import World
 
-__all__ = ["StackedStates", "StateGather"]
-
-
-@dataclass(frozen=True)
-class StackedStates:
-    """The states of N robots with the same number of joints and of frames; row ``j`` is robot ``j``'s.
-
-    Attributes:
-        position, velocity, effort: ``(N, joints)`` joint states, in each robot's joint order.
-        frame_positions: ``(N, frames, 3)`` world positions of the frames each robot's call named.
-        frame_orientations: ``(N, frames, 4)`` world orientations ``(w, x, y, z)``.
-    """
-
-    position: np.ndarray
-    velocity: np.ndarray
-    effort: np.ndarray
-    frame_positions: np.ndarray
-    frame_orientations: np.ndarray
+__all__ = ["StateGather"]
 
 
 class _Indices:
@@ -48,7 +32,9 @@ class _Indices:
     def __init__(self, world: World, names: tuple[str, ...], frame_sets: Sequence[FrameSet | None]) -> None:
         ents = [world._entities[name] for name in names]
         self.joints = len(ents[0].jnt_qadr)
-        self.valid = all(len(ent.jnt_qadr) == self.joints and ent.hw is not None for ent in ents)
+        self.joint_names = world.joint_names(names[0])
+        self.valid = all(len(ent.jnt_qadr) == self.joints and ent.hw is not None for ent in ents) and all(
+            world.joint_names(name) == self.joint_names for name in names[1:])
         self.frame_sets = tuple(frame_sets)
         sets = [fs for fs in frame_sets if fs is not None]
         self.frames = len(sets[0].names) if sets else 0
@@ -73,7 +59,7 @@ class StateGather:
         self._key: tuple[int, tuple[str, ...]] | None = None
         self._indices: _Indices | None = None
 
-    def read(self, names: Sequence[str], frame_sets: Sequence[FrameSet | None]) -> StackedStates | None:
+    def read(self, names: Sequence[str], frame_sets: Sequence[FrameSet | None], sim_time: float) -> RobotStates | None:
         """The robots' states stacked, or ``None`` when they cannot be (robots with different joint
         counts, frame lists of different lengths or naming sites): read them one by one then.
 
@@ -103,5 +89,5 @@ class StateGather:
             orientations = d.xquat[idx.body_ids].reshape(count, idx.frames, 4)
         else:
             positions, orientations = np.empty((count, 0, 3)), np.empty((count, 0, 4))
-        return StackedStates(d.qpos[idx.qadr].reshape(count, n), d.qvel[idx.dadr].reshape(count, n),
-                             effort.reshape(count, n), positions, orientations)
+        return RobotStates(sim_time, idx.joint_names, d.qpos[idx.qadr].reshape(count, n),
+                           d.qvel[idx.dadr].reshape(count, n), effort.reshape(count, n), positions, orientations)

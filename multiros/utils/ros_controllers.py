@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from multiros.sim.controller_client import (
+from multiros.ros.controller_manager import (
     BEST_EFFORT,
     STRICT,
     ControllerInfo,

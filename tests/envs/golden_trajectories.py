@@ -82,8 +82,9 @@ def record_single(env_id: str, kwargs: dict[str, Any], case: str, seed: int) -> 
 
 def record_batched(env_id: str, kwargs: dict[str, Any], case: str, num_nodes: int = 1) -> list[dict[str, np.ndarray]]:
     """``len(SEEDS)`` envs of a batched vector env (SAME_STEP autoreset), each as :func:`record_single` records it."""
-    import uniros
     from gymnasium.vector import AutoresetMode
+
+    import uniros
 
     n = len(SEEDS)
     vec = uniros.make_vec(env_id, n, vectorization_mode="batched", max_episode_steps=HORIZON,

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from golden_trajectories import CASES, SEEDS, load, record_batched, record_single
 
 GOLDEN = load()

@@ -85,7 +85,7 @@ class StandIn:
 
 def wait_controller_manager(ctx: Context, ns: str, proc: subprocess.Popen, timeout: float) -> None:
     """Wait until ``<ns>/controller_manager/list_controllers`` answers (the robot is up)."""
-    from multiros.sim.controller_client import ControllerManagerClient
+    from multiros.ros.controller_manager import ControllerManagerClient
 
     node = Node(f"standin_probe_{os.getpid()}_{time.monotonic_ns()}", context=ctx)
     try:

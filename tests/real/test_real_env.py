@@ -27,7 +27,7 @@ from multiros.envs.real import (
 )
 from multiros.envs.real.robot_link import JointState, JointTrajectory
 from multiros.ros import Client, Node
-from multiros.sim.controller_client import ControllerManagerClient
+from multiros.ros.controller_manager import ControllerManagerClient
 from multiros.sim.launch import private_context
 from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
 

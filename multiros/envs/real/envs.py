@@ -1,8 +1,8 @@
 """RealBaseEnv and RealGoalEnv: gymnasium environments on a real robot (RealROS' names).
 
-Both share :class:`multiros.envs.real.core.RealEnvCore`; this module adds the ``step``/``reset``
-templates of a plain ``gymnasium.Env`` and of a goal-conditioned ``gymnasium_robotics.GoalEnv``,
-with the same hooks as :class:`~multiros.envs.MujocoBaseEnv` / :class:`~multiros.envs.MujocoGoalEnv`.
+Both are the one env core on a real robot's connection (:class:`multiros.envs.real.core.RealEnvCore`)
+with the simulated envs' own step templates (:mod:`multiros.envs.base_env`): the same hooks, the
+same step and reset.
 """
 
 from __future__ import annotations
@@ -35,23 +35,6 @@ class RealBaseEnv(RealEnvCore, PlainStepTemplate, gym.Env):
         gym.Env.__init__(self)
         self._init_real(**kwargs)
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        if seed is None and self._pending_seed is not None:
-            seed = self._pending_seed
-        self._pending_seed = None
-        gym.Env.reset(self, seed=seed)
-        self._real_reset(RealBaseEnv, options)
-        obs = self._observe()
-        info = self.info
-        info.setdefault("is_success", False)
-        return obs, info
-
-    def step(self, action: Any) -> tuple[Any, float, bool, bool, dict]:
-        action = self._check_action(action)
-        self.info = {}
-        self._act_and_wait(RealBaseEnv, action)
-        return self._step_result()
-
 
 class RealGoalEnv(RealEnvCore, GoalStepTemplate, GoalEnv):
     """A goal-conditioned env (``gymnasium_robotics.GoalEnv``) on a real robot, ready for HER
@@ -67,23 +50,6 @@ class RealGoalEnv(RealEnvCore, GoalStepTemplate, GoalEnv):
     def __init__(self, **kwargs: Any) -> None:
         gym.Env.__init__(self)
         self._init_real(**kwargs)
-
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[dict, dict]:
-        if seed is None and self._pending_seed is not None:
-            seed = self._pending_seed
-        self._pending_seed = None
-        GoalEnv.reset(self, seed=seed)
-        self._real_reset(RealGoalEnv, options)
-        obs = self._observe()
-        info = self.info
-        info.setdefault("is_success", self._success(obs, info))
-        return obs, info
-
-    def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
-        action = self._check_action(action)
-        self.info = {}
-        self._act_and_wait(RealGoalEnv, action)
-        return self._step_result()
 
 
 RealBaseEnv._template = RealBaseEnv

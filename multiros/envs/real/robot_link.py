@@ -20,16 +20,16 @@ import math
 import threading
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from multiros.envs.real.errors import ControllerNotActiveError, RobotConnectionError, TrajectoryGoalError
+from multiros.robot_state import RobotState
+from multiros.ros.controller_manager import ControllerManagerClient, ControllerManagerError
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.interfaces import get_action, get_message
 from multiros.ros.qos import qos_profile_clock
-from multiros.sim.controller_client import ControllerManagerClient, ControllerManagerError
 
 _logger = logging.getLogger(__name__)
 
@@ -45,27 +45,9 @@ MAX_STATE_VALUE = 1e6
 MAX_JOINTS = 1024
 
 
-@dataclass(frozen=True)
-class JointSample:
-    """The freshest state of some joints.
-
-    Attributes:
-        names: the joints, in the order of the arrays.
-        position, velocity, effort: values (velocity/effort zero where the robot sends none).
-        received: local monotonic time when the oldest of these joints' values arrived.
-        stamp: the header stamp (seconds, robot clock) of that oldest value.
-    """
-
-    names: tuple[str, ...]
-    position: np.ndarray
-    velocity: np.ndarray
-    effort: np.ndarray
-    received: float
-    stamp: float
-
-    def age(self, now: float | None = None) -> float:
-        """Seconds since the oldest value arrived."""
-        return (time.monotonic() if now is None else now) - self.received
+#: A robot's joint state as the link samples it: the one state record (``received`` is the local
+#: monotonic time the oldest of its values arrived, ``stamp`` that value's header stamp).
+JointSample = RobotState
 
 
 def check_joint_state(msg: Any) -> str | None:
@@ -139,9 +121,9 @@ class JointStateCache:
                 return None
         arr = np.array(rows, dtype=np.float64).reshape(len(rows), 5)
         oldest = int(np.argmin(arr[:, 3])) if len(rows) else 0
-        return JointSample(tuple(names), arr[:, 0].copy(), arr[:, 1].copy(), arr[:, 2].copy(),
-                           float(arr[oldest, 3]) if len(rows) else -math.inf,
-                           float(arr[oldest, 4]) if len(rows) else 0.0)
+        return RobotState(float(arr[oldest, 4]) if len(rows) else 0.0, tuple(names), arr[:, 0].copy(),
+                          arr[:, 1].copy(), arr[:, 2].copy(),
+                          received=float(arr[oldest, 3]) if len(rows) else -math.inf)
 
     def wait_for(self, names: Sequence[str], newer_than: float, timeout: float) -> JointSample | None:
         """Wait until every joint of ``names`` has a value received after ``newer_than``."""

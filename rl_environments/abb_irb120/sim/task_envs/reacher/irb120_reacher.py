@@ -23,14 +23,17 @@ Terminated on success with ``info["is_success"] = True``; truncated after 100 st
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 from gymnasium import spaces
 
+from multiros.envs.batch_task import StepResults
+from multiros.robot_state import RobotStates
 from rl_environments.abb_irb120.sim.robot_envs.irb120_robot_sim import ABBIRB120RobotEnv
 from rl_environments.abb_irb120.sim.task_envs.reacher.config import irb120_reach_settings, load_irb120_reacher_config
-from rl_environments.reach_task import ReachTask
+from rl_environments.reach_task import ReachTask, stack_rows
 
 
 class IRB120ReachTask(ReachTask):
@@ -50,14 +53,32 @@ class IRB120ReachTask(ReachTask):
         obs_high = np.concatenate([np.ones(3), self.goal_max, self.chain.upper])
         self.observation_space = spaces.Box(obs_low.astype(np.float32), obs_high.astype(np.float32), dtype=np.float32)
 
-    def _get_obs(self) -> np.ndarray:
-        unit, _ = self.ee_to_goal()
-        q = np.clip(self.arm_positions(), self.chain.lower, self.chain.upper)
-        obs = np.concatenate([unit, self.goal, q])
-        return np.clip(obs, self.observation_space.low, self.observation_space.high).astype(np.float32)
+    # -- batch-first (multiros.envs.batch_task) ----------------------------------------------------------
+    @classmethod
+    def batch_observe(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
+        """The observations of N envs and their goal distances."""
+        _, dist, unit = cls.goals_to(envs, cls.ee_positions_of(envs, states))
+        chains = [env.chain for env in envs]
+        q = np.clip(cls.arm_positions_of(states), np.array([c.lower for c in chains]),
+                    np.array([c.upper for c in chains]))
+        obs = np.concatenate([unit, stack_rows(envs, "goal"), q], axis=1)
+        spaces_ = [env.observation_space for env in envs]
+        low, high = np.array([sp.low for sp in spaces_]), np.array([sp.high for sp in spaces_])
+        return np.clip(obs, low, high).astype(np.float32), dist
 
-    def _get_reward(self) -> float:
-        dist = float(np.linalg.norm(self.goal - self.ee_position()))
+    @classmethod
+    def batch_results(cls, envs: Sequence[Any], states: RobotStates) -> StepResults:
+        obs, dist = cls.batch_observe(envs, states)
+        n = len(envs)
+        reward = np.array([env._score(float(dist[j])) for j, env in enumerate(envs)])
+        infos = [env.info for env in envs]
+        for info in infos:
+            info.setdefault("is_success", False)
+        done = np.array([float(dist[j]) <= env.tolerance for j, env in enumerate(envs)], dtype=bool)
+        return StepResults(obs, reward, done, np.zeros(n, dtype=bool), infos)
+
+    def _score(self, dist: float) -> float:
+        """FRobs_RL's reward of a step that left the flange ``dist`` from the goal."""
         self.info["distance"] = dist
         if dist <= self.tolerance:
             self.info["is_success"] = True
@@ -67,6 +88,13 @@ class IRB120ReachTask(ReachTask):
         if self.at_joint_limits():
             reward += self.cfg["joint_limits_reward"]
         return float(reward)
+
+    # -- the hooks of one env (MultiROS names), through the batch functions -----------------------------
+    def _get_obs(self) -> np.ndarray:
+        return type(self).batch_observe([self], self.connection.states)[0][0]
+
+    def _get_reward(self) -> float:
+        return self._score(float(np.linalg.norm(self.goal - self.ee_position())))
 
     def _check_if_done(self) -> bool:
         return float(np.linalg.norm(self.goal - self.ee_position())) <= self.tolerance

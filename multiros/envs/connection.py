@@ -1,0 +1,119 @@
+"""The robot-connection seam: what the env core needs from a robot, simulated or real.
+
+One env core (:mod:`multiros.envs.core`) runs every env's hooks, action checks, seeds, info and
+episode logic; below it a :class:`RobotConnection` moves the robot:
+
+* :class:`~multiros.envs.sim_connection.SimConnection`: a robot on a simulation node (composed in
+  this process and called directly, or over ROS 2): commands travel with the next lockstep step;
+* :class:`~multiros.envs.real.connection.RealConnection`: a real ros2_control robot (robot link,
+  safety rules, control loop, watchdog): commands go out at once, through the safety rules.
+
+The core never asks which one it has. A vector env (:mod:`multiros.envs.batch`) steps the
+connections of many simulated envs with one request per node, through :meth:`SimConnection.step_spec
+<multiros.envs.sim_connection.SimConnection.step_spec>` and ``accept``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from multiros.envs.errors import EnvError
+from multiros.robot_state import RobotState
+
+__all__ = ["RobotConnection", "StepStatus", "STEP_OK"]
+
+
+@dataclass(frozen=True)
+class StepStatus:
+    """How the robot's last step went.
+
+    Attributes:
+        code: 0 when it stepped normally; otherwise the simulation node's ``RobotStepResult`` code
+            (104: physics diverged and the robot was restored at rest; 101-103, 105: its commands or
+            frames were refused).
+        message: the node's explanation.
+    """
+
+    code: int = 0
+    message: str = ""
+
+    @property
+    def ok(self) -> bool:
+        return self.code == 0
+
+    @property
+    def diverged(self) -> bool:
+        return self.code == 104
+
+
+STEP_OK = StepStatus()
+
+
+class RobotConnection(ABC):
+    """A robot as the env core sees it (see the module docstring).
+
+    Attributes:
+        robot_name: the robot's name (its entity in a simulation).
+        namespace: its ROS namespace (``"/rx200"``).
+        controllers_list: the controllers the robot's env keeps active.
+    """
+
+    robot_name: str
+    namespace: str
+    controllers_list: list[str]
+
+    # -- state ------------------------------------------------------------------------------
+    @property
+    @abstractmethod
+    def state(self) -> RobotState:
+        """The robot's state after the last step or reset (``EnvError`` before the first)."""
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """The joints of :attr:`state`, in the order of its arrays."""
+        return self.state.names
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        """The frames whose poses each state carries (none on a real robot: its env computes them)."""
+        return ()
+
+    def frame_index(self, frame: str) -> int:
+        """Where ``frame`` sits in the state's frame arrays."""
+        raise EnvError(f"frame {frame!r}: robot {self.robot_name!r} reports no frame poses")
+
+    # -- acting and stepping -----------------------------------------------------------------
+    @abstractmethod
+    def command(self, controller: str, values: np.ndarray) -> None:
+        """Command a controller (a 1-D finite vector; ``ValueError`` otherwise, nothing sent)."""
+
+    def before_act(self) -> None:  # noqa: B027 - optional hook
+        """Checks before an action's commands go out (a real robot's watchdog)."""
+
+    @abstractmethod
+    def advance(self, info: dict[str, Any]) -> StepStatus:
+        """One env step: commands take effect, time passes, the state is read. Adds what the step
+        has to say to ``info`` (a real robot's state age and cycle time)."""
+
+    # -- episodes -----------------------------------------------------------------------------
+    @abstractmethod
+    def reset(self, info: dict[str, Any]) -> None:
+        """Before an episode's reset hooks: the world (simulation) or the robot link (real) made ready."""
+
+    @abstractmethod
+    def start_episode(self, info: dict[str, Any]) -> None:
+        """After the reset hooks: the episode's first state is read."""
+
+    @abstractmethod
+    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+        """Bring joints to an episode's initial pose (teleport in simulation, a slow move on a robot)."""
+
+    # -- closing ------------------------------------------------------------------------------
+    @abstractmethod
+    def close(self) -> None:
+        """Release what the connection holds (idempotent)."""

@@ -1,0 +1,372 @@
+"""A real ros2_control robot, as the env core drives it (:class:`RealConnection`).
+
+The connection talks to the robot only through what a ros2_control robot offers
+(:class:`~multiros.envs.real.robot_link.RobotLink`): no simulation service, no simulation clock.
+Every arm command passes :class:`~multiros.envs.real.safety.SafetyRules` first; a step waits the
+control cycle (:class:`~multiros.envs.real.control_loop.ControlLoop`) while a watchdog checks the
+robot's states; a stale or malformed ``joint_states`` stops commanding and raises
+:class:`~multiros.envs.real.errors.StaleStateError`. When the env errors or closes it sends nothing
+more: a JointTrajectoryController holds the end of its last trajectory, a forward command
+controller its last command. Nothing here imports the simulation.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
+from multiros.envs.errors import EnvError, ResetError
+from multiros.envs.real.control_loop import ControlLoop
+from multiros.envs.real.errors import RobotConnectionError, StaleStateError, UnsafeCommandError
+from multiros.envs.real.robot_link import RobotLink
+from multiros.envs.real.safety import SafetyDecision, SafetyRules
+from multiros.robot_state import RobotState, RobotStates
+
+__all__ = ["RealConnection"]
+
+_logger = logging.getLogger(__name__)
+
+
+def _interactive() -> bool:
+    try:
+        return sys.stdin is not None and sys.stdin.isatty()
+    except (ValueError, OSError):
+        return False
+
+
+class RealConnection(RobotConnection):
+    """A real robot over its ROS 2 driver (see the module docstring; the knobs are
+    :class:`~multiros.envs.real.core.RealEnvCore`'s)."""
+
+    def __init__(
+        self,
+        node: Any,
+        *,
+        owner: str,
+        namespace: str,
+        robot_name: str,
+        arm_joints: Sequence[str],
+        arm_controller: str | None,
+        arm_controller_type: str,
+        command_interface: str,
+        controllers_list: Sequence[str],
+        load_controllers: bool,
+        reset_controllers: bool,
+        reset_controllers_prompt: bool,
+        joint_states_topic: str,
+        loop: ControlLoop,
+        safety: SafetyRules | None,
+        joint_state_timeout: float,
+        startup_timeout: float,
+        timeout_sec: float,
+        reset_joint_speed: float,
+        reset_tolerance: float,
+        reset_timeout: float,
+        reset_env_prompt: bool,
+        close_env_prompt: bool,
+        use_sim_time: bool,
+        log_internal_state: bool,
+    ) -> None:
+        self.owner = owner
+        self.node = node
+        self.namespace = namespace
+        self.robot_name = robot_name
+        self.arm_joints = tuple(arm_joints)
+        self.arm_controller = arm_controller
+        self.arm_controller_type = arm_controller_type
+        self.command_interface = command_interface
+        self.controllers_list = list(controllers_list)
+        self.reset_controllers = bool(reset_controllers)
+        self.reset_controllers_prompt = bool(reset_controllers_prompt)
+        self.loop = loop
+        self.safety = safety
+        self.joint_state_timeout = float(joint_state_timeout)
+        self.startup_timeout = float(startup_timeout)
+        self.timeout_sec = float(timeout_sec)
+        self.reset_joint_speed = float(reset_joint_speed)
+        self.reset_tolerance = float(reset_tolerance)
+        self.reset_timeout = float(reset_timeout)
+        self.reset_env_prompt = bool(reset_env_prompt)
+        self.close_env_prompt = bool(close_env_prompt)
+        self.log_internal_state = bool(log_internal_state)
+        self.fault: BaseException | None = None
+        self.last_command: np.ndarray | None = None
+        self.last_decision: SafetyDecision | None = None
+        self.commands_sent = 0
+        self._state: RobotState | None = None
+        self._states: RobotStates | None = None
+        self._observed: tuple[str, ...] = ()
+        self._closed = False
+        self.link = RobotLink(node, namespace, joint_states_topic=joint_states_topic, use_sim_time=use_sim_time,
+                              timeout_sec=self.timeout_sec)
+        self._connect(load_controllers)
+
+    # -- start-up ---------------------------------------------------------------------------
+    @property
+    def _controllers(self) -> list[str]:
+        return ([self.arm_controller] if self.arm_controller else []) + [
+            c for c in self.controllers_list if c != self.arm_controller]
+
+    def _connect(self, load_controllers: bool) -> None:
+        link = self.link
+        needed = self.arm_joints
+        deadline = time.monotonic() + self.startup_timeout
+        ok = link.node.context.wait_for(
+            lambda: link.states.received_count > 0 and all(j in link.states.names for j in needed),
+            self.startup_timeout)
+        if not ok:
+            raise RobotConnectionError(
+                f"no usable joint states from {link.joint_states_topic} within {self.startup_timeout:g} s "
+                f"({link.states.describe_problem(needed)}): is the robot's driver running in namespace "
+                f"{self.namespace!r}, with the same ROS_DOMAIN_ID and Zenoh router (UNIROS_ZENOH_ROUTER) as this "
+                "process?"
+            )
+        self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
+        controllers = self._controllers
+        if controllers:
+            if load_controllers:
+                link.spawn_controllers(controllers)
+            link.require_active(controllers)
+        if self.arm_controller:
+            remaining = max(0.5, deadline - time.monotonic())
+            if self.arm_controller_type == "trajectory" and self.command_interface == "action":
+                ready = link.wait_for_action(self.arm_controller, remaining)
+                where = link.action_name(self.arm_controller)
+            else:
+                kind = "trajectory" if self.arm_controller_type == "trajectory" else "forward"
+                ready = link.wait_for_subscriber(self.arm_controller, kind, remaining)
+                where = (link.trajectory_topic(self.arm_controller) if kind == "trajectory"
+                         else link.commands_topic(self.arm_controller))
+            if not ready:
+                raise RobotConnectionError(f"nobody serves {where} (controller {self.arm_controller!r} is active, but "
+                                           f"its command interface did not appear within {remaining:.1f} s)")
+        self._accept(self.fresh_sample())
+
+    # -- state ------------------------------------------------------------------------------
+    def fresh_sample(self) -> RobotState:
+        """The freshest state of the observed joints; :class:`StaleStateError` when too old."""
+        sample = self.link.states.sample(self._observed)
+        now = time.monotonic()
+        if sample is None or sample.received is None or now - sample.received > self.joint_state_timeout:
+            age = "never" if sample is None or sample.received is None else f"{now - sample.received:.3f} s ago"
+            err = StaleStateError(
+                f"joint_states of {self.robot_name!r} ({self.link.joint_states_topic}) are stale: the last usable "
+                f"state arrived {age}, limit joint_state_timeout={self.joint_state_timeout:g} s "
+                f"({self.link.states.describe_problem(self._observed)}). The env stopped commanding; the robot "
+                "holds its last command. Check the robot driver, then reset the env or make a new one."
+            )
+            self.fault = err
+            raise err
+        return sample
+
+    def _accept(self, sample: RobotState) -> None:
+        self._state = sample
+        self._states = None
+
+    @property
+    def state(self) -> RobotState:
+        if self._state is None:
+            raise EnvError("no robot state yet")
+        return self._state
+
+    @property
+    def states(self) -> RobotStates:
+        """:attr:`state` as a batch of one (views of its arrays)."""
+        states = self._states
+        if states is None:
+            s = self.state
+            states = self._states = RobotStates(s.sim_time, s.names, s.position[None], s.velocity[None],
+                                                s.effort[None], s.frame_positions[None], s.frame_orientations[None])
+        return states
+
+    @property
+    def robot_time(self) -> float | None:
+        """The robot side's ``/clock`` (with ``use_sim_time``), else ``None``."""
+        return self.link.robot_time
+
+    def _watchdog(self) -> None:
+        self.fresh_sample()
+
+    def _observe(self, info: dict[str, Any]) -> None:
+        self._accept(self.fresh_sample())
+        info["state_age_sec"] = self.state.age()
+        if self.robot_time is not None:
+            info["robot_time"] = self.robot_time
+
+    # -- commanding -------------------------------------------------------------------------
+    def ensure_commandable(self) -> None:
+        if self._closed:
+            raise EnvError(f"{self.owner} is closed")
+        if self.fault is not None:
+            raise EnvError(f"{self.owner} stopped after an error ({self.fault}); reset it once the robot is back, or "
+                           "make a new env")
+
+    def before_act(self) -> None:
+        """The watchdog before an action: the env must be able to command and the state fresh."""
+        self.ensure_commandable()
+        self.fresh_sample()
+
+    def send_joint_targets(self, targets: Sequence[float] | np.ndarray,
+                           info: dict[str, Any] | None = None) -> SafetyDecision:
+        """Command the arm: the safety rules first, then the arm controller (nothing sent if refused).
+        The decision is kept as :attr:`last_decision` and, given ``info``, put in ``info["safety"]``."""
+        self.ensure_commandable()
+        if self.safety is None or self.arm_controller is None:
+            raise EnvError(f"{self.owner} has no arm joints/controller configured")
+        current = self.fresh_sample()
+        idx = self._arm_index()
+        decision = self.safety.check(targets, current.position[idx])
+        self.last_decision = decision
+        if info is not None:
+            info["safety"] = decision.as_info()
+        if decision.events:
+            _logger.log(logging.INFO if self.log_internal_state else logging.DEBUG, "safety: %s", decision.reason)
+        if decision.refused or decision.target is None:
+            return decision
+        self._send(decision.target, self.loop.cycle)
+        return decision
+
+    def _arm_index(self) -> list[int]:
+        index = {name: i for i, name in enumerate(self._observed)}
+        return [index[j] for j in self.arm_joints]
+
+    def _send(self, target: np.ndarray, duration: float) -> Any:
+        assert self.arm_controller is not None
+        handle = None
+        if self.arm_controller_type == "forward":
+            self.link.publish_forward(self.arm_controller, target)
+        elif self.command_interface == "action":
+            handle = self.link.send_trajectory_goal(self.arm_controller, self.arm_joints, target, duration)
+        else:
+            self.link.publish_trajectory(self.arm_controller, self.arm_joints, target, duration)
+        self.last_command = np.asarray(target, dtype=np.float64).copy()
+        self.commands_sent += 1
+        return handle
+
+    def command(self, controller: str, values: np.ndarray) -> None:
+        """The arm controller's command goes through :meth:`send_joint_targets`; another (e.g. a
+        gripper's forward command controller) gets finite values on ``<controller>/commands``."""
+        if controller == self.arm_controller:
+            self.send_joint_targets(values)
+            return
+        self.ensure_commandable()
+        arr = np.asarray(values, dtype=np.float64)
+        if arr.ndim != 1 or not np.all(np.isfinite(arr)):
+            raise UnsafeCommandError(f"command for {controller!r} must be a 1-D finite vector, got {values!r}; "
+                                     "nothing was sent")
+        self.fresh_sample()
+        self.link.publish_forward(controller, arr)
+
+    def advance(self, info: dict[str, Any]) -> StepStatus:
+        """One control cycle: wait (the watchdog checking the states), then observe the freshest state."""
+        self.ensure_commandable()
+        acted = time.monotonic()
+        started = self.loop.last_observe
+        observed = self.loop.wait(acted, self._watchdog)
+        self._observe(info)
+        info["cycle_time_sec"] = observed - (started if started is not None else acted)
+        if self.log_internal_state:
+            _logger.info("%s: state age %.4f s, cycle %.4f s, safety %s", self.robot_name, info["state_age_sec"],
+                         info["cycle_time_sec"], info.get("safety"))
+        return STEP_OK
+
+    # -- episodes ---------------------------------------------------------------------------
+    def prompt(self, message: str) -> None:
+        if _interactive():
+            input(message)
+        else:
+            _logger.warning("%s: not waiting for the operator (stdin is not a terminal): %s", self.owner, message)
+
+    def reset(self, info: dict[str, Any]) -> None:
+        if self._closed:
+            raise EnvError(f"{self.owner} is closed")
+        if self.reset_env_prompt:
+            self.prompt("Reset the robot's surroundings, then press Enter to start the episode: ")
+        # A fault (stale state) ends once fresh states arrive again.
+        link = self.link
+        ok = self.node.context.wait_for(
+            lambda: (s := link.states.sample(self._observed)) is not None and s.received is not None
+            and time.monotonic() - s.received <= self.joint_state_timeout, self.startup_timeout)
+        self.fault = None
+        if not ok:
+            self.fresh_sample()  # raises with the reason
+        controllers = self._controllers
+        if self.reset_controllers and controllers:
+            if self.reset_controllers_prompt:
+                self.prompt(f"Press Enter to restart the controllers {controllers}: ")
+            link.reset_controllers(controllers)
+        if controllers:
+            link.require_active(controllers)
+        self._accept(self.fresh_sample())
+
+    def start_episode(self, info: dict[str, Any]) -> None:
+        self.loop.start_episode()
+        info.pop("safety", None)
+        self._observe(info)
+
+    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+        """Move the arm to ``positions`` at ``reset_joint_speed`` and wait until it is there.
+
+        The target is clamped to the joint limits and the path checked against the workspace and
+        floor (a violation refuses the move). Raises :class:`ResetError` when the arm does not arrive
+        within ``reset_tolerance`` (or ``tolerance`` if larger) in time.
+        """
+        self.ensure_commandable()
+        if self.safety is None:
+            raise EnvError(f"{self.owner} has no arm joints/controller configured")
+        order = {n: i for i, n in enumerate(names)}
+        if set(order) != set(self.arm_joints):
+            raise EnvError(f"move_to_initial_pose moves the arm joints {list(self.arm_joints)}, got {list(names)}")
+        target = np.asarray(positions, dtype=np.float64)[[order[j] for j in self.arm_joints]]
+        current = self.fresh_sample()
+        idx = self._arm_index()
+        decision = self.safety.check_move(target, current.position[idx])
+        if decision.refused or decision.target is None:
+            raise ResetError(f"initial pose of {self.robot_name!r}: {decision.reason}; move the robot by hand")
+        goal = decision.target
+        start = current.position[idx]
+        duration = max(self.loop.cycle, float(np.max(np.abs(goal - start))) / max(self.reset_joint_speed, 1e-6))
+        tol = max(float(tolerance), self.reset_tolerance)
+        deadline = time.monotonic() + duration + self.reset_timeout
+        if self.arm_controller_type == "forward":
+            steps = max(1, int(np.ceil(duration / self.loop.period)))
+            for k in range(1, steps + 1):
+                self._send(start + (goal - start) * (k / steps), self.loop.period)
+                self.loop.wait(time.monotonic(), self._watchdog)
+        else:
+            handle = self._send(goal, duration)
+            if handle is not None:
+                self.link.check_goal_result(handle, f"moving {self.robot_name!r} to its initial pose",
+                                            duration + self.reset_timeout)
+        error = np.inf
+        while True:
+            sample = self.fresh_sample()
+            error = float(np.max(np.abs(sample.position[idx] - goal)))
+            if error <= tol:
+                self._accept(sample)
+                return
+            if time.monotonic() > deadline:
+                raise ResetError(
+                    f"robot {self.robot_name!r} did not reach its initial pose {np.round(goal, 4).tolist()} within "
+                    f"{duration + self.reset_timeout:.1f} s (max joint error {error:.4g} rad > {tol:g}); check the "
+                    "controller is tracking (gains, limits) or raise reset_tolerance / reset_timeout")
+            time.sleep(min(0.01, self.loop.tick))
+
+    # -- closing ----------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop talking to the robot; nothing more is sent (it holds its last command)."""
+        if self._closed:
+            return
+        self._closed = True
+        if self.close_env_prompt:
+            self.prompt("Closing the env: the robot holds its last command. Press Enter: ")
+        try:
+            self.link.close()
+        except Exception:  # noqa: BLE001 - closing must go on
+            _logger.debug("robot link did not close cleanly", exc_info=True)

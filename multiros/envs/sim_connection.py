@@ -1,0 +1,321 @@
+"""A robot on a simulation node, as the env core drives it (:class:`SimConnection`).
+
+The connection spawns the robot (and, for a task, its objects) on a node it starts or joins
+(:func:`multiros.sim.launch.connect`), steps it through a :class:`~multiros.sim.stepper.RobotStepper`
+(direct calls into a node composed in this process, the StepRobot service otherwise) and keeps its
+latest state. In the default ``lockstep`` step mode one env step is one call: the commands queued
+since the last step, ``num_sim_steps`` physics steps, the joint state and the frame poses back.
+
+In a shared world (a vector env's batch, :mod:`multiros.envs.batch`) the robot sits in its own
+**world slot**, an offset far from the others: it spawns at its spawn position plus the offset and
+frame positions are reported minus it, so the env sees the numbers it would see alone. A reset
+then puts back only the robot and the entities spawned into its namespace, exactly as a world
+reset puts them back when they are alone.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from multiros.envs.config import SpawnPose, StepConfig
+from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
+from multiros.envs.errors import EnvError, ResetError
+from multiros.robot_state import RobotState, RobotStates
+from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationNodeError
+from multiros.sim.launch import SimulationConnection, connect, local_description_dirs, robot_resource
+from multiros.sim.stepper import RobotStepper, StepReply
+
+__all__ = ["SimConnection", "RobotModel"]
+
+_logger = logging.getLogger(__name__)
+
+# ResetSimulation scopes (simulation_interfaces/srv/ResetSimulation).
+_SCOPE_TIME, _SCOPE_STATE = 1, 2
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """Where the robot's description comes from and how it is spawned (the base env's knobs)."""
+
+    robot_model_xml: str | None = None
+    urdf_pkg_name: str | None = None
+    urdf_file_name: str | None = None
+    urdf_folder: str = "/urdf"
+    urdf_xacro_args: Mapping[str, Any] | Sequence[str] | None = None
+    controllers_file: str | None = None
+
+
+class SimConnection(RobotConnection):
+    """One robot on a simulation node (see the module docstring).
+
+    Args:
+        robot_name: the robot's entity name (the node may rename it when spawning is asked to).
+        namespace: its ROS namespace.
+        model: its description; ``None`` with ``spawn_robot=False`` (the robot is already there).
+        spawn_pose: spawn position and orientation (before the world slot's offset).
+        step_config: how one env step advances the simulation.
+        reset_mode: ``"world"`` or ``"simulation"`` (also rewinds time).
+        controllers_list, reset_controllers: the controllers to activate; restart them on each reset.
+        frames: links or sites whose world poses each step returns.
+        sim_mode, sim_node_name, transport, gui: how to reach the node (:func:`multiros.sim.launch.connect`).
+        sim_timestep, real_time_factor: physics properties to set (``None`` keeps the node's).
+        timeout_sec: bound on every call; max_reset_attempts: retries of the initial pose.
+        shared: an open :class:`~multiros.sim.launch.SimulationConnection` to join (a batch's node):
+            not closed by this connection, and its resets never touch the world.
+        world_slot: the robot's slot offset ``(x, y, z)`` in a shared world.
+    """
+
+    def __init__(
+        self,
+        *,
+        robot_name: str,
+        namespace: str,
+        model: RobotModel | None,
+        spawn_pose: SpawnPose,
+        step_config: StepConfig,
+        reset_mode: str = "world",
+        controllers_list: Sequence[str] = (),
+        reset_controllers: bool = False,
+        frames: Sequence[str] = (),
+        sim_mode: str = "composed",
+        sim_node_name: str = "mujoco_sim",
+        transport: str | None = None,
+        gui: bool = False,
+        sim_timestep: float | None = None,
+        real_time_factor: float | None = None,
+        timeout_sec: float = 10.0,
+        max_reset_attempts: int = 3,
+        shared: SimulationConnection | None = None,
+        world_slot: Sequence[float] = (0.0, 0.0, 0.0),
+    ) -> None:
+        self.robot_name = robot_name
+        self.namespace = namespace
+        self.spawn_pose = spawn_pose
+        self.step_config = step_config
+        self.reset_mode = reset_mode
+        self.controllers_list = list(controllers_list)
+        self.reset_controllers = bool(reset_controllers)
+        self.timeout_sec = float(timeout_sec)
+        self.max_reset_attempts = int(max_reset_attempts)
+        self._frames: tuple[str, ...] = tuple(frames)
+        self._frame_index: dict[str, int] = {}
+        self._pending: dict[str, np.ndarray] = {}
+        self._state: RobotState | None = None
+        self._states: RobotStates | None = None
+        self._closed = False
+        slot = np.asarray(world_slot, dtype=np.float64)
+        if slot.shape != (3,) or not np.all(np.isfinite(slot)):
+            raise ValueError(f"world_slot must be 3 finite numbers (x, y, z), got {world_slot!r}")
+        self.world_slot = slot
+        self._slot: np.ndarray | None = slot if np.any(slot) else None
+        self.shared = shared is not None
+        self.link = shared if shared is not None else connect(
+            sim_mode, node_name=sim_node_name, transport=transport, gui=gui, timeout_sec=self.timeout_sec,
+            trusted_paths=local_description_dirs(model.robot_model_xml, model.controllers_file) if model else ())
+        try:
+            self.node = self.link.node
+            self.sim: SimulationClient = self.link.client
+            self.stepper: RobotStepper = self.link.stepper(self.timeout_sec)
+            if sim_timestep is not None or real_time_factor is not None:
+                self.sim.set_physics_properties(time_step=sim_timestep, real_time_factor=real_time_factor)
+            if step_config.mode == "lockstep":
+                self.sim.pause()
+            if model is not None:
+                self._spawn_robot(model)
+            if step_config.mode == "realtime":
+                self.sim.unpause()  # physics runs free; the env acts and observes at its own pace
+            self.refresh(0)
+        except BaseException:
+            if not self.shared:
+                self.link.close()
+            raise
+
+    # -- set-up --------------------------------------------------------------------------------
+    def _spawn_robot(self, model: RobotModel) -> None:
+        uri, text = robot_resource(
+            robot_model_xml=model.robot_model_xml, urdf_pkg_name=model.urdf_pkg_name,
+            urdf_file_name=model.urdf_file_name, urdf_folder=model.urdf_folder, xacro_args=model.urdf_xacro_args,
+            controllers_file=model.controllers_file, controllers_list=self.controllers_list or None)
+        self.robot_name = self.sim.spawn_entity(
+            self.robot_name, uri=uri, resource_string=text, namespace=self.namespace,
+            position=tuple(self.to_world(np.asarray(self.spawn_pose.position, dtype=np.float64))),
+            orientation=self.spawn_pose.orientation, timeout_sec=max(self.timeout_sec, 30.0))
+
+    def spawn_entity(self, name: str, uri: str, position: Sequence[float],
+                     orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0)) -> str:
+        """Spawn an object of the robot's task (a table, a cube) into the robot's namespace, at a
+        position in the robot's frame of the world (its slot's offset added): a shared-world reset
+        puts it back with the robot."""
+        return self.sim.spawn_entity(name, uri=uri, namespace=self.namespace,
+                                     position=tuple(self.to_world(np.asarray(position, dtype=np.float64))),
+                                     orientation=tuple(orientation), timeout_sec=max(self.timeout_sec, 30.0))
+
+    def place_entity(self, name: str, position: Sequence[float], orientation: Sequence[float]) -> None:
+        """Teleport an entity (at rest) to a pose in the robot's frame of the world."""
+        self.sim.set_entity_pose(name, tuple(self.to_world(np.asarray(position, dtype=np.float64))),
+                                 tuple(orientation))
+
+    def to_world(self, position: np.ndarray) -> np.ndarray:
+        """A position in the env's own frame of the world as the shared world has it (slot added)."""
+        return position if self._slot is None else position + self._slot
+
+    def add_frames(self, frames: Sequence[str]) -> None:
+        """Ask every step for these frames' poses too (e.g. ``"<object entity>/<link>"``)."""
+        self._frames = (*self._frames, *frames)
+        self._frame_index = {}
+
+    # -- state ---------------------------------------------------------------------------------
+    @property
+    def state(self) -> RobotState:
+        if self._state is None:
+            raise EnvError("no robot state yet: was the robot spawned?")
+        return self._state
+
+    @property
+    def states(self) -> RobotStates:
+        """:attr:`state` as a batch of one (its arrays are views of the state's)."""
+        states = self._states
+        if states is None:
+            s = self.state
+            states = self._states = RobotStates(s.sim_time, s.names, s.position[None], s.velocity[None],
+                                                s.effort[None], s.frame_positions[None], s.frame_orientations[None])
+        return states
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        return self._frames
+
+    def frame_index(self, frame: str) -> int:
+        index = self._frame_index
+        if not index:
+            index = self._frame_index = {name: i for i, name in enumerate(self._frames)}
+        try:
+            return index[frame]
+        except KeyError:
+            raise EnvError(f"frame {frame!r} is not in this env's frames {self._frames}; add it to `frames` so each "
+                           "step returns it") from None
+
+    # -- the step seam (a batch steps many connections in one call) ---------------------------
+    def step_spec(self, reset: bool = False) -> RobotStepSpec:
+        """This robot's part of a step call: its queued commands (handed over) and its frames."""
+        commands, self._pending = self._pending, {}
+        return RobotStepSpec(self.robot_name, commands, self._frames, reset)
+
+    def accept(self, state: RobotState, states: RobotStates | None = None) -> None:
+        """Make ``state`` (this robot's part of a step's reply) the one the env reads: frame positions
+        are made relative to the world slot, in place (the reply's arrays are fresh). ``states``,
+        when given, is ``state`` as a batch of one."""
+        if self._slot is not None and len(state.frame_positions):
+            np.subtract(state.frame_positions, self._slot, out=state.frame_positions)
+        self._state = state
+        self._states = states
+
+    def refresh(self, steps: int = 0) -> StepStatus:
+        """One call for this robot alone: its queued commands, ``steps`` physics steps, its state."""
+        reply = self.stepper.step([self.step_spec()], steps)
+        return self.accept_reply(reply, 0)
+
+    def accept_reply(self, reply: StepReply, j: int) -> StepStatus:
+        """Take robot ``j``'s part of a step reply; its status (an unknown robot raises)."""
+        state = reply.states[j]
+        if state is None:
+            raise EnvError(f"robot {self.robot_name!r} is gone from the simulation node ({reply.message[j]}); close "
+                           "this env and make a new one")
+        self.accept(state, reply.stacked if reply.stacked is not None and len(reply.states) == 1 else None)
+        code = reply.status[j]
+        return STEP_OK if code == 0 else StepStatus(code, reply.message[j])
+
+    # -- acting and stepping -------------------------------------------------------------------
+    def command(self, controller: str, values: np.ndarray) -> None:
+        """Queue a controller command: it travels with the next step (lockstep), or is applied at
+        once in the other step modes."""
+        arr = np.asarray(values, dtype=np.float64)
+        if arr.ndim != 1 or not all(map(np.isfinite, arr.tolist())):  # per value: a fifth of np.isfinite's time
+            raise ValueError(f"command for controller {controller!r} must be a 1-D finite vector, got {values!r}")
+        self._pending[controller] = arr
+        if self.step_config.mode != "lockstep":
+            self.refresh(0)
+
+    def advance(self, info: dict[str, Any]) -> StepStatus:
+        mode = self.step_config.mode
+        if mode == "lockstep":
+            return self.refresh(self.step_config.num_sim_steps)
+        if mode == "pause_unpause":
+            self.sim.unpause()
+            _wait_wall(self.step_config.action_cycle_time)
+            self.sim.pause()
+        else:
+            _wait_wall(self.step_config.action_cycle_time)
+        return self.refresh(0)
+
+    # -- episodes -------------------------------------------------------------------------------
+    def reset(self, info: dict[str, Any]) -> None:
+        self._pending = {}
+        if self.shared:  # other envs' robots share this world: put back only this robot and its objects
+            reply = self.stepper.step([RobotStepSpec(self.robot_name, None, self._frames, True)], 0)
+            self.accept_reply(reply, 0)
+            return
+        scope = _SCOPE_STATE if self.reset_mode == "world" else _SCOPE_STATE | _SCOPE_TIME
+        self.sim.reset_simulation(scope)
+        if self.reset_controllers:
+            self.sim.reset_controllers(self.namespace, self.controllers_list or None)
+
+    def start_episode(self, info: dict[str, Any]) -> None:
+        self.refresh(0)
+
+    def set_joint_positions(self, names: Sequence[str], positions: Sequence[float], hold: bool = True) -> None:
+        """Teleport joints (e.g. to the episode's initial pose); ``hold`` keeps them there."""
+        self.sim.set_robot_joint_state(self.robot_name, names, positions, hold=hold)
+
+    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+        """Teleport joints and check they arrived, retrying up to ``max_reset_attempts`` times."""
+        target = np.asarray(positions, dtype=np.float64)
+        index = {name: i for i, name in enumerate(self.state.names)}
+        try:
+            idx = [index[n] for n in names]
+        except KeyError as exc:
+            raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: "
+                           f"{self.state.names}") from None
+        error = np.inf
+        for _ in range(self.max_reset_attempts):
+            self.set_joint_positions(names, target, hold=True)
+            self.refresh(0)
+            error = float(np.max(np.abs(self.state.position[idx] - target)))
+            if error <= tolerance:
+                return
+        raise ResetError(
+            f"robot {self.robot_name!r} did not reach its initial pose {target.tolist()} for joints {list(names)} "
+            f"after {self.max_reset_attempts} attempts (max error {error:.4g}); check the pose is within the joint "
+            "limits")
+
+    # -- rendering and closing ------------------------------------------------------------------
+    def render(self, camera: str, width: int, height: int, depth: bool) -> np.ndarray:
+        """An image of the scene from ``camera`` (HxWx3 uint8, or HxW float32 metres with ``depth``)."""
+        return self.sim.render(camera, width, height, depth=depth)
+
+    def show_viewer(self) -> None:
+        self.link.show_viewer()
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if not self.shared:
+            try:
+                self.link.close()
+            except SimulationNodeError:
+                _logger.warning("simulation node did not close cleanly", exc_info=True)
+
+
+def _wait_wall(seconds: float) -> None:
+    # Acting then observing after a fixed control period is the real-time control loop itself,
+    # not a wait for readiness: this is the one place a timed wait is the specification.
+    deadline = time.monotonic() + seconds
+    while (remaining := deadline - time.monotonic()) > 0:
+        time.sleep(min(remaining, 0.05))
