@@ -39,7 +39,7 @@ _OWNER = textwrap.dedent("""
             if terminated or truncated:
                 env.reset()
         rate = steps / (time.perf_counter() - start)
-        print(json.dumps({"ready_s": ready, "rate": rate, "node_pid": env.unwrapped._connection.pid}), flush=True)
+        print(json.dumps({"ready_s": ready, "rate": rate, "node_pid": env.unwrapped.sim_connection.pid}), flush=True)
     finally:
         env.close()
 """)

@@ -18,6 +18,12 @@ from multiros.robot_state import RobotStates
 from rl_environments.arm_robot import ArmRobot
 
 
+def _velocity_limits(chain: Any) -> np.ndarray | None:
+    """The chain's joint velocity limits (rad/s) when the description gives them all."""
+    limits = np.asarray(chain.velocity_limits, dtype=np.float64)
+    return limits if np.all(np.isfinite(limits)) and np.all(limits > 0) else None
+
+
 class RealArmRobot(ArmRobot):
     """Robot-layer behaviour of a fixed-base arm driven through ros2_control.
 
@@ -62,7 +68,8 @@ class RealArmRobot(ArmRobot):
                              f"{cls.ARM_JOINTS}")
         safety = SafetyRules(
             cls.ARM_JOINTS, lower=chain.lower, upper=chain.upper,
-            max_joint_delta=opts.pop("max_joint_delta", cls.MAX_JOINT_DELTA), chain=chain, base_position=base,
+            max_joint_delta=opts.pop("max_joint_delta", cls.MAX_JOINT_DELTA), max_velocity=_velocity_limits(chain),
+            chain=chain, base_position=base,
             workspace_min=ws_min, workspace_max=ws_max, floor_z=floor,
             workspace_mode=opts.pop("workspace_mode", "project"),
         )
@@ -89,7 +96,8 @@ class RealArmRobot(ArmRobot):
         assert rules is not None, "a real arm's env has safety rules"
         self.safety = SafetyRules(
             rules.joint_names, lower=lower, upper=upper, description_lower=rules.lower, description_upper=rules.upper,
-            max_joint_delta=rules.max_joint_delta, chain=rules.chain, base_position=rules.base_position,
+            max_joint_delta=rules.max_joint_delta, max_velocity=rules.max_velocity, chain=rules.chain,
+            base_position=rules.base_position,
             workspace_min=rules.workspace_min, workspace_max=rules.workspace_max, floor_z=rules.floor_z,
             workspace_mode=rules.workspace_mode, path_samples=rules.path_samples,
         )

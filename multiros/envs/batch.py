@@ -58,10 +58,11 @@ def slot_offset(index: int, count: int, spacing: float) -> tuple[float, float, f
     return (float(index % cols) * spacing, float(index // cols) * spacing, 0.0)
 
 
-def default_num_nodes(num_envs: int, sim_mode: str = "composed") -> int:
-    """The number of simulation nodes a batch of ``num_envs`` uses unless told: one per core this
-    process may run on (``os.sched_getaffinity``), at most one per env. Composed nodes step their
-    physics at once on threads, so on a 2-core machine 8 envs step about twice as fast on 2 nodes."""
+def default_num_nodes(num_envs: int) -> int:
+    """The number of composed simulation nodes a batch of ``num_envs`` uses unless told: one per
+    core this process may run on (``os.sched_getaffinity``), at most one per env. Composed nodes step
+    their physics at once on threads (``mj_step`` releases the GIL), so on a 2-core machine 8 envs
+    step faster on 2 nodes than on 1 (``benchmarks/bench_vec.py``)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
@@ -81,8 +82,8 @@ class EnvBatch:
             behind its own private Zenoh router) or ``"existing"`` (running nodes named ``node_name``,
             shared with other clients; pass ``connect_kwargs={"context": ...}`` to reach them through a
             given ROS context).
-        num_nodes: K nodes (default: :func:`default_num_nodes`, one per core); env ``i`` lives on node
-            ``i * K // N``.
+        num_nodes: K nodes; env ``i`` lives on node ``i * K // N``. Default: composed, one per core
+            (:func:`default_num_nodes`); in a child process or existing, one.
         spacing: metres between world slots (larger than twice the robot's reach).
         timeout_sec: bound on every request; a node that does not answer in time is named in the error.
         max_episode_steps: truncate episodes after this many steps (``None``: never).
@@ -121,7 +122,7 @@ class EnvBatch:
                 raise ValueError("a list of node names needs sim_mode='existing' and at least one name")
             num_nodes = len(names)
         if num_nodes is None:
-            num_nodes = 1 if sim_mode == "existing" else default_num_nodes(num_envs, sim_mode)
+            num_nodes = default_num_nodes(num_envs) if sim_mode == "composed" else 1
         if not isinstance(num_nodes, int) or isinstance(num_nodes, bool) or not 1 <= num_nodes <= num_envs:
             raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {num_nodes!r}")
         if sim_mode not in ("composed", "process", "existing"):

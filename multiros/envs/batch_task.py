@@ -14,7 +14,6 @@ a batch.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -99,11 +98,21 @@ class BatchTask:
         raise NotImplementedError
 
 
-@functools.lru_cache(maxsize=256)
+_ROUTES: dict[type, type | None] = {}
+
+
 def batch_route(cls: type) -> type | None:
     """The batch task class whose batch functions give ``cls``'s step, or ``None`` when ``cls``
     steps through its own hooks: it is no :class:`BatchTask`, or a class more derived than the task,
     or a robot layer, defines a step hook of its own (:data:`STEP_HOOKS`)."""
+    try:
+        return _ROUTES[cls]
+    except KeyError:
+        route = _ROUTES[cls] = _route(cls)
+        return route
+
+
+def _route(cls: type) -> type | None:
     if not issubclass(cls, BatchTask):
         return None
     task = next((k for k in cls.__mro__ if "batch_results" in vars(k)), None)

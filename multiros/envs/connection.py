@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from multiros.envs.errors import EnvError
-from multiros.robot_state import RobotState
+from multiros.robot_state import RobotState, RobotStates
 
 __all__ = ["RobotConnection", "StepStatus", "STEP_OK"]
 
@@ -72,6 +72,11 @@ class RobotConnection(ABC):
     @abstractmethod
     def state(self) -> RobotState:
         """The robot's state after the last step or reset (``EnvError`` before the first)."""
+
+    @property
+    @abstractmethod
+    def states(self) -> RobotStates:
+        """:attr:`state` as a batch of one (views of its arrays): what a batch-first task reads."""
 
     @property
     def joint_names(self) -> tuple[str, ...]:

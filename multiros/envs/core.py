@@ -41,7 +41,9 @@ __all__ = ["EnvCore", "EnvError", "ResetError", "hook_name", "call_hook"]
 _UNSTABLE = 104
 
 
-@functools.lru_cache(maxsize=1024)
+_HOOK_NAMES: dict[tuple[type, type, tuple[str, ...]], str | None] = {}
+
+
 def hook_name(cls: type, base: type, names: tuple[str, ...]) -> str | None:
     """Which of ``names`` (aliases of one hook) ``cls`` implements below ``base``.
 
@@ -49,13 +51,20 @@ def hook_name(cls: type, base: type, names: tuple[str, ...]) -> str | None:
     hidden by a robot env's canonically named one; within one class the canonical name wins.
     Classes are immutable for this purpose, so the answer is cached per class.
     """
+    key = (cls, base, names)
+    try:
+        return _HOOK_NAMES[key]
+    except KeyError:
+        pass
+    found = None
     for klass in cls.__mro__:
         if klass is base:
-            return None
-        for name in names:
-            if name in vars(klass):
-                return name
-    return None
+            break
+        found = next((name for name in names if name in vars(klass)), None)
+        if found is not None:
+            break
+    _HOOK_NAMES[key] = found
+    return found
 
 
 @functools.lru_cache(maxsize=1024)
@@ -116,17 +125,6 @@ class EnvCore(JointStateAccess):
     def joint_names(self) -> tuple[str, ...]:
         """Names of all the robot's joints, in the order of the joint arrays."""
         return self.connection.state.names
-
-    def _select(self, values: np.ndarray, names: Sequence[str] | None) -> np.ndarray:
-        state = self.connection.state
-        if names is None:
-            return values.copy()
-        if state.names != self._joint_order:
-            self._set_joint_order(state.names)
-            self._joint_order = state.names
-        return values[self._joint_indices(names)]
-
-    _joint_order: tuple[str, ...] | None = None
 
     # -- acting ---------------------------------------------------------------------------------
     def send_command(self, controller: str, command: Sequence[float] | np.ndarray) -> None:

@@ -1,33 +1,31 @@
-"""Joint arrays by name: the accessors the simulated and the real env cores share."""
+"""Joint arrays by name: the accessors every env core offers its hooks."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from multiros.envs.errors import EnvError
+
+if TYPE_CHECKING:
+    from multiros.robot_state import RobotState
 
 __all__ = ["JointStateAccess"]
 
 
 class JointStateAccess:
     """``joint_positions``/``joint_velocities``/``joint_efforts`` of ``robot_state``: all joints, or
-    the ones named, in that order.
+    the ones named, in that order. The host class provides ``robot_state`` and ``robot_name``."""
 
-    The host class provides ``robot_state`` (``position``, ``velocity``, ``effort`` arrays),
-    ``joint_names`` and ``robot_name``, and calls :meth:`_set_joint_order` whenever the order of the
-    joint arrays is known or changes.
-    """
+    if TYPE_CHECKING:
+        robot_name: str
 
-    robot_state: Any
-    robot_name: str
-    joint_names: tuple[str, ...]
+        @property
+        def robot_state(self) -> RobotState: ...
 
-    def _set_joint_order(self, names: Sequence[str]) -> None:
-        self._joint_index: dict[str, int] = {name: i for i, name in enumerate(names)}
-        self._select_cache: dict[tuple[str, ...], np.ndarray] = {}
+    _joint_index_cache: dict[tuple[tuple[str, ...], tuple[str, ...]], np.ndarray]
 
     def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray:
         """Joint positions after the last step or reset (all joints, or ``names`` in that order)."""
@@ -47,13 +45,21 @@ class JointStateAccess:
         return values[self._joint_indices(names)]
 
     def _joint_indices(self, names: Sequence[str]) -> np.ndarray:
-        """Where the joints ``names`` sit in the joint arrays (EnvError for an unknown joint)."""
-        key = tuple(names)
-        idx = self._select_cache.get(key)
+        """Where the joints ``names`` sit in the joint arrays (EnvError for an unknown joint); cached
+        per order of the state's joints."""
+        order = self.robot_state.names
+        key = (order, tuple(names))
+        cache = self.__dict__.get("_joint_index_cache")
+        if cache is None:
+            cache = self._joint_index_cache = {}
+        idx = cache.get(key)
         if idx is None:
+            where = {name: i for i, name in enumerate(order)}
             try:
-                idx = self._select_cache[key] = np.array([self._joint_index[n] for n in key], dtype=np.intp)
+                idx = np.array([where[n] for n in key[1]], dtype=np.intp)
             except KeyError as exc:
-                raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: "
-                               f"{self.joint_names}") from None
+                raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: {order}") from None
+            if len(cache) >= 64:  # a few name lists per env; never grow without end
+                cache.clear()
+            cache[key] = idx
         return idx

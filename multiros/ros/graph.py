@@ -52,6 +52,10 @@ class GraphQueries:
     def count(self, kind: str, name: str) -> int:
         return sum(1 for e in self.endpoints if e.kind == kind and e.name == name)
 
+    def endpoints_of(self, kind: str, name: str) -> list[Endpoint]:
+        """The endpoints of ``kind`` called ``name`` (e.g. every publisher of a topic)."""
+        return [e for e in self.endpoints if e.kind == kind and e.name == name]
+
     def by_node(self, kind: str, node_name: str, namespace: str) -> list[tuple[str, list[str]]]:
         table: dict[str, set[str]] = {}
         for e in self.endpoints:

@@ -395,6 +395,16 @@ class Node:
     def count_subscribers(self, topic_name: str) -> int:
         return self.context.transport.count(SUBSCRIPTION, self.resolve_topic_name(topic_name, only_expand=True))
 
+    def get_publishers_info_by_topic(self, topic_name: str) -> list:
+        """The graph's publishers of ``topic_name`` (rclpy's name): their node, namespace, type and
+        session (``origin``; ``""`` for this context's own), as :class:`~multiros.ros.graph.Endpoint` records."""
+        return self.context.graph().endpoints_of(PUBLISHER, self.resolve_topic_name(topic_name, only_expand=True))
+
+    def get_subscriptions_info_by_topic(self, topic_name: str) -> list:
+        """The graph's subscriptions of ``topic_name`` (rclpy's name), as
+        :class:`~multiros.ros.graph.Endpoint` records."""
+        return self.context.graph().endpoints_of(SUBSCRIPTION, self.resolve_topic_name(topic_name, only_expand=True))
+
     def count_services(self, service_name: str) -> int:
         return self.context.transport.count(SERVICE, self.resolve_service_name(service_name, only_expand=True))
 

@@ -387,7 +387,7 @@ def test_unknown_frame_and_joint_errors(make):
 def test_close_releases_the_composed_node(make):
     env = CanonicalGoalEnv()
     env.reset()
-    ctx = env._connection.context
+    ctx = env.sim_connection.context
     env.close()
     env.close()  # idempotent
     assert not ctx.ok()

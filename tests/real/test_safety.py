@@ -7,7 +7,14 @@ import pytest
 
 from multiros.envs.real import ControlLoop, JointStateCache, SafetyRules, UnsafeCommandError
 from multiros.envs.real.robot_link import JointState
-from multiros.envs.real.safety import FLOOR, JOINT_DELTA, JOINT_LIMITS, WORKSPACE, description_joint_limits
+from multiros.envs.real.safety import (
+    FLOOR,
+    JOINT_DELTA,
+    JOINT_LIMITS,
+    STATE_MISMATCH,
+    WORKSPACE,
+    description_joint_limits,
+)
 from rl_environments.robots.rx200_description import ARM_JOINTS, URDF_XACRO
 from rl_environments.rx200.real.robot_envs.rx200_robot_real import RX200RealRobot
 
@@ -42,6 +49,39 @@ def test_per_command_change_is_capped_from_the_measured_position() -> None:
     current[0] = 9.0
     assert d.measured[0] == 0.2  # a copy: the caller's array may change afterwards
     assert r.check_move([0.1, 0.0, 0.0, 0.0, 0.0], HOME).measured.tolist() == list(HOME)
+
+
+def test_a_forged_measurement_cannot_widen_the_cap_beyond_the_last_command() -> None:
+    """The cap holds from the env's own previous command too: a state 1 rad off (forged) leaves a
+    window of at most the cap around the last command, and 2 caps off refuses (state_mismatch)."""
+    r = rules(max_joint_delta=0.15)
+    previous = np.array([0.2, 0.0, 0.0, 0.0, 0.0])
+    forged = previous + np.array([0.25, 0.0, 0.0, 0.0, 0.0])  # within 2 caps: the windows overlap
+    d = r.check([1.5, 0.0, 0.0, 0.0, 0.0], forged, previous)
+    assert not d.refused and d.target[0] == pytest.approx(0.35)  # previous + cap, not forged + cap (0.6)
+    d = r.check([1.5, 0.0, 0.0, 0.0, 0.0], previous + np.array([1.0, 0, 0, 0, 0]), previous)
+    assert d.refused and d.target is None and d.events == (STATE_MISMATCH,) and "waist" in d.reason
+    assert d.as_info()["state_mismatch"] is True
+    with pytest.raises(UnsafeCommandError, match="previous command"):
+        r.check(HOME, HOME, [np.nan] * 5)
+
+
+def test_measured_states_the_robot_cannot_be_in_are_implausible() -> None:
+    r = rules(max_velocity=[1.0] * 5)
+    assert r.plausible(HOME) is None
+    assert "outside its limits" in r.plausible(np.array([1e5, 0, 0, 0, 0]))
+    assert r.plausible(np.array([0.01, 0, 0, 0, 0]), HOME, 0.02) is None  # 0.5 rad/s: fine
+    assert "jumped 1 rad in 0.01 s" in r.plausible(np.array([1.0, 0, 0, 0, 0]), HOME, 0.01)
+    assert r.plausible(np.array([1.0, 0, 0, 0, 0]), HOME, 2.0) is None  # after a gap it may have moved
+    cache = JointStateCache()
+    cache.guard(r)
+    ok = JointState(name=list(ARM_JOINTS), position=[0.0] * 5)
+    assert cache.update(ok, now=10.0)
+    jump = JointState(name=list(ARM_JOINTS), position=[1.0, 0, 0, 0, 0])
+    assert not cache.update(jump, now=10.01) and "jumped" in cache.last_error
+    assert cache.sample(ARM_JOINTS).position[0] == 0.0  # the forged value never reached the cache
+    with pytest.raises(ValueError, match="max_velocity"):
+        rules(max_velocity=[0.0] * 5)
 
 
 @pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0], [np.inf, 0, 0, 0, 0], [0, 0, 0, 0]])

@@ -207,7 +207,7 @@ _WORKER = textwrap.dedent("""
         env.reset(seed=int(sys.argv[1]))
         for _ in range(20):
             env.step(env.action_space.sample())
-        print("ok", env.unwrapped._connection.pid, flush=True)
+        print("ok", env.unwrapped.sim_connection.pid, flush=True)
     finally:
         env.close()
 """)

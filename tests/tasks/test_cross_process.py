@@ -42,7 +42,7 @@ def _pid_alive(pid: int) -> bool:
 @pytest.mark.parametrize("env_id", ["RX200ReacherGoalSim-v0", "ABBIRB120ReacherEnv-v0"])
 def test_smoke_loop_with_the_node_in_another_process(env_id):
     env = uniros.make(env_id, sim_mode="process")
-    pid = env.unwrapped._connection.pid
+    pid = env.unwrapped.sim_connection.pid
     try:
         assert pid is not None and pid != os.getpid() and _pid_alive(pid)
         obs, _ = env.reset(seed=0)
@@ -107,7 +107,7 @@ def test_a_dead_node_gives_a_clear_error_and_the_env_can_be_recreated():
     env = uniros.make("RX200ReacherGoalSim-v0", sim_mode="process", timeout_sec=2.0)
     try:
         env.reset(seed=0)
-        pid = env.unwrapped._connection.pid
+        pid = env.unwrapped.sim_connection.pid
         os.kill(pid, signal.SIGKILL)
         start = time.monotonic()
         with pytest.raises(SimulationNodeError, match="did not answer|not available|failed"):

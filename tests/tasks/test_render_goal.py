@@ -29,7 +29,7 @@ pytestmark = pytest.mark.slow  # each env renders (an EGL context, ~1 s) and res
 
 
 def _world(env):
-    return env._connection.sim_node.world
+    return env.sim_connection.sim_node.world
 
 
 def _camera(env):

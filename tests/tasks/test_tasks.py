@@ -237,7 +237,7 @@ def test_same_seed_same_trajectory(make):
 def _wait_for_goal_marker(env, timeout: float = 5.0) -> None:
     """The node holds the current goal's marker (it applies markers as they arrive: at once here;
     tests/tasks/test_render_goal.py checks the first frame after reset without waiting)."""
-    node = env._connection.sim_node
+    node = env.sim_connection.sim_node
     deadline = time.monotonic() + timeout
     while True:
         renderer = node._renderer

@@ -331,7 +331,7 @@ def test_filled_template_passes_check_env_cross_process(tmp_path):
     pkg, cls = make_filled(tmp_path, "multiros_goal")
     env = cls(sim_mode="process", timeout_sec=60.0)
     try:
-        assert env._connection.pid is not None
+        assert env.sim_connection.pid is not None
         check_env(env, skip_render_check=True)
         sb3_check_env(env, warn=True)
     finally:

@@ -41,7 +41,7 @@ def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode, num_nod
     separate = SyncVectorEnv([lambda: uniros.make(ENV, max_episode_steps=horizon) for _ in range(n)],
                              autoreset_mode=mode)
     try:
-        assert batched.batch.hooks is not None  # the goal reach task's batched step hooks
+        assert batched.batch.task is not None  # the goal reach task steps batch-first
         assert batched.metadata["autoreset_mode"] == mode
         assert batched.single_observation_space == separate.single_observation_space
         assert batched.action_space == separate.action_space
@@ -73,7 +73,7 @@ def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode, num_nod
 def test_next_step_autoreset_semantics_and_slots() -> None:
     """NEXT_STEP: the step after an episode ends ignores that env's action and returns its first
     observation with reward 0; robots sit in their own slots, namespaces, and never touch."""
-    vec = uniros.make_vec(ENV, 4, vectorization_mode="batched", max_episode_steps=3)
+    vec = uniros.make_vec(ENV, 4, vectorization_mode="batched", max_episode_steps=3, vector_kwargs={"num_nodes": 1})
     try:
         obs, _ = vec.reset(seed=1)
         first = {k: v.copy() for k, v in obs.items()}
@@ -130,12 +130,13 @@ def test_diverging_or_refused_robot_ends_its_episode_alone(num_nodes: int, bad: 
         assert "diverged" in info["sim_error"][bad]
         assert np.all(np.isfinite(obs["observation"]))
         # a command the node refuses (wrong length) ends env 0's episode, not the others'
-        env0 = vec.envs[0]
-        env0.send_command = lambda controller, values: env0._pending_commands.__setitem__(controller, np.ones(2))
+        link = vec.envs[0].connection
+        queue = link.command
+        link.command = lambda controller, values: queue(controller, np.ones(2))  # a length the node refuses
         _, reward, _, trunc, info = vec.step(actions)  # env `bad` autoresets here
         assert trunc.tolist() == [True, False, False] and reward[bad] == 0.0
         assert "arm_position_controller" in info["sim_error"][0] or "command" in info["sim_error"][0]
-        del env0.send_command
+        del link.command
         _, _, _, trunc, _ = vec.step(actions)  # env 0 autoresets, all step on
         assert not trunc.any()
         with pytest.raises(ValueError, match="NaN"):
@@ -146,7 +147,7 @@ def test_diverging_or_refused_robot_ends_its_episode_alone(num_nodes: int, bad: 
 
 def test_num_envs_beyond_node_limit_is_refused() -> None:
     with pytest.raises(ValueError, match="max_robots=256"):
-        uniros.make_vec(ENV, 300, vectorization_mode="batched")
+        uniros.make_vec(ENV, 300, vectorization_mode="batched", vector_kwargs={"num_nodes": 1})
     with pytest.raises(ValueError, match="num_nodes must be an integer from 1 to num_envs"):
         uniros.make_vec(ENV, 2, vectorization_mode="batched", vector_kwargs={"num_nodes": 3})
     with pytest.raises(TypeError, match="unknown batched vector env option"):
@@ -201,21 +202,21 @@ def test_node_step_robots_and_load() -> None:
         ctx.try_shutdown()
 
 
-def _outcomes_equal(a, b) -> None:
-    assert [(o.entity, o.status, o.message) for o in a] == [(o.entity, o.status, o.message) for o in b]
-    for x, y in zip(a, b):
-        assert (x.state is None) == (y.state is None)
-        if x.state is not None:
-            assert x.state.sim_time == y.state.sim_time and x.state.names == y.state.names
+def _reply_equals_outcomes(outcomes, reply) -> None:
+    assert [(o.status, o.message) for o in outcomes] == list(zip(reply.status, reply.message))
+    for outcome, state in zip(outcomes, reply.states):
+        assert (outcome.state is None) == (state is None)
+        if state is not None:
+            assert outcome.state.sim_time == state.sim_time == reply.sim_time and outcome.state.names == state.names
             for field in ("position", "velocity", "effort", "frame_positions", "frame_orientations"):
-                np.testing.assert_array_equal(getattr(x.state, field), getattr(y.state, field), err_msg=field)
+                np.testing.assert_array_equal(getattr(outcome.state, field), getattr(state, field), err_msg=field)
 
 
-def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
-    """LocalStepRobots.run (what a batched vector env calls on a composed node) returns what the
+def test_composed_stepper_answers_as_the_service() -> None:
+    """A ComposedStepper (what envs on a composed node call: no messages) returns what the
     StepRobots service returns, bit for bit: two identical nodes, one called each way; also the
-    per-robot failures and the refusals of a whole call."""
-    from multiros.sim.node_stepping import LocalStepRobots
+    per-robot failures and the refusals of a whole call. ServiceStepper answers the same."""
+    from multiros.sim.stepper import ComposedStepper, ServiceStepper
 
     ctx = Context(transport="inproc").init()
     try:
@@ -225,6 +226,7 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
             clients.append(SimulationClient(Node(f"t_{name}", context=ctx), f"/{name}"))
             clients[-1].spawn_entity("a", uri=RX200, namespace=f"/{name}/a")
             clients[-1].spawn_entity("b", uri=RX200, namespace=f"/{name}/b", position=(2.0, 0.0, 0.0))
+        local = ComposedStepper(nodes[1])
         ee = "rx200/ee_gripper_link"
         calls = [
             ([RobotStepSpec("a", {"arm_position_controller": [0.3, -0.2, 0.1, 0, 0.4]}, [ee]),
@@ -242,9 +244,9 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
         ]
         for specs, steps in calls:
             by_service = clients[0].step_robots(specs, steps=steps)
-            local = LocalStepRobots(nodes[1], specs, steps).run()
-            _outcomes_equal(by_service, local)
-        assert [o.status for o in local] == [0, 0] and local[0].state.sim_time > 0
+            reply = local.step(specs, steps)
+            _reply_equals_outcomes(by_service, reply)
+        assert reply.status == [0, 0] and reply.sim_time > 0
         # Alike robots are read in one gather per array (StateGather), also after a spawn moved
         # every id (its cached indices must follow), and robot by robot otherwise.
         for spawn in (False, True):
@@ -253,18 +255,27 @@ def test_composed_step_robots_without_messages_answers_as_the_service() -> None:
                     client.spawn_entity("c", uri=RX200, namespace=f"/{name}/c", position=(-2.0, 0.0, 0.0))
             for specs, steps in [*alike, calls[0], calls[1]]:
                 by_service = clients[0].step_robots(specs, steps=steps)
-                call = LocalStepRobots(nodes[1], specs, steps)
-                _outcomes_equal(by_service, call.run())
-                assert (call.stacked is not None) == (specs is not calls[1][0])  # calls[1]: frames differ
+                reply = local.step(specs, steps)
+                _reply_equals_outcomes(by_service, reply)
+                assert (reply.stacked is not None) == (specs is not calls[1][0])  # calls[1]: frames differ
+        # over the service, the same call answers the same StepReply
+        over_ros = ServiceStepper(clients[1])
+        for specs, steps in alike:
+            a, b = over_ros.step(specs, steps), local.step(specs, 0)
+            assert a.status == b.status == [0, 0]
+            np.testing.assert_array_equal(a.stacked.position, b.stacked.position)
+            np.testing.assert_array_equal(a.stacked.frame_positions, b.stacked.frame_positions)
         for specs, match in (([RobotStepSpec("a"), RobotStepSpec("a")], "more than once"),
                              ([RobotStepSpec(n) for n in "abcd"], "max_robots=3")):
             with pytest.raises(SimulationServiceError, match=match):
                 clients[0].step_robots(specs, steps=1)
             with pytest.raises(SimulationServiceError, match=match) as refused:
-                LocalStepRobots(nodes[1], specs, 1).run()
+                local.step(specs, 1)
             assert refused.value.service == "/sim_local/step_robots"
         with pytest.raises(SimulationServiceError, match="max_steps_per_call"):
-            LocalStepRobots(nodes[1], [RobotStepSpec("a")], nodes[1].max_steps_per_call + 1).run()
+            local.step([RobotStepSpec("a")], nodes[1].max_steps_per_call + 1)
+        assert nodes[1].lock.acquire(timeout=1.0)  # every call released the node's lock, refused ones too
+        nodes[1].lock.release()
     finally:
         ctx.try_shutdown()
 

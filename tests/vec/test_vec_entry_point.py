@@ -50,7 +50,7 @@ def test_gymnasium_make_vec_equals_uniros_make_vec_step_for_step() -> None:
 
 def test_vector_entry_point_is_the_default_and_takes_options() -> None:
     vec = gym.make_vec(ENV, num_envs=2, max_episode_steps=2,
-                       vector_options={"autoreset_mode": AutoresetMode.SAME_STEP, "spacing": 3.0})
+                       vector_options={"autoreset_mode": AutoresetMode.SAME_STEP, "spacing": 3.0, "num_nodes": 1})
     try:
         assert isinstance(vec, BatchedVectorEnv)
         assert vec.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP

@@ -128,6 +128,9 @@ class RealConnection(RobotConnection):
                 "process?"
             )
         self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
+        self.check_single_publisher()
+        if self.safety is not None:
+            link.states.guard(self.safety)
         controllers = self._controllers
         if controllers:
             if load_controllers:
@@ -147,8 +150,37 @@ class RealConnection(RobotConnection):
                 raise RobotConnectionError(f"nobody serves {where} (controller {self.arm_controller!r} is active, but "
                                            f"its command interface did not appear within {remaining:.1f} s)")
         self._accept(self.fresh_sample())
+        _logger.info("%s drives %r in %s: joint_states from %s", self.owner, self.robot_name, self.namespace,
+                     self.driver())
 
     # -- state ------------------------------------------------------------------------------
+    def publishers(self) -> list[str]:
+        """Who publishes the robot's ``joint_states``: ``namespace/node`` per publisher in the graph."""
+        infos = self.node.get_publishers_info_by_topic(self.link.joint_states_topic)
+        return [f"{e.namespace.rstrip('/')}/{e.node_name}" + (f" (session {e.origin})" if e.origin else "")
+                for e in infos]
+
+    def check_single_publisher(self) -> None:
+        """Exactly one driver must publish the robot's ``joint_states``: two robots' states (another
+        user's robot on a shared graph) or a forged one mixed in would steer the safety rules.
+
+        Raises:
+            RobotConnectionError: more than one publisher (they are named); the env stops commanding.
+        """
+        count = self.node.count_publishers(self.link.joint_states_topic)
+        if count > 1:
+            err = RobotConnectionError(
+                f"{count} publishers on {self.link.joint_states_topic} ({', '.join(self.publishers()) or 'unnamed'}): "
+                f"a Real env must hear exactly one robot driver. Stop the others, or give this robot its own "
+                "namespace, ROS_DOMAIN_ID or Zenoh router (docs/real_robots.md, docs/pitfalls.md)")
+            self.fault = err
+            raise err
+
+    def driver(self) -> str:
+        """The one publisher of the robot's ``joint_states`` this env listens to (``namespace/node``)."""
+        names = self.publishers()
+        return names[0] if names else "(not in the graph)"
+
     def fresh_sample(self) -> RobotState:
         """The freshest state of the observed joints; :class:`StaleStateError` when too old."""
         sample = self.link.states.sample(self._observed)
@@ -208,8 +240,9 @@ class RealConnection(RobotConnection):
                            "make a new env")
 
     def before_act(self) -> None:
-        """The watchdog before an action: the env must be able to command and the state fresh."""
+        """The watchdog before an action: the env must be able to command, hear one driver, and the state be fresh."""
         self.ensure_commandable()
+        self.check_single_publisher()
         self.fresh_sample()
 
     def send_joint_targets(self, targets: Sequence[float] | np.ndarray,
@@ -221,7 +254,7 @@ class RealConnection(RobotConnection):
             raise EnvError(f"{self.owner} has no arm joints/controller configured")
         current = self.fresh_sample()
         idx = self._arm_index()
-        decision = self.safety.check(targets, current.position[idx])
+        decision = self.safety.check(targets, current.position[idx], self.last_command)
         self.last_decision = decision
         if info is not None:
             info["safety"] = decision.as_info()
@@ -331,9 +364,15 @@ class RealConnection(RobotConnection):
             raise ResetError(f"initial pose of {self.robot_name!r}: {decision.reason}; move the robot by hand")
         goal = decision.target
         start = current.position[idx]
-        duration = max(self.loop.cycle, float(np.max(np.abs(goal - start))) / max(self.reset_joint_speed, 1e-6))
+        # The move's length: from the measured state, and from the last command (where the robot was
+        # sent: a measured state that claims the robot is already there cannot shorten the move).
+        distance = float(np.max(np.abs(goal - start)))
+        if self.last_command is not None:
+            distance = max(distance, float(np.max(np.abs(goal - self.last_command))))
+        duration = max(self.loop.cycle, distance / max(self.reset_joint_speed, 1e-6))
         tol = max(float(tolerance), self.reset_tolerance)
-        deadline = time.monotonic() + duration + self.reset_timeout
+        began = time.monotonic()
+        deadline = began + duration + self.reset_timeout
         if self.arm_controller_type == "forward":
             steps = max(1, int(np.ceil(duration / self.loop.period)))
             for k in range(1, steps + 1):
@@ -348,7 +387,7 @@ class RealConnection(RobotConnection):
         while True:
             sample = self.fresh_sample()
             error = float(np.max(np.abs(sample.position[idx] - goal)))
-            if error <= tol:
+            if error <= tol and time.monotonic() >= began + duration:  # the trajectory takes its time
                 self._accept(sample)
                 return
             if time.monotonic() > deadline:

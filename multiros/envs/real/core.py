@@ -219,6 +219,11 @@ class RealEnvCore(EnvCore):
         return self.connection.last_decision
 
     @property
+    def robot_driver(self) -> str:
+        """The one publisher of the robot's ``joint_states`` (``namespace/node``, with its session)."""
+        return self.connection.driver()
+
+    @property
     def commands_sent(self) -> int:
         return self.connection.commands_sent
 

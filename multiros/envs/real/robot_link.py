@@ -76,7 +76,13 @@ def check_joint_state(msg: Any) -> str | None:
 
 
 class JointStateCache:
-    """The latest valid value of every joint, merged over ``joint_states`` messages (thread-safe)."""
+    """The latest valid value of every joint, merged over ``joint_states`` messages (thread-safe).
+
+    With a guard (:meth:`guard`: the arm's safety rules), a message whose guarded joints cannot be
+    the robot's (outside their limits, or moved faster than their velocity limits since the last
+    accepted value) is dropped as malformed, with the reason: a well-formed state from another
+    process cannot teleport the arm in the env's eyes.
+    """
 
     def __init__(self) -> None:
         self._cond = threading.Condition()
@@ -85,12 +91,33 @@ class JointStateCache:
         self.malformed_count = 0
         self.last_error: str | None = None
         self.last_received: float | None = None
+        self._rules: Any = None
+
+    def guard(self, rules: Any) -> None:
+        """Check every later message's joints of ``rules.joint_names`` with ``rules.plausible``."""
+        with self._cond:
+            self._rules = rules
+
+    def _implausible(self, msg: Any, now: float) -> str | None:
+        rules = self._rules
+        where = {name: i for i, name in enumerate(msg.name)}
+        if rules is None or any(j not in where for j in rules.joint_names):
+            return None
+        q = np.array([float(msg.position[where[j]]) for j in rules.joint_names])
+        prev = [self._values.get(j) for j in rules.joint_names]
+        if any(p is None for p in prev):
+            return rules.plausible(q)
+        last = np.array([p[0] for p in prev])  # type: ignore[index]
+        oldest = min(p[3] for p in prev)  # type: ignore[index]
+        return rules.plausible(q, last, now - oldest)
 
     def update(self, msg: Any, now: float | None = None) -> bool:
-        """Take one message; ``False`` (and counted) when it is malformed."""
+        """Take one message; ``False`` (and counted) when it is malformed or implausible."""
         reason = check_joint_state(msg)
         now = time.monotonic() if now is None else now
         with self._cond:
+            if reason is None:
+                reason = self._implausible(msg, now)
             if reason is not None:
                 self.malformed_count += 1
                 self.last_error = reason

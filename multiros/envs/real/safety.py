@@ -4,10 +4,21 @@
 
 1. the target must be finite and of the right length (otherwise :class:`UnsafeCommandError`, nothing is sent);
 2. it is clamped to the joint limits (the intersection of the task's and the robot description's);
-3. each joint moves at most ``max_joint_delta`` from the measured position per command;
+3. each joint moves at most ``max_joint_delta`` per command from the measured position **and** from
+   the env's own previous command (which no other process can forge): a measured state that lies
+   about where the robot is cannot widen what a command may ask. When the two windows do not
+   overlap (the measurement is more than twice the cap away from the last command: a robot that
+   does not track, or a state that is not the robot's) the command is refused (``state_mismatch``);
 4. the end effector, by forward kinematics, stays inside the workspace box and above the floor: a
    target that would leave it is projected back along the joint-space segment from the measured
    position (``workspace_mode="project"``) or refused (``"refuse"``: the robot holds its last command).
+
+What the rules do not bound: the cap is measured from a state up to ``joint_state_timeout`` old
+(the env refuses older ones), so a robot moving fast can be a little further than measured; the
+workspace check follows the joint-space segment at ``path_samples`` points, not the controller's
+actual path. :meth:`SafetyRules.plausible` says whether a measured state can be the robot's at all
+(within its limits and, given the time between two states, its velocity limits): the robot link
+drops states that are not (:class:`~multiros.envs.real.robot_link.JointStateCache`).
 
 The rules are pure numpy (no ROS), so they are unit-tested directly; :class:`SafetyDecision` says what
 each rule did, and the env copies that into ``info``.
@@ -33,6 +44,9 @@ JOINT_LIMITS = "joint_limits"
 JOINT_DELTA = "joint_delta"
 WORKSPACE = "workspace"
 FLOOR = "floor"
+STATE_MISMATCH = "state_mismatch"
+#: How far (rad or m) a measured position may lie outside the joint limits and still be the robot's.
+STATE_MARGIN = 0.05
 
 
 @dataclass(frozen=True)
@@ -58,7 +72,8 @@ class SafetyDecision:
 
     def as_info(self) -> dict[str, object]:
         """The decision as ``info["safety"]``: one flag per rule, ``refused`` and ``reason``."""
-        info: dict[str, object] = {name: name in self.events for name in (JOINT_LIMITS, JOINT_DELTA, WORKSPACE, FLOOR)}
+        info: dict[str, object] = {name: name in self.events
+                                   for name in (JOINT_LIMITS, JOINT_DELTA, WORKSPACE, FLOOR, STATE_MISMATCH)}
         info["refused"] = self.refused
         info["reason"] = self.reason
         return info
@@ -108,8 +123,10 @@ class SafetyRules:
         lower, upper: joint limits; combined with ``description_lower``/``description_upper`` (the
             URDF's), the tighter bound wins. Infinite values are allowed (continuous joints).
         description_lower, description_upper: the robot description's limits (optional).
-        max_joint_delta: largest change per command from the measured position, per joint or one
-            number (``None``: no cap).
+        max_joint_delta: largest change per command from the measured position and from the previous
+            command, per joint or one number (``None``: no cap).
+        max_velocity: the joints' velocity limits in rad/s (the description's; ``None``: unknown), for
+            :meth:`plausible` and the duration of long moves.
         chain: the arm's kinematic chain (``joint_names`` must be its joints) for the workspace and
             floor checks; ``None`` disables them.
         base_position: the chain base's position in the frame of the workspace box.
@@ -129,10 +146,11 @@ class SafetyRules:
         description_lower: Sequence[float] | np.ndarray | None = None,
         description_upper: Sequence[float] | np.ndarray | None = None,
         max_joint_delta: float | Sequence[float] | None = None,
+        max_velocity: float | Sequence[float] | np.ndarray | None = None,
         chain: KinematicChain | None = None,
-        base_position: Sequence[float] = (0.0, 0.0, 0.0),
-        workspace_min: Sequence[float] | None = None,
-        workspace_max: Sequence[float] | None = None,
+        base_position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),
+        workspace_min: Sequence[float] | np.ndarray | None = None,
+        workspace_max: Sequence[float] | np.ndarray | None = None,
         floor_z: float | None = None,
         workspace_mode: WorkspaceMode = "project",
         path_samples: int = 5,
@@ -153,6 +171,9 @@ class SafetyRules:
         self.max_joint_delta = None if max_joint_delta is None else _vector(max_joint_delta, n, "max_joint_delta")
         if self.max_joint_delta is not None and not np.all(self.max_joint_delta > 0):
             raise ValueError(f"max_joint_delta must be > 0, got {self.max_joint_delta.tolist()}")
+        self.max_velocity = None if max_velocity is None else _vector(max_velocity, n, "max_velocity")
+        if self.max_velocity is not None and not np.all(self.max_velocity > 0):
+            raise ValueError(f"max_velocity must be > 0 rad/s, got {self.max_velocity.tolist()}")
         if chain is not None and tuple(chain.joint_names) != self.joint_names:
             raise ValueError(f"the kinematic chain's joints {list(chain.joint_names)} are not the commanded joints "
                              f"{list(self.joint_names)}")
@@ -202,8 +223,10 @@ class SafetyRules:
             events.append(FLOOR)
         return tuple(events)
 
-    def check(self, target: Sequence[float] | np.ndarray, current: Sequence[float] | np.ndarray) -> SafetyDecision:
-        """Apply every rule to ``target`` given the measured joint positions ``current``.
+    def check(self, target: Sequence[float] | np.ndarray, current: Sequence[float] | np.ndarray,
+              previous: Sequence[float] | np.ndarray | None = None) -> SafetyDecision:
+        """Apply every rule to ``target`` given the measured joint positions ``current`` and the
+        env's own previous command ``previous`` (``None`` before the first).
 
         Raises:
             UnsafeCommandError: ``target`` or ``current`` has the wrong length or a NaN/infinite value.
@@ -219,9 +242,32 @@ class SafetyRules:
         if cur.shape != (n,) or not np.all(np.isfinite(cur)):
             raise UnsafeCommandError(f"measured joint positions {cur.tolist()} are unusable for "
                                      f"{list(self.joint_names)}; nothing was sent")
-        return replace(self._decide(req, cur), measured=cur.copy())
+        prev = None if previous is None else np.asarray(previous, dtype=np.float64)
+        if prev is not None and (prev.shape != (n,) or not np.all(np.isfinite(prev))):
+            raise UnsafeCommandError(f"previous command {prev.tolist()} is unusable for {list(self.joint_names)}")
+        return replace(self._decide(req, cur, prev), measured=cur.copy())
 
-    def _decide(self, req: np.ndarray, cur: np.ndarray) -> SafetyDecision:
+    def plausible(self, positions: np.ndarray, previous: np.ndarray | None = None,
+                  seconds: float | None = None) -> str | None:
+        """Why measured joint positions cannot be the robot's (outside the joint limits by more than
+        ``STATE_MARGIN``; or, ``seconds`` after ``previous``, further than the velocity limits allow),
+        or ``None`` when they can be."""
+        q = np.asarray(positions, dtype=np.float64)
+        out = (q < self.lower - STATE_MARGIN) | (q > self.upper + STATE_MARGIN)
+        if np.any(out):
+            j = int(np.flatnonzero(out)[0])
+            return (f"{self.joint_names[j]} at {q[j]:.4g} is outside its limits [{self.lower[j]:.4g}, "
+                    f"{self.upper[j]:.4g}]")
+        if previous is not None and seconds is not None and self.max_velocity is not None:
+            reach = self.max_velocity * max(0.0, seconds) * 1.5 + STATE_MARGIN
+            jump = np.abs(q - previous) > reach
+            if np.any(jump):
+                j = int(np.flatnonzero(jump)[0])
+                return (f"{self.joint_names[j]} jumped {abs(q[j] - previous[j]):.4g} rad in {seconds:.4g} s (its "
+                        f"velocity limit is {self.max_velocity[j]:.4g} rad/s)")
+        return None
+
+    def _decide(self, req: np.ndarray, cur: np.ndarray, prev: np.ndarray | None = None) -> SafetyDecision:
         events: list[str] = []
         reasons: list[str] = []
         safe = np.minimum(np.maximum(req, self.lower), self.upper)
@@ -229,23 +275,39 @@ class SafetyRules:
             events.append(JOINT_LIMITS)
             bad = [self.joint_names[i] for i in np.flatnonzero(safe != req)]
             reasons.append(f"clamped to the joint limits: {bad}")
+        start = cur  # where the motion of this command starts, as far as the rules know
         if self.max_joint_delta is not None:
-            capped = np.minimum(np.maximum(safe, cur - self.max_joint_delta), cur + self.max_joint_delta)
+            d = self.max_joint_delta
+            low, high = cur - d, cur + d
+            if prev is not None:  # the env's own last command: no other process can forge it
+                low, high = np.maximum(low, prev - d), np.minimum(high, prev + d)
+                if np.any(low > high):
+                    j = int(np.flatnonzero(low > high)[0])
+                    return SafetyDecision(None, (STATE_MISMATCH,), True, (
+                        f"refused: {self.joint_names[j]} is measured at {cur[j]:.4g}, {abs(cur[j] - prev[j]):.4g} rad "
+                        f"from the last command {prev[j]:.4g} (more than twice the per-command cap {d[j]:.4g}): the "
+                        "robot does not track its commands, or the state is not the robot's"))
+                start = np.minimum(np.maximum(cur, low), high)
+            capped = np.minimum(np.maximum(safe, low), high)
             if np.any(capped != safe):
                 events.append(JOINT_DELTA)
-                reasons.append(f"per-command change capped at {self.max_joint_delta.tolist()} rad")
+                reasons.append(f"per-command change capped at {d.tolist()} rad")
             # A measured position beyond a limit must not drag the target past it.
             safe = np.minimum(np.maximum(capped, self.lower), self.upper)
+            start = np.minimum(np.maximum(start, self.lower), self.upper)
         if self.chain is None or (self.workspace_min is None and self.floor_z is None):
             return SafetyDecision(safe, tuple(events), False, "; ".join(reasons))
-        return self._check_region(safe, cur, events, reasons)
+        return self._check_region(safe, start, cur, events, reasons)
 
-    def _check_region(self, safe: np.ndarray, cur: np.ndarray, events: list[str], reasons: list[str]) -> SafetyDecision:
+    def _check_region(self, safe: np.ndarray, start: np.ndarray, cur: np.ndarray, events: list[str],
+                      reasons: list[str]) -> SafetyDecision:
         # Allowed: configurations no further outside than the measured one (a robot that starts
-        # outside may move back in, never further out).
+        # outside may move back in, never further out). The motion is checked from ``start`` (the
+        # measured position, brought inside the per-command windows), so a projected target stays
+        # inside them too.
         allowed = float(self.violation(cur)) + 1e-9
         ts = np.linspace(0.0, 1.0, self.path_samples + 1)[1:]
-        path = cur + ts[:, None] * (safe - cur)
+        path = start + ts[:, None] * (safe - start)
         viol = self.violation(path)
         bad = np.flatnonzero(viol > allowed)
         if bad.size == 0:
@@ -261,14 +323,14 @@ class SafetyRules:
         hi = float(ts[bad[0]])
         for _ in range(20):
             mid = 0.5 * (lo + hi)
-            if float(self.violation(cur + mid * (safe - cur))) <= allowed:
+            if float(self.violation(start + mid * (safe - start))) <= allowed:
                 lo = mid
             else:
                 hi = mid
         if lo <= 1e-6:
             reasons.append(f"refused: the end effector is at the {where} limit in the requested direction")
             return SafetyDecision(None, tuple(events), True, "; ".join(reasons))
-        projected = cur + lo * (safe - cur)
+        projected = start + lo * (safe - start)
         reasons.append(f"projected to {lo:.0%} of the motion to stay inside the {where} limits")
         return SafetyDecision(projected, tuple(events), False, "; ".join(reasons), self.ee_position(projected))
 
