@@ -33,6 +33,15 @@ def goal_distance(achieved_goal: np.ndarray, desired_goal: np.ndarray) -> np.nda
             d = x - y
             total += d * d
         return np.float64(math.sqrt(total))
+    if a.ndim == 2 and a.shape == b.shape and len(a) <= 16:  # a few rows: the same sums, without numpy's overhead
+        out = []
+        for ra, rb in zip(a.tolist(), b.tolist()):
+            total = 0.0
+            for x, y in zip(ra, rb):
+                d = x - y
+                total += d * d
+            out.append(math.sqrt(total))
+        return np.array(out)
     diff = a.astype(np.float64) - b.astype(np.float64)
     total = np.zeros(diff.shape[:-1])
     for k in range(diff.shape[-1]):

@@ -194,6 +194,7 @@ def _one_row(states: RobotStates, j: int) -> RobotStates:
 
 
 OBS_PARTS = ("ee_position", "arm_positions", "prev_action", "arm_velocities")
+_CHECKED_PARTS: set[type] = set()
 
 
 class GoalReachTask(ReachTask):
@@ -213,9 +214,11 @@ class GoalReachTask(ReachTask):
     def batch_observe(cls, envs: Sequence[Any], states: RobotStates) -> dict[str, np.ndarray]:
         """N envs' observation dicts, stacked: one clip into each env's declared bounds covers the EE
         box, joint limits and velocity bounds."""
-        for name in cls.OBS_PARTS:
-            if name not in OBS_PARTS:
-                raise ValueError(f"{cls.__name__}.OBS_PARTS names {name!r}; parts: {list(OBS_PARTS)}")
+        if cls not in _CHECKED_PARTS:
+            for name in cls.OBS_PARTS:
+                if name not in OBS_PARTS:
+                    raise ValueError(f"{cls.__name__}.OBS_PARTS names {name!r}; parts: {list(OBS_PARTS)}")
+            _CHECKED_PARTS.add(cls)
         raw = np.concatenate([cls._obs_part(name, envs, states) for name in cls.OBS_PARTS], axis=1)
         if len(envs) == 1:
             box = envs[0].observation_space["observation"]

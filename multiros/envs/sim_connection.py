@@ -16,6 +16,7 @@ reset puts them back when they are alone.
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -236,7 +237,7 @@ class SimConnection(RobotConnection):
         """Queue a controller command: it travels with the next step (lockstep), or is applied at
         once in the other step modes."""
         arr = np.asarray(values, dtype=np.float64)
-        if arr.ndim != 1 or not all(map(np.isfinite, arr.tolist())):  # per value: a fifth of np.isfinite's time
+        if arr.ndim != 1 or not all(map(math.isfinite, arr.tolist())):  # Python floats: a tenth of numpy's time
             raise ValueError(f"command for controller {controller!r} must be a 1-D finite vector, got {values!r}")
         self._pending[controller] = arr
         if self.step_config.mode != "lockstep":

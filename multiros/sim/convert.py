@@ -23,6 +23,13 @@ def time_msg(seconds: float) -> Any:
     return Time(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
 
 
+def time_seconds(seconds: float) -> float:
+    """A simulation time as a ``builtin_interfaces/Time`` carries it, in seconds: what
+    ``sec + nanosec * 1e-9`` of :func:`time_msg` gives, without building the message."""
+    ns = int(round(seconds * _NS_PER_S))
+    return ns // _NS_PER_S + (ns % _NS_PER_S) * 1e-9
+
+
 def pose_to_arrays(pose: Any) -> tuple[np.ndarray, np.ndarray]:
     """``geometry_msgs/Pose`` -> ``(xyz, wxyz)`` arrays (not normalised, not validated)."""
     p, q = pose.position, pose.orientation

@@ -177,7 +177,7 @@ class StepRobotsCall:
     """One ``StepRobots`` call in three phases: :meth:`prepare` (lock taken, resets and commands),
     :meth:`advance` (the physics), :meth:`finish` (every robot's state, lock released); :meth:`run`
     runs them in a row. The one implementation of ``StepRobots``, for its service and for composed
-    clients (:class:`LocalStepRobots`).
+    clients (:class:`~multiros.sim.stepper.ComposedStepper`).
 
     :meth:`prepare` and :meth:`finish` run on one thread, which owns the node's lock in between;
     :meth:`advance` may run on another. A batched vector env over several composed nodes thus

@@ -156,14 +156,14 @@ class _ComposedCall(PendingStep):
     def finish(self) -> StepReply:
         with _refusals(self.node):
             parts, sim_time = self.call.finish(self._read)
-        t = time_seconds(convert.time_msg(sim_time))  # the time the service's message would carry
+        t = convert.time_seconds(sim_time)  # the time the service's message would carry
         status = [int(code) for code, _, _ in parts]
         message = [msg for _, msg, _ in parts]
         stacked = self.stacked
         if stacked is not None:
             stacked = RobotStates(t, stacked.names, stacked.position, stacked.velocity, stacked.effort,
                                   stacked.frame_positions, stacked.frame_orientations)
-            states: list[RobotState | None] = list(stacked.rows())
+            states: list[RobotState | None] = stacked.rows()
         else:
             states = [None if part is None else RobotState(t, *part) for _, _, part in parts]
         return StepReply(t, status, message, states, stacked)

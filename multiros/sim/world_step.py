@@ -119,10 +119,14 @@ class WorldStepping:
             remaining -= chunk
 
     def _warnings_changed(self) -> bool:
-        w = self._data.warning
-        return (w[_BAD_WARNINGS[0]].number != self._warn_counts[0]
-                or w[_BAD_WARNINGS[1]].number != self._warn_counts[1]
-                or w[_BAD_WARNINGS[2]].number != self._warn_counts[2])
+        stats, data = self._warn_stats
+        if data is not self._data:  # the warning records of this MjData, fetched once (a third of the time)
+            stats = tuple(self._data.warning[w] for w in _BAD_WARNINGS)
+            self._warn_stats = (stats, self._data)
+        counts = self._warn_counts
+        return stats[0].number != counts[0] or stats[1].number != counts[1] or stats[2].number != counts[2]
+
+    _warn_stats: tuple[tuple, object] = ((), None)
 
     def _diverged(self) -> list[EntityRecord]:
         d = self._data

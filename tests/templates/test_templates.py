@@ -383,3 +383,41 @@ def test_her_learns_through_goal_normalising_wrapper(tmp_path):
     finally:
         env.close()
         del gymnasium.registry[pkg.ENV_ID]
+
+
+@needs_stack
+@pytest.mark.slow
+@pytest.mark.parametrize("case", ["multiros_goal", "frobs"])
+def test_filled_template_steps_in_a_batched_vector_env(tmp_path, case):
+    """A user's env written with MultiROS (or FRobs_RL) hooks steps in ``make_vec``'s batched vector
+    env through its own hooks, env by env, one request per node: the same numbers as separate envs."""
+    import gymnasium
+    from gymnasium.vector import SyncVectorEnv
+
+    import uniros
+
+    pkg, _ = make_filled(tmp_path, case)
+    n = 2
+    batched = uniros.make_vec(pkg.ENV_ID, n, vectorization_mode="batched", max_episode_steps=6)
+    separate = SyncVectorEnv([lambda: gymnasium.make(pkg.ENV_ID, max_episode_steps=6) for _ in range(n)])
+    try:
+        assert batched.batch.task is None  # no batch-first task: each env's hooks
+        obs_b, _ = batched.reset(seed=5)
+        obs_s, _ = separate.reset(seed=5)
+        rng = np.random.default_rng(1)
+        for _ in range(14):  # crosses two autoresets
+            for a, b in ((obs_b, obs_s),):
+                if isinstance(a, dict):
+                    for key in a:
+                        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+                else:
+                    np.testing.assert_array_equal(a, b)
+            actions = rng.uniform(-1, 1, (n, *batched.single_action_space.shape)).astype(np.float32)
+            obs_b, rew_b, term_b, trunc_b, _ = batched.step(actions)
+            obs_s, rew_s, term_s, trunc_s, _ = separate.step(actions)
+            np.testing.assert_array_equal(rew_b, rew_s)
+            np.testing.assert_array_equal(term_b | trunc_b, term_s | trunc_s)
+    finally:
+        batched.close()
+        separate.close()
+        del gymnasium.registry[pkg.ENV_ID]
