@@ -2,8 +2,8 @@
 
 Cases (random actions, episodes autoreset as they end):
 
-* batched, composed: ``uniros.make_vec(ID, N, vectorization_mode="batched")``: one simulation
-  node in this process holds the N robots, one StepRobots request per vector step;
+* batched, composed, one node: ``uniros.make_vec(ID, N, vector_kwargs={"num_nodes": 1})``: one
+  simulation node in this process holds the N robots, one call per vector step;
 * batched, composed, K = 2 nodes in this process (N/2 robots each; their physics runs at once on
   worker threads, ``mj_step`` releases the GIL), N >= 2;
 * batched, node in another process (``sim_mode="process"``, one node behind a private router);
@@ -17,19 +17,19 @@ core), replayed from states of a random-action rollout, in env steps/s: ``N * ca
 ``num_sim_steps`` physics steps per call. The batched composed rate is printed as a fraction of it.
 
     python benchmarks/bench_vec.py [--seconds 2] [--sizes 1,2,4,8,16] [--env RX200ReacherGoalSim-v0]
-                                   [--num-sim-steps 10] [--goal-rounds 5]
+                                   [--num-sim-steps 10] [--goal-rounds 5] [--subproc]
 
 Like for like with FetchReach-v4, whose env step is 40 ms of simulated time (20 x 2 ms), the uniros
 envs run ``--num-sim-steps 10`` (10 x 4 ms) by default. The RX200 reach IDs' own default is 100 ms
 (25 physics steps: MultiROS' 10 Hz and the Real twin's), 2.5x the physics per env step:
 ``--num-sim-steps 0`` measures at each env's default.
 
-Goals (issue 13): N = 8 batched composed >= 5x one FetchReach-v4 and >= 2x SubprocVecEnv over 8
-separate uniros envs. The table runs its cases one after another, so on a machine whose load
-changes (a shared one) its ratios drift with the load; both goals are then measured again
-interleaved (``--goal-rounds``): one FetchReach-v4, ``SubprocVecEnv`` over 8 uniros envs and the
-batched env on one and on two composed nodes, all open at once and stepped in turn, with the
-ratios taken within each round.
+Goals (issue 26): ``uniros.make_vec(ID, 8)`` at its defaults (one composed node per core) >= 6x one
+FetchReach-v4, and the push task's (``RX200PushGoalSim-v0``, 40 ms per step as Fetch's) >= 4x. The
+table runs its cases one after another, so on a machine whose load changes (a shared one) its
+ratios drift with the load; the goals are measured again interleaved (``--goal-rounds``): one
+FetchReach-v4 and the vector envs all open at once, stepped in turn, the ratios taken within each
+round (``--subproc`` adds SB3's ``SubprocVecEnv`` over 8 separate envs, issue 13's yardstick).
 """
 
 from __future__ import annotations
@@ -175,17 +175,23 @@ def fetch_single(seconds: float) -> float:
         env.close()
 
 
-def interleaved_goal(env_id: str, rounds: int, seconds: float, **knobs) -> None:
-    """Both goals measured side by side: one FetchReach-v4, SB3 ``SubprocVecEnv`` over 8 uniros envs
-    and the batched env at N = 8 (one and two composed nodes), all open at once and stepped in turn,
-    round after round, so a change in the machine's load hits each about equally; ratios are taken
-    within a round (FetchReach's rate is taken before and after the others)."""
+PUSH_ID = "RX200PushGoalSim-v0"
+
+
+def interleaved_goal(env_id: str, rounds: int, seconds: float, subproc_too: bool, **knobs) -> None:
+    """The goals measured side by side (issue 26): one FetchReach-v4 and, all open at once and stepped
+    in turn round after round, ``uniros.make_vec(env_id, 8)`` at its defaults (one composed node per
+    core), the same on one node, and the push task's ``make_vec(RX200PushGoalSim-v0, 8)`` at its
+    defaults (40 ms per step, Fetch's); with ``subproc_too`` also SB3's ``SubprocVecEnv`` over 8
+    separate envs. Ratios are taken within each round (FetchReach's rate before and after the others),
+    so a change in the machine's load hits each about equally."""
     contenders = {
-        "1 node": _Stepper(uniros.make_vec(env_id, 8, vectorization_mode="batched", **knobs)),
-        "2 nodes": _Stepper(uniros.make_vec(env_id, 8, vectorization_mode="batched",
-                                            vector_kwargs={"num_nodes": 2}, **knobs)),
+        f"make_vec({env_id}, 8) defaults": _Stepper(uniros.make_vec(env_id, 8, **knobs)),
+        "same, one node": _Stepper(uniros.make_vec(env_id, 8, vector_kwargs={"num_nodes": 1}, **knobs)),
+        f"make_vec({PUSH_ID}, 8) defaults": _Stepper(uniros.make_vec(PUSH_ID, 8)),
     }
-    subprocs = _SB3Stepper(_subproc_venv(env_id, 8, **knobs))
+    nodes = {name: c.vec.batch.num_nodes for name, c in contenders.items()}
+    subprocs = _SB3Stepper(_subproc_venv(env_id, 8, **knobs)) if subproc_too else None
     fetch = _Stepper(make_fetch_reach(), single=True)
     vs_fetch: dict[str, list[float]] = {name: [] for name in contenders}
     vs_subproc: dict[str, list[float]] = {name: [] for name in contenders}
@@ -193,22 +199,27 @@ def interleaved_goal(env_id: str, rounds: int, seconds: float, **knobs) -> None:
         for _ in range(rounds):
             anchor = fetch.rate(seconds / 2)
             rates = {name: c.rate(seconds) for name, c in contenders.items()}
-            subproc_rate = subprocs.rate(seconds)
+            subproc_rate = subprocs.rate(seconds) if subprocs is not None else None
             anchor = (anchor + fetch.rate(seconds / 2)) / 2
             for name, rate in rates.items():
                 vs_fetch[name].append(rate / anchor)
-                vs_subproc[name].append(rate / subproc_rate)
+                if subproc_rate:
+                    vs_subproc[name].append(rate / subproc_rate)
     finally:
         for c in contenders.values():
             c.vec.close()
-        subprocs.vec.close()
+        if subprocs is not None:
+            subprocs.vec.close()
         fetch.vec.close()
-    print(f"\nN=8 batched composed, interleaved over {rounds} rounds (ratios within each round):")
-    for name in contenders:
-        print(f"  {name}: median {np.median(vs_fetch[name]):.2f}x one FetchReach-v4 (goal >= 5x; rounds: "
+    goals = {0: ">= 6x", 2: ">= 4x"}
+    print(f"\nN=8, interleaved over {rounds} rounds (ratios to one FetchReach-v4 within each round; "
+          f"{os.cpu_count()} CPUs):")
+    for k, name in enumerate(contenders):
+        goal = f", goal {goals[k]}" if k in goals else ""
+        print(f"  {name} [{nodes[name]} composed node(s)]: median {np.median(vs_fetch[name]):.2f}x{goal} (rounds: "
               f"{', '.join(f'{v:.2f}' for v in vs_fetch[name])})")
-        print(f"  {name}: median {np.median(vs_subproc[name]):.2f}x SubprocVecEnv over 8 uniros envs (goal >= 2x; "
-              f"rounds: {', '.join(f'{v:.2f}' for v in vs_subproc[name])})")
+        if vs_subproc[name]:
+            print(f"    vs SubprocVecEnv over 8 uniros envs: median {np.median(vs_subproc[name]):.2f}x")
 
 
 def main() -> None:
@@ -219,7 +230,8 @@ def main() -> None:
     parser.add_argument("--num-sim-steps", type=int, default=10,
                         help="physics steps per env step (10: 40 ms, FetchReach-v4's; 0: the env's default)")
     parser.add_argument("--goal-rounds", type=int, default=5,
-                        help="rounds of the interleaved comparison of both goals at N = 8 (0: skip it)")
+                        help="rounds of the interleaved comparison of the goals at N = 8 (0: skip it)")
+    parser.add_argument("--subproc", action="store_true", help="the interleaved rounds also step SubprocVecEnv")
     args = parser.parse_args()
     knobs = {"num_sim_steps": args.num_sim_steps} if args.num_sim_steps > 0 else {}
     sizes = [int(s) for s in args.sizes.split(",")]
@@ -229,7 +241,8 @@ def main() -> None:
     rows: dict[int, dict[str, float | None]] = {}
     for n in sizes:
         row: dict[str, float | None] = {}
-        row["batched composed"], row["physics limit"] = batched(args.env, n, args.seconds, **knobs)
+        row["batched composed"], row["physics limit"] = batched(args.env, n, args.seconds,
+                                                                vector_kwargs={"num_nodes": 1}, **knobs)
         row["fraction"] = row["batched composed"] / row["physics limit"]
         row["composed 2 nodes"] = batched(args.env, n, args.seconds, vector_kwargs={"num_nodes": 2},
                                           **knobs)[0] if n >= 2 else None
@@ -264,7 +277,7 @@ def main() -> None:
               f"which take {total - physics:.0f} us now ({total:.0f} us in all); on 2 nodes "
               f"{1e6 / r['composed 2 nodes']:.0f} us in all")
     if args.goal_rounds > 0:
-        interleaved_goal(args.env, args.goal_rounds, args.seconds, **knobs)
+        interleaved_goal(args.env, args.goal_rounds, args.seconds, args.subproc, **knobs)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,8 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
+import numpy.typing as npt
+from gymnasium import spaces
 
 from multiros.robot_state import RobotState, RobotStates
 from multiros.utils.kinematics import KinematicChain
@@ -45,6 +47,8 @@ class ArmInterface:
     ARM_CONTROLLER: ClassVar[str]
     info: dict[str, Any]
     np_random: np.random.Generator
+    action_space: spaces.Space[Any]
+    observation_space: spaces.Space[Any]
 
     if TYPE_CHECKING:  # provided by the env core below the robot layer; declared for type checkers only
         node: Any
@@ -56,12 +60,20 @@ class ArmInterface:
 
         def send_command(self, controller: str, command: Sequence[float] | np.ndarray) -> None: ...
 
-        def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float],
+        def move_to_initial_pose(self, names: Sequence[str], positions: npt.ArrayLike,
                                  tolerance: float = 1e-3) -> None: ...
 
         def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray: ...
 
         def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray: ...
+
+    @property
+    def action_box(self) -> spaces.Box:
+        """The action space, which every arm task makes a Box."""
+        space = self.action_space
+        if not isinstance(space, spaces.Box):
+            raise TypeError(f"{type(self).__name__}: the arm tasks need a Box action space, got {space}")
+        return space
 
     # -- the robot layer, batch-first ---------------------------------------------------------------
     @classmethod

@@ -26,7 +26,10 @@ _ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray] = {}
 @functools.lru_cache(maxsize=8)
 def _chain(package: str, xacro_file: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> KinematicChain:
     # A chain is immutable once built, so envs may share it; xacro processing costs ~0.1 s.
-    root = Path(import_module(package).__file__).parent
+    where = import_module(package).__file__
+    if where is None:
+        raise EnvError(f"description package module {package!r} has no files on disk")
+    root = Path(where).parent
     return KinematicChain.from_urdf(root / "urdf" / xacro_file, base, tip, xacro_args=dict(args))
 
 

@@ -60,7 +60,9 @@ class ManipulationTask(BatchTask, ArmInterface):
     prev_action: np.ndarray
     joint_targets: np.ndarray
     gripper_target: float
-    action_space: spaces.Box
+    _last: tuple[float, np.ndarray, np.ndarray, np.ndarray]
+    _vel: tuple[np.ndarray, np.ndarray, np.ndarray]
+    _episode_start: bool
 
     if TYPE_CHECKING:  # the simulated env core's, below the robot layer
         def set_joint_positions(self, names: Sequence[str], positions: Sequence[float], hold: bool = True) -> None: ...
@@ -146,7 +148,7 @@ class ManipulationTask(BatchTask, ArmInterface):
         if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
             self._place(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))  # knocked over
         self._place(self.object_entity, obj + base, yaw_quat(yaw))
-        self.prev_action = np.zeros(self.action_space.shape)
+        self.prev_action = np.zeros(self.action_box.shape)
         self._episode_start = True  # velocities restart from the first observation
         self._show_goal()
 

@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.utils.kinematics import KinematicChain
 
@@ -119,12 +119,12 @@ class GoalSampler:
     def __init__(
         self,
         chain: KinematicChain,
-        low: Sequence[float],
-        high: Sequence[float],
+        low: npt.ArrayLike,
+        high: npt.ArrayLike,
         *,
-        base_position: Sequence[float] = (0.0, 0.0, 0.0),
-        joint_low: Sequence[float] | None = None,
-        joint_high: Sequence[float] | None = None,
+        base_position: npt.ArrayLike = (0.0, 0.0, 0.0),
+        joint_low: npt.ArrayLike | None = None,
+        joint_high: npt.ArrayLike | None = None,
         max_tries: int = 10_000,
         batch_size: int | None = None,
     ) -> None:

@@ -58,8 +58,6 @@ class ReachTask(BatchTask, ArmInterface):
     goal: np.ndarray
     prev_action: np.ndarray
     joint_targets: np.ndarray
-    action_space: spaces.Box
-
     def _setup_reach(
         self,
         cfg: Mapping[str, Any],
@@ -105,7 +103,7 @@ class ReachTask(BatchTask, ArmInterface):
                 self.min_joint_pos.astype(np.float32), self.max_joint_pos.astype(np.float32), dtype=np.float32
             )
         self.goal = self.goal_sampler.sample(np.random.default_rng(0))
-        self.prev_action = np.zeros(self.action_space.shape, dtype=np.float64)
+        self.prev_action = np.zeros(self.action_box.shape, dtype=np.float64)
         self.joint_targets = self.init_joint_pos.copy()
 
     # -- reset hooks (one env at a time) ----------------------------------------------------------------
@@ -115,7 +113,7 @@ class ReachTask(BatchTask, ArmInterface):
 
     def _set_episode_init_params(self) -> None:
         self.goal = self.goal_sampler.sample(self.np_random)
-        self.prev_action = np.zeros(self.action_space.shape, dtype=np.float64)
+        self.prev_action = np.zeros(self.action_box.shape, dtype=np.float64)
         self._show_goal()
 
     def _show_goal(self) -> None:
@@ -207,7 +205,6 @@ class GoalReachTask(ReachTask):
 
     reward_type: RewardType
     OBS_PARTS: ClassVar[tuple[str, ...]]
-    observation_space: spaces.Dict
 
     # -- batch-first ----------------------------------------------------------------------------------
     @classmethod
@@ -251,7 +248,8 @@ class GoalReachTask(ReachTask):
         if len(types) == 1:
             reward = np.asarray(reward_from_distance(distance, tolerance, types.pop()), dtype=np.float64)
         else:
-            reward = np.array([reward_from_distance(distance[j:j + 1], tolerance[j:j + 1], env.reward_type)[0]
+            reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], tolerance[j:j + 1],
+                                                               env.reward_type))[0]
                                for j, env in enumerate(envs)], dtype=np.float64)
         infos = []
         for j, env in enumerate(envs):

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.envs.errors import EnvError
 from multiros.robot_state import RobotState, RobotStates
@@ -115,7 +116,7 @@ class RobotConnection(ABC):
         """After the reset hooks: the episode's first state is read."""
 
     @abstractmethod
-    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+    def move_to_initial_pose(self, names: Sequence[str], positions: npt.ArrayLike, tolerance: float = 1e-3) -> None:
         """Bring joints to an episode's initial pose (teleport in simulation, a slow move on a robot)."""
 
     # -- closing ------------------------------------------------------------------------------

@@ -30,6 +30,7 @@ from collections.abc import Callable, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
+import numpy.typing as npt
 from gymnasium import spaces
 
 from multiros.envs.connection import RobotConnection, StepStatus
@@ -108,6 +109,7 @@ class EnvCore(JointStateAccess):
 
     connection: RobotConnection
     info: dict[str, Any]
+    render_mode: str | None = None
     out_of_range_action: str = "clip"
     #: The exception a refused action raises (a real robot's says nothing was sent).
     action_error: ClassVar[type[Exception]] = ValueError
@@ -132,7 +134,7 @@ class EnvCore(JointStateAccess):
         """Command a controller of the robot (a simulated robot takes it with the next step)."""
         self.connection.command(controller, np.asarray(command, dtype=np.float64))
 
-    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+    def move_to_initial_pose(self, names: Sequence[str], positions: npt.ArrayLike, tolerance: float = 1e-3) -> None:
         """Bring joints to an episode's initial pose: a teleport, checked and retried, in simulation;
         a slow move within the safety rules on a robot.
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
@@ -270,11 +271,11 @@ class SimConnection(RobotConnection):
     def start_episode(self, info: dict[str, Any]) -> None:
         self.refresh(0)
 
-    def set_joint_positions(self, names: Sequence[str], positions: Sequence[float], hold: bool = True) -> None:
+    def set_joint_positions(self, names: Sequence[str], positions: npt.ArrayLike, hold: bool = True) -> None:
         """Teleport joints (e.g. to the episode's initial pose); ``hold`` keeps them there."""
-        self.sim.set_robot_joint_state(self.robot_name, names, positions, hold=hold)
+        self.sim.set_robot_joint_state(self.robot_name, names, np.asarray(positions, dtype=np.float64), hold=hold)
 
-    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+    def move_to_initial_pose(self, names: Sequence[str], positions: npt.ArrayLike, tolerance: float = 1e-3) -> None:
         """Teleport joints and check they arrived, retrying up to ``max_reset_attempts`` times."""
         target = np.asarray(positions, dtype=np.float64)
         index = {name: i for i, name in enumerate(self.state.names)}

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.envs.config import SpawnPose, StepConfig, parse_reset_mode, parse_step_mode
 from multiros.envs.core import EnvCore
@@ -74,6 +75,7 @@ class MujocoEnvCore(EnvCore):
 
     metadata: dict[str, Any] = {"render_modes": ["rgb_array", "depth_array", "human"], "render_fps": 25}
     connection: SimConnection
+    _ctor_args: tuple[tuple[Any, ...], dict[str, Any]]
 
     # -- pickling: an env is re-created from its constructor arguments, as Gymnasium's MuJoCo envs
     # (EzPickle) are; the copy has its own simulation node and starts from a fresh reset.
@@ -84,6 +86,7 @@ class MujocoEnvCore(EnvCore):
 
     def __getstate__(self) -> dict[str, Any]:
         args, kwargs = getattr(self, "_ctor_args", ((), {}))
+        kwargs = dict(kwargs)
         if kwargs.get("sim_mode") == "existing" or kwargs.get("sim_connection") is not None:
             raise TypeError(
                 f"{type(self).__name__} with sim_mode='existing' cannot be pickled or copied: a copy would spawn "
@@ -231,7 +234,7 @@ class MujocoEnvCore(EnvCore):
         """Simulation time in seconds after the last step."""
         return self.connection.state.sim_time
 
-    def set_joint_positions(self, names: Sequence[str], positions: Sequence[float], hold: bool = True) -> None:
+    def set_joint_positions(self, names: Sequence[str], positions: npt.ArrayLike, hold: bool = True) -> None:
         """Teleport joints (e.g. to the episode's initial pose); ``hold`` keeps them there."""
         self.connection.set_joint_positions(names, positions, hold)
 

@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = ["StepReply", "PendingStep", "RobotStepper", "ComposedStepper", "ServiceStepper", "OK", "UNSTABLE"]
 
-RobotStepResult = get_message("uniros_interfaces/msg/RobotStepResult")
+RobotStepResult: Any = get_message("uniros_interfaces/msg/RobotStepResult")
 
 OK = int(RobotStepResult.OK)
 UNSTABLE = int(RobotStepResult.UNSTABLE)
@@ -163,7 +163,7 @@ class _ComposedCall(PendingStep):
         if stacked is not None:
             stacked = RobotStates(t, stacked.names, stacked.position, stacked.velocity, stacked.effort,
                                   stacked.frame_positions, stacked.frame_orientations)
-            states: list[RobotState | None] = stacked.rows()
+            states: list[RobotState | None] = list(stacked.rows())
         else:
             states = [None if part is None else RobotState(t, *part) for _, _, part in parts]
         return StepReply(t, status, message, states, stacked)

@@ -14,6 +14,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+import numpy.typing as npt
+
 from multiros.ros.interfaces import get_message
 
 Marker = get_message("visualization_msgs/msg/Marker")
@@ -61,7 +63,7 @@ class RosMarker:
         marker_id: int = 0,
         action: int = Marker.ADD,
         pose: Any = None,
-        position: Sequence[float] | None = None,
+        position: npt.ArrayLike | None = None,
         orientation: Any = None,
         lifetime: float = 0.0,
         scale: Sequence[float] | None = (0.05, 0.05, 0.05),
@@ -110,7 +112,7 @@ class RosMarker:
     def set_pose(self, pose: Any) -> None:
         self.marker.pose = pose
 
-    def set_position(self, position: Sequence[float]) -> None:
+    def set_position(self, position: npt.ArrayLike) -> None:
         p = self.marker.pose.position
         p.x, p.y, p.z = (float(v) for v in position)
 
@@ -153,7 +155,7 @@ class RosMarker:
         """Send the marker as it is now."""
         self.publisher.publish(self.marker)
 
-    def update(self, position: Sequence[float] | None = None, orientation: Any = None, r: float | None = None,
+    def update(self, position: npt.ArrayLike | None = None, orientation: Any = None, r: float | None = None,
                g: float | None = None, b: float | None = None, a: float | None = None,
                duration: float | None = None) -> None:
         """Change position/orientation/colour/lifetime and publish (action ``ADD``)."""
@@ -179,7 +181,7 @@ class RosMarker:
         self.publisher = None
 
 
-def goal_marker(node: Any, position: Sequence[float], *, diameter: float = 0.05,
+def goal_marker(node: Any, position: npt.ArrayLike, *, diameter: float = 0.05,
                 color: Sequence[float] = (0.0, 1.0, 0.0, 0.8), ns: str = "goal", marker_id: int = 0) -> RosMarker:
     """A world-frame sphere at ``position``, published once; call ``.update(position=...)`` to move it."""
     marker = RosMarker(node, "world", ns, Marker.SPHERE, marker_id=marker_id, position=position,

@@ -101,7 +101,7 @@ def test_a_second_publisher_is_refused_by_name(graph, standin: StandIn) -> None:
     try:
         assert graph.wait_for(lambda: forger.node.count_publishers(TOPIC) >= 2, 10.0)
         with pytest.raises(RobotConnectionError, match=rf"2 publishers on {TOPIC}.*{forger.node.get_name()}"):
-            _make(graph)
+            _make(graph, startup_timeout=3.0)  # a second publisher that persists through start-up
     finally:
         forger.close()
     recorder = TopicRecorder(graph, JointTrajectory, TRAJ_TOPIC)

@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
 from multiros.envs.errors import EnvError, ResetError
@@ -128,6 +129,10 @@ class RealConnection(RobotConnection):
                 "process?"
             )
         self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
+        # A driver that just died may stay in the graph a moment (until its session is seen to end):
+        # at start-up a second publisher must persist to be refused.
+        link.node.context.wait_for(lambda: self.node.count_publishers(link.joint_states_topic) <= 1,
+                                   max(0.0, deadline - time.monotonic()))
         self.check_single_publisher()
         if self.safety is not None:
             link.states.guard(self.safety)
@@ -343,7 +348,7 @@ class RealConnection(RobotConnection):
         info.pop("safety", None)
         self._observe(info)
 
-    def move_to_initial_pose(self, names: Sequence[str], positions: Sequence[float], tolerance: float = 1e-3) -> None:
+    def move_to_initial_pose(self, names: Sequence[str], positions: npt.ArrayLike, tolerance: float = 1e-3) -> None:
         """Move the arm to ``positions`` at ``reset_joint_speed`` and wait until it is there.
 
         The target is clamped to the joint limits and the path checked against the workspace and

@@ -165,6 +165,7 @@ class RealEnvCore(EnvCore):
                 reset_timeout=k["reset_timeout"], reset_env_prompt=k["reset_env_prompt"],
                 close_env_prompt=k["close_env_prompt"], use_sim_time=k["use_sim_time"],
                 log_internal_state=k["log_internal_state"])
+            self.robot_name = self.connection.robot_name
         except BaseException:
             self.close()
             raise
@@ -191,10 +192,6 @@ class RealEnvCore(EnvCore):
     @property
     def namespace(self) -> str:
         return self.connection.namespace
-
-    @property
-    def robot_name(self) -> str:
-        return self.connection.robot_name
 
     @property
     def arm_joints(self) -> tuple[str, ...]:

@@ -145,7 +145,7 @@ class SafetyRules:
         upper: Sequence[float] | np.ndarray,
         description_lower: Sequence[float] | np.ndarray | None = None,
         description_upper: Sequence[float] | np.ndarray | None = None,
-        max_joint_delta: float | Sequence[float] | None = None,
+        max_joint_delta: float | Sequence[float] | np.ndarray | None = None,
         max_velocity: float | Sequence[float] | np.ndarray | None = None,
         chain: KinematicChain | None = None,
         base_position: Sequence[float] | np.ndarray = (0.0, 0.0, 0.0),

@@ -50,8 +50,8 @@ class IRB120GoalReachTask(GoalReachTask):
         super().__init__(**kwargs)
         self._setup_reach(cfg, **irb120_reach_settings(cfg))
         self._setup_goal_spaces(
-            np.concatenate([np.asarray(EE_LOW) + self.base_position, self.chain.lower, self.action_space.low]),
-            np.concatenate([np.asarray(EE_HIGH) + self.base_position, self.chain.upper, self.action_space.high]),
+            np.concatenate([np.asarray(EE_LOW) + self.base_position, self.chain.lower, self.action_box.low]),
+            np.concatenate([np.asarray(EE_HIGH) + self.base_position, self.chain.upper, self.action_box.high]),
         )
 
 

@@ -106,7 +106,6 @@ class RX200ManipulationTask(_Common):
         **kwargs: robot/base-env knobs (``sim_mode``, ``transport``, ``num_sim_steps``, ``seed``, ...).
     """
 
-    observation_space: spaces.Box
 
     def __init__(self, reward_type: str = "dense", ee_action_type: bool = True, distance_threshold: float | None = None,
                  terminate_on_success: bool = False, config_file: str = "rx200_manipulation_task_config.yaml",
@@ -165,7 +164,6 @@ class RX200GoalManipulationTask(_Common):
     Args: as :class:`RX200ManipulationTask`, with ``reward_type="sparse"`` by default.
     """
 
-    observation_space: spaces.Dict
 
     def __init__(self, reward_type: str = "sparse", ee_action_type: bool = True,
                  distance_threshold: float | None = None, terminate_on_success: bool = False,
@@ -198,7 +196,7 @@ class RX200GoalManipulationTask(_Common):
         tolerance = stack_rows(envs, "tolerance")
         success = distance <= tolerance
         n = len(envs)
-        reward = np.array([reward_from_distance(distance[j:j + 1], tolerance[j:j + 1], env.reward_type)[0]
+        reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], tolerance[j:j + 1], env.reward_type))[0]
                            for j, env in enumerate(envs)], dtype=np.float64)
         terminated = success & stack_rows(envs, "terminate_on_success").astype(bool)
         truncated = np.zeros(n, dtype=bool)

@@ -62,8 +62,8 @@ class RX200GoalReachTask(GoalReachTask):
         ee_high = np.asarray(cfg["position_ee_max"]) + self.base_position
         vel = cfg["max_joint_vel"] * np.ones(5)
         self._setup_goal_spaces(
-            np.concatenate([ee_low, self.chain.lower, self.action_space.low, -vel]),
-            np.concatenate([ee_high, self.chain.upper, self.action_space.high, vel]),
+            np.concatenate([ee_low, self.chain.lower, self.action_box.low, -vel]),
+            np.concatenate([ee_high, self.chain.upper, self.action_box.high, vel]),
         )
 
 

@@ -80,13 +80,13 @@ class RX200ReachTask(ReachTask):
         self.ee_low = np.asarray(cfg["position_ee_min"]) + self.base_position
         self.ee_high = np.asarray(cfg["position_ee_max"]) + self.base_position
         self.max_vel = float(cfg["max_joint_vel"])
-        n_act = self.action_space.shape[0]
+        n_act = self.action_box.shape[0]
         q_low, q_high = self.chain.lower, self.chain.upper
         max_dist = float(np.linalg.norm(self.ee_high - self.ee_low))
         low = np.concatenate(
-            [self.ee_low, -np.ones(3), [0.0], q_low, self.action_space.low, -self.max_vel * np.ones(5)]
+            [self.ee_low, -np.ones(3), [0.0], q_low, self.action_box.low, -self.max_vel * np.ones(5)]
         )
-        high = np.concatenate([self.ee_high, np.ones(3), [max_dist], q_high, self.action_space.high,
+        high = np.concatenate([self.ee_high, np.ones(3), [max_dist], q_high, self.action_box.high,
                                self.max_vel * np.ones(5)])
         self.observation_space = spaces.Box(low.astype(np.float32), high.astype(np.float32), dtype=np.float32)
         assert len(low) == 12 + n_act + 5
