@@ -16,6 +16,7 @@ Files:
     ``mjcf/table.xml``, ``mjcf/cube.xml``: the push / pick-and-place scene sized for this arm (:data:`SCENE`).
 """
 
+import math
 from pathlib import Path
 
 PACKAGE_NAME = "vx300s_description"
@@ -41,9 +42,10 @@ UPRIGHT_POSE = (0.0, 0.0, -1.5708, 0.0, 0.0, 0.0)
 GRIPPER_CLOSED, GRIPPER_HOME, GRIPPER_OPEN = 0.021, 0.039, 0.057
 # Joint limits: the URDF's (Interbotix'); rad, in ARM_JOINTS order.
 JOINT_LIMITS_SOURCE = "Interbotix interbotix_xsarm_descriptions vx300s.urdf.xacro"
-JOINT_LOWER = (-3.14158265, -1.85004901, -1.76278254, -3.14158265, -1.86750229, -3.14158265)
-JOINT_UPPER = (3.14158265, 1.25663706, 1.60570291, 3.14158265, 2.23402144, 3.14158265)
-REACH = 0.75  # m, Trossen's specified reach (the URDF's stretched arm: 0.54 m from the shoulder axis to ee_gripper_link)
+_PI = math.pi - 1e-5  # Interbotix' pi_offset
+JOINT_LOWER = (-_PI, math.radians(-106), math.radians(-101), -_PI, math.radians(-107), -_PI)
+JOINT_UPPER = (_PI, math.radians(72), math.radians(92), _PI, math.radians(128), _PI)
+REACH = 0.75  # m, Trossen's specified reach (stretched, 0.78 m from the shoulder axis to ee_gripper_link)
 
 # -- ros2_control controllers (config/vx300s_controllers.yaml)
 ARM_POSITION_CONTROLLER = "arm_position_controller"
