@@ -300,7 +300,8 @@ def run_push(scene: ArmScene, seed: int, max_steps: int = 200) -> EpisodeResult:
                 phase = "push"
         elif phase == "push":
             # Keep the EE on the cube-goal line, just touching the cube, and advance slowly.
-            line_err = float(np.cross(direction, scene.ee[:2] - cube[:2]))
+            rel = scene.ee[:2] - cube[:2]
+            line_err = float(direction[0] * rel[1] - direction[1] * rel[0])
             along = float(np.dot(cube[:2] - scene.ee[:2], direction))
             if dist < 0.01:
                 phase = "retreat"
