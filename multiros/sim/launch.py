@@ -132,6 +132,27 @@ class SimulationConnection:
             raise SimulationNodeError("the viewer is only available for a composed node (sim_mode='composed')")
         self.sim_node.open_viewer()
 
+    def read_camera(self, camera: str, *, rgb: bool = True, depth: bool = False, width: int | None = None,
+                    height: int | None = None) -> Any:
+        """A camera's images of the world now, as a :class:`~multiros.sim.cameras.CameraFrame`.
+
+        A composed node hands over the very pixels its camera topics carry (no messages, no copy);
+        a node in another process renders them through its ``RenderCamera`` service (the sensor's
+        size unless given, else 640 x 480; ``intrinsics`` is then None).
+
+        Raises:
+            multiros.sim.errors.RenderError: (composed) an unknown camera, a bad size, or no GL.
+            SimulationServiceError: (other modes) the node refused the render.
+        """
+        if self.sim_node is not None:
+            return self.sim_node.read_camera(camera, rgb=rgb, depth=depth, width=width, height=height)
+        from multiros.sim.cameras import CameraFrame
+
+        w, h = int(width or 640), int(height or 480)
+        color = self.client.render(camera, w, h) if rgb else None
+        distance = self.client.render(camera, w, h, depth=True) if depth else None
+        return CameraFrame(camera, float("nan"), color, distance, None)
+
     def close(self) -> None:
         """Destroy the env node and client, the composed node, stop the child process by PID."""
         with self._lock:

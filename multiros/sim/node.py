@@ -34,6 +34,7 @@ from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
 from multiros.sim.actions import SimulateStepsAction
+from multiros.sim.cameras import CameraFrame, CameraHub, CameraSpec
 from multiros.sim.description import SourcePolicy
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError
@@ -170,6 +171,8 @@ class SimulationNode(Node):
         self._renderer_lock = threading.Lock()
         for sub in self._marker_subs:
             sub._deliver_directly(wire_inline=True)
+        # Camera topics (sensor_msgs/Image, CameraInfo) of the entities' cameras (multiros.sim.cameras).
+        self.cameras = CameraHub(self, self._get_renderer, lambda text: self.get_logger().error("%s", text))
         self._services: list[Any] = []
         if serve:
             self.start_serving()
@@ -206,6 +209,7 @@ class SimulationNode(Node):
         self._publish_clock()
         for robot in self._robots.values():
             robot.publish_state()
+        self.cameras.publish()
 
     def _after_realtime_chunk(self, world: World) -> None:
         self._after_step()
@@ -217,11 +221,13 @@ class SimulationNode(Node):
         info = self.world.entity(name)
         if info.category == EntityCategory.ROBOT:
             self._robots[name] = RobotInterfaces(self, self.world, info, self.lock)
+        self.cameras.attach(info)
 
     def _detach_robot(self, name: str) -> None:
         robot = self._robots.pop(name, None)
         if robot is not None:
             robot.destroy()
+        self.cameras.detach(name)
         self._frame_sets.forget(name)
 
     @property
@@ -241,7 +247,7 @@ class SimulationNode(Node):
 
     def _sync_robots(self, respawned: tuple[str, ...] = ()) -> None:
         """Drop interfaces of robots a reset removed; re-create those of entities it spawned anew."""
-        for name in list(self._robots):
+        for name in {*self._robots, *self.cameras.entities}:
             if not self.world.has_entity(name) or name in respawned:
                 self._detach_robot(name)
         for name in respawned:
@@ -560,6 +566,24 @@ class SimulationNode(Node):
         with self.lock:
             return self.world.mark_launched(names)
 
+    def camera_specs(self) -> list[CameraSpec]:
+        """The cameras this node publishes: names, image sizes, depth or not, topics."""
+        with self.lock:
+            return self.cameras.specs()
+
+    def read_camera(self, camera: str, *, rgb: bool = True, depth: bool = False, width: int | None = None,
+                    height: int | None = None) -> CameraFrame:
+        """A camera's images of the world as it is now, without messages (for a composed client):
+        the pixels its topics carry for this state, rendered once for both. Size: the sensor's,
+        unless given.
+
+        Raises:
+            RenderError: an unknown camera, a size out of range, or no offscreen GL (set
+                ``MUJOCO_GL=egl`` or ``osmesa``).
+        """
+        with self.lock:
+            return self.cameras.read(camera, rgb=rgb, depth=depth, width=width, height=height)
+
     def open_viewer(self) -> None:
         """Open the interactive MuJoCo viewer on this node's world (needs a display)."""
         from multiros.sim.render import open_viewer
@@ -580,6 +604,7 @@ class SimulationNode(Node):
             self._executor = None
         for name in list(self._robots):
             self._detach_robot(name)
+        self.cameras.destroy()
         with self._renderer_lock:
             if self._renderer is not None:
                 self._renderer.close()

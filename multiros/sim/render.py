@@ -191,11 +191,18 @@ class Renderer:
             if width > model.vis.global_.offwidth or height > model.vis.global_.offheight:
                 raise RenderError(f"image size {width}x{height} exceeds the offscreen buffer "
                                   f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}")
+            # A shadow map of about two texels per image pixel: MuJoCo's default 4096 x 4096 map is
+            # most of a frame's cost in software GL (llvmpipe: ~110 ms of an 84 x 84 frame, ~2 ms
+            # with the map at 512). The map size is read when the context is made.
+            shadow = int(model.vis.quality.shadowsize)
+            model.vis.quality.shadowsize = min(shadow, max(512, 2 * max(key)))
             try:
                 r = mujoco.Renderer(model, height=key[1], width=key[0], max_geom=self.max_geom)
             except Exception as exc:  # GL context creation fails with assorted errors
                 raise RenderError(f"offscreen rendering is unavailable ({exc}); on a headless machine set "
                                   f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
+            finally:
+                model.vis.quality.shadowsize = shadow
             _release_gl(r)
             self._renderers[key] = r
         return r

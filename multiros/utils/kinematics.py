@@ -102,7 +102,16 @@ def quat_from_matrix(rot: np.ndarray) -> np.ndarray:
     y = np.copysign(y, rot[..., 0, 2] - rot[..., 2, 0])
     z = np.copysign(z, rot[..., 1, 0] - rot[..., 0, 1])
     quat = np.stack([w, x, y, z], axis=-1)
-    return quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    quat = quat / np.linalg.norm(quat, axis=-1, keepdims=True)
+    # Near a half turn w -> 0 and the antisymmetric terms that give the signs vanish with it, so
+    # x, y, z may come out with unrelated signs: those matrices take the Shepperd conversion.
+    near_half_turn = np.asarray(w < 0.25)
+    if near_half_turn.any():
+        flat, mats = quat.reshape(-1, 4), rot.reshape(-1, 3, 3)
+        for i in np.flatnonzero(near_half_turn.reshape(-1)):
+            flat[i] = _quat_single(mats[i])
+        quat = flat.reshape(quat.shape)
+    return quat
 
 
 def _quat_single(tf: np.ndarray) -> np.ndarray:

@@ -162,3 +162,23 @@ def test_named_poses_are_within_limits(rx200_urdf):
             limit = table[name].find("limit")
             assert float(limit.get("lower")) <= value <= float(limit.get("upper"))
     assert math.isclose(pkg.GRIPPER_HOME, 0.0195)
+
+
+def test_zed2_option_adds_a_stereo_pair_on_the_zed_wrapper_topics(rx200_urdf):
+    def sensors(urdf):
+        return {s.get("name"): s for s in ET.fromstring(urdf).iter("sensor")}
+
+    assert set(sensors(rx200_urdf)) == {"render_camera"}, "off by default"
+    zed = sensors(process(pkg.URDF_XACRO, use_zed2="true"))
+    left, right = zed["zed2_left"], zed["zed2_right"]
+    assert left.get("type") == "depth" and right.get("type") == "camera"
+    assert left.findtext("plugin/ros/namespace") == "/rx200/zed2/zed_node"
+    assert left.findtext("plugin/camera_name") == "rgb" and right.findtext("plugin/camera_name") == "right"
+    remaps = [r.text for r in left.findall("plugin/ros/remapping")]
+    assert "rgb/image_raw:=rgb/image_rect_color" in remaps and "rgb/depth/image_raw:=depth/depth_registered" in remaps
+    # The right camera sits 0.12 m (the Zed2's baseline) to the right of the left one, same orientation.
+    pl, pr = floats(left.findtext("pose")), floats(right.findtext("pose"))
+    assert np.linalg.norm(pl[:3] - pr[:3]) == pytest.approx(0.12) and np.allclose(pl[3:], pr[3:])
+    # 640 x 360 with the Zed2's 70 degree vertical field of view.
+    hfov = float(left.findtext("camera/horizontal_fov"))
+    assert math.degrees(2 * math.atan(math.tan(hfov / 2) * 360 / 640)) == pytest.approx(70.0, abs=0.1)

@@ -154,6 +154,17 @@ def test_quaternion_roundtrip():
         matrix_from_quat([0, 0, 0, 0])
 
 
+def test_quaternion_of_half_turns():
+    # w = 0: the signs of x, y, z must still agree with each other (a half turn about (0.05, -1, 0)
+    # once came back as one about (0.05, 1, 0)).
+    rng = np.random.default_rng(1)
+    axes = rng.normal(size=(50, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    mats = 2.0 * axes[:, :, None] * axes[:, None, :] - np.eye(3)
+    np.testing.assert_allclose(matrix_from_quat(quat_from_matrix(mats)), mats, atol=1e-9)
+    np.testing.assert_allclose(matrix_from_quat(quat_from_matrix(mats[3])), mats[3], atol=1e-9)
+
+
 # ----------------------------------------------------------------------------- Jacobian
 @pytest.mark.parametrize("robot", ["rx", "abb"])
 def test_jacobian_matches_finite_differences(robot, request):

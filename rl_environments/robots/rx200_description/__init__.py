@@ -5,8 +5,11 @@ Files:
     ``robot_name`` (default ``rx200``, the prefix of every link name: ``rx200/base_link``),
     ``use_world_frame`` (default true: fixed ``world`` -> ``<robot_name>/base_link``),
     ``use_gripper`` (default true: gripper motor and fingers; the ``ee_gripper_link`` frame is
-    always there) and ``use_ros2_control`` (default true). It uses only ``$(arg ...)`` and a
-    relative include, so it processes without any package lookup.
+    always there), ``use_ros2_control`` (default true) and ``use_zed2`` (default false: a Zed2-like
+    stereo camera in front of the table, publishing on the topics of Stereolabs' ROS 2 wrapper,
+    ``/<robot_name>/zed2/zed_node/rgb/image_rect_color``, ``.../depth/depth_registered``, ...;
+    see :mod:`multiros.sim.cameras`). It uses only ``$(arg ...)`` and a relative include, so it
+    processes without any package lookup.
     ``config/rx200_controllers.yaml``: ros2_control controllers and per-joint PID gains.
 
 The ``<ros2_control>`` block names the hardware plugin ``mujoco_ros2_control/MujocoSystem``, gives
