@@ -25,9 +25,11 @@ EMPTY_FRAME_POSITIONS.flags.writeable = False
 EMPTY_FRAME_ORIENTATIONS.flags.writeable = False
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RobotState:
-    """One robot's state after a step (simulation) or at its arrival (robot).
+    """One robot's state after a step (simulation) or at its arrival (robot). Read it, do not change
+    it: it may share its arrays with the states of the other robots of a step (a plain slotted
+    dataclass, not a frozen one: made on every step of every env, and a frozen one costs twice).
 
     Attributes:
         sim_time: simulation time in seconds after the step; on a real robot the header stamp of
@@ -60,7 +62,7 @@ class RobotState:
         return (_time.monotonic() if now is None else now) - self.received
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RobotStates:
     """The states of N robots with the same joints and the same number of frames: row ``j`` is robot ``j``'s.
 

@@ -24,7 +24,7 @@ from multiros.utils.ros_markers import goal_marker
 from rl_environments.arm_interface import ArmInterface
 from rl_environments.reach import GoalSampler, RewardType, goal_distance, goal_reward, is_success, reward_from_distance
 
-__all__ = ["ReachTask", "GoalReachTask", "OBS_PARTS", "stack_rows", "row_norms"]
+__all__ = ["ReachTask", "GoalReachTask", "OBS_PARTS", "stack_rows", "column", "numbers", "row_norms"]
 
 
 def stack_rows(envs: Sequence[Any], name: str) -> np.ndarray:
@@ -32,6 +32,21 @@ def stack_rows(envs: Sequence[Any], name: str) -> np.ndarray:
     if len(envs) == 1:
         return np.asarray(getattr(envs[0], name))[None]
     return np.array([getattr(env, name) for env in envs])
+
+
+def column(envs: Sequence[Any], name: str) -> float | np.ndarray:
+    """The envs' number ``name`` as a column ``(N, 1)`` to scale rows with, or the number itself for
+    one env (it broadcasts alike, and costs no array)."""
+    if len(envs) == 1:
+        return float(getattr(envs[0], name))
+    return np.array([getattr(env, name) for env in envs], dtype=np.float64)[:, None]
+
+
+def numbers(envs: Sequence[Any], name: str) -> float | np.ndarray:
+    """The envs' number ``name``: ``(N,)``, or the number itself for one env."""
+    if len(envs) == 1:
+        return float(getattr(envs[0], name))
+    return np.array([getattr(env, name) for env in envs], dtype=np.float64)
 
 
 def row_norms(vectors: np.ndarray) -> np.ndarray:
@@ -135,7 +150,7 @@ class ReachTask(BatchTask, ArmInterface):
         current = cls.arm_positions_of(states)
         kinds = {(env.ee_action_type, env.delta_action) for env in envs}
         if kinds == {(False, True)}:  # joint deltas, every env: one pass
-            targets = current + actions * stack_rows(envs, "delta_coeff")[:, None]
+            targets = current + actions * column(envs, "delta_coeff")
         elif kinds == {(False, False)}:
             targets = actions
         else:
@@ -242,14 +257,13 @@ class GoalReachTask(ReachTask):
         """Observation, reward (each env's ``reward_type``), success as termination, per env."""
         obs = cls.batch_observe(envs, states)
         distance = goal_distance(obs["achieved_goal"], obs["desired_goal"])  # what is_success and goal_reward compute
-        tolerance = stack_rows(envs, "tolerance")
+        tolerance = numbers(envs, "tolerance")
         success = distance <= tolerance
         types = {env.reward_type for env in envs}
         if len(types) == 1:
             reward = np.asarray(reward_from_distance(distance, tolerance, types.pop()), dtype=np.float64)
         else:
-            reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], tolerance[j:j + 1],
-                                                               env.reward_type))[0]
+            reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], env.tolerance, env.reward_type))[0]
                                for j, env in enumerate(envs)], dtype=np.float64)
         infos = []
         for j, env in enumerate(envs):

@@ -114,7 +114,7 @@ class RobotStepOutcome:
     state: RobotState | None
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class RobotStepSpec:
     """One robot's part of a :meth:`SimulationClient.step_robots` request."""
 

@@ -173,6 +173,48 @@ class RobotStepItem(NamedTuple):
     frames: tuple[str, ...]
 
 
+def _check_items(node: SimulationNode, items: Sequence[RobotStepItem]) -> None:
+    """Refuse a robot list the node cannot take: more robots than ``max_robots``, a robot twice,
+    too many frames for one robot."""
+    if len(items) > node.max_robots:
+        raise StepRobotsRefused(FAILED, f"{len(items)} robots in one StepRobots request; this node holds "
+                                f"at most max_robots={node.max_robots}")
+    names = [item.entity for item in items]
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise StepRobotsRefused(FAILED, f"robots {dup} appear more than once in one StepRobots request; "
+                                "list each robot once")
+    for item in items:
+        if len(item.frames) > _MAX_FRAMES:
+            raise StepRobotsRefused(FAILED, f"{len(item.frames)} frames requested for {item.entity!r}; at "
+                                    f"most {_MAX_FRAMES}")
+
+
+class ResolvedRobots:
+    """The robots and frame sets of a composed client's last robot list, reused by its next calls
+    while they still stand: the world's ids unchanged (``World.binding``), every robot the same
+    object, no frame set stale. Kept by one client (its calls come one after another)."""
+
+    def __init__(self) -> None:
+        self.key: tuple[tuple[str, tuple[str, ...]], ...] | None = None
+        self.binding = -1
+        self.prepared: list[tuple[Any, FrameSet | None]] = []
+
+    def holds(self, node: SimulationNode, key: tuple[tuple[str, tuple[str, ...]], ...]) -> bool:
+        if key != self.key or node.world.binding != self.binding:
+            return False
+        robots = node._robots
+        return all(robots.get(robot.name) is robot and (fs is None or not fs.stale) for robot, fs in self.prepared)
+
+    def keep(self, node: SimulationNode, key: tuple[tuple[str, tuple[str, ...]], ...],
+             prepared: list[tuple[Any, FrameSet | None]]) -> None:
+        if all(robot is not None for robot, _ in prepared) and all(
+                fs is not None for (robot, fs), (_, frames) in zip(prepared, key) if frames):
+            self.key, self.binding, self.prepared = key, node.world.binding, prepared
+        else:
+            self.key = None
+
+
 class StepRobotsCall:
     """One ``StepRobots`` call in three phases: :meth:`prepare` (lock taken, resets and commands),
     :meth:`advance` (the physics), :meth:`finish` (every robot's state, lock released); :meth:`run`
@@ -190,25 +232,18 @@ class StepRobotsCall:
             shut down while stepping), when the call as a whole is refused.
     """
 
-    def __init__(self, node: SimulationNode, items: Sequence[RobotStepItem], steps: int) -> None:
+    def __init__(self, node: SimulationNode, items: Sequence[RobotStepItem], steps: int,
+                 cache: ResolvedRobots | None = None) -> None:
         if steps > node.max_steps_per_call:
             raise StepRobotsRefused(FAILED, too_many_steps_message(node, steps))
-        if len(items) > node.max_robots:
-            raise StepRobotsRefused(FAILED, f"{len(items)} robots in one StepRobots request; this node holds "
-                                    f"at most max_robots={node.max_robots}")
-        names = [item.entity for item in items]
-        if len(set(names)) != len(names):
-            dup = sorted({n for n in names if names.count(n) > 1})
-            raise StepRobotsRefused(FAILED, f"robots {dup} appear more than once in one StepRobots request; "
-                                    "list each robot once")
-        for item in items:
-            if len(item.frames) > _MAX_FRAMES:
-                raise StepRobotsRefused(FAILED, f"{len(item.frames)} frames requested for {item.entity!r}; at "
-                                        f"most {_MAX_FRAMES}")
+        key = tuple((item.entity, item.frames) for item in items)
+        if cache is None or cache.key != key:  # a robot list a cache already holds was checked then
+            _check_items(node, items)
         if steps > 0 and node.simulation_state != SimulationState.STATE_PAUSED:
             raise StepRobotsRefused(INCORRECT_STATE, "StepRobots with steps > 0 needs a paused simulation "
                                     "(lockstep mode)")
         self.node, self.items, self.steps = node, items, steps
+        self.key, self.cache = key, cache
         self.status = [RobotStepResult.OK] * len(items)
         self.message = [""] * len(items)
         self._prepared: list[tuple[Any, FrameSet | None]] = []
@@ -221,8 +256,16 @@ class StepRobotsCall:
         node.lock.acquire()
         self._locked = True
         world = node.world
+        cache = self.cache
+        if cache is not None and cache.holds(node, self.key):
+            for j, item in enumerate(self.items):  # robots and frame sets resolved by an earlier call
+                _reset_and_command(node, world, item, self.status, self.message, j)
+            self._prepared = cache.prepared
+            return
         self._prepared = [_prepare(node, world, item, self.status, self.message, j)
                           for j, item in enumerate(self.items)]
+        if cache is not None:
+            cache.keep(node, self.key, self._prepared)
 
     def advance(self) -> None:
         """Step the world (any thread; the preparing thread holds the lock)."""
@@ -313,7 +356,22 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
     if robot is None:
         status[j], message[j] = RobotStepResult.UNKNOWN_ROBOT, f"no robot {entity!r}"
         return None, None
+    _reset_and_command(node, world, item, status, message, j)
+    if not item.frames:
+        return robot, None
+    try:
+        return robot, node._frame_sets.get(world, entity, item.frames)
+    except EntityError as exc:
+        status[j], message[j] = RobotStepResult.UNKNOWN_FRAME, str(exc)
+        return robot, None
+
+
+def _reset_and_command(node: SimulationNode, world: World, item: RobotStepItem, status: list[int],
+                       message: list[str], j: int) -> None:
+    """Robot ``j``'s reset (when asked) and commands (lock held; the robot is known)."""
+    entity = item.entity
     if item.reset:  # the robot and the objects spawned into its namespace (its task's table, cube, ...)
+        robot = node._robots[entity]
         group = world.entities_in_namespace(robot.ns) if robot.ns else ()
         world.reset_entities(group or (entity,))
         for name in group or (entity,):
@@ -327,10 +385,3 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
         status[j], message[j] = RobotStepResult.BAD_COMMAND, str(exc)
     except ControllerError as exc:
         status[j], message[j] = RobotStepResult.UNKNOWN_CONTROLLER, str(exc)
-    if not item.frames:
-        return robot, None
-    try:
-        return robot, node._frame_sets.get(world, entity, item.frames)
-    except EntityError as exc:
-        status[j], message[j] = RobotStepResult.UNKNOWN_FRAME, str(exc)
-        return robot, None

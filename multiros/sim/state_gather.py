@@ -56,8 +56,8 @@ class StateGather:
 
     def __init__(self, world: World) -> None:
         self._world = world
-        self._key: tuple[int, tuple[str, ...]] | None = None
-        self._indices: _Indices | None = None
+        # per robot list (a batch's, and each env's alone for its resets): its indices
+        self._indices: dict[tuple[int, tuple[str, ...]], _Indices] = {}
 
     def read(self, names: Sequence[str], frame_sets: Sequence[FrameSet | None], sim_time: float) -> RobotStates | None:
         """The robots' states stacked, or ``None`` when they cannot be (robots with different joint
@@ -68,15 +68,16 @@ class StateGather:
         """
         world = self._world
         key = (world.binding, tuple(names))
-        idx = self._indices
-        if idx is None or key != self._key or any(a is not b for a, b in zip(idx.frame_sets, frame_sets)):
+        idx = self._indices.get(key)
+        if idx is None or any(a is not b for a, b in zip(idx.frame_sets, frame_sets)):
             for fs in frame_sets:
                 if fs is not None:
                     fs._check()
             for name in key[1]:
                 world._get(name)
-            idx = self._indices = _Indices(world, key[1], frame_sets)
-            self._key = key
+            if len(self._indices) >= 16:  # ids of older bindings, lists no longer stepped
+                self._indices.clear()
+            idx = self._indices[key] = _Indices(world, key[1], frame_sets)
         if not idx.valid:
             return None
         count, n, d = len(names), idx.joints, world.data

@@ -22,9 +22,8 @@ at once (:mod:`multiros.envs.batch`).
 
 from __future__ import annotations
 
-import contextlib
 from abc import ABC, abstractmethod
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -34,7 +33,7 @@ from multiros.robot_state import RobotState, RobotStates
 from multiros.sim import convert
 from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationServiceError, time_seconds
 from multiros.sim.distro_adapters import get_message
-from multiros.sim.node_stepping import RobotStepItem, StepRobotsCall, StepRobotsRefused
+from multiros.sim.node_stepping import ResolvedRobots, RobotStepItem, StepRobotsCall, StepRobotsRefused
 
 if TYPE_CHECKING:
     from multiros.sim.frames import FrameSet
@@ -49,7 +48,7 @@ UNSTABLE = int(RobotStepResult.UNSTABLE)
 UNKNOWN_ROBOT = int(RobotStepResult.UNKNOWN_ROBOT)
 
 
-@dataclass(frozen=True)
+@dataclass(slots=True)
 class StepReply:
     """The answer to one step call, robot by robot in the order asked.
 
@@ -113,28 +112,29 @@ class RobotStepper(ABC):
 
 # -- composed --------------------------------------------------------------------------------------
 class ComposedStepper(RobotStepper):
-    """A node composed in this process, called without messages (see the module docstring)."""
+    """A node composed in this process, called without messages (see the module docstring). Its
+    calls come one after another (one client): the robots and frame sets its last robot list
+    resolved are reused while they stand (:class:`~multiros.sim.node_stepping.ResolvedRobots`)."""
 
     composed = True
 
     def __init__(self, node: SimulationNode) -> None:
         self.node = node
+        self._resolved = ResolvedRobots()
 
     def begin(self, robots: Sequence[RobotStepSpec], steps: int) -> PendingStep:
-        items = [RobotStepItem(spec.entity, bool(spec.reset), list((spec.commands or {}).items()), tuple(spec.frames))
-                 for spec in robots]
-        with _refusals(self.node):
-            call = _ComposedCall(self.node, StepRobotsCall(self.node, items, int(steps)))
+        items = [RobotStepItem(spec.entity, spec.reset, list(spec.commands.items()) if spec.commands else (),
+                               tuple(spec.frames)) for spec in robots]
+        try:
+            call = _ComposedCall(self.node, StepRobotsCall(self.node, items, int(steps), self._resolved))
+        except StepRobotsRefused as exc:
+            raise _refused(self.node, exc) from exc
         call.prepare()
         return call
 
 
-@contextlib.contextmanager
-def _refusals(node: SimulationNode) -> Iterator[None]:
-    try:
-        yield
-    except StepRobotsRefused as exc:
-        raise SimulationServiceError(f"{node.get_fully_qualified_name()}/step_robots", exc.code, exc.message) from exc
+def _refused(node: SimulationNode, exc: StepRobotsRefused) -> SimulationServiceError:
+    return SimulationServiceError(f"{node.get_fully_qualified_name()}/step_robots", exc.code, exc.message)
 
 
 class _ComposedCall(PendingStep):
@@ -142,6 +142,7 @@ class _ComposedCall(PendingStep):
         self.node = node
         self.call = call
         self.stacked: RobotStates | None = None
+        self.time = 0.0
 
     def prepare(self) -> None:
         try:
@@ -154,15 +155,15 @@ class _ComposedCall(PendingStep):
         self.call.advance()
 
     def finish(self) -> StepReply:
-        with _refusals(self.node):
-            parts, sim_time = self.call.finish(self._read)
-        t = convert.time_seconds(sim_time)  # the time the service's message would carry
+        try:
+            parts, _ = self.call.finish(self._read)
+        except StepRobotsRefused as exc:
+            raise _refused(self.node, exc) from exc
+        t = self.time
         status = [int(code) for code, _, _ in parts]
         message = [msg for _, msg, _ in parts]
         stacked = self.stacked
         if stacked is not None:
-            stacked = RobotStates(t, stacked.names, stacked.position, stacked.velocity, stacked.effort,
-                                  stacked.frame_positions, stacked.frame_orientations)
             states: list[RobotState | None] = list(stacked.rows())
         else:
             states = [None if part is None else RobotState(t, *part) for _, _, part in parts]
@@ -173,13 +174,14 @@ class _ComposedCall(PendingStep):
 
     def _read(self, prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[tuple[Any, ...] | None]:
         """Every robot's state fields but the time: rows of one gather (kept as ``stacked``) when all
-        the robots are known and alike, else robot by robot."""
+        the robots are known and alike, else robot by robot (lock held)."""
         node = self.node
         world = node.world
+        self.time = t = convert.time_seconds(world.time)  # the time the service's message would carry
         self.stacked = None
         if prepared and all(robot is not None for robot, _ in prepared):
             stacked = node.state_gather.read([robot.name for robot, _ in prepared],
-                                             [frame_set for _, frame_set in prepared], 0.0)
+                                             [frame_set for _, frame_set in prepared], t)
             if stacked is not None:
                 self.stacked = stacked
                 return [() for _ in prepared]  # the rows come from ``stacked`` (see finish)
