@@ -20,7 +20,7 @@ from multiros.robot_state import RobotStates
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_interface import ArmInterface
 
-_ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray] = {}
+_ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray | slice] = {}
 
 
 @functools.lru_cache(maxsize=8)
@@ -98,8 +98,9 @@ class ArmRobot(ArmInterface):
 
     # -- the robot layer, batch-first (see rl_environments.arm_interface) -----------------------------
     @classmethod
-    def arm_index(cls, names: tuple[str, ...]) -> np.ndarray:
-        """Where ``ARM_JOINTS`` sit in joint arrays ordered as ``names`` (cached per class and order)."""
+    def arm_index(cls, names: tuple[str, ...]) -> np.ndarray | slice:
+        """Where ``ARM_JOINTS`` sit in joint arrays ordered as ``names`` (cached per class and order):
+        a slice when they are consecutive (a view, not a gather), else an index array."""
         key = (cls, names)
         idx = _ARM_INDEX.get(key)
         if idx is None:
@@ -107,15 +108,20 @@ class ArmRobot(ArmInterface):
             missing = [j for j in cls.ARM_JOINTS if j not in where]
             if missing:
                 raise EnvError(f"{cls.__name__}: the robot reports no joints {missing}; joints: {names}")
-            idx = _ARM_INDEX[key] = np.array([where[j] for j in cls.ARM_JOINTS], dtype=np.intp)
+            found = [where[j] for j in cls.ARM_JOINTS]
+            consecutive = found == list(range(found[0], found[0] + len(found)))
+            idx = _ARM_INDEX[key] = (slice(found[0], found[0] + len(found)) if consecutive
+                                     else np.array(found, dtype=np.intp))
         return idx
 
     @classmethod
     def arm_positions_of(cls, states: RobotStates) -> np.ndarray:
+        """The arm joints' positions (a view of ``states`` when the arm's joints are consecutive: read only)."""
         return states.position[:, cls.arm_index(states.names)]
 
     @classmethod
     def arm_velocities_of(cls, states: RobotStates) -> np.ndarray:
+        """The arm joints' velocities (read only, as :meth:`arm_positions_of`)."""
         return states.velocity[:, cls.arm_index(states.names)]
 
     @classmethod
@@ -137,12 +143,12 @@ class ArmRobot(ArmInterface):
         return np.asarray(self.spawn_pose.position, dtype=np.float64)  # type: ignore[attr-defined]
 
     def arm_positions(self) -> np.ndarray:
-        """Arm joint positions after the last step, in ``ARM_JOINTS`` order."""
-        return self.arm_positions_of(self.connection.states)[0]
+        """Arm joint positions after the last step, in ``ARM_JOINTS`` order (a fresh array)."""
+        return self.arm_positions_of(self.connection.states)[0].copy()
 
     def arm_velocities(self) -> np.ndarray:
-        """Arm joint velocities after the last step."""
-        return self.arm_velocities_of(self.connection.states)[0]
+        """Arm joint velocities after the last step (a fresh array)."""
+        return self.arm_velocities_of(self.connection.states)[0].copy()
 
     def ee_position(self) -> np.ndarray:
         """World position of the end effector after the last step."""

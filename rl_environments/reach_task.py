@@ -148,7 +148,9 @@ class ReachTask(BatchTask, ArmInterface):
         """Joint targets from N envs' actions (each env's own kind: deltas, absolute, or EE deltas),
         clipped into each env's joint range, sent to each arm; ``prev_action`` and ``joint_targets`` kept."""
         current = cls.arm_positions_of(states)
-        kinds = {(env.ee_action_type, env.delta_action) for env in envs}
+        e0 = envs[0]
+        kind = (e0.ee_action_type, e0.delta_action)
+        kinds = {kind} if len(envs) == 1 else {(env.ee_action_type, env.delta_action) for env in envs}
         if kinds == {(False, True)}:  # joint deltas, every env: one pass
             targets = current + actions * column(envs, "delta_coeff")
         elif kinds == {(False, False)}:

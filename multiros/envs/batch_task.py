@@ -128,4 +128,4 @@ def _route(cls: type) -> type | None:
 
 def uses_own_hooks(env: Any) -> bool:
     """Whether this env instance carries a step hook of its own (set on the instance)."""
-    return not STEP_HOOKS.isdisjoint(vars(env))
+    return not vars(env).keys().isdisjoint(STEP_HOOKS)  # looks up the few hook names, not every attribute

@@ -110,6 +110,7 @@ class SimConnection(RobotConnection):
         self._pending: dict[str, np.ndarray] = {}
         self._state: RobotState | None = None
         self._states: RobotStates | None = None
+        self._row: tuple[RobotStates, int] | None = None  # the state as row j of a step's stacked states
         self._closed = False
         slot = np.asarray(world_slot, dtype=np.float64)
         if slot.shape != (3,) or not np.all(np.isfinite(slot)):
@@ -175,18 +176,29 @@ class SimConnection(RobotConnection):
     # -- state ---------------------------------------------------------------------------------
     @property
     def state(self) -> RobotState:
-        if self._state is None:
-            raise EnvError("no robot state yet: was the robot spawned?")
-        return self._state
+        state = self._state
+        if state is None:
+            if self._row is None:
+                raise EnvError("no robot state yet: was the robot spawned?")
+            stacked, j = self._row
+            state = self._state = stacked.row(j)
+        return state
 
     @property
     def states(self) -> RobotStates:
         """:attr:`state` as a batch of one (its arrays are views of the state's)."""
         states = self._states
         if states is None:
-            s = self.state
-            states = self._states = RobotStates(s.sim_time, s.names, s.position[None], s.velocity[None],
-                                                s.effort[None], s.frame_positions[None], s.frame_orientations[None])
+            if self._row is not None:
+                stacked, j = self._row
+                states = RobotStates(stacked.sim_time, stacked.names, stacked.position[j:j + 1],
+                                     stacked.velocity[j:j + 1], stacked.effort[j:j + 1],
+                                     stacked.frame_positions[j:j + 1], stacked.frame_orientations[j:j + 1])
+            else:
+                s = self.state
+                states = RobotStates(s.sim_time, s.names, s.position[None], s.velocity[None], s.effort[None],
+                                     s.frame_positions[None], s.frame_orientations[None])
+            self._states = states
         return states
 
     @property
@@ -209,14 +221,12 @@ class SimConnection(RobotConnection):
         commands, self._pending = self._pending, {}
         return RobotStepSpec(self.robot_name, commands, self._frames, reset)
 
-    def accept(self, state: RobotState, states: RobotStates | None = None) -> None:
+    def accept(self, state: RobotState) -> None:
         """Make ``state`` (this robot's part of a step's reply) the one the env reads: frame positions
-        are made relative to the world slot, in place (the reply's arrays are fresh). ``states``,
-        when given, is ``state`` as a batch of one."""
+        are made relative to the world slot, in place (the reply's arrays are fresh)."""
         if self._slot is not None and len(state.frame_positions):
             np.subtract(state.frame_positions, self._slot, out=state.frame_positions)
-        self._state = state
-        self._states = states
+        self._state, self._states, self._row = state, None, None
 
     def refresh(self, steps: int = 0) -> StepStatus:
         """One call for this robot alone: its queued commands, ``steps`` physics steps, its state."""
@@ -224,12 +234,21 @@ class SimConnection(RobotConnection):
         return self.accept_reply(reply, 0)
 
     def accept_reply(self, reply: StepReply, j: int) -> StepStatus:
-        """Take robot ``j``'s part of a step reply; its status (an unknown robot raises)."""
-        state = reply.states[j]
-        if state is None:
-            raise EnvError(f"robot {self.robot_name!r} is gone from the simulation node ({reply.message[j]}); close "
-                           "this env and make a new one")
-        self.accept(state, reply.stacked if reply.stacked is not None and len(reply.states) == 1 else None)
+        """Take robot ``j``'s part of a step reply; its status (an unknown robot raises). From a
+        reply whose states are stacked, the state stays row ``j`` of them (read as such by a
+        batch-first task, made a :class:`~multiros.robot_state.RobotState` only when asked)."""
+        stacked = reply.stacked
+        if stacked is not None:
+            if self._slot is not None and stacked.frame_positions.shape[1]:
+                np.subtract(stacked.frame_positions[j], self._slot, out=stacked.frame_positions[j])
+            self._row, self._state = (stacked, j), None
+            self._states = stacked if len(stacked) == 1 else None
+        else:
+            state = reply.states[j]
+            if state is None:
+                raise EnvError(f"robot {self.robot_name!r} is gone from the simulation node ({reply.message[j]}); "
+                               "close this env and make a new one")
+            self.accept(state)
         code = reply.status[j]
         return STEP_OK if code == 0 else StepStatus(code, reply.message[j])
 

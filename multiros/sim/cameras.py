@@ -356,25 +356,29 @@ class CameraHub:
         return CameraFrame(camera, float(self._node.world.time), self._image(camera, w, h, False) if rgb else None,
                            self._image(camera, w, h, True) if depth else None, intrinsics)
 
-    def publish(self) -> None:
-        """Publish every camera someone subscribes to (caller holds the node's lock)."""
+    def publish(self) -> bool:
+        """Publish every camera someone subscribes to (caller holds the node's lock); whether anyone does."""
         if not self._entities:
-            return
+            return False
         stamp = float(self._node.world.time)
+        listened = False
         for entries in self._entities.values():
             for entry in entries:
                 if not entry.failed:
-                    self._publish(entry, stamp)
+                    listened = self._publish(entry, stamp) or listened
+        return listened
 
-    def _publish(self, entry: _Publishers, stamp: float) -> None:
+    def _publish(self, entry: _Publishers, stamp: float) -> bool:
         spec = entry.spec
         kinds: Iterable[tuple[bool, Any, Any]] = [(False, entry.rgb, entry.rgb_info)]
         if spec.depth:
             kinds = [*kinds, (True, entry.depth, entry.depth_info)]
+        listened = False
         for depth, image_pub, info_pub in kinds:
             want_image, want_info = image_pub.has_subscribers(), info_pub.has_subscribers()
             if not (want_image or want_info):
                 continue
+            listened = True
             try:
                 intrinsics = self.intrinsics(spec.camera, spec.width, spec.height)
                 if want_image:
@@ -383,9 +387,10 @@ class CameraHub:
             except RenderError as exc:
                 entry.failed = True
                 self._log_error(f"camera {spec.camera!r} stopped publishing: {exc}")
-                return
+                return listened
             if want_info:
                 info_pub.publish(fill_camera_info(self._info_type(), intrinsics, stamp, spec.frame_id))
+        return listened
 
     def destroy(self) -> None:
         for name in list(self._entities):

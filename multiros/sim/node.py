@@ -201,15 +201,29 @@ class SimulationNode(Node):
         with self.lock:
             fn()
 
-    def _publish_clock(self) -> None:
+    def _publish_clock(self) -> bool:
         if self._clock_pub.has_subscribers():
             self._clock_pub.publish(Clock(clock=convert.time_msg(self.world.time)))
+            return True
+        return False
 
     def _after_step(self) -> None:
-        self._publish_clock()
+        """After the world advanced: running trajectory goals check their tolerances; /clock, each
+        robot's state topics and the cameras are published to whoever listens. Nobody listening at a
+        graph version (lockstep training, the usual case), the next steps at that version skip the
+        per-topic checks."""
         for robot in self._robots.values():
-            robot.publish_state()
-        self.cameras.publish()
+            robot.on_step()
+        version = self.context.transport.graph_version()
+        if version is not None and version == self._quiet_at:
+            return
+        listened = self._publish_clock()
+        for robot in self._robots.values():
+            listened = robot.publish_state() or listened
+        listened = self.cameras.publish() or listened
+        self._quiet_at = None if listened else version
+
+    _quiet_at: int | None = None
 
     def _after_realtime_chunk(self, world: World) -> None:
         self._after_step()

@@ -10,8 +10,8 @@ are kept in a bounded :class:`FrameSetCache`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple, TypeVar
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, TypeVar
 
 from multiros.sim import convert
 from multiros.sim.distro_adapters import get_message
@@ -165,15 +165,32 @@ class StepRobotsRefused(Exception):
 
 
 class RobotStepItem(NamedTuple):
-    """One robot's part of a ``StepRobots`` call, out of its message (or straight from a composed client)."""
+    """One robot's part of a ``StepRobots`` call, out of its message. A composed client passes its
+    :class:`~multiros.sim.client.RobotStepSpec` objects instead: they have the same fields."""
 
     entity: str
     reset: bool
-    commands: Sequence[tuple[str, Any]]  # (controller, command vector)
-    frames: tuple[str, ...]
+    commands: Mapping[str, Any] | None  # controller -> command vector
+    frames: Sequence[str]
 
 
-def _check_items(node: SimulationNode, items: Sequence[RobotStepItem]) -> None:
+class StepItem(Protocol):
+    """What a call needs of each robot: a :class:`RobotStepItem` or a client's ``RobotStepSpec``."""
+
+    @property
+    def entity(self) -> str: ...
+
+    @property
+    def reset(self) -> bool: ...
+
+    @property
+    def commands(self) -> Mapping[str, Any] | None: ...
+
+    @property
+    def frames(self) -> Sequence[str]: ...
+
+
+def _check_items(node: SimulationNode, items: Sequence[StepItem]) -> None:
     """Refuse a robot list the node cannot take: more robots than ``max_robots``, a robot twice,
     too many frames for one robot."""
     if len(items) > node.max_robots:
@@ -232,11 +249,11 @@ class StepRobotsCall:
             shut down while stepping), when the call as a whole is refused.
     """
 
-    def __init__(self, node: SimulationNode, items: Sequence[RobotStepItem], steps: int,
+    def __init__(self, node: SimulationNode, items: Sequence[StepItem], steps: int,
                  cache: ResolvedRobots | None = None) -> None:
         if steps > node.max_steps_per_call:
             raise StepRobotsRefused(FAILED, too_many_steps_message(node, steps))
-        key = tuple((item.entity, item.frames) for item in items)
+        key = tuple((item.entity, tuple(item.frames)) for item in items)
         if cache is None or cache.key != key:  # a robot list a cache already holds was checked then
             _check_items(node, items)
         if steps > 0 and node.simulation_state != SimulationState.STATE_PAUSED:
@@ -325,7 +342,7 @@ def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
     by the world (see ``World.step``) and the client resets it.
     """
     res = response.result
-    items = [RobotStepItem(item.entity, bool(item.reset), [(c.controller, c.command) for c in item.commands],
+    items = [RobotStepItem(item.entity, bool(item.reset), {c.controller: c.command for c in item.commands},
                            tuple(item.frames)) for item in request.robots]
 
     def read(prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[Any]:
@@ -348,7 +365,7 @@ def step_robots(node: SimulationNode, request: Any, response: Any) -> Any:
     return response
 
 
-def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: list[int], message: list[str],
+def _prepare(node: SimulationNode, world: World, item: StepItem, status: list[int], message: list[str],
              j: int) -> tuple[Any, FrameSet | None]:
     """Reset and command robot ``j`` of a StepRobots call (lock held); its interfaces and frame set."""
     entity = item.entity
@@ -360,13 +377,13 @@ def _prepare(node: SimulationNode, world: World, item: RobotStepItem, status: li
     if not item.frames:
         return robot, None
     try:
-        return robot, node._frame_sets.get(world, entity, item.frames)
+        return robot, node._frame_sets.get(world, entity, tuple(item.frames))
     except EntityError as exc:
         status[j], message[j] = RobotStepResult.UNKNOWN_FRAME, str(exc)
         return robot, None
 
 
-def _reset_and_command(node: SimulationNode, world: World, item: RobotStepItem, status: list[int],
+def _reset_and_command(node: SimulationNode, world: World, item: StepItem, status: list[int],
                        message: list[str], j: int) -> None:
     """Robot ``j``'s reset (when asked) and commands (lock held; the robot is known)."""
     entity = item.entity
@@ -378,9 +395,11 @@ def _reset_and_command(node: SimulationNode, world: World, item: RobotStepItem, 
             member = node._robots.get(name)
             if member is not None:
                 member.on_reset()
+    commands = item.commands
     try:
-        for controller, command in item.commands:
-            world.set_command(entity, controller, command)
+        if commands:
+            for controller, command in commands.items():
+                world.set_command(entity, controller, command)
     except CommandError as exc:
         status[j], message[j] = RobotStepResult.BAD_COMMAND, str(exc)
     except ControllerError as exc:

@@ -65,24 +65,30 @@ class RobotInterfaces:
         msg.position, msg.velocity, msg.effort = self.world.joint_state_arrays(self.name)
         return msg
 
-    def publish_state(self) -> None:
-        """Publish ``joint_states`` and ``/tf`` if anyone listens (caller holds the lock)."""
+    def on_step(self) -> None:
+        """The world advanced: the robot's running trajectory goals check their tolerances (caller holds the lock)."""
         self._actions.on_step()
-        if self._joint_pub.has_subscribers():
+
+    def publish_state(self) -> bool:
+        """Publish ``joint_states`` and ``/tf`` if anyone listens (caller holds the lock); whether anyone did."""
+        joints = self._joint_pub.has_subscribers()
+        if joints:
             self._joint_pub.publish(self.fill_joint_state(JointState()))
-        if self._frames is not None and self._tf_pub.has_subscribers():
+        tf = self._frames is not None and self._tf_pub.has_subscribers()
+        if tf:
             stamp = convert.time_msg(self.world.time)
             transforms = []
             for child, row in zip(self._frame_names, self._frames.poses()):
-                tf = TransformStamped()
-                tf.header.stamp = stamp
-                tf.header.frame_id = "world"
-                tf.child_frame_id = child
-                t, r = tf.transform.translation, tf.transform.rotation
+                stamped = TransformStamped()
+                stamped.header.stamp = stamp
+                stamped.header.frame_id = "world"
+                stamped.child_frame_id = child
+                t, r = stamped.transform.translation, stamped.transform.rotation
                 t.x, t.y, t.z = float(row[0]), float(row[1]), float(row[2])
                 r.w, r.x, r.y, r.z = float(row[3]), float(row[4]), float(row[5]), float(row[6])
-                transforms.append(tf)
+                transforms.append(stamped)
             self._tf_pub.publish(TFMessage(transforms=transforms))
+        return joints or tf
 
     def on_reset(self) -> None:
         """Called after a world reset (state topics are refreshed on the next step)."""

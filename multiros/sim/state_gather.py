@@ -43,12 +43,15 @@ class _Indices:
             self.valid = False  # some robot names sites or no frames: read robot by robot
         if not self.valid:
             return
-        n = self.joints
-        self.qadr = np.concatenate([ent.jnt_qadr for ent in ents])
-        self.dadr = np.concatenate([ent.jnt_dadr for ent in ents])
+        n, count = self.joints, len(ents)
+        # Index arrays shaped as the results: a gather gives the (N, ...) array with no reshape.
+        self.qadr = np.array([ent.jnt_qadr for ent in ents], dtype=np.intp).reshape(count, n)
+        self.dadr = np.array([ent.jnt_dadr for ent in ents], dtype=np.intp).reshape(count, n)
         self.act_ids = np.concatenate([ent.act_ids for ent in ents])
         self.effort_slot = np.concatenate([j * n + ent.effort_slot for j, ent in enumerate(ents)])
-        self.body_ids = np.concatenate([fs._b_ids for fs in sets]) if sets else np.zeros(0, dtype=np.intp)
+        self.effort_shape = (count, n)
+        self.body_ids = (np.array([fs._b_ids for fs in sets], dtype=np.intp).reshape(count, self.frames) if sets
+                         else np.zeros((count, 0), dtype=np.intp))
 
 
 class StateGather:
@@ -80,15 +83,11 @@ class StateGather:
             idx = self._indices[key] = _Indices(world, key[1], frame_sets)
         if not idx.valid:
             return None
-        count, n, d = len(names), idx.joints, world.data
-        effort = np.zeros(count * n)
+        d = world.data
+        effort = np.zeros(idx.effort_shape)
         if idx.act_ids.size:
-            effort[idx.effort_slot] = d.actuator_force[idx.act_ids]
+            effort.flat[idx.effort_slot] = d.actuator_force[idx.act_ids]
         if idx.frames:
             world.sync_kinematics()
-            positions = d.xpos[idx.body_ids].reshape(count, idx.frames, 3)
-            orientations = d.xquat[idx.body_ids].reshape(count, idx.frames, 4)
-        else:
-            positions, orientations = np.empty((count, 0, 3)), np.empty((count, 0, 4))
-        return RobotStates(sim_time, idx.joint_names, d.qpos[idx.qadr].reshape(count, n),
-                           d.qvel[idx.dadr].reshape(count, n), effort.reshape(count, n), positions, orientations)
+        return RobotStates(sim_time, idx.joint_names, d.qpos[idx.qadr], d.qvel[idx.dadr], effort,
+                           d.xpos[idx.body_ids], d.xquat[idx.body_ids])

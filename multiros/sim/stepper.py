@@ -33,7 +33,7 @@ from multiros.robot_state import RobotState, RobotStates
 from multiros.sim import convert
 from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationServiceError, time_seconds
 from multiros.sim.distro_adapters import get_message
-from multiros.sim.node_stepping import ResolvedRobots, RobotStepItem, StepRobotsCall, StepRobotsRefused
+from multiros.sim.node_stepping import ResolvedRobots, StepRobotsCall, StepRobotsRefused
 
 if TYPE_CHECKING:
     from multiros.sim.frames import FrameSet
@@ -57,7 +57,8 @@ class StepReply:
         status: per robot, a ``uniros_interfaces/msg/RobotStepResult`` code (``OK``; ``UNSTABLE``: physics
             diverged and the robot was restored at rest; others: its part was refused).
         message: per robot, the node's explanation when its status is not ``OK``.
-        states: per robot, its state (``None`` for a robot the node does not know).
+        states: per robot, its state (``None`` for a robot the node does not know); made from
+            ``stacked`` on first use when it is given.
         stacked: the same states as rows of one :class:`~multiros.robot_state.RobotStates` when every
             robot is known and alike (``states[j]`` is then ``stacked.row(j)``), else ``None``.
     """
@@ -65,8 +66,15 @@ class StepReply:
     sim_time: float
     status: list[int]
     message: list[str]
-    states: list[RobotState | None]
+    _states: list[RobotState | None] | None
     stacked: RobotStates | None = None
+
+    @property
+    def states(self) -> list[RobotState | None]:
+        if self._states is None:
+            assert self.stacked is not None
+            self._states = list(self.stacked.rows())
+        return self._states
 
 
 class PendingStep(ABC):
@@ -123,10 +131,8 @@ class ComposedStepper(RobotStepper):
         self._resolved = ResolvedRobots()
 
     def begin(self, robots: Sequence[RobotStepSpec], steps: int) -> PendingStep:
-        items = [RobotStepItem(spec.entity, spec.reset, list(spec.commands.items()) if spec.commands else (),
-                               tuple(spec.frames)) for spec in robots]
-        try:
-            call = _ComposedCall(self.node, StepRobotsCall(self.node, items, int(steps), self._resolved))
+        try:  # the specs are the call's items: they have its fields (entity, reset, commands, frames)
+            call = _ComposedCall(self.node, StepRobotsCall(self.node, robots, int(steps), self._resolved))
         except StepRobotsRefused as exc:
             raise _refused(self.node, exc) from exc
         call.prepare()
@@ -163,10 +169,8 @@ class _ComposedCall(PendingStep):
         status = [int(code) for code, _, _ in parts]
         message = [msg for _, msg, _ in parts]
         stacked = self.stacked
-        if stacked is not None:
-            states: list[RobotState | None] = list(stacked.rows())
-        else:
-            states = [None if part is None else RobotState(t, *part) for _, _, part in parts]
+        states = None if stacked is not None else [None if part is None else RobotState(t, *part)
+                                                   for _, _, part in parts]
         return StepReply(t, status, message, states, stacked)
 
     def close(self) -> None:
@@ -243,19 +247,18 @@ class _ServiceCall(PendingStep):
             except SimulationServiceError as exc:
                 if exc.code == UNSTABLE:  # the robot was restored at rest: its state is read at once
                     state = client.step_robot(spec.entity, None, 0, spec.frames, timeout_sec=timeout)
-                    return StepReply(state.sim_time, [UNSTABLE], [exc.message], [state], _one(state))
+                    return StepReply(state.sim_time, [UNSTABLE], [exc.message], None, _one(state))
                 raise
-            return StepReply(state.sim_time, [OK], [""], [state], _one(state))
+            return StepReply(state.sim_time, [OK], [""], None, _one(state))
         request = client.step_robots_request(robots, steps)
         response = client.step_robots_call(request, timeout)
         outcomes = client.step_robots_outcomes(request, response)
         states: list[RobotState | None] = [o.state for o in outcomes]
         known = [s for s in states if s is not None]
         stacked = RobotStates.of(known) if len(known) == len(states) else None
-        if stacked is not None:
-            states = list(stacked.rows())
         t = time_seconds(response.sim_time)
-        return StepReply(t, [o.status for o in outcomes], [o.message for o in outcomes], states, stacked)
+        return StepReply(t, [o.status for o in outcomes], [o.message for o in outcomes],
+                         None if stacked is not None else states, stacked)
 
 
 def _one(state: RobotState) -> RobotStates:
