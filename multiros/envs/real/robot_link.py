@@ -334,19 +334,36 @@ class RobotLink:
         goal.trajectory = self.trajectory(joints, positions, duration)
         goal.goal_time_tolerance = _duration(goal_time_tolerance)
         client = self._action_client(controller)
-        future = client.send_goal_async(goal)
-        if not future.wait(self.timeout_sec):
+        future = client.send_goal_async(goal, timeout_sec=self.timeout_sec)
+        if not future.wait(self.timeout_sec + 0.5):  # the call's own bound fails the future first
             raise TrajectoryGoalError(f"{self.action_name(controller)} did not answer the goal within "
-                                      f"{self.timeout_sec:g} s")
+                                      f"{self.timeout_sec:g} s{self._robot_news(client)}")
         exc = future.exception()
         if exc is not None:
-            raise TrajectoryGoalError(f"{self.action_name(controller)}: {exc}") from exc
+            raise TrajectoryGoalError(f"{self.action_name(controller)} gave no answer to the goal "
+                                      f"({type(exc).__name__}){self._robot_news(client)}") from exc
         handle = future.result()
         if not handle.accepted:
             raise TrajectoryGoalError(
                 f"{self.action_name(controller)} rejected the trajectory to {np.round(positions, 4).tolist()} for "
                 f"{list(joints)}: is the controller active and are these exactly its joints?")
         return handle
+
+    def _robot_news(self, client: Any = None) -> str:
+        """What the robot's side last showed, for an error about it (``": ..."`` or ``""``)."""
+        parts = []
+        last = self.states.last_received
+        if last is None:
+            parts.append(f"no {self.joint_states_topic} message ever arrived")
+        else:
+            age = time.monotonic() - last
+            if age > 0.5:
+                parts.append(f"{self.joint_states_topic} stopped {age:.1f} s ago")
+        if client is not None and not client.server_is_ready():
+            parts.append(f"the action server {client.action_name} is no longer in the ROS graph")
+        if not parts:
+            return ""
+        return ": the robot looks lost (" + "; ".join(parts) + "): is its driver still running?"
 
     @staticmethod
     def check_goal_result(handle: Any, what: str, timeout: float) -> None:
