@@ -14,10 +14,10 @@ if any(importlib.util.find_spec(p) is None for p in _NEEDED):
     pytest.skip("needs rclpy and the interface packages .ci/rclpy builds (run by .ci/rclpy)", allow_module_level=True)
 
 from builtin_interfaces.msg import Duration  # noqa: E402
-from conftest import uniros_script  # noqa: E402
 from control_msgs.action import FollowJointTrajectory  # noqa: E402
 from controller_manager_msgs.srv import ListControllers, SwitchController  # noqa: E402
 from plain_ros import PlainPeer, wait_until  # noqa: E402
+from rclpy_harness import uniros_script  # noqa: E402
 from rosgraph_msgs.msg import Clock  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
 from simulation_interfaces.msg import Result, SimulationState  # noqa: E402
