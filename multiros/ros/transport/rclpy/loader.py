@@ -30,9 +30,10 @@ _lock = threading.Lock()
 def rclpy_available() -> bool:
     """Whether rclpy can be found (its spec; nothing is loaded, so this never ends the process)."""
     try:
-        return importlib.util.find_spec("rclpy") is not None
+        spec = importlib.util.find_spec("rclpy")
     except (ImportError, ValueError):
         return False
+    return spec is not None and spec.origin is not None  # a folder named rclpy is no rclpy
 
 
 def ros_distro_hint() -> str:

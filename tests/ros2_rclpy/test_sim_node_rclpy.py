@@ -1,4 +1,4 @@
-"""A plain rclpy client (tests/rclpy/plain_ros.py, no uniros import) drives ``uniros-sim --transport rclpy``
+"""A plain rclpy client (tests/ros2_rclpy/plain_ros.py, no uniros import) drives ``uniros-sim --transport rclpy``
 in another process over Fast DDS: discovery, /clock, joint_states, the simulation_interfaces services
 (pause, step while paused, spawn/delete, reset), list/switch controllers, and a FollowJointTrajectory
 goal with feedback and result."""

@@ -1,4 +1,4 @@
-"""``RX200ReacherGoalReal-v0`` on rclpy against a plain-rclpy fake ros2_control RX200 (tests/rclpy/plain_robot.py,
+"""``RX200ReacherGoalReal-v0`` on rclpy against a plain-rclpy fake ros2_control RX200 (tests/ros2_rclpy/plain_robot.py,
 Interbotix layout, another process, Fast DDS): the env's commands keep the safety rules as the robot sees
 them, and a robot killed mid-episode stops the env with an error that says so."""
 

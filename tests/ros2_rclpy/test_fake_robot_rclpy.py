@@ -1,4 +1,4 @@
-"""``uniros-fake-robot --transport rclpy`` answers a plain rclpy client (tests/rclpy/plain_ros.py): its
+"""``uniros-fake-robot --transport rclpy`` answers a plain rclpy client (tests/ros2_rclpy/plain_ros.py): its
 joint_states, controller manager and FollowJointTrajectory action, over Fast DDS from another process."""
 
 from __future__ import annotations
