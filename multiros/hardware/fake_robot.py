@@ -251,7 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                               time_constant=opts.time_constant,
                               activate=opts.activate.split(",") if opts.activate else None,
                               stall_after=opts.stall_after, reject_goals=opts.reject_goals)
-        except (ValueError, ControllerError) as exc:
+        except (ValueError, ControllerError, TransportError) as exc:
             _logger.error("%s", exc)
             return 2
         robot.start()

@@ -474,6 +474,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                      opts.transport, ", ".join(n for n, _ in robots) or "none")
         while not stop.wait(0.5):
             pass
+    except TransportError as exc:  # e.g. an interface package rclpy lacks: say which and how to get it
+        _logger.error("%s", exc)
+        return 2
     except RuntimeError as exc:  # a robot could not be spawned: say why, exit non-zero
         _logger.error("%s", exc)
         return 1
