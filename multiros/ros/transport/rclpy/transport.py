@@ -5,17 +5,15 @@ service and client an rclpy entity on it, so ``ros2 node list``, ``ros2 topic ec
 ``ros2 service call`` see them on the default middleware (Fast DDS on Humble/Jazzy). Actions need
 nothing more: ours are built from services and topics with rcl_action's names and types.
 
-One rclpy context per uniros context, one ``SingleThreadedExecutor`` thread spinning all its
-nodes (rclpy's ``MultiThreadedExecutor`` measured five times slower under load). Callbacks on
-that thread stay short: a message is decoded and queued for the subscription's executor, a
-response completes a future; a service request runs the service callback there, under the
-node's lock, as the Zenoh transport does on its receive thread. A callback that defers its
-answer (a ``Future``, as an action's ``get_result``) frees the thread at once: the reply is sent
-when the future completes, from the thread that completes it. (rclpy's own way, a coroutine
-callback, re-polls every pending coroutine on each executor wake-up; our executor takes service
-requests itself instead, see ``_executor_class``.) Do not make blocking calls over this same
-transport from a service callback served over the wire: the reply could only come in on the
-thread that is blocked.
+One rclpy context per uniros context, one receive thread waiting on all its entities at once
+(``loop.py``; rclpy's executors cost time per entity on every wake-up, which a node with dozens of
+services pays on every call). That thread stays short: a message is decoded and queued for the
+subscription's executor, a response completes a future; a service request runs the service
+callback there, under the node's lock, as the Zenoh transport does on its receive thread. A
+callback that defers its answer (a ``Future``, as an action's ``get_result``) frees the thread at
+once: the reply is sent when the future completes, from the thread that completes it. Do not make
+blocking calls over this same transport from a service callback served over the wire: the reply
+could only come in on the thread that is blocked.
 
 Message conversion: uniros classes and the installed ones encode to the same CDR bytes when
 their type hashes agree (``types.py`` checks that), so conversion goes through CDR bytes, not
@@ -52,6 +50,7 @@ from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, E
 from multiros.ros.qos import DurabilityPolicy, QoSProfile
 from multiros.ros.task import Future
 from multiros.ros.transport.base import Transport
+from multiros.ros.transport.rclpy import loop as wire_loop
 from multiros.ros.transport.rclpy.loader import import_rclpy
 from multiros.ros.transport.rclpy.types import PRIVATE_PACKAGES, InstalledTypes, MissingInterfacePackageError
 
@@ -69,6 +68,7 @@ _log = logging.getLogger(__name__)
 _GRAPH_NODE_PREFIX = "_uniros_graph_"
 _SERVER_CHECK_SEC = 0.25  # how often a pending call checks that its server is still in the graph
 _contexts = itertools.count()
+_TAKE_PER_WAKE = 64  # most messages/requests/responses taken from one entity per wake-up
 
 
 class RclpyTransport(Transport):
@@ -84,8 +84,7 @@ class RclpyTransport(Transport):
         self._rclpy: Any = None
         self._ser: Any = None
         self._rctx: Any = None
-        self._executor: Any = None
-        self._thread: threading.Thread | None = None
+        self.loop: wire_loop.WireLoop | None = None
         self._graph_node: Any = None
         self._lock = threading.Lock()
         self._handles: set[Any] = set()
@@ -110,26 +109,23 @@ class RclpyTransport(Transport):
             raise TransportError(f"rclpy could not start a ROS context on domain {self.context.domain_id}: {exc}") \
                 from exc
         try:
-            self._executor = _executor_class(rclpy)(context=self._rctx)
             self._graph_node = rclpy.create_node(
                 f"{_GRAPH_NODE_PREFIX}{os.getpid()}_{next(_contexts)}", context=self._rctx,
-                start_parameter_services=False, enable_rosout=False, use_global_arguments=False)
-            self._thread = threading.Thread(target=self._spin, name="uniros-rclpy", daemon=True)
-            self._thread.start()
+                **self.node_options())
+            self.loop = wire_loop.WireLoop(self._rctx)
+            self.loop.start()
             self.deadlines.start(self)
         except BaseException:
             self.close()
             raise
 
-    def _spin(self) -> None:
-        executor = self._executor
-        while not self._closed:
-            try:
-                executor.spin_once(timeout_sec=0.5)
-            except Exception as exc:  # noqa: BLE001 - the wire thread must survive one bad callback
-                if self._closed or not self._rctx.ok():
-                    return
-                _log.warning("rclpy executor: %s: %s", type(exc).__name__, exc)
+    def node_options(self) -> dict[str, Any]:
+        """rclpy node options: nothing of rclpy's own that would need spinning (no parameter or
+        type description services, no rosout); command-line arguments are never read."""
+        from rclpy.parameter import Parameter
+
+        return {"use_global_arguments": False, "start_parameter_services": False, "enable_rosout": False,
+                "parameter_overrides": [Parameter("start_type_description_service", Parameter.Type.BOOL, False)]}
 
     def close(self) -> None:
         with self._lock:
@@ -144,13 +140,8 @@ class RclpyTransport(Transport):
                 h.close()
             except Exception:  # noqa: BLE001 - closing must finish
                 _log.debug("closing %r failed", h, exc_info=True)
-        if self._executor is not None:
-            try:
-                self._executor.shutdown(timeout_sec=2.0)
-            except Exception:  # noqa: BLE001
-                pass
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=2.0)
+        if self.loop is not None:
+            self.loop.stop()
         if self._graph_node is not None:
             try:
                 self._graph_node.destroy_node()
@@ -271,54 +262,17 @@ class RclpyTransport(Transport):
         return deserialize_message(self._ser.serialize_message(rmsg), cls, trailing="ignore")
 
 
-def _executor_class(rclpy: Any) -> type:
-    """rclpy's ``SingleThreadedExecutor``, taking requests of our services itself.
-
-    rclpy answers a service when its callback returns; ours may defer the answer (a ``Future``).
-    rclpy's executors take a request in ``_take_service`` (private, present from Humble to Kilted):
-    for our services we take it there too and hand it with its header to the handle, which
-    replies with ``Service.send_response`` (public) whenever the answer is ready.
-    """
-    from rclpy.executors import SingleThreadedExecutor
-
-    if not hasattr(SingleThreadedExecutor, "_take_service"):
-        raise TransportError(f"this rclpy ({getattr(rclpy, '__file__', '?')}) has no Executor._take_service; "
-                             "the rclpy transport supports rclpy of Humble to Kilted")
-    from rclpy.exceptions import InvalidHandle
-
-    class UnirosExecutor(SingleThreadedExecutor):
-        def _take_service(self, srv: Any) -> Any:
-            take = getattr(srv, "_uniros_take", None)
-            if take is None:
-                return super()._take_service(srv)
-            try:
-                with srv.handle:
-                    request, header = srv.handle.service_take_request(srv.srv_type.Request)
-            except InvalidHandle:
-                return None
-            if header is None:
-                return None
-
-            async def _execute() -> None:
-                take(request, header)
-            return _execute
-
-    return UnirosExecutor
-
-
 class _NodeHandle:
     def __init__(self, transport: RclpyTransport, node: Node) -> None:
         self.transport = transport
         self._node = node
         rclpy = transport._rclpy
         try:
-            self.rnode = rclpy.create_node(
-                node.get_name(), namespace=node.get_namespace(), context=transport._rctx,
-                use_global_arguments=False, start_parameter_services=False, enable_rosout=False)
+            self.rnode = rclpy.create_node(node.get_name(), namespace=node.get_namespace(), context=transport._rctx,
+                                           **transport.node_options())
         except Exception as exc:  # noqa: BLE001 - rclpy's name checks and RCLError
             raise TransportError(f"rclpy could not create node '{node.get_fully_qualified_name()}': {exc}") from exc
         node._rclpy_node = self.rnode
-        transport._executor.add_node(self.rnode)
         self._closed = False
 
     def close(self) -> None:
@@ -326,10 +280,6 @@ class _NodeHandle:
             return
         self._closed = True
         self.transport._untrack(self)
-        try:
-            self.transport._executor.remove_node(self.rnode)
-        except Exception:  # noqa: BLE001 - executor already shut down
-            pass
         try:
             self.rnode.destroy_node()
         except Exception:  # noqa: BLE001
@@ -387,8 +337,18 @@ class _SubscriptionHandle(_Entity):
         self._sub_entity = sub
         self._msg_type = sub.msg_type
         self._deserialize = deserialize_message
-        self._sub = self.rnode.create_subscription(rcls, sub.topic_name, self._on_message,
+        self._rcls = rcls
+        self._sub = self.rnode.create_subscription(rcls, sub.topic_name, _never_called,
                                                    transport.qos(sub.qos_profile), raw=True)
+        transport.loop.add(wire_loop.SUBSCRIPTION, self._sub, self._on_ready)
+
+    def _on_ready(self) -> None:
+        take = self._sub.handle.take_message
+        for _ in range(_TAKE_PER_WAKE):
+            taken = take(self._rcls, True)
+            if taken is None:
+                return
+            self._on_message(taken[0])
 
     def _on_message(self, data: bytes) -> None:
         try:
@@ -400,6 +360,7 @@ class _SubscriptionHandle(_Entity):
         self._sub_entity._enqueue(msg)
 
     def _destroy(self) -> None:
+        self.transport.loop.remove(wire_loop.SUBSCRIPTION, self._sub)
         self.rnode.destroy_subscription(self._sub)
 
 
@@ -411,7 +372,16 @@ class _ServiceHandle(_Entity):
         self._request_type = srv.srv_type.Request
         self._srv = self.rnode.create_service(rcls, srv.srv_name, _never_called,
                                               qos_profile=transport.qos(srv.qos_profile))
-        self._srv._uniros_take = self._take  # see _executor_class
+        transport.loop.add(wire_loop.SERVICE, self._srv, self._on_ready)
+
+    def _on_ready(self) -> None:
+        take = self._srv.handle.service_take_request
+        request_type = self._rcls.Request
+        for _ in range(_TAKE_PER_WAKE):
+            request, header = take(request_type)
+            if header is None:
+                return
+            self._take(request, header)
 
     def _take(self, request: Any, header: Any) -> None:
         name = self._srv_entity.srv_name
@@ -453,11 +423,12 @@ class _ServiceHandle(_Entity):
             _log.debug("service '%s': could not send the reply: %s", name, exc)
 
     def _destroy(self) -> None:
+        self.transport.loop.remove(wire_loop.SERVICE, self._srv)
         self.rnode.destroy_service(self._srv)
 
 
-def _never_called(request: Any, response: Any) -> Any:  # pragma: no cover - our executor takes requests itself
-    raise RuntimeError("a uniros service's request reached rclpy's own service dispatch")
+def _never_called(*_args: Any) -> Any:  # pragma: no cover - no rclpy executor spins our nodes
+    raise RuntimeError("a uniros entity reached rclpy's own dispatch")
 
 
 class _ClientHandle(_Entity):
@@ -467,6 +438,26 @@ class _ClientHandle(_Entity):
         self._rcls = rcls
         self._response_type = cli.srv_type.Response
         self._cli = self.rnode.create_client(rcls, cli.srv_name, qos_profile=transport.qos(cli.qos_profile))
+        self._pending: dict[int, Future] = {}
+        self._pending_lock = threading.Lock()
+        transport.loop.add(wire_loop.CLIENT, self._cli, self._on_ready)
+
+    def _on_ready(self) -> None:
+        take = self._cli.handle.take_response
+        response_type = self._rcls.Response
+        for _ in range(_TAKE_PER_WAKE):
+            header, response = take(response_type)
+            if header is None:
+                return
+            with self._pending_lock:
+                future = self._pending.pop(header.request_id.sequence_number, None)
+            if future is None or future.done():
+                continue  # given up on (timed out) meanwhile
+            try:
+                future.set_result(self.transport.from_rclpy(response, self._response_type))
+            except Exception as exc:  # noqa: BLE001 - a malformed reply
+                future.set_exception(ServiceCallError(self._cli_entity.srv_name,
+                                                      f"malformed reply: {type(exc).__name__}: {exc}"))
 
     def service_is_ready(self) -> bool:
         return not self._closed and self._cli.service_is_ready()
@@ -481,24 +472,15 @@ class _ClientHandle(_Entity):
         except Exception as exc:  # noqa: BLE001 - a request our codec cannot encode
             future.set_exception(ServiceCallError(name, f"could not encode the request: {exc}"))
             return
-        rfut = self._cli.call_async(rreq)
+        with self._pending_lock:  # before a response can be taken on the receive thread
+            with self._cli.handle:
+                seq = self._cli.handle.send_request(rreq)
+            self._pending[seq] = future
+        self.transport.deadlines.add(self, future, seq, timeout_sec)
 
-        def on_response(done: Any) -> None:
-            if future.done():
-                return
-            try:
-                future.set_result(self.transport.from_rclpy(done.result(), self._response_type))
-            except Exception as exc:  # noqa: BLE001 - a malformed reply
-                future.set_exception(ServiceCallError(name, f"malformed reply: {type(exc).__name__}: {exc}"))
-
-        rfut.add_done_callback(on_response)
-        self.transport.deadlines.add(self, future, rfut, timeout_sec)
-
-    def forget(self, rfut: Any) -> None:
-        try:
-            self._cli.remove_pending_request(rfut)
-        except Exception:  # noqa: BLE001
-            pass
+    def forget(self, seq: Any) -> None:
+        with self._pending_lock:
+            self._pending.pop(seq, None)
 
     def call(self, request: Any, timeout_sec: float, total_timeout_sec: float) -> Any:
         future = Future()
@@ -509,6 +491,7 @@ class _ClientHandle(_Entity):
         return future.result()
 
     def _destroy(self) -> None:
+        self.transport.loop.remove(wire_loop.CLIENT, self._cli)
         self.rnode.destroy_client(self._cli)
 
 
@@ -532,16 +515,16 @@ class _Deadlines:
             pending = list(self._heap)
             self._heap.clear()
             self._cond.notify_all()
-        for _d, _i, handle, future, rfut, _t in pending:
-            handle.forget(rfut)
+        for _d, _i, handle, future, seq, _t in pending:
+            handle.forget(seq)
             if not future.done():
                 future.set_exception(ServiceCallError(handle._cli_entity.srv_name,
                                                       "the client's context was shut down"))
 
-    def add(self, handle: Any, future: Future, rfut: Any, timeout_sec: float) -> None:
+    def add(self, handle: Any, future: Future, seq: Any, timeout_sec: float) -> None:
         with self._cond:
             heapq.heappush(self._heap, (time.monotonic() + max(0.0, timeout_sec), next(self._ids), handle, future,
-                                        rfut, timeout_sec))
+                                        seq, timeout_sec))
             self._cond.notify_all()
 
     def _run(self) -> None:
@@ -553,9 +536,9 @@ class _Deadlines:
                     return
                 now = time.monotonic()
                 while self._heap and (self._heap[0][3].done() or self._heap[0][0] <= now):
-                    _d, _i, handle, future, rfut, timeout = heapq.heappop(self._heap)
+                    _d, _i, handle, future, seq, timeout = heapq.heappop(self._heap)
                     if not future.done():
-                        expired.append((handle, future, rfut, f"timeout:{timeout}"))
+                        expired.append((handle, future, seq, f"timeout:{timeout}"))
                 if now >= next_server_check:
                     next_server_check = now + _SERVER_CHECK_SEC
                     keep = []
@@ -571,8 +554,8 @@ class _Deadlines:
                         self._heap = keep
                         heapq.heapify(self._heap)
                 wait = _SERVER_CHECK_SEC if not self._heap else min(_SERVER_CHECK_SEC, self._heap[0][0] - now)
-            for handle, future, rfut, why in expired:
-                handle.forget(rfut)
+            for handle, future, seq, why in expired:
+                handle.forget(seq)
                 name = handle._cli_entity.srv_name
                 if why == "gone":
                     future.set_exception(ServiceCallError(
