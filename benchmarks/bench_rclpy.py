@@ -2,7 +2,7 @@
 
 Run in the venv ``.ci/rclpy`` makes (rclpy + Fast DDS from PyPI and the built interface packages)::
 
-    .venv-rclpy/bin/python benchmarks/bench_rclpy.py [--steps 300] [--commands 100] [--conversion]
+    .venv-rclpy/bin/python benchmarks/bench_rclpy.py [--steps 200] [--rounds 5] [--commands 100] [--conversion]
 
 Prints:
 
@@ -39,22 +39,30 @@ ENV_ID = "RX200ReacherGoalSim-v0"
 REAL_ID = "RX200ReacherGoalReal-v0"
 
 
-def steps_per_second(steps: int, **kw) -> float:
-    env = uniros.make(ENV_ID, **kw)
+def step_rates(steps: int, rounds: int, modes: dict[str, dict]) -> dict[str, list[float]]:
+    """Env steps/s per mode, all envs open at once and stepped in turn, ``rounds`` times: each
+    round's figures share the machine's load of that moment."""
+    envs = {label: uniros.make(ENV_ID, **kw) for label, kw in modes.items()}
+    rates: dict[str, list[float]] = {label: [] for label in modes}
     try:
-        env.reset(seed=0)
         rng = np.random.default_rng(0)
-        actions = [rng.uniform(-1, 1, env.action_space.shape).astype(np.float32) for _ in range(steps)]
-        for a in actions[:20]:  # warm-up: first calls build codecs and connections
-            env.step(a)
-        t0 = time.perf_counter()
-        for i, a in enumerate(actions):
-            _obs, _r, term, trunc, _info = env.step(a)
-            if term or trunc:
-                env.reset(seed=i)
-        return steps / (time.perf_counter() - t0)
+        for env in envs.values():
+            env.reset(seed=0)
+            for _ in range(20):  # warm-up: first calls build codecs and connections
+                env.step(env.action_space.sample())
+        for _ in range(rounds):
+            actions = [rng.uniform(-1, 1, (5,)).astype(np.float32) for _ in range(steps)]
+            for label, env in envs.items():
+                t0 = time.perf_counter()
+                for i, a in enumerate(actions):
+                    _obs, _r, term, trunc, _info = env.step(a)
+                    if term or trunc:
+                        env.reset(seed=i)
+                rates[label].append(steps / (time.perf_counter() - t0))
+        return rates
     finally:
-        env.close()
+        for env in envs.values():
+            env.close()
 
 
 def command_latencies(ctx: Context, commands: int) -> list[float]:
@@ -140,20 +148,24 @@ def conversion() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--steps", type=int, default=300)
+    parser.add_argument("--steps", type=int, default=200, help="env steps per mode and round")
+    parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--commands", type=int, default=100)
     parser.add_argument("--conversion", action="store_true")
     opts = parser.parse_args()
 
-    print(f"{ENV_ID}: env steps/s ({opts.steps} steps each)")
-    rates = {
-        "composed (inproc)": steps_per_second(opts.steps),
-        "process over Zenoh": steps_per_second(opts.steps, sim_mode="process", transport="zenoh"),
-        "process over rclpy/Fast DDS": steps_per_second(opts.steps, sim_mode="process", transport="rclpy"),
-    }
+    print(f"{ENV_ID}: env steps/s, {opts.rounds} interleaved rounds of {opts.steps} steps (median; per-round ratio)")
+    rates = step_rates(opts.steps, opts.rounds, {
+        "composed (inproc)": {},
+        "process over Zenoh": {"sim_mode": "process", "transport": "zenoh"},
+        "process over rclpy/Fast DDS": {"sim_mode": "process", "transport": "rclpy"},
+    })
     base = rates["composed (inproc)"]
-    for label, rate in rates.items():
-        print(f"  {label:30s} {rate:8.0f} steps/s  ({rate / base:.2f}x composed)")
+    for label, values in rates.items():
+        ratio = statistics.median(v / b for v, b in zip(values, base))
+        print(f"  {label:30s} {statistics.median(values):8.0f} steps/s  ({ratio:.2f}x composed)")
+    zen, ros = rates["process over Zenoh"], rates["process over rclpy/Fast DDS"]
+    print(f"  rclpy / Zenoh (process mode): {statistics.median(r / z for r, z in zip(ros, zen)):.2f}x")
 
     print(f"\n{REAL_ID} against uniros-fake-robot: command-to-state latency ({opts.commands} commands)")
     for label, make_ctx in (("Zenoh", private_context), ("rclpy/Fast DDS", lambda: Context(transport="rclpy").init())):
