@@ -187,7 +187,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--sim-mode", choices=["composed", "process", "existing"],
                        help="run the simulation node in this process (default), a child process, "
                        "or reach a running one")
-        p.add_argument("--transport", choices=["inproc", "zenoh"], help="ROS transport")
+        p.add_argument("--transport", choices=["inproc", "zenoh", "rclpy"],
+                       help="ROS transport (rclpy: your ROS 2 install and its middleware)")
 
     p = sub.add_parser("train", help="train an agent and evaluate it")
     p.add_argument("env_id", nargs="?",

@@ -33,8 +33,10 @@ from multiros.hardware.fake_hardware import DEFAULT_TIME_CONSTANT, FakeHardware
 from multiros.hardware.robot_spec import PRESETS, RobotSpec, load_robot_spec, parse_assignments
 from multiros.ros import Context, Node
 from multiros.ros.action import GoalResponse
+from multiros.ros.exceptions import TransportError
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.processes import add_child_options, start_child_program
+from multiros.ros.transport import wire_transport
 from multiros.sim.actions import TrajectoryActions
 from multiros.sim.controller_io import ControllerInterfaces
 from multiros.sim.distro_adapters import get_message
@@ -208,7 +210,9 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--stall-after", type=float, default=None, metavar="SEC",
                         help="fault: stop publishing joint_states SEC seconds after start")
     parser.add_argument("--reject-goals", action="store_true", help="fault: refuse every trajectory goal")
-    parser.add_argument("--transport", default="zenoh", choices=["zenoh"], help="ROS transport")
+    parser.add_argument("--transport", default=None, choices=["zenoh", "rclpy"],
+                        help="ROS transport (default: $UNIROS_TRANSPORT, else rclpy when rclpy can be imported, "
+                             "else zenoh)")
     parser.add_argument("--router", default=None,
                         help="Zenoh router: 'auto' (default: the one at $UNIROS_ZENOH_ROUTER or "
                              "tcp/127.0.0.1:7447, started there if none listens), 'embedded', 'none', or an "
@@ -234,8 +238,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except (ValueError, OSError, SimError) as exc:  # bad option, missing file, xacro/URDF error: exit 2
         parser.error(f"cannot load the robot: {exc}")
-    options: dict[str, Any] = {"router": opts.router} if opts.router else {}
-    ctx = Context(transport=opts.transport, **options).init()
+    opts.transport = wire_transport(opts.transport)
+    options: dict[str, Any] = {"router": opts.router} if opts.router and opts.transport == "zenoh" else {}
+    try:
+        ctx = Context(transport=opts.transport, **options).init()
+    except TransportError as exc:
+        parser.exit(2, f"uniros-fake-robot: {exc}\n")
     robot = None
     try:
         try:
@@ -243,7 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                               time_constant=opts.time_constant,
                               activate=opts.activate.split(",") if opts.activate else None,
                               stall_after=opts.stall_after, reject_goals=opts.reject_goals)
-        except (ValueError, ControllerError) as exc:
+        except (ValueError, ControllerError, TransportError) as exc:
             _logger.error("%s", exc)
             return 2
         robot.start()

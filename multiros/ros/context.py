@@ -35,8 +35,8 @@ class Context:
     """Holds everything one ROS "process view" needs; usable as a context manager.
 
     Args:
-        transport: ``"inproc"`` (default; no network) or ``"zenoh"``; default from
-            ``$UNIROS_TRANSPORT``.
+        transport: ``"inproc"`` (default; no network), ``"zenoh"`` or ``"rclpy"`` (the installed
+            rclpy, on whatever middleware it loads); default from ``$UNIROS_TRANSPORT``.
         domain_id: ROS domain; default ``$ROS_DOMAIN_ID`` read once here, else 0.
         default_timeout_sec: bound for waits given ``timeout_sec=None``.
         env: environment to read settings from (default ``os.environ``; never written).
@@ -71,6 +71,7 @@ class Context:
         self._shutdown_callbacks: list[Callable[[], None]] = []
         self._finalizer: weakref.finalize | None = None
         self._default_executor: Any = None
+        self._poll_sec = 1.0
 
     # -- lifecycle ---------------------------------------------------------------------------
     def init(self, args: Sequence[str] | None = None, *, domain_id: int | None = None) -> Context:
@@ -89,6 +90,8 @@ class Context:
 
         transport = make_transport(self.transport_name, self)
         transport.open()
+        self.registry.leave_topics_to_transport(transport.delivers_local_topics)
+        self._poll_sec = float(transport.poll_sec)
         self._transport = transport
         # Close the transport at interpreter exit or when the context is garbage-collected.
         self._finalizer = weakref.finalize(self, transport.close)
@@ -186,7 +189,7 @@ class Context:
                 return predicate()
             with self._cond:
                 if self._generation == gen:
-                    self._cond.wait(min(remaining, 1.0))
+                    self._cond.wait(min(remaining, self._poll_sec))
 
     def wait_changed(self, generation: int, timeout_sec: float) -> None:
         """Block until ``notify()`` was called after ``generation`` was read, or ``timeout_sec`` passed."""

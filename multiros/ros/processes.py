@@ -120,7 +120,9 @@ def private_context(attempts: int = 5) -> Context:
 
 def child_environment(ctx: Context) -> dict[str, str]:
     """Environment variables that make a child process join ``ctx``'s ROS graph."""
-    env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": "zenoh"}
+    env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": ctx.transport_name}
+    if ctx.transport_name != "zenoh":
+        return env
     endpoint = ctx.transport_options.get("router_endpoint") or ctx.env.get("UNIROS_ZENOH_ROUTER")
     if endpoint:
         env["UNIROS_ZENOH_ROUTER"] = str(endpoint)

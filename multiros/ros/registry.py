@@ -47,6 +47,7 @@ class LocalRegistry:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self.version = 0  # changes with every entity added or removed (Transport.graph_version)
+        self._topics_local = True  # False: the transport delivers topics within the context too
         self.nodes: list[Node] = []
         self.publishers: dict[str, list[Publisher]] = {}
         self.subscriptions: dict[str, list[Subscription]] = {}
@@ -60,6 +61,13 @@ class LocalRegistry:
             PUBLISHER: self.publishers, SUBSCRIPTION: self.subscriptions,
             SERVICE: self._service_lists, CLIENT: self.clients,
         }
+
+    def leave_topics_to_transport(self, yes: bool) -> None:
+        """Stop (or resume) delivering topic messages within the context: the transport does it."""
+        with self._lock:
+            self._topics_local = not yes
+            for topic in self.publishers:
+                self._rewire(topic)
 
     # -- nodes -------------------------------------------------------------------------------
     def add_node(self, node: Node) -> None:
@@ -112,7 +120,7 @@ class LocalRegistry:
             self._rewire(sub.topic_name)
 
     def _rewire(self, topic: str) -> None:
-        subs = self.subscriptions.get(topic, [])
+        subs = self.subscriptions.get(topic, []) if self._topics_local else []
         for pub in self.publishers.get(topic, []):
             matched = []
             for sub in subs:

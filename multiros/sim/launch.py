@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import urlencode
 
 from multiros.ros import Context, Node
+from multiros.ros.exceptions import TransportError
 from multiros.ros.processes import (
     add_child_options,
     child_environment,
@@ -44,6 +45,7 @@ from multiros.ros.processes import (
     track_child,
     untrack_child,
 )
+from multiros.ros.transport import WIRE_TRANSPORTS, wire_transport
 from multiros.sim.client import DEFAULT_NODE_NAME, SimulationClient, SimulationNodeError
 
 if TYPE_CHECKING:
@@ -211,14 +213,18 @@ def connect(
     Args:
         mode: ``"composed"``, ``"process"`` or ``"existing"``.
         node_name: the simulation node's name (``/`` prefix optional).
-        transport: ``"inproc"`` (composed only) or ``"zenoh"``; default inproc when composed,
-            zenoh otherwise.
+        transport: ``"inproc"`` (composed only), ``"zenoh"`` or ``"rclpy"``. Default: inproc when
+            composed; zenoh for ``process`` (a private router), unless ``$UNIROS_TRANSPORT`` names
+            another; for ``existing`` the same choice as ``uniros-sim``'s (``$UNIROS_TRANSPORT``, else
+            rclpy when it can be imported, else zenoh).
         gui: open the viewer (composed and process modes).
         timeout_sec: how long to wait for the node to become ready.
         paused, real_time_factor, timestep: start-up options of a node this call starts.
         context: join this context instead of creating one (the caller then owns its shutdown).
-        isolated: ``process`` mode only: give the child a private Zenoh router on a free loopback
-            port (the default), so no other process on the machine sees it or is seen by it.
+        isolated: ``process`` mode over Zenoh only: give the child a private Zenoh router on a free
+            loopback port (the default), so no other process on the machine sees it or is seen by it.
+            Over rclpy the child joins the context's ROS domain (DDS has no private router): give
+            concurrent envs domains of their own (``ROS_DOMAIN_ID``).
             ``False`` joins the graph the environment names (``UNIROS_ZENOH_ROUTER``,
             ``ROS_DOMAIN_ID``, ``ZENOH_*``); pick a ``node_name`` nobody else uses then.
         trusted_paths: directories (besides the package roots) from which a node this call starts
@@ -227,12 +233,16 @@ def connect(
     if mode not in ("composed", "process", "existing"):
         raise ValueError(f"sim_mode {mode!r} is not one of 'composed', 'process', 'existing'")
     if mode != "composed" and transport == "inproc":
-        raise ValueError(f"sim_mode {mode!r} needs a wire transport; use transport='zenoh'")
-    transport = transport or ("inproc" if mode == "composed" else "zenoh")
+        raise ValueError(f"sim_mode {mode!r} needs a wire transport; use transport='zenoh' or 'rclpy'")
+    if mode == "composed":
+        transport = transport or "inproc"
+    else:  # a node we start is ours (Zenoh unless asked); one that exists is in the user's graph
+        transport = wire_transport(transport, prefer_rclpy=mode == "existing")
+        transport = transport if transport in WIRE_TRANSPORTS else "zenoh"
     owns = context is None
     if context is not None:
         ctx = context
-    elif mode == "process" and isolated:
+    elif mode == "process" and isolated and transport == "zenoh":
         ctx = private_context()
     else:
         ctx = Context(transport=transport).init()
@@ -247,7 +257,7 @@ def connect(
             )
         elif mode == "process":
             process = _spawn_child(ctx, node_name, gui=gui, paused=paused, real_time_factor=real_time_factor,
-                                   timestep=timestep, private=isolated and context is None,
+                                   timestep=timestep, private=isolated and context is None and transport == "zenoh",
                                    trusted_paths=trusted_paths)
         node = Node(f"uniros_env_{os.getpid()}_{next(_env_ids)}", context=ctx)
         client = SimulationClient(node, "/" + node_name.lstrip("/"), timeout_sec=timeout_sec)
@@ -306,7 +316,8 @@ def _spawn_child(
     ctx: Context, node_name: str, *, gui: bool, paused: bool, real_time_factor: float, timestep: float | None,
     private: bool = False, trusted_paths: Sequence[str | os.PathLike[str]] = (),
 ) -> subprocess.Popen:
-    argv = [sys.executable, "-m", "multiros.sim.launch", "--name", node_name.lstrip("/"), "--transport", "zenoh",
+    argv = [sys.executable, "-m", "multiros.sim.launch", "--name", node_name.lstrip("/"), "--transport",
+            ctx.transport_name,
             "--real-time-factor", str(real_time_factor), "--owner-pid", str(os.getpid())]
     if not paused:
         argv.append("--play")
@@ -389,7 +400,9 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--name", default=DEFAULT_NODE_NAME, help="node name (default: %(default)s)")
     parser.add_argument("--namespace", default="", help="node namespace")
-    parser.add_argument("--transport", default="zenoh", choices=["zenoh", "inproc"], help="ROS transport")
+    parser.add_argument("--transport", default=None, choices=["zenoh", "rclpy", "inproc"],
+                        help="ROS transport (default: $UNIROS_TRANSPORT, else rclpy when rclpy can be imported: "
+                             "your own ROS 2 graph on its default middleware; else zenoh)")
     parser.add_argument("--robot", action="append", default=[],
                         help="spawn a robot at launch: NAME=URI[?xacro_arg=value...] (repeatable); "
                              "ResetSimulation with SCOPE_ALL brings it back")
@@ -432,7 +445,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     if opts.router:
         transport_options["router"] = opts.router
     stop = start_child_program(opts)
-    ctx = Context(transport=opts.transport, **(transport_options if opts.transport == "zenoh" else {})).init()
+    opts.transport = wire_transport(opts.transport)
+    try:
+        ctx = Context(transport=opts.transport, **(transport_options if opts.transport == "zenoh" else {})).init()
+    except (TransportError, ValueError) as exc:
+        parser.exit(2, f"uniros-sim: {exc}\n")
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True
@@ -457,6 +474,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                      opts.transport, ", ".join(n for n, _ in robots) or "none")
         while not stop.wait(0.5):
             pass
+    except TransportError as exc:  # e.g. an interface package rclpy lacks: say which and how to get it
+        _logger.error("%s", exc)
+        return 2
     except RuntimeError as exc:  # a robot could not be spawned: say why, exit non-zero
         _logger.error("%s", exc)
         return 1

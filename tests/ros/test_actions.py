@@ -90,6 +90,9 @@ def setup(pair):
     client_node = ros.Node("client", context=client_ctx, namespace="/elsewhere")
     client = ActionClient(client_node, SimulateSteps, "/steps")
     assert client.wait_for_server(timeout_sec=5.0)
+    # The server's services can be seen before the server sees the client's feedback subscription;
+    # feedback published before that is not delivered (as with any ROS 2 topic): wait for it.
+    assert _wait(lambda: server._feedback_pub.get_subscription_count() > 0)
     return behaviour, server, client
 
 

@@ -280,7 +280,8 @@ class RealConnection(RobotConnection):
         if self.arm_controller_type == "forward":
             self.link.publish_forward(self.arm_controller, target)
         elif self.command_interface == "action":
-            handle = self.link.send_trajectory_goal(self.arm_controller, self.arm_joints, target, duration)
+            handle = self.link.send_trajectory_goal(self.arm_controller, self.arm_joints, target, duration,
+                                                    stale_after=self.joint_state_timeout)
         else:
             self.link.publish_trajectory(self.arm_controller, self.arm_joints, target, duration)
         self.last_command = np.asarray(target, dtype=np.float64).copy()

@@ -68,7 +68,7 @@ class RealEnvCore(EnvCore):
             own on the graph the environment names (``UNIROS_TRANSPORT``, ``UNIROS_ZENOH_ROUTER``,
             ``ROS_DOMAIN_ID``).
         transport: transport of the context the env creates (default: ``$UNIROS_TRANSPORT``, else
-            ``"zenoh"``).
+            ``"rclpy"`` when rclpy can be imported, else ``"zenoh"``; ``multiros.ros.transport.wire_transport``).
         seed: seed of the first reset; log_internal_state: log each step's state and safety.
     """
 
@@ -145,10 +145,10 @@ class RealEnvCore(EnvCore):
         loop = ControlLoop(k["environment_loop_rate"], k["action_cycle_time"])
 
         from multiros.ros import Context, Node
-        from multiros.ros.context import TRANSPORT_ENV
+        from multiros.ros.transport import wire_transport
 
         self._owns_context = k["context"] is None
-        transport = k["transport"] or os.environ.get(TRANSPORT_ENV) or "zenoh"  # a robot is never in-process
+        transport = wire_transport(k["transport"])  # a robot is never in-process: explicit, env, rclpy, zenoh
         self.context = Context(transport=transport).init() if k["context"] is None else k["context"]
         try:
             self.node = Node(f"uniros_real_env_{os.getpid()}_{next(_env_ids)}", context=self.context)

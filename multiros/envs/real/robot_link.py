@@ -324,29 +324,56 @@ class RobotLink:
         return self._action_client(controller).wait_for_server(timeout_sec=timeout)
 
     def send_trajectory_goal(self, controller: str, joints: Sequence[str], positions: np.ndarray, duration: float,
-                             *, goal_time_tolerance: float = 1.0) -> Any:
+                             *, goal_time_tolerance: float = 1.0, stale_after: float | None = None) -> Any:
         """Send a FollowJointTrajectory goal and wait until it is accepted; returns the goal handle.
 
+        ``stale_after``: stop waiting as soon as ``joint_states`` have been silent this long (a robot
+        killed mid-episode: its action server may linger in the graph for seconds).
+
         Raises:
-            TrajectoryGoalError: rejected, or no answer within ``timeout_sec``.
+            TrajectoryGoalError: rejected, no answer within ``timeout_sec``, or the robot went silent.
         """
         goal = FollowJointTrajectory.Goal()
         goal.trajectory = self.trajectory(joints, positions, duration)
         goal.goal_time_tolerance = _duration(goal_time_tolerance)
         client = self._action_client(controller)
-        future = client.send_goal_async(goal)
-        if not future.wait(self.timeout_sec):
-            raise TrajectoryGoalError(f"{self.action_name(controller)} did not answer the goal within "
-                                      f"{self.timeout_sec:g} s")
+        future = client.send_goal_async(goal, timeout_sec=self.timeout_sec)
+        deadline = time.monotonic() + self.timeout_sec + 0.5  # the call's own bound fails the future first
+        while not future.wait(0.02 if stale_after is not None else self.timeout_sec + 0.5):
+            now = time.monotonic()
+            last = self.states.last_received
+            if stale_after is not None and last is not None and now - last > stale_after:
+                raise TrajectoryGoalError(f"{self.action_name(controller)} did not answer the goal"
+                                          f"{self._robot_news(client)}")
+            if now > deadline:
+                raise TrajectoryGoalError(f"{self.action_name(controller)} did not answer the goal within "
+                                          f"{self.timeout_sec:g} s{self._robot_news(client)}")
         exc = future.exception()
         if exc is not None:
-            raise TrajectoryGoalError(f"{self.action_name(controller)}: {exc}") from exc
+            raise TrajectoryGoalError(f"{self.action_name(controller)} gave no answer to the goal "
+                                      f"({type(exc).__name__}){self._robot_news(client)}") from exc
         handle = future.result()
         if not handle.accepted:
             raise TrajectoryGoalError(
                 f"{self.action_name(controller)} rejected the trajectory to {np.round(positions, 4).tolist()} for "
                 f"{list(joints)}: is the controller active and are these exactly its joints?")
         return handle
+
+    def _robot_news(self, client: Any = None) -> str:
+        """What the robot's side last showed, for an error about it (``": ..."`` or ``""``)."""
+        parts = []
+        last = self.states.last_received
+        if last is None:
+            parts.append(f"no {self.joint_states_topic} message ever arrived")
+        else:
+            age = time.monotonic() - last
+            if age > 0.2:
+                parts.append(f"{self.joint_states_topic} stopped {age:.1f} s ago")
+        if client is not None and not client.server_is_ready():
+            parts.append(f"the action server {client.action_name} is no longer in the ROS graph")
+        if not parts:
+            return ""
+        return ": the robot looks lost (" + "; ".join(parts) + "): is its driver still running?"
 
     @staticmethod
     def check_goal_result(handle: Any, what: str, timeout: float) -> None:

@@ -176,12 +176,14 @@ class ActionClient:
 
     # -- goals -------------------------------------------------------------------------------
     def send_goal_async(
-        self, goal: Any, feedback_callback: Callable[[Any], None] | None = None, goal_uuid: Any = None
+        self, goal: Any, feedback_callback: Callable[[Any], None] | None = None, goal_uuid: Any = None,
+        *, timeout_sec: float | None = None,
     ) -> Future:
         """Send ``goal``; a future of the ``ClientGoalHandle`` (check ``.accepted``).
 
         ``feedback_callback(feedback_message)`` gets this goal's ``X_FeedbackMessage`` messages
-        (``.feedback`` holds the action's Feedback).
+        (``.feedback`` holds the action's Feedback). ``timeout_sec`` bounds the wait for the
+        server's answer (default: the context's ``default_timeout_sec``); the future then fails.
 
         Raises:
             TypeError: ``goal`` is not the action's Goal message.
@@ -198,7 +200,7 @@ class ActionClient:
             with self._lock:
                 self._feedback_callbacks[gid] = feedback_callback
         outer = Future(self._context.notify)
-        sent = self._goal_client.call_async(t.send_goal.Request(goal_id=goal_id, goal=goal))
+        sent = self._goal_client.call_async(t.send_goal.Request(goal_id=goal_id, goal=goal), timeout_sec=timeout_sec)
 
         def on_response(done: Future) -> None:
             exc = done.exception()

@@ -123,10 +123,15 @@ def serialize_message(msg: object) -> bytes:
     return fn(msg)
 
 
-def deserialize_message(data: bytes | bytearray | memoryview, msg_type: type | str) -> object:
+def deserialize_message(data: bytes | bytearray | memoryview, msg_type: type | str, *,
+                        trailing: str = "zero_padding") -> object:
     """Decode CDR bytes (header included) into a message of ``msg_type`` (a class or a type name).
 
     Accepts little- and big-endian CDR and up to 7 zero padding bytes at the end (ROS pads to 4).
+    ``trailing``: what may follow the message: ``"zero_padding"`` (the default), ``"any_padding"``
+    (up to 3 bytes of any value: Fast CDR leaves end padding uninitialised) or ``"ignore"`` (anything:
+    only for bytes from a trusted local serializer; rclpy's ``serialize_message`` can report a
+    buffer longer than the message).
 
     Raises:
         DeserializationError: truncated, corrupt or trailing bytes; names type and field.
@@ -145,6 +150,8 @@ def deserialize_message(data: bytes | bytearray | memoryview, msg_type: type | s
     msg, pos = fn(data, 4, size)
     if pos != size:
         rest = size - pos
+        if trailing == "ignore" or (trailing == "any_padding" and rest <= 3):
+            return msg
         if rest > 7 or (size - 4) % 4 or data[pos:].count(0) != rest:
             raise DeserializationError(cls._type, "", f"{rest} unexpected bytes after the message end")
     return msg

@@ -2,8 +2,8 @@
 
 The context's ``LocalRegistry`` always connects entities of the same context directly. A
 transport makes them visible and reachable beyond it: it returns one handle per entity
-(``None`` when it has nothing to add) and answers graph queries. A future ``rclpy`` or ``dds``
-backend implements this same class.
+(``None`` when it has nothing to add) and answers graph queries. ``inproc``, ``zenoh`` and
+``rclpy`` implement this class.
 """
 
 from __future__ import annotations
@@ -46,6 +46,12 @@ class Transport(ABC):
     """One transport instance per ``Context``."""
 
     name: str = ""
+    #: The transport delivers topic messages between entities of its own context (rclpy cannot
+    #: drop a process's own publications): the registry then leaves topics to it.
+    delivers_local_topics: bool = False
+    #: Longest a ``Context.wait_for`` sleeps between checks of its predicate; a transport that
+    #: announces no graph changes (``Context.notify``) sets it short.
+    poll_sec: float = 1.0
 
     def __init__(self, context: Context) -> None:
         self.context = context

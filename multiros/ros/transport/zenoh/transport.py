@@ -601,8 +601,14 @@ class _ClientHandle(_Token):
             except Exception as exc:  # noqa: BLE001
                 future.set_exception(ServiceCallError(name, f"malformed reply: {exc}"))
 
+        start = time.monotonic()
+
         def on_done() -> None:
-            if not future.done():
+            if future.done():
+                return
+            if time.monotonic() - start < timeout_sec * 0.95:  # the query ended early: nobody answered
+                future.set_exception(ServiceCallError(name, "no reply: the server went away or dropped the request"))
+            else:
                 future.set_exception(ServiceTimeoutError(name, timeout_sec, "no reply"))
 
         try:
