@@ -65,8 +65,6 @@ class ManipulationTask(BatchTask, ArmInterface):
     _episode_start: bool
 
     if TYPE_CHECKING:  # the simulated env core's, below the robot layer
-        def set_joint_positions(self, names: Sequence[str], positions: Sequence[float], hold: bool = True) -> None: ...
-
         @property
         def sim_time(self) -> float: ...
 
@@ -135,7 +133,7 @@ class ManipulationTask(BatchTask, ArmInterface):
     # -- reset hooks (one env at a time) ----------------------------------------------------------------
     def _set_init_pose(self) -> None:
         self.move_to_initial_pose(self.ARM_JOINTS, self.init_joint_pos)
-        self.set_joint_positions(["left_finger"], [self.gripper_range[1]])
+        self.connection.set_joint_positions(["left_finger"], [self.gripper_range[1]])
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
         self.send_command(GRIPPER_CONTROLLER, [self.gripper_target])

@@ -12,6 +12,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.envs.real.safety import SafetyRules
 from multiros.robot_state import RobotStates
@@ -90,7 +91,7 @@ class RealArmRobot(ArmRobot):
         self._ee_cache: tuple[Any, np.ndarray] | None = None
         return kwargs
 
-    def apply_task_joint_limits(self, lower: Sequence[float], upper: Sequence[float]) -> None:
+    def apply_task_joint_limits(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:
         """Tighten the safety rules' joint limits to the task config's (the tighter bound wins)."""
         rules = self.safety
         assert rules is not None, "a real arm's env has safety rules"

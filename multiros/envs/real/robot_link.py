@@ -158,7 +158,7 @@ class JointStateCache:
         with self._cond:
             while True:
                 s = self.sample(names)
-                if s is not None and s.received > newer_than:
+                if s is not None and s.received is not None and s.received > newer_than:
                     return s
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:

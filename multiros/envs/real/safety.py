@@ -33,6 +33,7 @@ from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from multiros.envs.real.errors import UnsafeCommandError
 from multiros.utils.kinematics import KinematicChain
@@ -107,7 +108,7 @@ def description_joint_limits(description: str | os.PathLike[str], joints: Sequen
     return np.array(lower), np.array(upper)
 
 
-def _vector(value: float | Sequence[float] | np.ndarray, n: int, what: str) -> np.ndarray:
+def _vector(value: npt.ArrayLike, n: int, what: str) -> np.ndarray:
     arr = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy() if np.ndim(value) == 0 else (
         np.asarray(value, dtype=np.float64))
     if arr.shape != (n,):
@@ -141,10 +142,10 @@ class SafetyRules:
         self,
         joint_names: Sequence[str],
         *,
-        lower: Sequence[float] | np.ndarray,
-        upper: Sequence[float] | np.ndarray,
-        description_lower: Sequence[float] | np.ndarray | None = None,
-        description_upper: Sequence[float] | np.ndarray | None = None,
+        lower: npt.ArrayLike,
+        upper: npt.ArrayLike,
+        description_lower: npt.ArrayLike | None = None,
+        description_upper: npt.ArrayLike | None = None,
         max_joint_delta: float | Sequence[float] | np.ndarray | None = None,
         max_velocity: float | Sequence[float] | np.ndarray | None = None,
         chain: KinematicChain | None = None,
@@ -183,7 +184,8 @@ class SafetyRules:
         self.workspace_max = None if workspace_max is None else np.asarray(workspace_max, np.float64).reshape(3)
         if (self.workspace_min is None) != (self.workspace_max is None):
             raise ValueError("give both workspace_min and workspace_max, or neither")
-        if self.workspace_min is not None and np.any(self.workspace_min > self.workspace_max):
+        if (self.workspace_min is not None and self.workspace_max is not None
+                and np.any(self.workspace_min > self.workspace_max)):
             raise ValueError(f"workspace_min {self.workspace_min.tolist()} exceeds workspace_max "
                              f"{self.workspace_max.tolist()}")
         self.floor_z = None if floor_z is None else float(floor_z)
@@ -366,7 +368,8 @@ class SafetyRules:
                               self.ee_position(safe))
 
     def __repr__(self) -> str:
-        box = None if self.workspace_min is None else (self.workspace_min.tolist(), self.workspace_max.tolist())
+        box = None if self.workspace_min is None or self.workspace_max is None else (
+            self.workspace_min.tolist(), self.workspace_max.tolist())
         cap = None if self.max_joint_delta is None else self.max_joint_delta.tolist()
         return (f"SafetyRules(joints={list(self.joint_names)}, max_joint_delta={cap}, workspace={box}, "
                 f"floor_z={self.floor_z}, mode={self.workspace_mode!r})")

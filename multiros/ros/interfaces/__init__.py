@@ -19,6 +19,8 @@ are generated on first use. Value representation: see :mod:`._classgen`.
 
 from __future__ import annotations
 
+from typing import Any
+
 from .errors import (
     DeserializationError,
     FieldError,
@@ -71,7 +73,7 @@ __all__ = [
 _HEADER_ERROR = "bad encapsulation header {!r}: expected CDR 00 01 (little endian) or 00 00 (big endian)"
 
 
-def get_message(name: str) -> type:
+def get_message(name: str) -> Any:  # a class generated from the definition
     """The message class of ``name`` (``pkg/msg/Name`` or ``pkg/Name``; ``pkg/srv/X_Request`` too).
 
     Raises:
@@ -80,12 +82,12 @@ def get_message(name: str) -> type:
     return default_registry().message_class(name)
 
 
-def get_service(name: str) -> type:
+def get_service(name: str) -> Any:  # a class generated from the definition
     """The service class of ``name`` (``pkg/srv/Name``), with ``Request``, ``Response`` and ``Event``."""
     return default_registry().service_class(name)
 
 
-def get_action(name: str) -> type:
+def get_action(name: str) -> Any:  # a class generated from the definition
     """The action class of ``name`` (``pkg/action/Name``), with ``Goal``, ``Result``, ``Feedback``, ``Impl``."""
     return default_registry().action_class(name)
 

@@ -6,7 +6,8 @@ joint target every env step and the ``flange`` pose comes back with the step.
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from rl_environments.arm_robot import ArmRobot
@@ -19,7 +20,7 @@ class IRB120Robot(ArmRobot):
     DESCRIPTION_PACKAGE = "abb_irb120_description"
     DESCRIPTION_MODULE = "rl_environments.robots.abb_irb120_description"
     XACRO_FILE = "irb120.urdf.xacro"
-    XACRO_ARGS: dict[str, str] = {}
+    XACRO_ARGS: ClassVar[Mapping[str, str]] = {}
     CONTROLLERS_FILE = "irb120_controllers.yaml"
     ARM_JOINTS = ("joint_1", "joint_2", "joint_3", "joint_4", "joint_5", "joint_6")
     BASE_LINK = "base_link"
