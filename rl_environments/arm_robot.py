@@ -11,11 +11,12 @@ import functools
 from collections.abc import Mapping, Sequence
 from importlib import import_module
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from multiros.envs import EnvError
+from multiros.envs.config import SpawnPose
 from multiros.robot_state import RobotStates
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_interface import ArmInterface
@@ -71,6 +72,9 @@ class ArmRobot(ArmInterface):
     SIM_TIMESTEP: ClassVar[float] = 0.004
     NUM_SIM_STEPS: ClassVar[int] = 10
     RENDER_CAMERA: ClassVar[str] = "render_camera"
+
+    if TYPE_CHECKING:  # the simulated env core's, below this layer
+        spawn_pose: SpawnPose
 
     @classmethod
     def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -140,7 +144,7 @@ class ArmRobot(ArmInterface):
     @property
     def base_position(self) -> np.ndarray:
         """World position of the robot base (its spawn position)."""
-        return np.asarray(self.spawn_pose.position, dtype=np.float64)  # type: ignore[attr-defined]
+        return np.asarray(self.spawn_pose.position, dtype=np.float64)
 
     def arm_positions(self) -> np.ndarray:
         """Arm joint positions after the last step, in ``ARM_JOINTS`` order (a fresh array)."""

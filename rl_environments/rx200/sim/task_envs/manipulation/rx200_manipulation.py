@@ -51,7 +51,7 @@ from multiros.envs.batch_task import StepResults
 from multiros.robot_state import RobotStates
 from rl_environments.manipulation import is_success, object_reward
 from rl_environments.manipulation_task import ManipulationTask, TaskKind
-from rl_environments.reach import goal_distance, parse_reward_type, reward_from_distance
+from rl_environments.reach import RewardType, goal_distance, parse_reward_type, reward_from_distance
 from rl_environments.reach_task import stack_rows
 from rl_environments.rx200.sim.task_envs.manipulation.config import load_rx200_manipulation_config
 
@@ -70,7 +70,7 @@ class _GoalSampler:
 
 class _Common(ManipulationTask):
     TASK: ClassVar[TaskKind]
-    reward_type: str
+    reward_type: RewardType
     terminate_on_success: bool
 
     def _init_task(self, cfg: dict[str, Any], kwargs: dict[str, Any], *, reward_type: str, ee_action_type: bool,
@@ -149,7 +149,7 @@ class RX200ManipulationTask(_Common):
         d = self.object_goal_distance()
         self.info["is_success"] = d <= self.tolerance
         self.info["distance"] = d
-        return float(object_reward(self.object_position(), self.goal, self.tolerance, self.reward_type))  # type: ignore[arg-type]
+        return float(object_reward(self.object_position(), self.goal, self.tolerance, self.reward_type))
 
     def _check_if_done(self) -> bool:
         return self.terminate_on_success and self.object_goal_distance() <= self.tolerance
@@ -212,7 +212,7 @@ class RX200GoalManipulationTask(_Common):
         return {k: v[0] for k, v in obs.items()}
 
     def _compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
-        return object_reward(achieved_goal, desired_goal, self.tolerance, self.reward_type)  # type: ignore[arg-type]
+        return object_reward(achieved_goal, desired_goal, self.tolerance, self.reward_type)
 
     def _is_success(self, achieved_goal: Any, desired_goal: Any) -> Any:
         return is_success(achieved_goal, desired_goal, self.tolerance)
