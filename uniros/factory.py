@@ -71,9 +71,10 @@ def make_vec(
     ``vector_kwargs`` takes ``num_nodes`` (K nodes, N/K robots each: composed in this process and
     stepped at once on threads, or in K processes with ``sim_mode="process"``), ``spacing``
     (metres between world slots), ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and
-    ``"async"`` (Gymnasium's, one node per env) work as before. The default (``None``) is
-    Gymnasium's: the ID's ``vector_entry_point`` when it has one (the simulated IDs: batched),
-    else ``"sync"``. See ``docs/vector_envs.md``.
+    ``"async"`` (Gymnasium's, one node per env) work as before. The default (``None``) picks the
+    fastest form: ``"batched"`` for an ID whose env is a uniros simulated env (the shipped IDs, and
+    yours built on ``MujocoBaseEnv``/``MujocoGoalEnv``), with one composed node per core; else
+    Gymnasium's default (the ID's ``vector_entry_point``, or ``"sync"``). See ``docs/vector_envs.md``.
 
     Raises:
         ValueError: ``num_envs`` beyond the node's ``max_robots`` or bad batch options.
@@ -81,15 +82,29 @@ def make_vec(
     if env_id not in gym.registry:
         make(env_id)  # raises the helpful error
     vector_entry = gym.spec(env_id).vector_entry_point
-    if vectorization_mode is None and isinstance(vector_entry, str) and \
-            vector_entry.startswith(rl_environments.VECTOR_ENTRY_MODULE + ":"):
-        vectorization_mode = "batched"  # the ID's own vector entry point (see rl_environments.vector_entry)
+    if vectorization_mode is None:
+        if isinstance(vector_entry, str) and vector_entry.startswith(rl_environments.VECTOR_ENTRY_MODULE + ":"):
+            vectorization_mode = "batched"  # the ID's own vector entry point (see rl_environments.vector_entry)
+        elif vector_entry is None and _simulated(env_id) and kwargs.get("sim_mode", "composed") == "composed":
+            vectorization_mode = "batched"  # a uniros simulated env of the user's: its robots share nodes
     if vectorization_mode != "batched":
         return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode=vectorization_mode,
                             vector_kwargs=vector_kwargs, **kwargs)
     from multiros.envs.vector import make_batched_vector_env
 
     return make_batched_vector_env(env_id, num_envs, vector_options=vector_kwargs, **kwargs)
+
+
+def _simulated(env_id: str) -> bool:
+    """Whether the ID builds a uniros simulated env (known from its class, without making one)."""
+    from multiros.envs.batch import env_creator
+    from multiros.envs.sim_env import MujocoEnvCore
+
+    try:
+        creator = env_creator(env_id)
+    except Exception:  # noqa: BLE001 - an entry point that does not load: gymnasium's make_vec says why
+        return False
+    return isinstance(creator, type) and issubclass(creator, MujocoEnvCore)
 
 
 def make_batch(env_id: str, num_envs: int, batch_options: dict[str, Any] | None = None, **kwargs: Any) -> Any:

@@ -118,6 +118,8 @@ class SimConnection(RobotConnection):
         self.world_slot = slot
         self._slot: np.ndarray | None = slot if np.any(slot) else None
         self.shared = shared is not None
+        if shared is not None and model is not None:  # a batch's node: this env's own robot files
+            shared.trust(local_description_dirs(model.robot_model_xml, model.controllers_file))
         self.link = shared if shared is not None else connect(
             sim_mode, node_name=sim_node_name, transport=transport, gui=gui, timeout_sec=self.timeout_sec,
             trusted_paths=local_description_dirs(model.robot_model_xml, model.controllers_file) if model else ())

@@ -128,6 +128,12 @@ class SimulationConnection:
             return ComposedStepper(self.sim_node)
         return ServiceStepper(self.client, timeout_sec)
 
+    def trust(self, paths: Sequence[str]) -> None:
+        """Let the node read local robot files under ``paths`` (see :meth:`SimulationNode.trust_paths`):
+        a composed node only; a node in another process keeps the trusted paths it started with."""
+        if self.sim_node is not None and paths:
+            self.sim_node.trust_paths(paths)
+
     def show_viewer(self) -> None:
         """Open (or refresh) the interactive viewer of a composed node."""
         if self.sim_node is None:

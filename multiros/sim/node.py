@@ -20,10 +20,11 @@ controller command topics; ``/tf``.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -243,6 +244,16 @@ class SimulationNode(Node):
             robot.destroy()
         self.cameras.detach(name)
         self._frame_sets.forget(name)
+
+    def trust_paths(self, paths: Iterable[str | Path]) -> None:
+        """Let descriptions name local files under ``paths`` too: for envs composed in this process
+        (the node's owner), whose robot files live in their own package folders. A node in another
+        process takes its trusted paths at start (``--trusted-path``) and from nobody else."""
+        extra = SourcePolicy.create(paths).trusted_paths
+        with self.lock:
+            known = self.source_policy.trusted_paths
+            self.source_policy = dataclasses.replace(
+                self.source_policy, trusted_paths=known + tuple(p for p in extra if p not in known))
 
     @property
     def simulation_state(self) -> int:
