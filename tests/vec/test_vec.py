@@ -141,6 +141,9 @@ def test_diverging_or_refused_robot_ends_its_episode_alone(num_nodes: int, bad: 
         assert not trunc.any()
         with pytest.raises(ValueError, match="NaN"):
             vec.step(np.full((3, 5), np.nan, np.float32))
+        for wrong in (np.zeros((2, 5), np.float32), np.zeros((3, 4), np.float32), np.zeros(5, np.float32)):
+            with pytest.raises(ValueError, match=r"give an array of shape \(3, 5\)"):
+                vec.step(wrong)  # one clear error, nothing stepped (was an IndexError)
     finally:
         vec.close()
 
