@@ -89,6 +89,14 @@ class RobotStates:
         return RobotState(self.sim_time, self.names, self.position[j], self.velocity[j], self.effort[j],
                           self.frame_positions[j], self.frame_orientations[j])
 
+    def put_row(self, j: int, state: RobotState) -> bool:
+        """Make row ``j`` ``state`` (copied in); ``False``, changing nothing, when it is not alike."""
+        if state.names != self.names or state.frame_positions.shape != self.frame_positions.shape[1:]:
+            return False
+        self.position[j], self.velocity[j], self.effort[j] = state.position, state.velocity, state.effort
+        self.frame_positions[j], self.frame_orientations[j] = state.frame_positions, state.frame_orientations
+        return True
+
     def rows(self) -> list[RobotState]:
         """Every robot's state, in order."""
         t, names = self.sim_time, self.names

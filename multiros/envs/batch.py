@@ -142,6 +142,7 @@ class EnvBatch:
         self.envs: list[Any] = []
         self.task: type | None = None
         self._elapsed = np.zeros(num_envs, dtype=np.int64)
+        self._current: RobotStates | None = None  # every env's state as rows, while it stands
         self._executor: concurrent.futures.ThreadPoolExecutor | None = None
         tag = f"{os.getpid()}x{next(_batch_ids)}"
         try:
@@ -204,12 +205,14 @@ class EnvBatch:
         """
         indices = list(indices)
         envs = [self.envs[i] for i in indices]
+        every = len(indices) == self.num_envs and indices == list(range(self.num_envs))
         task = self.task if self.task is not None and not any(map(uses_own_hooks, envs)) else None
-        self._act(envs, actions, task)
+        self._act(envs, actions, task, self._current if every else None)
         groups: dict[int, list[int]] = {}
         for j, i in enumerate(indices):
             groups.setdefault(self.node_of[i], []).append(j)
         stacked = self._advance(envs, groups)
+        self._current = stacked if every else None
         if task is not None:
             states = stacked if stacked is not None else RobotStates.of([env.robot_state for env in envs])
             if states is None:
@@ -226,15 +229,17 @@ class EnvBatch:
                 results.truncated[j] = True
         return results
 
-    def _act(self, envs: Sequence[Any], actions: Any, task: type | None) -> None:
-        """The envs' action hooks: all at once for a batch-first task, else env by env (either way
-        a bad action raises before anything is sent)."""
+    def _act(self, envs: Sequence[Any], actions: Any, task: type | None, states: RobotStates | None) -> None:
+        """The envs' action hooks: all at once for a batch-first task (``states``: the envs' current
+        states as rows, when the batch holds them), else env by env (either way a bad action raises
+        before anything is sent)."""
         if task is None:
             for env, action in zip(envs, actions):
                 env.step_act(action)
             return
         checked = envs[0].check_actions(np.asarray(actions, dtype=np.float64))
-        states = RobotStates.of([env.robot_state for env in envs])
+        if states is None:
+            states = RobotStates.of([env.robot_state for env in envs])
         if states is None:
             raise EnvError(f"the robots of {type(envs[0]).__name__} report different joints; a batch-first task "
                            "needs robots alike")
@@ -344,7 +349,11 @@ class EnvBatch:
     def reset_env(self, i: int, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         """Reset env ``i`` alone (its robot and its objects back to their spawn state, then its reset hooks)."""
         self._elapsed[i] = 0
-        return self.envs[i].reset(seed=seed, options=options)
+        out = self.envs[i].reset(seed=seed, options=options)
+        current = self._current
+        if current is not None and not current.put_row(i, self.envs[i].robot_state):  # row i follows the reset
+            self._current = None
+        return out
 
     def node_loads(self) -> list[dict[str, Any]]:
         """Each node's ``GetNodeLoad`` answer (robots, physics steps/s, memory)."""

@@ -66,20 +66,42 @@ class BatchedVectorEnv(VectorEnv):
         elif isinstance(space, spaces.Dict) and all(isinstance(s, spaces.Box) for s in space.spaces.values()):
             self._box_keys = tuple(space.spaces)
 
-    def _batch_observations(self) -> Any:
-        """The sub-envs' observations stacked into the batch buffer (as gymnasium's ``concatenate``),
-        returned as a copy when ``copy`` is set."""
-        keys, items = self._box_keys, self._env_obs
+    def _put(self, i: int, obs: Any) -> None:
+        """Env ``i``'s observation into the batch buffer."""
+        keys = self._box_keys
         if keys is None:
-            self._observations = concatenate(self.single_observation_space, items, self._observations)
-            return deepcopy(self._observations) if self.copy else self._observations
-        # Slice assignment of the list stacks as np.stack(out=...) does, in a quarter of its time.
+            self._env_obs[i] = obs
+        elif not keys:
+            self._observations[i] = obs
+        else:
+            out = self._observations
+            for key in keys:
+                out[key][i] = obs[key]
+
+    def _put_rows(self, rows: list[int], stacked: Any) -> None:
+        """Stacked observations (a step's, rows in the order of ``rows``) into the batch buffer at once."""
+        keys = self._box_keys
+        if keys is None:
+            for j, i in enumerate(rows):
+                self._env_obs[i] = {k: v[j] for k, v in stacked.items()} if isinstance(stacked, dict) else stacked[j]
+            return
+        where: Any = slice(None) if len(rows) == self.num_envs else rows  # all envs: one copy per key
         if not keys:
-            self._observations[...] = items
+            self._observations[where] = stacked
+        else:
+            out = self._observations
+            for key in keys:
+                out[key][where] = stacked[key]
+
+    def _batch_observations(self) -> Any:
+        """The batch buffer (copied when ``copy`` is set); other spaces stacked by gymnasium's ``concatenate``."""
+        keys = self._box_keys
+        if keys is None:
+            self._observations = concatenate(self.single_observation_space, self._env_obs, self._observations)
+            return deepcopy(self._observations) if self.copy else self._observations
+        if not keys:
             return self._observations.copy() if self.copy else self._observations
         out = self._observations
-        for key in keys:
-            out[key][...] = [obs[key] for obs in items]
         return {key: out[key].copy() for key in keys} if self.copy else out
 
     # -- gymnasium API ----------------------------------------------------------------------
@@ -104,7 +126,8 @@ class BatchedVectorEnv(VectorEnv):
                 raise ValueError("options['reset_mask'] must hold at least one True value")
         infos: dict[str, Any] = {}
         for i in np.flatnonzero(mask):
-            self._env_obs[i], info = self.batch.reset_env(int(i), seeds[i], options)
+            obs, info = self.batch.reset_env(int(i), seeds[i], options)
+            self._put(int(i), obs)
             infos = self._add_info(infos, info, int(i))
         self._terminations[mask] = False
         self._truncations[mask] = False
@@ -130,8 +153,8 @@ class BatchedVectorEnv(VectorEnv):
             if len(stepping) < self.num_envs:
                 acts = acts[stepping] if isinstance(acts, np.ndarray) else [acts[i] for i in stepping]
             res = self.batch.step_envs(stepping, acts)
+            self._put_rows(stepping, res.obs)
             for j, i in enumerate(stepping):
-                self._env_obs[i] = res.obs_row(j)
                 per_env[i] = res.infos[j]
             self._rewards[stepping] = res.reward
             self._terminations[stepping] = res.terminated
@@ -140,9 +163,11 @@ class BatchedVectorEnv(VectorEnv):
                 for j, i in enumerate(stepping):
                     if res.terminated[j] or res.truncated[j]:
                         infos = self._add_info(infos, {"final_obs": res.obs_row(j), "final_info": res.infos[j]}, i)
-                        self._env_obs[i], per_env[i] = self.batch.reset_env(i)
+                        obs, per_env[i] = self.batch.reset_env(i)
+                        self._put(i, obs)
         for i in (i for i, reset in enumerate(resetting) if reset):
-            self._env_obs[i], per_env[i] = self.batch.reset_env(i)
+            obs, per_env[i] = self.batch.reset_env(i)
+            self._put(i, obs)
             self._rewards[i] = 0.0
             self._terminations[i] = self._truncations[i] = False
         merged = None if infos else _merge_plain_infos(per_env, self.num_envs)
