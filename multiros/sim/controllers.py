@@ -94,7 +94,9 @@ class RobotHardware:
 
 def _check_vector(values: Sequence[float], n: int, what: str) -> np.ndarray:
     try:
-        arr = np.asarray(values, dtype=float).reshape(-1)
+        arr = np.asarray(values, dtype=float)
+        if arr.ndim != 1:
+            arr = arr.reshape(-1)
     except (TypeError, ValueError) as exc:
         raise CommandError(f"{what}: command is not a vector of numbers ({exc})") from exc
     if arr.shape[0] != n:
@@ -183,7 +185,7 @@ class ForwardCommandController(Controller):
                                   f"position, velocity, effort")
         self.mode = {"position": JointMode.POSITION, "velocity": JointMode.VELOCITY,
                      "effort": JointMode.EFFORT}[self.interface]
-        self._limit_cache: tuple[RobotHardware, np.ndarray, np.ndarray, np.ndarray] | None = None  # see _limits
+        self._limit_cache: tuple[RobotHardware, np.ndarray, np.ndarray, np.ndarray, slice | np.ndarray] | None = None
 
     @property
     def command_interfaces(self) -> tuple[str, ...]:
@@ -204,19 +206,23 @@ class ForwardCommandController(Controller):
             self.hw.command[self.idx] = 0.0
 
     def set_command(self, values: Sequence[float], time: float) -> None:
-        arr = _check_vector(values, len(self.idx), f"controller '{self.name}'")
+        lower, upper, where = self._limits()
+        arr = _check_vector(values, len(lower), f"controller '{self.name}'")
         if self.mode == JointMode.POSITION:
-            lower, upper = self._limits()
             arr = np.minimum(np.maximum(arr, lower), upper)  # np.clip, faster
-        self.hw.command[self.idx] = arr
+        self.hw.command[where] = arr
 
-    def _limits(self) -> tuple[np.ndarray, np.ndarray]:
-        """The position limits of this controller's joints (the hardware's never change in place),
-        gathered again only when its hardware or joints do."""
+    def _limits(self) -> tuple[np.ndarray, np.ndarray, slice | np.ndarray]:
+        """The position limits of this controller's joints (the hardware's never change in place)
+        and where they sit in the hardware's arrays (a slice when consecutive), gathered again only
+        when its hardware or joints do."""
         cached = self._limit_cache
         if cached is None or cached[0] is not self.hw or cached[1] is not self.idx:
-            cached = self._limit_cache = (self.hw, self.idx, self.hw.lower[self.idx], self.hw.upper[self.idx])
-        return cached[2], cached[3]
+            idx = self.idx
+            run = len(idx) > 0 and bool(np.all(np.diff(idx) == 1))
+            where = slice(int(idx[0]), int(idx[-1]) + 1) if run else idx
+            cached = self._limit_cache = (self.hw, idx, self.hw.lower[idx], self.hw.upper[idx], where)
+        return cached[2], cached[3], cached[4]
 
 
 class JointGroupPositionController(ForwardCommandController):
