@@ -96,7 +96,12 @@ def step_simulation(node: SimulationNode, request: Any, response: Any) -> Any:
 
 
 def step_robot(node: SimulationNode, request: Any, response: Any) -> Any:
-    """``uniros_interfaces/srv/StepRobot``: commands, then steps, then the robot's observation."""
+    """``uniros_interfaces/srv/StepRobot``: commands, then steps, then the robot's observation.
+
+    A StepRobots call of one robot (:class:`StepRobotsCall`, the one implementation) that stops
+    before stepping when the robot's part is refused, with StepRobot's codes: an unknown robot
+    ``NOT_FOUND``, a refused command or frame the robot's code; divergence ``UNSTABLE``.
+    """
     res = response.result
     steps = int(request.steps)
     if too_many_steps(node, steps, res):
@@ -104,46 +109,30 @@ def step_robot(node: SimulationNode, request: Any, response: Any) -> Any:
     if len(request.frames) > _MAX_FRAMES:
         fail(res, response.UNKNOWN_FRAME, f"{len(request.frames)} frames requested; at most {_MAX_FRAMES}")
         return response
-    if steps > 0 and node.simulation_state != SimulationState.STATE_PAUSED:
-        fail(res, INCORRECT_STATE, "StepRobot with steps > 0 needs a paused simulation (lockstep mode)")
+    item = RobotStepItem(request.entity, False, {c.controller: c.command for c in request.commands},
+                         tuple(request.frames))
+    try:
+        call = StepRobotsCall(node, [item], steps, stop_on_refusal=True)
+    except StepRobotsRefused as exc:
+        fail(res, exc.code, exc.message.replace("StepRobots", "StepRobot"))
         return response
-    entity = request.entity
-    world = node.world
-    with node.lock:
-        robot = node._robots.get(entity)
-        if robot is None:
-            fail(res, NOT_FOUND, f"no robot {entity!r}; robots: {list(node._robots)}")
-            return response
-        try:
-            for command in request.commands:
-                world.set_command(entity, command.controller, command.command)
-        except CommandError as exc:
-            fail(res, response.BAD_COMMAND, str(exc))
-            return response
-        except ControllerError as exc:
-            fail(res, response.UNKNOWN_CONTROLLER, str(exc))
-            return response
-        frames = tuple(request.frames)
-        frame_set = None
-        if frames:
-            try:
-                frame_set = node._frame_sets.get(world, entity, frames)
-            except EntityError as exc:
-                fail(res, response.UNKNOWN_FRAME, str(exc))
-                return response
-        if steps > 0:
-            try:
-                node._step_world(steps)
-            except UnstableSimulationError as exc:
-                fail(res, response.UNSTABLE, str(exc))
-                return response
-            except StepInterruptedError as exc:
-                fail(res, FAILED, str(exc))
-                return response
-            node._after_step()
-        _fill_robot_state(response, robot, frame_set)
-        response.sim_time = convert.time_msg(world.time)
-    ok(res)
+
+    def read(prepared: Sequence[tuple[Any, FrameSet | None]]) -> list[Any]:
+        robot, frame_set = prepared[0]
+        return [None if robot is None else _fill_robot_state(response, robot, frame_set)]
+
+    try:
+        ((code, message, _),), sim_time = call.run(read)
+    except StepRobotsRefused as exc:
+        fail(res, exc.code, exc.message)
+        return response
+    if code == RobotStepResult.UNKNOWN_ROBOT:
+        fail(res, NOT_FOUND, f"{message}; robots: {list(node._robots)}")
+    elif code != RobotStepResult.OK:
+        fail(res, code, message)
+    else:
+        response.sim_time = convert.time_msg(sim_time)
+        ok(res)
     return response
 
 
@@ -250,7 +239,7 @@ class StepRobotsCall:
     """
 
     def __init__(self, node: SimulationNode, items: Sequence[StepItem], steps: int,
-                 cache: ResolvedRobots | None = None) -> None:
+                 cache: ResolvedRobots | None = None, *, stop_on_refusal: bool = False) -> None:
         if steps > node.max_steps_per_call:
             raise StepRobotsRefused(FAILED, too_many_steps_message(node, steps))
         key = tuple((item.entity, tuple(item.frames)) for item in items)
@@ -261,6 +250,7 @@ class StepRobotsCall:
                                     "(lockstep mode)")
         self.node, self.items, self.steps = node, items, steps
         self.key, self.cache = key, cache
+        self.stop_on_refusal = stop_on_refusal  # StepRobot's rule: a refused part stops the call unstepped
         self.status = [RobotStepResult.OK] * len(items)
         self.message = [""] * len(items)
         self._prepared: list[tuple[Any, FrameSet | None]] = []
@@ -286,7 +276,7 @@ class StepRobotsCall:
 
     def advance(self) -> None:
         """Step the world (any thread; the preparing thread holds the lock)."""
-        if self.steps <= 0:
+        if self.steps <= 0 or (self.stop_on_refusal and any(self.status)):
             return
         try:
             self.node._step_world(self.steps)
@@ -310,6 +300,8 @@ class StepRobotsCall:
         try:
             if self._interrupted is not None:
                 raise StepRobotsRefused(FAILED, str(self._interrupted)) from self._interrupted
+            if self.stop_on_refusal and any(self.status):
+                return list(zip(self.status, self.message, [None] * len(self.items))), self.node.world.time
             if self.steps > 0:
                 self.node._after_step()
             states = read(self._prepared)
