@@ -193,10 +193,11 @@ class UR5eTopDownIK(NumericTopDownIK):
     """Top-down IK of the UR5e to ``grasp_link`` (joints ``ur5e_description.ARM_JOINTS``): elbow up,
     wrist 2 at -pi/2 from its seed ``ur5e_description.HOME_POSE``."""
 
-    def __init__(self) -> None:
+    def __init__(self, lower: Sequence[float] | None = None, upper: Sequence[float] | None = None) -> None:
         from rl_environments.robots import ur5e_description as pkg
 
-        super().__init__(_chain("ur5e_description", pkg.BASE_LINK, pkg.EE_LINK), "z", "x", pkg.HOME_POSE)
+        super().__init__(_chain("ur5e_description", pkg.BASE_LINK, pkg.EE_LINK), "z", "x", pkg.HOME_POSE,
+                         lower=lower, upper=upper)
 
 
 class NED2TopDownIK(NumericTopDownIK):
@@ -205,10 +206,11 @@ class NED2TopDownIK(NumericTopDownIK):
 
     SEED = (0.0, 0.1, -0.3, 0.0, -1.4, 0.0)
 
-    def __init__(self) -> None:
+    def __init__(self, lower: Sequence[float] | None = None, upper: Sequence[float] | None = None) -> None:
         from rl_environments.robots import ned2_description as pkg
 
-        super().__init__(_chain("ned2_description", pkg.BASE_LINK, pkg.EE_LINK), "x", "y", self.SEED)
+        super().__init__(_chain("ned2_description", pkg.BASE_LINK, pkg.EE_LINK), "x", "y", self.SEED,
+                         lower=lower, upper=upper)
 
 
 _IK = {"vx300s": VX300STopDownIK, "ur5e": UR5eTopDownIK, "ned2": NED2TopDownIK}

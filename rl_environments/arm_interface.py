@@ -14,7 +14,7 @@ robot layer, earlier in every task env's method resolution order, implements the
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -23,8 +23,9 @@ from gymnasium import spaces
 
 from multiros.robot_state import RobotState, RobotStates
 from multiros.utils.kinematics import KinematicChain
+from rl_environments.arm_ik import TopDownIK
 
-__all__ = ["ArmInterface", "ARM_INTERFACE_MEMBERS"]
+__all__ = ["ArmInterface", "ARM_INTERFACE_MEMBERS", "MANIPULATION_MEMBERS"]
 
 # The members a task may use (tests check both robot layers provide them).
 ARM_INTERFACE_MEMBERS = (
@@ -32,6 +33,11 @@ ARM_INTERFACE_MEMBERS = (
     "ee_position", "set_arm_targets", "move_to_initial_pose", "node", "info", "np_random", "arm_positions_of",
     "arm_velocities_of", "ee_positions_of", "set_arm_targets_of", "send_command", "robot_state", "joint_positions",
     "joint_velocities",
+)
+#: What push and pick-and-place use besides (the arm's gripper and scene).
+MANIPULATION_MEMBERS = (
+    "FINGER_JOINTS", "FINGER_MIMIC", "SCENE", "top_down_ik", "spawn_scene", "object_poses_of", "observation_time",
+    "place_object", "open_fingers_at_reset", "command_grippers",
 )
 
 
@@ -45,6 +51,9 @@ class ArmInterface:
     ARM_JOINTS: ClassVar[tuple[str, ...]]
     EE_LINK: ClassVar[str]
     ARM_CONTROLLER: ClassVar[str]
+    FINGER_JOINTS: ClassVar[tuple[str, ...]]
+    FINGER_MIMIC: ClassVar[float]
+    SCENE: ClassVar[Mapping[str, Any]]
     info: dict[str, Any]
     np_random: np.random.Generator
     action_space: spaces.Space[Any]
@@ -66,6 +75,13 @@ class ArmInterface:
         def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray: ...
 
         def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray: ...
+
+    @property
+    def state_space(self) -> spaces.Space[Any]:
+        """The observation space of the task's state observation: the observation space, less the
+        camera images when the env observes through a camera (:mod:`rl_environments.camera_obs`)."""
+        space = self.__dict__.get("_state_space")
+        return self.observation_space if space is None else space
 
     @property
     def action_box(self) -> spaces.Box:
@@ -121,4 +137,37 @@ class ArmInterface:
 
     def set_arm_targets(self, targets: np.ndarray) -> None:
         """Command arm joint targets (the real layer passes them through its safety rules)."""
+        raise NotImplementedError
+
+    # -- push and pick-and-place: the gripper and the scene (the robot layer's) -------------------------
+    @classmethod
+    def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> TopDownIK:
+        """The arm's IK with the gripper pointing down, within joint limits ``lower``/``upper``."""
+        raise NotImplementedError
+
+    def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
+        """Make the table and the object exist (spawned in simulation; a tracker's on a robot)."""
+        raise NotImplementedError
+
+    @classmethod
+    def object_poses_of(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
+        """``(N, 3)`` world positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of the envs' objects."""
+        raise NotImplementedError
+
+    @classmethod
+    def observation_time(cls, envs: Sequence[Any], states: RobotStates) -> float:
+        """Seconds on the clock of ``states`` (for finite-difference velocities)."""
+        raise NotImplementedError
+
+    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
+        """Put the object at its episode start (a teleport in simulation)."""
+        raise NotImplementedError
+
+    def open_fingers_at_reset(self, opening: float) -> None:
+        """Open the fingers to ``opening`` at an episode's start."""
+        raise NotImplementedError
+
+    @classmethod
+    def command_grippers(cls, envs: Sequence[Any], targets: Sequence[float]) -> None:
+        """Send each env's gripper its finger target (the first of ``FINGER_JOINTS``, metres)."""
         raise NotImplementedError

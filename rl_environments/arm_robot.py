@@ -1,8 +1,14 @@
 """The robot layer every arm shares: spawn from a description package, a group position
-controller for the arm, an end-effector frame, and a kinematic chain for EE actions and goals.
+controller for the arm, an end-effector frame, and a kinematic chain for EE actions and goals;
+for push and pick-and-place also its gripper, its top-down IK and its scene (a table and a cube
+from the description package's ``mjcf/``, spawned next to the robot).
 
-A robot env is this mixin plus constants (see ``rl_environments/rx200/sim/robot_envs``), mixed
-into :class:`~multiros.envs.MujocoBaseEnv` or :class:`~multiros.envs.MujocoGoalEnv`.
+A robot env is this mixin plus constants (see ``rl_environments/rx200/sim/robot_envs`` or
+``rl_environments/vx300s/robot.py``), mixed into :class:`~multiros.envs.MujocoBaseEnv` or
+:class:`~multiros.envs.MujocoGoalEnv`. The real robot layer
+(:class:`~rl_environments.real_arm_robot.RealArmRobot`) keeps the constants and replaces what
+differs on a robot: the end effector by forward kinematics, commands through the safety rules, the
+object's pose from a tracker instead of the simulation.
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ from multiros.envs import EnvError
 from multiros.envs.config import SpawnPose
 from multiros.robot_state import RobotStates
 from multiros.utils.kinematics import KinematicChain
+from rl_environments.arm_ik import TopDownIK
 from rl_environments.arm_interface import ArmInterface
 
 _ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray | slice] = {}
@@ -53,6 +60,16 @@ class ArmRobot(ArmInterface):
             ``SIM_TIMESTEP * NUM_SIM_STEPS`` (40 ms, Fetch's, by default).
         RENDER_CAMERA: the description's camera ``render()`` uses unless ``render_camera`` is
             given (in the world: ``"<robot_name>/<camera>"``); empty = the node's default view.
+
+    Push and pick-and-place (:class:`~rl_environments.manipulation_task.ManipulationTask`) also need:
+        GRIPPER_CONTROLLER: the controller commanding the first of ``FINGER_JOINTS`` (a position).
+        FINGER_JOINTS: the commanded finger joint and the one mimicking it.
+        FINGER_MIMIC: the second finger's position per unit of the first (its URDF ``<mimic>``).
+        SCENE: the push / pick-and-place scene, positions relative to the robot base (the description
+            package's ``SCENE``: ``robot_height``, ``table_center``, ``table_top``, ``object_half_size``,
+            ``init_ee_position``, the object, goal and end-effector boxes, ``target_height_max``,
+            ``max_object_distance``); ``mjcf/table.xml`` and ``mjcf/cube.xml`` of the package match it.
+        :meth:`top_down_ik`: the arm's IK with the gripper pointing down.
     """
 
     ROBOT_NAME: ClassVar[str]
@@ -72,6 +89,20 @@ class ArmRobot(ArmInterface):
     SIM_TIMESTEP: ClassVar[float] = 0.004
     NUM_SIM_STEPS: ClassVar[int] = 10
     RENDER_CAMERA: ClassVar[str] = "render_camera"
+    GRIPPER_CONTROLLER: ClassVar[str] = ""
+    FINGER_JOINTS: ClassVar[tuple[str, ...]] = ()
+    FINGER_MIMIC: ClassVar[float] = -1.0
+    SCENE: ClassVar[Mapping[str, Any]] = {}
+
+    @classmethod
+    def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> TopDownIK:
+        """The arm's top-down IK within joint limits ``lower``/``upper`` (push and pick-and-place)."""
+        raise EnvError(f"{cls.__name__} has no top-down IK: push and pick-and-place need one (top_down_ik)")
+
+    @classmethod
+    def scene_uri(cls, item: str) -> str:
+        """``package://`` URI of the scene's ``"table"`` or ``"cube"`` MJCF in the description package."""
+        return f"package://{cls.DESCRIPTION_PACKAGE}/mjcf/{item}.xml"
 
     if TYPE_CHECKING:  # the simulated env core's, below this layer
         spawn_pose: SpawnPose
@@ -161,6 +192,44 @@ class ArmRobot(ArmInterface):
     def set_arm_targets(self, targets: np.ndarray) -> None:
         """Command the arm's position controller (sent with the next physics step)."""
         self.set_arm_targets_of([self], np.asarray(targets, dtype=np.float64)[None])
+
+    # -- the push / pick-and-place scene in simulation (a real robot layer replaces these) -------------
+    def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
+        """Spawn the table and the object into the robot's namespace (a shared world's reset puts them
+        back with the robot) and ask every step for their root bodies' poses too."""
+        self.connection.spawn_entity(table, self.scene_uri("table"), table_position)
+        self.connection.spawn_entity(obj, self.scene_uri("cube"), object_position)
+        self.connection.add_frames((f"{obj}/object", f"{table}/table"))
+        self.connection.refresh(0)
+
+    @classmethod
+    def object_poses_of(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
+        """``(N, 3)`` positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of the envs' objects
+        (frames returned with the step)."""
+        fi = envs[0].connection.frame_index(envs[0].object_frame)
+        return states.frame_positions[:, fi], states.frame_orientations[:, fi]
+
+    @classmethod
+    def observation_time(cls, envs: Sequence[Any], states: RobotStates) -> float:
+        """The clock of the states (finite-difference velocities): simulation time."""
+        return states.sim_time
+
+    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
+        """Teleport the object (at rest) to its episode start; put the table back when knocked."""
+        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:  # type: ignore[attr-defined]
+            self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
+        self.connection.place_entity(self.object_entity, position, quat)
+
+    def open_fingers_at_reset(self, opening: float) -> None:
+        """Put the fingers at ``opening`` for the episode start (a teleport, held; the second finger
+        at its mimic position)."""
+        self.connection.set_joint_positions(self.FINGER_JOINTS, [opening, self.FINGER_MIMIC * opening])
+
+    @classmethod
+    def command_grippers(cls, envs: Sequence[Any], targets: Sequence[float]) -> None:
+        """Each env's finger target (the gripper controller's command, with the next step)."""
+        for env, target in zip(envs, targets):
+            env.connection.command(cls.GRIPPER_CONTROLLER, np.array([float(target)]))
 
     def _check_connection_and_readiness(self) -> bool:
         names = self.robot_state.names

@@ -123,9 +123,16 @@ class RX200TopDownIK:
         self._a = float(np.hypot(*self.UPPER))
         self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
 
-    def solve(self, target: np.ndarray) -> np.ndarray:
+    joint_names = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
+
+    def solve(self, target: Sequence[float], yaw: float | None = None,
+              q0: Sequence[float] | None = None) -> np.ndarray:
         """Joint targets (clipped into the limits) putting ``ee_gripper_link`` at ``target``
-        (base frame), gripper vertical; an unreachable target is pulled in to the reachable edge."""
+        (base frame), gripper vertical; an unreachable target is pulled in to the reachable edge.
+
+        ``yaw``: the direction (rad about +z) the fingers close along; None closes them across the
+        radial direction (wrist_rotate 0). ``q0`` is not needed (closed form) and accepted as every
+        arm's top-down IK takes it (:class:`rl_environments.arm_ik.TopDownIK`)."""
         x, y, z = (float(v) for v in target)
         waist = float(np.arctan2(y, x)) if np.hypot(x, y) > 1e-6 else 0.0
         r = float(np.hypot(x, y))
@@ -142,7 +149,12 @@ class RX200TopDownIK:
         shoulder = self._alpha0 - phi1
         elbow = -phi2 - shoulder
         wrist = np.pi / 2 - shoulder - elbow
-        return np.clip(np.array([waist, shoulder, elbow, wrist, 0.0]), self.lower, self.upper)
+        rotate = 0.0
+        if yaw is not None:  # wrist_rotate = 0 closes along waist + pi/2; +t turns that by -t about +z
+            rotate = float((waist + np.pi / 2 - yaw + np.pi) % (2 * np.pi) - np.pi)
+            if abs(rotate) > np.pi / 2:  # the same grasp half a turn round turns the wrist less
+                rotate = float((rotate + 2 * np.pi) % (2 * np.pi) - np.pi)
+        return np.clip(np.array([waist, shoulder, elbow, wrist, rotate]), self.lower, self.upper)
 
 
 def object_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, threshold: float,

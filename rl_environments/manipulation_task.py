@@ -1,12 +1,15 @@
-"""The task layer of push and pick-and-place: a table and an object spawned through the node's
-SpawnEntity, their poses returned by every step's single StepRobot round trip, per-episode object
-and goal poses set through SetEntityState, end-effector (or joint) actions plus a gripper
-command, Fetch-style observations, and the faults that end an episode.
+"""The task layer of push and pick-and-place, for every arm: a table and an object next to the
+robot, per-episode object and goal poses, end-effector (or joint) actions plus a gripper command,
+Fetch-style observations, and the faults that end an episode.
 
-How the object's pose comes back: the robot env asks each step for its end-effector frame plus
-``"<object entity>/object"`` and ``"<table entity>/table"`` (another entity's frame, which the
-node's frame sets resolve); no extra service call per step. Velocities are finite differences of
-consecutive poses over the sim time between them.
+What is the arm's comes from its robot layer (:class:`~rl_environments.arm_robot.ArmRobot`'s
+constants): its top-down IK, finger joints, gripper controller and scene (table, cube, heights).
+How the scene exists is the robot layer's too. In simulation the table and the object are spawned
+through the node's SpawnEntity, placed through SetEntityState, and their poses come back with every
+step's single StepRobot round trip (the robot env asks each step for its end-effector frame plus
+``"<object entity>/object"`` and ``"<table entity>/table"``); on a real robot the object's pose
+comes from a tracker's topic (:class:`~rl_environments.real_arm_robot.RealArmRobot`). Velocities
+are finite differences of consecutive poses over the time between them.
 
 Faults (each truncates the episode with ``info["truncated_reason"]``):
 
@@ -36,20 +39,17 @@ from multiros.envs.batch_task import BatchTask
 from multiros.robot_state import RobotStates
 from multiros.utils.ros_markers import goal_marker
 from rl_environments.arm_interface import ArmInterface
-from rl_environments.manipulation import ObjectGoalSampler, RX200TopDownIK, quat_to_euler, rotation_velocity, yaw_quat
+from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, rotation_velocity, yaw_quat
 from rl_environments.reach_task import stack_rows
 
 TaskKind = Literal["push", "pnp"]
 
-TABLE_URI = "package://rx200_description/mjcf/table.xml"
-OBJECT_URI = "package://rx200_description/mjcf/cube.xml"
-GRIPPER_CONTROLLER = "gripper_controller"
-FINGER_JOINTS = ("left_finger", "right_finger")
-OBS_SIZE = 30  # see ManipulationTask.raw_observation
+#: Values of the raw observation besides the arm joints (Fetch's 25; see ManipulationTask.raw_observation).
+FETCH_OBS_SIZE = 25
 
 
 class ManipulationTask(BatchTask, ArmInterface):
-    """Push / pick-and-place behaviour on top of the RX200 robot env (see the module docstring).
+    """Push / pick-and-place behaviour on top of an arm's robot env (see the module docstring).
 
     The task env calls :meth:`_setup_manipulation` after the robot env's constructor.
     """
@@ -89,8 +89,8 @@ class ManipulationTask(BatchTask, ArmInterface):
         self.tolerance = float(cfg["distance_threshold"] if distance_threshold is None else distance_threshold)
         self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
         self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
-        self.ik = RX200TopDownIK(np.maximum(self.chain.lower, self.min_joint_pos),
-                                 np.minimum(self.chain.upper, self.max_joint_pos))
+        self.ik = type(self).top_down_ik(np.maximum(self.chain.lower, self.min_joint_pos),
+                                         np.minimum(self.chain.upper, self.max_joint_pos))
         base = self.base_position
         self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
         self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
@@ -110,42 +110,32 @@ class ManipulationTask(BatchTask, ArmInterface):
         n_act = (3 if self.ee_action_type else n) + 1
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
         self.prev_action = np.zeros(n_act)
-        # -- the scene: table and object through SpawnEntity into the robot's namespace (a shared
-        # world's reset puts them back with the robot), their root bodies as extra frames
+        # -- the scene (the robot layer's: spawned in simulation, a tracker's poses on a robot)
         name = self.robot_name
         self.table_entity, self.object_entity = f"{name}_table", f"{name}_object"
-        self.table_pose = np.asarray(cfg["table_center"], dtype=np.float64) + base
-        self.connection.spawn_entity(self.table_entity, TABLE_URI, self.table_pose)
-        self.goal = np.array([*self.sampler.goal_low, rest_z]) + base
-        self.connection.spawn_entity(self.object_entity, OBJECT_URI,
-                                     np.array([*self.sampler.object_low, rest_z]) + base)
         self.object_frame, self.table_frame = f"{self.object_entity}/object", f"{self.table_entity}/table"
-        self.connection.add_frames((self.object_frame, self.table_frame))
-        self.connection.refresh(0)
+        self.table_pose = np.asarray(cfg["table_center"], dtype=np.float64) + base
+        self.goal = np.array([*self.sampler.goal_low, rest_z]) + base
+        self.spawn_scene(self.table_entity, self.table_pose, self.object_entity,
+                         np.array([*self.sampler.object_low, rest_z]) + base)
         self._track_reset()
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
 
-    def _place(self, entity: str, position: np.ndarray, quat: np.ndarray) -> None:
-        """SetEntityState: the pose (and, on Jazzy/Kilted definitions, zero twist)."""
-        self.connection.place_entity(entity, position, quat)
-
     # -- reset hooks (one env at a time) ----------------------------------------------------------------
     def _set_init_pose(self) -> None:
         self.move_to_initial_pose(self.ARM_JOINTS, self.init_joint_pos)
-        self.connection.set_joint_positions(["left_finger"], [self.gripper_range[1]])
+        self.open_fingers_at_reset(self.gripper_range[1])
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
-        self.send_command(GRIPPER_CONTROLLER, [self.gripper_target])
+        type(self).command_grippers([self], [self.gripper_target])
 
     def _set_episode_init_params(self) -> None:
         rng = self.np_random
         base = self.base_position
         obj, yaw, goal = self.sampler.sample(rng)
         self.goal = goal + base
-        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
-            self._place(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))  # knocked over
-        self._place(self.object_entity, obj + base, yaw_quat(yaw))
+        self.place_object(obj + base, yaw_quat(yaw))
         self.prev_action = np.zeros(self.action_box.shape)
         self._episode_start = True  # velocities restart from the first observation
         self._show_goal()
@@ -168,14 +158,15 @@ class ManipulationTask(BatchTask, ArmInterface):
         if all(env.ee_action_type for env in envs):
             ee = cls.ee_positions_of(envs, states)
             targets = np.array([env.ik.solve(np.clip(ee[j] - env.base_position + actions[j, :3] * env.ee_delta_coeff,
-                                                     env.ee_low, env.ee_high)) for j, env in enumerate(envs)])
+                                                     env.ee_low, env.ee_high), q0=current[j])
+                                for j, env in enumerate(envs)])
         elif not any(env.ee_action_type for env in envs):
             targets = current + actions[:, :-1] * stack_rows(envs, "delta_coeff")[:, None]
         else:
             ee = cls.ee_positions_of(envs, states)
             targets = np.array([
                 env.ik.solve(np.clip(ee[j] - env.base_position + actions[j, :3] * env.ee_delta_coeff, env.ee_low,
-                                     env.ee_high))
+                                     env.ee_high), q0=current[j])
                 if env.ee_action_type else current[j] + actions[j, :-1] * env.delta_coeff
                 for j, env in enumerate(envs)])
         targets = np.clip(targets, stack_rows(envs, "min_joint_pos"), stack_rows(envs, "max_joint_pos"))
@@ -184,8 +175,8 @@ class ManipulationTask(BatchTask, ArmInterface):
             env.joint_targets = targets[j]
             lo, hi = env.gripper_range
             env.gripper_target = lo + (float(np.clip(actions[j, -1], -1.0, 1.0)) + 1.0) * 0.5 * (hi - lo)
-            env.send_command(GRIPPER_CONTROLLER, [env.gripper_target])
             env.prev_action = actions[j]
+        cls.command_grippers(envs, [env.gripper_target for env in envs])
 
     def _set_action(self, action: np.ndarray) -> None:
         type(self).batch_act([self], np.asarray(action, dtype=np.float64)[None], self.connection.states)
@@ -193,13 +184,11 @@ class ManipulationTask(BatchTask, ArmInterface):
     # -- state, batch-first ---------------------------------------------------------------------------
     @classmethod
     def batch_raw_observation(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
-        """N envs' raw observations (30 values each: see :meth:`raw_observation`), and each env's
-        velocity tracking moved on to this state."""
-        e0 = envs[0]
+        """N envs' raw observations (25 values plus the arm joints each: see :meth:`raw_observation`),
+        and each env's velocity tracking moved on to this state."""
         ee = cls.ee_positions_of(envs, states)
-        fi = e0.connection.frame_index(e0.object_frame)
-        obj, obj_q = states.frame_positions[:, fi], states.frame_orientations[:, fi]
-        t = states.sim_time
+        obj, obj_q = cls.object_poses_of(envs, states)
+        t = cls.observation_time(envs, states)
         vel = np.empty((len(envs), 9))
         for j, env in enumerate(envs):
             if env._episode_start:
@@ -215,7 +204,7 @@ class ManipulationTask(BatchTask, ArmInterface):
     @classmethod
     def finger_index(cls, names: tuple[str, ...]) -> list[int]:
         where = {name: i for i, name in enumerate(names)}
-        return [where[f] for f in FINGER_JOINTS]
+        return [where[f] for f in cls.FINGER_JOINTS]
 
     def _moved_to(self, t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, ...]:
         """EE linear, object linear and object angular velocity since the previous state (finite
@@ -230,21 +219,22 @@ class ManipulationTask(BatchTask, ArmInterface):
 
     def object_position(self) -> np.ndarray:
         """World position of the object's centre after the last step."""
-        return self.frame_position(self.object_frame)
+        return type(self).object_poses_of([self], self.connection.states)[0][0].copy()
 
     def object_orientation(self) -> np.ndarray:
         """World orientation ``(w, x, y, z)`` of the object after the last step."""
-        return self.frame_orientation(self.object_frame)
+        return type(self).object_poses_of([self], self.connection.states)[1][0].copy()
 
     def _track_reset(self) -> None:
         self._episode_start = False
-        self._last = (self.sim_time, self.ee_position(), self.object_position(), self.object_orientation())
+        self._last = (type(self).observation_time([self], self.connection.states), self.ee_position(),
+                      self.object_position(), self.object_orientation())
         self._vel = (np.zeros(3), np.zeros(3), np.zeros(3))
 
     def raw_observation(self) -> np.ndarray:
-        """Fetch's observation plus the arm joints (30 values): EE position, object position, object
-        minus EE, the two finger positions, object roll/pitch/yaw, object linear and angular velocity,
-        EE velocity, finger velocities, arm joint positions."""
+        """Fetch's observation plus the arm joints (25 + arm joints values): EE position, object
+        position, object minus EE, the two finger positions, object roll/pitch/yaw, object linear and
+        angular velocity, EE velocity, finger velocities, arm joint positions."""
         return type(self).batch_raw_observation([self], self.connection.states)[0]
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -255,15 +245,16 @@ class ManipulationTask(BatchTask, ArmInterface):
         pos_hi = base + np.array([reach, reach, 0.7])
         rel = np.array([2 * reach, 2 * reach, 1.2])
         g_lo, g_hi = self.gripper_range
+        m_lo, m_hi = sorted((self.FINGER_MIMIC * g_lo, self.FINGER_MIMIC * g_hi))  # the mimicking finger's range
         lin, ang = float(self.cfg["max_linear_velocity"]), float(self.cfg["max_angular_velocity"])
         fvel = float(self.cfg["max_joint_vel"])
-        low = np.concatenate([pos_lo, pos_lo, -rel, [g_lo - 0.005, -g_hi - 0.005], -np.pi * np.ones(3),
+        low = np.concatenate([pos_lo, pos_lo, -rel, [g_lo - 0.005, m_lo - 0.005], -np.pi * np.ones(3),
                               -lin * np.ones(3), -ang * np.ones(3), -lin * np.ones(3), -fvel * np.ones(2),
                               self.chain.lower])
-        high = np.concatenate([pos_hi, pos_hi, rel, [g_hi + 0.005, -g_lo + 0.005], np.pi * np.ones(3),
+        high = np.concatenate([pos_hi, pos_hi, rel, [g_hi + 0.005, m_hi + 0.005], np.pi * np.ones(3),
                                lin * np.ones(3), ang * np.ones(3), lin * np.ones(3), fvel * np.ones(2),
                                self.chain.upper])
-        assert low.shape == (OBS_SIZE,)
+        assert low.shape == (FETCH_OBS_SIZE + len(self.ARM_JOINTS),)
         return low, high
 
     def check_faults(self, obj: np.ndarray | None = None) -> None:

@@ -235,10 +235,10 @@ class GoalReachTask(ReachTask):
             _CHECKED_PARTS.add(cls)
         raw = np.concatenate([cls._obs_part(name, envs, states) for name in cls.OBS_PARTS], axis=1)
         if len(envs) == 1:
-            box = envs[0].observation_space["observation"]
+            box = envs[0].state_space["observation"]
             low, high = box.low, box.high
         else:
-            boxes = [env.observation_space["observation"] for env in envs]
+            boxes = [env.state_space["observation"] for env in envs]
             low, high = np.array([b.low for b in boxes]), np.array([b.high for b in boxes])
         obs = np.minimum(np.maximum(raw.astype(np.float32), low), high)
         return {"observation": obs, "achieved_goal": obs[:, :3].copy(),

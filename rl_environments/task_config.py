@@ -60,13 +60,15 @@ def vector(length: int) -> tuple[str, int]:
     return ("vector", length)
 
 
-def load_task_config(name: str | Path, schema: Mapping[str, Any], section: str | None = None) -> dict[str, Any]:
+def load_task_config(name: str | Path, schema: Mapping[str, Any], section: str | None = None,
+                     defaults: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Load a YAML task config and check it against ``schema`` (key -> type or :func:`vector`).
 
     Args:
         name: a path, or a file name in ``rl_environments.config``.
         schema: the required keys and their types; other keys are kept unchecked.
         section: a top-level key the values sit under (e.g. the robot namespace ``rx200``).
+        defaults: values of keys the file may leave out (e.g. an arm's scene); the file's win.
 
     Raises:
         TaskConfigError: the file is missing or not YAML, or a key is missing or mistyped.
@@ -82,6 +84,7 @@ def load_task_config(name: str | Path, schema: Mapping[str, Any], section: str |
         data = data[section]
     if not isinstance(data, dict):
         raise TaskConfigError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
+    data = {**{k: list(v) if isinstance(v, tuple) else v for k, v in (defaults or {}).items()}, **data}
     out = dict(data)
     for key, expected in schema.items():
         if key not in data:

@@ -29,6 +29,7 @@ from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
 from multiros.envs.errors import EnvError, ResetError
 from multiros.robot_state import RobotState, RobotStates
+from multiros.sim.cameras import CameraFrame
 from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationNodeError
 from multiros.sim.launch import SimulationConnection, connect, local_description_dirs, robot_resource
 from multiros.sim.stepper import RobotStepper, StepReply
@@ -321,6 +322,20 @@ class SimConnection(RobotConnection):
     def render(self, camera: str, width: int, height: int, depth: bool) -> np.ndarray:
         """An image of the scene from ``camera`` (HxWx3 uint8, or HxW float32 metres with ``depth``)."""
         return self.sim.render(camera, width, height, depth=depth)
+
+    def read_camera(self, camera: str, *, rgb: bool = True, depth: bool = False, width: int | None = None,
+                    height: int | None = None) -> CameraFrame:
+        """A camera sensor's images of the world after the last step (a camera observation): from a
+        composed node the very pixels its Image topics carry for this state, without messages; from
+        another process through its RenderCamera service
+        (:meth:`~multiros.sim.launch.SimulationConnection.read_camera`).
+
+        Raises:
+            multiros.sim.errors.RenderError: an unknown camera, a bad size, or no offscreen GL (the
+                message says to set ``MUJOCO_GL=egl`` or ``osmesa``).
+        """
+        frame: CameraFrame = self.link.read_camera(camera, rgb=rgb, depth=depth, width=width, height=height)
+        return frame
 
     def show_viewer(self) -> None:
         self.link.show_viewer()

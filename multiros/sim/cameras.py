@@ -23,7 +23,10 @@ MJCF cameras: ``<entity namespace>/<camera>/image_raw`` and ``camera_info``, at 
 
 Images are rendered offscreen (headless: ``MUJOCO_GL=egl`` or ``osmesa``) only when someone
 subscribes or reads, at most once per camera, image kind and size for one state of the world (the
-node publishes after each step; a read of the same state is served from that render). The frame id
+node publishes after each step; a read of the same state is served from that render). A camera
+sensor renders fast (:attr:`CameraHub.fast`: no shadows, no reflections, no multisampling; in
+software GL about a tenth of a full-quality frame), topics and reads alike; the node's
+``RenderCamera`` service and an env's ``render()`` keep the full quality. The frame id
 is ``<frame_name>`` or ``<entity>/<sensor>``; no TF is published for it. The intrinsics are a
 pinhole's (no distortion): ``fy = fx = height / (2 tan(fovy / 2))``, the principal point at the image
 centre.
@@ -252,7 +255,12 @@ class CameraHub:
         node: the simulation node (publishers are its; ``node.world``, ``node.lock``).
         renderer: returns the node's :class:`~multiros.sim.render.Renderer` (created on first use).
         log_error: reports a camera that cannot render (once per camera).
+
+    Attributes:
+        fast: render the cameras' images without shadows, reflections or multisampling (default True).
     """
+
+    fast: bool = True
 
     def __init__(self, node: Any, renderer: Callable[[], Any], log_error: Callable[[str], None]) -> None:
         from multiros.sim.distro_adapters import get_message
@@ -324,7 +332,7 @@ class CameraHub:
                 self._cache = _Cache(key)
             image = self._cache.images.get(slot)
         if image is None:
-            image = renderer.render(camera, width=width, height=height, depth=depth)
+            image = renderer.render(camera, width=width, height=height, depth=depth, fast=self.fast)
             image.flags.writeable = False
             with self._cache_lock:
                 if self._cache.key == key:

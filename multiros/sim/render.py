@@ -125,7 +125,7 @@ class Renderer:
     def __init__(self, world, *, max_geom: int = 10000) -> None:
         self.world = world
         self.max_geom = max_geom
-        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._renderers: dict[tuple[int, int, bool], mujoco.Renderer] = {}
         self._markers: dict[str, Marker] = {}
         # Markers change from the node's marker topic, in whichever thread delivers it, while an
         # image may be rendering in a service thread: this lock alone guards them (not the world's).
@@ -183,8 +183,8 @@ class Renderer:
             scene.ngeom += 1
 
     # ------------------------------------------------------------------ images
-    def _renderer(self, width: int, height: int) -> mujoco.Renderer:
-        key = (int(width), int(height))
+    def _renderer(self, width: int, height: int, fast: bool = False) -> mujoco.Renderer:
+        key = (int(width), int(height), bool(fast))
         r = self._renderers.get(key)
         if r is None:
             model = self.world.model
@@ -194,15 +194,19 @@ class Renderer:
             # A shadow map of about two texels per image pixel: MuJoCo's default 4096 x 4096 map is
             # most of a frame's cost in software GL (llvmpipe: ~110 ms of an 84 x 84 frame, ~2 ms
             # with the map at 512). The map size is read when the context is made.
-            shadow = int(model.vis.quality.shadowsize)
-            model.vis.quality.shadowsize = min(shadow, max(512, 2 * max(key)))
+            # A fast renderer (camera sensors' observations) draws no shadows, so it needs no map,
+            # and no multisampling (the sample count is read when the context is made too).
+            shadow, samples = int(model.vis.quality.shadowsize), int(model.vis.quality.offsamples)
+            model.vis.quality.shadowsize = 0 if fast else min(shadow, max(512, 2 * max(key[:2])))
+            if fast:
+                model.vis.quality.offsamples = 0
             try:
                 r = mujoco.Renderer(model, height=key[1], width=key[0], max_geom=self.max_geom)
             except Exception as exc:  # GL context creation fails with assorted errors
                 raise RenderError(f"offscreen rendering is unavailable ({exc}); on a headless machine set "
                                   f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
             finally:
-                model.vis.quality.shadowsize = shadow
+                model.vis.quality.shadowsize, model.vis.quality.offsamples = shadow, samples
             _release_gl(r)
             self._renderers[key] = r
         return r
@@ -225,17 +229,22 @@ class Renderer:
         return int(camera)
 
     def render(self, camera: str | int | FreeCamera | None = None, *, width: int = 640, height: int = 480,
-               depth: bool = False) -> np.ndarray:
+               depth: bool = False, fast: bool = False) -> np.ndarray:
         """Render one image.
 
         Args:
             camera: a camera name or id of the model, a :class:`FreeCamera`, or None (the default view).
             width, height: image size in pixels.
             depth: return depth in metres (float32, HxW) instead of RGB (uint8, HxWx3).
+            fast: no shadows, no reflections, no multisampling (what a camera sensor's observations
+                need; in software GL a tenth of the cost, ``benchmarks/bench_camera_cost.py``).
         """
-        r = self._renderer(width, height)
+        r = self._renderer(width, height, fast)
         self.world.sync_kinematics()  # the image shows the joint state, not one physics step before it
         r.update_scene(self.world.data, camera=self._camera(camera))
+        if fast:
+            r.scene.flags[int(mujoco.mjtRndFlag.mjRND_SHADOW)] = 0
+            r.scene.flags[int(mujoco.mjtRndFlag.mjRND_REFLECTION)] = 0
         self.add_markers_to_scene(r.scene)
         try:
             if depth:

@@ -43,3 +43,23 @@ SLEEP_POSE = (0.0, -1.80, 1.55, 0.8, 0.0)
 UPRIGHT_POSE = (0.0, 0.0, -1.5708, 0.0, 0.0)
 # left_finger positions (m); right_finger mirrors them.
 GRIPPER_CLOSED, GRIPPER_HOME, GRIPPER_OPEN = 0.015, 0.0195, 0.037
+
+# -- push / pick-and-place scene (positions relative to the robot base; the robot stands on the
+# table, its base at robot_height in the world). mjcf/table.xml and mjcf/cube.xml match these.
+SCENE = {
+    "robot_height": 0.30,  # world z of the base: 1 mm above the table top (table.xml: top at z = 0.299)
+    "table_center": (0.175, 0.0, -0.1505),  # table centre relative to the base
+    "table_half_extents": (0.375, 0.40, 0.1495),  # table.xml's box half sizes
+    "table_top": -0.001,
+    "object_half_size": 0.015,  # cube.xml: a 3 cm cube of 30 g
+    "object_mass": 0.03,
+    "init_ee_position": (0.20, 0.0, 0.10),  # the gripper above the table, pointing down
+    "object_xy_min": (0.15, -0.14),
+    "object_xy_max": (0.31, 0.14),
+    "goal_xy_min": (0.15, -0.14),
+    "goal_xy_max": (0.31, 0.14),
+    "target_height_max": 0.15,
+    "position_ee_min": (0.06, -0.30, 0.018),  # z: the finger tips stay 2 mm above the table
+    "position_ee_max": (0.40, 0.30, 0.25),
+    "max_object_distance": 0.45,
+}

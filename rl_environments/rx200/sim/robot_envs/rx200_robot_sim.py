@@ -7,10 +7,13 @@ and the gripper controller, and return the ``rx200/ee_gripper_link`` pose with e
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from rl_environments.arm_robot import ArmRobot
+from rl_environments.manipulation import RX200TopDownIK
+from rl_environments.robots import rx200_description
 
 
 class RX200Robot(ArmRobot):
@@ -27,6 +30,18 @@ class RX200Robot(ArmRobot):
     EE_LINK = "rx200/ee_gripper_link"
     ARM_CONTROLLER = "arm_position_controller"
     CONTROLLERS = ("joint_state_broadcaster", "arm_position_controller", "gripper_controller")
+    GRIPPER_CONTROLLER = "gripper_controller"
+    FINGER_JOINTS = ("left_finger", "right_finger")
+    SCENE = rx200_description.SCENE
+
+    @classmethod
+    def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> RX200TopDownIK:
+        return RX200TopDownIK(lower, upper)
+
+    def open_fingers_at_reset(self, opening: float) -> None:
+        """The commanded finger only (right_finger follows through the description's mimic): the
+        RX200's episodes have started so since the push and pick-and-place envs were recorded."""
+        self.connection.set_joint_positions(self.FINGER_JOINTS[:1], [opening])
 
 
 class RX200RobotEnv(RX200Robot, MujocoBaseEnv):

@@ -1,0 +1,385 @@
+"""Camera observations of the arm tasks, with MultiROS' keywords: an RGB image (``uint8``, H x W x 3)
+and a depth image (``float32``, H x W, metres) in the observation, from the simulation node's camera
+or, on a Real twin, from the ``sensor_msgs/Image`` topics of a real camera driver.
+
+Modes (at most one; the default is the state observation alone, MultiROS' ``normal_obs_only``):
+
+=====================================  ====================================  =================================
+keyword                                plain env observation                 goal env observation
+=====================================  ====================================  =================================
+``rgb_obs_only=True``                  ``Dict(rgb)``                         ``Dict(observation=<the image>,
+                                                                             achieved_goal, desired_goal)``
+``rgb_plus_normal_obs=True``           ``Dict(observation, rgb)``            ``Dict(observation, achieved_goal,
+                                                                             desired_goal, rgb)``
+``rgb_plus_depth_plus_normal_obs``     ``Dict(observation, rgb, depth)``     the goal dict ``+ rgb, depth``
+=====================================  ====================================  =================================
+
+``observation`` is the state observation of the task without a camera. A goal env keeps its three
+keys (HER and ``gymnasium_robotics.GoalEnv`` need them); with ``rgb_obs_only`` its ``observation`` is
+the image. Depth is the distance along the optical axis in metres, clipped into ``[0, max_depth]``
+(a real camera's invalid pixels, NaN or -inf, read 0; +inf reads ``max_depth``).
+
+Options:
+
+* ``image_width``, ``image_height``: the image size (default 84 x 84; a named camera: its sensor's
+  size). At most 1920 x 1080, the simulation node's offscreen buffer.
+* ``camera_position``, ``camera_lookat``: where the observation camera is and what it looks at
+  (world frame of the task, metres; default: the arm's ``CAMERA_VIEW``), ``camera_fovy`` its vertical
+  field of view (degrees, default 45). The env spawns it into the robot's namespace as a depth
+  camera sensor of the observation's size, so the node publishes it on ``<namespace>/camera/image_raw``
+  and ``<namespace>/camera/depth/image_raw`` (gazebo_ros_camera's names) with the observation's very
+  pixels (one render serves both).
+* ``camera_name``: use a camera of the robot's description instead (``"render_camera"``, the RX200's
+  ``"zed2_left"``: ``use_zed2``), or of the world by its full name (``"<entity>/<camera>"``).
+* Real twins: ``rgb_topic``, ``depth_topic`` (default: the simulated camera's topics, relative to the
+  robot's namespace), ``image_timeout`` (s, default 0.5): an image older than that is stale, the env
+  stops and raises, as for stale joint states. Images of another size are resized (nearest pixel).
+
+The simulation renders offscreen (headless: ``MUJOCO_GL=egl`` or ``osmesa``) once per step, after the
+physics, without shadows, reflections or multisampling (``multiros.sim.cameras``).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+
+from multiros.envs.batch_task import StepResults
+
+__all__ = ["CAMERA_KEYWORDS", "CameraObservations", "CameraOptions", "MODES", "camera_entity_urdf"]
+
+_logger = logging.getLogger(__name__)
+
+MODES = ("rgb_obs_only", "rgb_plus_normal_obs", "rgb_plus_depth_plus_normal_obs")
+_SIM_ONLY = ("camera_position", "camera_lookat", "camera_fovy")
+_REAL_ONLY = ("rgb_topic", "depth_topic", "image_timeout")
+#: Every keyword the camera observations take (popped from an env's keyword arguments).
+CAMERA_KEYWORDS = (*MODES, "normal_obs_only", "camera_name", "image_width", "image_height", "max_depth",
+                   *_SIM_ONLY, *_REAL_ONLY)
+MAX_WIDTH, MAX_HEIGHT = 1920, 1080  # the simulation node's offscreen buffer (multiros.sim.world_model)
+MIN_SIDE = 8
+DEFAULT_SIZE = 84  # DQN's 84 x 84: cheap to render and to learn from
+CAMERA_ENTITY = "camera"  # the observation camera's sensor name (its topics: <namespace>/camera/...)
+
+
+@dataclass(frozen=True)
+class CameraOptions:
+    """The camera observation an env was asked for (see the module docstring)."""
+
+    mode: str
+    camera_name: str | None
+    width: int | None
+    height: int | None
+    position: tuple[float, float, float] | None
+    lookat: tuple[float, float, float] | None
+    fovy: float
+    max_depth: float
+    rgb_topic: str | None
+    depth_topic: str | None
+    image_timeout: float
+
+    @property
+    def depth(self) -> bool:
+        return self.mode == "rgb_plus_depth_plus_normal_obs"
+
+    @property
+    def with_state(self) -> bool:
+        return self.mode != "rgb_obs_only"
+
+
+def _vec3(value: Any, name: str) -> tuple[float, float, float]:
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.empty(0)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 100.0):
+        raise ValueError(f"{name} must be 3 finite numbers (x, y, z in metres, within 100 m), got {value!r}")
+    return float(arr[0]), float(arr[1]), float(arr[2])
+
+
+def _side(value: Any, name: str, high: int) -> int | None:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not MIN_SIDE <= int(value) <= high:
+        raise ValueError(f"{name} must be an integer from {MIN_SIDE} to {high} pixels, got {value!r}")
+    return int(value)
+
+
+def parse_camera_options(kwargs: dict[str, Any], owner: str, *, real: bool,
+                         defaults: Mapping[str, Any] | None = None) -> CameraOptions | None:
+    """Pop the camera keywords from ``kwargs`` and check them (``defaults``: an ID's, e.g. the Zed2
+    variants' camera). ``None`` when no camera observation is asked for.
+
+    Raises:
+        ValueError: conflicting modes or options, sizes out of bounds, a bad pose.
+    """
+    given = {k: kwargs.pop(k) for k in CAMERA_KEYWORDS if k in kwargs}
+    opts = {**(defaults or {}), **given}
+    modes = [m for m in MODES if opts.get(m)]
+    normal = opts.get("normal_obs_only")
+    if len(modes) > 1:
+        raise ValueError(f"{owner}: camera modes {modes} conflict: pick one of {list(MODES)}")
+    if modes and normal:
+        raise ValueError(f"{owner}: normal_obs_only=True conflicts with {modes[0]}=True (normal_obs_only means no "
+                         "camera); pass one of them")
+    if normal is False and not modes:
+        raise ValueError(f"{owner}: normal_obs_only=False needs a camera mode: one of {list(MODES)}=True")
+    if not modes:
+        extra = sorted(set(given) - {"normal_obs_only"})
+        if extra:
+            raise ValueError(f"{owner}: camera option(s) {extra} given without a camera observation; add one of "
+                             f"{list(MODES)}=True")
+        return None
+    ignored = sorted(set(given) & set(_SIM_ONLY if real else _REAL_ONLY))
+    if ignored:
+        _logger.warning("%s: %s ignored: %s", owner, ignored,
+                        "a real camera is where it is mounted (its topics: rgb_topic=, depth_topic=)" if real else
+                        "the simulation node publishes the camera's topics itself")
+    name = opts.get("camera_name")
+    if name is not None and (not isinstance(name, str) or not name.strip("/")):
+        raise ValueError(f"{owner}: camera_name must be a camera's name, got {name!r}")
+    position = None if opts.get("camera_position") is None else _vec3(opts["camera_position"], "camera_position")
+    lookat = None if opts.get("camera_lookat") is None else _vec3(opts["camera_lookat"], "camera_lookat")
+    if not real and name is not None and (position is not None or lookat is not None):
+        raise ValueError(f"{owner}: camera_name={name!r} names an existing camera; camera_position/camera_lookat "
+                         "place a new one: pass one or the other")
+    if position is not None and lookat is not None and np.linalg.norm(np.subtract(position, lookat)) < 1e-3:
+        raise ValueError(f"{owner}: camera_position and camera_lookat must be apart, got {position} and {lookat}")
+    fovy = opts.get("camera_fovy", 45.0)
+    if isinstance(fovy, bool) or not isinstance(fovy, (int, float)) or not 1.0 <= float(fovy) <= 170.0:
+        raise ValueError(f"{owner}: camera_fovy must be a number of degrees in [1, 170], got {fovy!r}")
+    max_depth = opts.get("max_depth", 10.0)
+    if isinstance(max_depth, bool) or not isinstance(max_depth, (int, float)) or not 0.0 < float(max_depth) <= 1e3:
+        raise ValueError(f"{owner}: max_depth must be a number of metres in (0, 1000], got {max_depth!r}")
+    timeout = opts.get("image_timeout", 0.5)
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not 0.0 < float(timeout) <= 60.0:
+        raise ValueError(f"{owner}: image_timeout must be a number of seconds in (0, 60], got {timeout!r}")
+    for key in ("rgb_topic", "depth_topic"):
+        if opts.get(key) is not None and (not isinstance(opts[key], str) or not opts[key].strip("/")):
+            raise ValueError(f"{owner}: {key} must be a topic name, got {opts[key]!r}")
+    return CameraOptions(modes[0], name, _side(opts.get("image_width"), "image_width", MAX_WIDTH),
+                         _side(opts.get("image_height"), "image_height", MAX_HEIGHT), position, lookat, float(fovy),
+                         float(max_depth), opts.get("rgb_topic"), opts.get("depth_topic"), float(timeout))
+
+
+def look_at_rpy(position: Sequence[float], lookat: Sequence[float]) -> tuple[float, float]:
+    """Pitch and yaw (rad) of a Gazebo camera (looking along +x, +z up) at ``position`` aimed at ``lookat``."""
+    d = np.subtract(lookat, position)
+    return float(math.atan2(-d[2], math.hypot(d[0], d[1]))), float(math.atan2(d[1], d[0]))
+
+
+def camera_entity_urdf(position: Sequence[float], lookat: Sequence[float], width: int, height: int,
+                       fovy_deg: float) -> str:
+    """A URDF holding one depth camera sensor (``camera``) at the entity's origin aimed at ``lookat``
+    (given relative to ``position``'s frame: the entity is spawned at ``position``)."""
+    pitch, yaw = look_at_rpy(position, lookat)
+    hfov = 2.0 * math.atan(math.tan(math.radians(fovy_deg) / 2.0) * width / height)
+    return (
+        '<robot name="observation_camera">\n'
+        '  <link name="camera_link"/>\n'
+        '  <gazebo reference="camera_link">\n'
+        f'    <sensor type="depth" name="{CAMERA_ENTITY}">\n'
+        f'      <pose>0 0 0 0 {pitch!r} {yaw!r}</pose>\n'
+        f'      <camera><horizontal_fov>{hfov!r}</horizontal_fov>'
+        f'<image><width>{width}</width><height>{height}</height></image></camera>\n'
+        '    </sensor>\n'
+        '  </gazebo>\n'
+        '</robot>\n'
+    )
+
+
+def resize_nearest(image: np.ndarray, height: int, width: int) -> np.ndarray:
+    """``image`` (H x W or H x W x C) at ``height`` x ``width``, each pixel the nearest source pixel's."""
+    if image.shape[0] == height and image.shape[1] == width:
+        return image
+    rows = np.minimum((np.arange(height) + 0.5) * image.shape[0] / height, image.shape[0] - 1).astype(np.intp)
+    cols = np.minimum((np.arange(width) + 0.5) * image.shape[1] / width, image.shape[1] - 1).astype(np.intp)
+    return image[rows][:, cols]
+
+
+class CameraObservations:
+    """Camera observations for a task class (see the module docstring): mix it in before the task.
+
+    The task calls :meth:`take_camera_options` on its keyword arguments before the robot env's
+    constructor and :meth:`setup_cameras` once its state observation space is set; its batch
+    functions and ``_get_obs`` add the images through :meth:`add_images` and :meth:`with_images`.
+
+    Class attributes (the robot layer's or an ID's):
+        CAMERA_VIEW: the default observation camera, ``((x, y, z) lookat, distance, azimuth, elevation)``
+            relative to the robot base (metres, degrees; the description's ``render_camera`` view).
+        CAMERA_DEFAULTS: camera keywords an ID sets by default (the Zed2 variants' camera and mode).
+        CAMERA_TOPICS: a named camera's ``(rgb, depth)`` topics when not ``<camera>/image_raw`` and
+            ``<camera>/depth/image_raw`` (relative to the robot's namespace).
+    """
+
+    CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
+                                                                                      -25.0)
+    CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = {}
+    CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]] = {}
+    camera: CameraOptions | None = None
+    camera_source: Any = None  # the world's camera name (simulation) or the image topics (real)
+    _camera_real: bool = False
+    image_size: tuple[int, int] = (0, 0)  # (height, width)
+
+    # -- construction ---------------------------------------------------------------------------
+    def take_camera_options(self, kwargs: dict[str, Any]) -> CameraOptions | None:
+        """Pop and check the camera keywords (before the robot env's constructor sees the rest)."""
+        return parse_camera_options(kwargs, type(self).__name__, real=self._is_real(),
+                                    defaults=type(self).CAMERA_DEFAULTS)
+
+    @classmethod
+    def _is_real(cls) -> bool:
+        from multiros.envs.real.core import RealEnvCore
+
+        return issubclass(cls, RealEnvCore)
+
+    def setup_cameras(self, options: CameraOptions | None) -> None:
+        """Make the observation space hold the images and the camera ready (a first image is read
+        here: a camera that cannot render, or a topic that never publishes, fails now)."""
+        self.camera = options
+        if options is None:
+            return
+        state = self.observation_space  # type: ignore[has-type]
+        self._state_space = state
+        self._camera_real = self._is_real()
+        if self._camera_real:
+            self._setup_real_camera(options)
+        else:
+            self._setup_sim_camera(options)
+        h, w = self.image_size
+        rgb = spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
+        depth = spaces.Box(0.0, options.max_depth, (h, w), dtype=np.float32)
+        if isinstance(state, spaces.Dict):  # a goal env keeps its three keys
+            parts = dict(state.spaces)
+            if options.with_state:
+                parts["rgb"] = rgb
+            else:
+                parts["observation"] = rgb
+            if options.depth:
+                parts["depth"] = depth
+        else:
+            parts = {"observation": state, "rgb": rgb} if options.with_state else {"rgb": rgb}
+            if options.depth:
+                parts["depth"] = depth
+        self.observation_space = spaces.Dict(parts)
+
+    def _setup_sim_camera(self, options: CameraOptions) -> None:
+        from multiros.sim.errors import RenderError
+
+        conn = self.connection  # type: ignore[attr-defined]
+        if options.camera_name is not None:
+            name = options.camera_name.strip("/")
+            self.camera_source = name if "/" in name else f"{self.robot_name}/{name}"  # type: ignore[attr-defined]
+        else:
+            base = np.asarray(self.base_position, dtype=np.float64)  # type: ignore[attr-defined]
+            (lx, ly, lz), dist, az, el = type(self).CAMERA_VIEW
+            lookat = options.lookat if options.lookat is not None else tuple(base + (lx, ly, lz))
+            if options.position is not None:
+                position = options.position
+            else:
+                a, e = math.radians(az), math.radians(el)
+                position = (lookat[0] - dist * math.cos(e) * math.cos(a), lookat[1] - dist * math.cos(e) * math.sin(a),
+                            lookat[2] - dist * math.sin(e))
+            w, h = options.width or DEFAULT_SIZE, options.height or DEFAULT_SIZE
+            entity = f"{self.robot_name}_{CAMERA_ENTITY}"  # type: ignore[attr-defined]
+            text = camera_entity_urdf(position, lookat, w, h, options.fovy)
+            entity = self.sim.spawn_entity(  # type: ignore[attr-defined]
+                entity, uri="", resource_string=text, namespace=conn.namespace,
+                position=tuple(conn.to_world(np.asarray(position, dtype=np.float64))),
+                timeout_sec=max(conn.timeout_sec, 30.0))
+            self.camera_source = f"{entity}/{CAMERA_ENTITY}"
+        try:
+            frame = conn.read_camera(self.camera_source, rgb=True, depth=False, width=options.width,
+                                     height=options.height)
+        except RenderError as exc:
+            raise RenderError(f"{type(self).__name__}: the observation camera {self.camera_source!r} cannot render: "
+                              f"{exc}") from exc
+        assert frame.rgb is not None
+        if options.camera_name is not None and (options.width is None) != (options.height is None):
+            raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither (the "
+                             "camera's own size)")
+        self.image_size = (int(frame.rgb.shape[0]), int(frame.rgb.shape[1]))
+
+    def _setup_real_camera(self, options: CameraOptions) -> None:
+        from multiros.envs.real.sensor_link import ImageTopic
+
+        name = (options.camera_name or CAMERA_ENTITY).strip("/")
+        short = name.rsplit("/", 1)[-1]
+        rgb_default, depth_default = type(self).CAMERA_TOPICS.get(short, (f"{short}/image_raw",
+                                                                          f"{short}/depth/image_raw"))
+        link = self.link  # type: ignore[attr-defined]
+        rgb = ImageTopic(self.node, link.resolve(options.rgb_topic or rgb_default), "rgb")  # type: ignore[attr-defined]
+        depth = (ImageTopic(self.node, link.resolve(options.depth_topic or depth_default), "depth")  # type: ignore[attr-defined]
+                 if options.depth else None)
+        self.camera_source = (rgb, depth)
+        if options.width is None or options.height is None:
+            if options.width is not None or options.height is not None:
+                raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither")
+            h = w = DEFAULT_SIZE
+            if options.camera_name is not None:  # the camera's own size: its first image says
+                first = rgb.wait_first(self.connection.startup_timeout)  # type: ignore[attr-defined]
+                h, w = first.shape[:2]
+            self.image_size = (int(h), int(w))
+        else:
+            self.image_size = (options.height, options.width)
+
+    # -- images ---------------------------------------------------------------------------------
+    def read_images(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """This env's RGB (H x W x 3 uint8) and depth (H x W float32 metres, or None) images now."""
+        options = self.camera
+        assert options is not None
+        h, w = self.image_size
+        if self._camera_real:
+            rgb_topic, depth_topic = self.camera_source
+            rgb = resize_nearest(rgb_topic.latest(options.image_timeout), h, w)
+            depth = None if depth_topic is None else resize_nearest(depth_topic.latest(options.image_timeout), h, w)
+        else:
+            frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth,  # type: ignore[attr-defined]
+                                                width=w, height=h)
+            rgb, depth = frame.rgb, frame.depth
+        assert rgb is not None
+        rgb = np.array(rgb, dtype=np.uint8, copy=True)
+        if depth is not None:
+            depth = np.nan_to_num(np.asarray(depth, dtype=np.float32), nan=0.0, posinf=options.max_depth, neginf=0.0)
+            depth = np.clip(depth, 0.0, options.max_depth, dtype=np.float32)
+        return rgb, depth
+
+    def with_images(self, obs: Any) -> Any:
+        """One env's observation with its images (the state observation unchanged without a camera)."""
+        if self.camera is None:
+            return obs
+        rgb, depth = self.read_images()
+        return self._compose(obs, rgb, depth)
+
+    def _compose(self, obs: Any, rgb: np.ndarray, depth: np.ndarray | None) -> Any:
+        options = self.camera
+        assert options is not None
+        if isinstance(obs, dict):
+            out = dict(obs)
+            if options.with_state:
+                out["rgb"] = rgb
+            else:
+                out["observation"] = rgb
+        else:
+            out = {"observation": obs, "rgb": rgb} if options.with_state else {"rgb": rgb}
+        if depth is not None:
+            out["depth"] = depth
+        return out
+
+    @classmethod
+    def add_images(cls, envs: Sequence[Any], results: StepResults) -> StepResults:
+        """N envs' step results with their images (unchanged when the envs have no camera)."""
+        cameras = [env.camera is not None for env in envs]
+        if not any(cameras):
+            return results
+        if not all(cameras):
+            raise ValueError(f"{cls.__name__}: a batch mixes envs with and without camera observations")
+        rows = [envs[j]._compose(results.obs_row(j), *envs[j].read_images()) for j in range(len(envs))]
+        results.obs = {k: np.stack([row[k] for row in rows]) for k in rows[0]}
+        return results
