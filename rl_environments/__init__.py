@@ -54,12 +54,28 @@ ENV_SPECS: dict[str, str] = {
     "RX200PnPSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_sim:RX200PnPEnv",
     "RX200PnPGoalSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv",
 }
+#: The arms whose six tasks are every arm's (rl_environments.arm_reach, arm_manipulation): ID prefix -> package.
+ARMS: dict[str, str] = {"VX300S": "vx300s", "UR5e": "ur5e", "NED2": "ned2"}
+#: The six tasks of an arm: ID infix -> env class suffix (``<ARM><task>Sim-v0`` is ``<ARM><class>Env``).
+ARM_TASKS: tuple[str, ...] = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
+for _arm, _pkg in ARMS.items():
+    for _task in ARM_TASKS:
+        ENV_SPECS[f"{_arm}{_task}Sim-v0"] = f"rl_environments.{_pkg}.sim:{_arm}{_task}Env"
+#: The RX200's tasks observed through a Zed2 stereo camera (rl_environments.rx200.sim.zed2).
+ZED2_TASKS: tuple[str, ...] = ARM_TASKS
+for _task in ZED2_TASKS:
+    ENV_SPECS[f"RX200Zed2{_task}Sim-v0"] = f"rl_environments.rx200.sim.zed2:RX200Zed2{_task}Env"
+CAMERA_ENV_IDS: tuple[str, ...] = tuple(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS)
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 GOAL_ENV_IDS: tuple[str, ...] = (
     "RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0", "RX200PushGoalSim-v0", "RX200PnPGoalSim-v0",
+    *(f"{arm}{task}Sim-v0" for arm in ARMS for task in ARM_TASKS if task.endswith("Goal")),
+    *(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS if task.endswith("Goal")),
 )
-MANIPULATION_ENV_IDS: tuple[str, ...] = ("RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0",
-                                         "RX200PnPGoalSim-v0")
+MANIPULATION_ENV_IDS: tuple[str, ...] = (
+    "RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0", "RX200PnPGoalSim-v0",
+    *(f"{arm}{task}Sim-v0" for arm in (*ARMS, "RX200Zed2") for task in ARM_TASKS if task.startswith(("Push", "PnP"))),
+)
 MAX_EPISODE_STEPS = 100
 # Push and pick-and-place: Fetch's 50 steps of 40 ms (see rx200_manipulation's docstring).
 EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, 50)
@@ -75,15 +91,24 @@ REAL_ENV_SPECS: dict[str, str] = {
         "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv"
     ),
 }
+for _arm, _pkg in ARMS.items():
+    for _task in ARM_TASKS:
+        REAL_ENV_SPECS[f"{_arm}{_task}Real-v0"] = f"rl_environments.{_pkg}.real:{_arm}{_task}RealEnv"
 REAL_ENV_IDS: tuple[str, ...] = tuple(REAL_ENV_SPECS)
-REAL_GOAL_ENV_IDS: tuple[str, ...] = ("RX200ReacherGoalReal-v0", "ABBIRB120ReacherGoalRealEnv-v0")
+REAL_GOAL_ENV_IDS: tuple[str, ...] = (
+    "RX200ReacherGoalReal-v0", "ABBIRB120ReacherGoalRealEnv-v0",
+    *(f"{arm}{task}Real-v0" for arm in ARMS for task in ARM_TASKS if task.endswith("Goal")),
+)
 SIM_TO_REAL: dict[str, str] = {
     "RX200ReacherSim-v0": "RX200ReacherReal-v0",
     "RX200ReacherGoalSim-v0": "RX200ReacherGoalReal-v0",
     "ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
     "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0",
+    **{f"{arm}{task}Sim-v0": f"{arm}{task}Real-v0" for arm in ARMS for task in ARM_TASKS},
 }
 
+# A Real twin's episodes are its simulated twin's.
+EPISODE_STEPS.update({SIM_TO_REAL[i]: n for i, n in list(EPISODE_STEPS.items()) if i in SIM_TO_REAL})
 
 # Gymnasium loads "<module>:<ID>" entry points by name (JSON-able specs); the module makes each ID's.
 VECTOR_ENTRY_MODULE = "rl_environments.vector_entry"

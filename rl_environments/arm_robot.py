@@ -70,6 +70,13 @@ class ArmRobot(ArmInterface):
             ``init_ee_position``, the object, goal and end-effector boxes, ``target_height_max``,
             ``max_object_distance``); ``mjcf/table.xml`` and ``mjcf/cube.xml`` of the package match it.
         :meth:`top_down_ik`: the arm's IK with the gripper pointing down.
+
+    Camera observations (:mod:`rl_environments.camera_obs`):
+        CAMERA_VIEW: the default observation camera, ``((x, y, z) lookat, distance, azimuth,
+            elevation)`` relative to the robot base (metres, degrees): by default the description's
+            ``render_camera`` view.
+        CAMERA_TOPICS: a described camera's ``(rgb, depth)`` topics, relative to the robot's
+            namespace, when not ``<camera>/image_raw`` and ``<camera>/depth/image_raw``.
     """
 
     ROBOT_NAME: ClassVar[str]
@@ -93,6 +100,9 @@ class ArmRobot(ArmInterface):
     FINGER_JOINTS: ClassVar[tuple[str, ...]] = ()
     FINGER_MIMIC: ClassVar[float] = -1.0
     SCENE: ClassVar[Mapping[str, Any]] = {}
+    CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
+                                                                                      -25.0)
+    CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]] = {}
 
     @classmethod
     def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> TopDownIK:

@@ -120,7 +120,10 @@ def parse_camera_options(kwargs: dict[str, Any], owner: str, *, real: bool,
         ValueError: conflicting modes or options, sizes out of bounds, a bad pose.
     """
     given = {k: kwargs.pop(k) for k in CAMERA_KEYWORDS if k in kwargs}
-    opts = {**(defaults or {}), **given}
+    base = dict(defaults or {})
+    if any(k in given for k in (*MODES, "normal_obs_only")):  # the caller's mode replaces the ID's
+        base = {k: v for k, v in base.items() if k not in MODES}
+    opts = {**base, **given}
     modes = [m for m in MODES if opts.get(m)]
     normal = opts.get("normal_obs_only")
     if len(modes) > 1:
@@ -210,18 +213,12 @@ class CameraObservations:
     constructor and :meth:`setup_cameras` once its state observation space is set; its batch
     functions and ``_get_obs`` add the images through :meth:`add_images` and :meth:`with_images`.
 
-    Class attributes (the robot layer's or an ID's):
-        CAMERA_VIEW: the default observation camera, ``((x, y, z) lookat, distance, azimuth, elevation)``
-            relative to the robot base (metres, degrees; the description's ``render_camera`` view).
-        CAMERA_DEFAULTS: camera keywords an ID sets by default (the Zed2 variants' camera and mode).
-        CAMERA_TOPICS: a named camera's ``(rgb, depth)`` topics when not ``<camera>/image_raw`` and
-            ``<camera>/depth/image_raw`` (relative to the robot's namespace).
+    The robot layer's ``CAMERA_VIEW`` places the default camera and its ``CAMERA_TOPICS`` name a
+    described camera's topics (:class:`~rl_environments.arm_robot.ArmRobot`). An ID's
+    ``CAMERA_DEFAULTS`` are camera keywords it sets by default (the Zed2 variants' camera and mode).
     """
 
-    CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
-                                                                                      -25.0)
     CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = {}
-    CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]] = {}
     camera: CameraOptions | None = None
     camera_source: Any = None  # the world's camera name (simulation) or the image topics (real)
     _camera_real: bool = False
@@ -278,7 +275,7 @@ class CameraObservations:
             self.camera_source = name if "/" in name else f"{self.robot_name}/{name}"  # type: ignore[attr-defined]
         else:
             base = np.asarray(self.base_position, dtype=np.float64)  # type: ignore[attr-defined]
-            (lx, ly, lz), dist, az, el = type(self).CAMERA_VIEW
+            (lx, ly, lz), dist, az, el = self.CAMERA_VIEW  # type: ignore[attr-defined]
             lookat = options.lookat if options.lookat is not None else tuple(base + (lx, ly, lz))
             if options.position is not None:
                 position = options.position
@@ -311,8 +308,8 @@ class CameraObservations:
 
         name = (options.camera_name or CAMERA_ENTITY).strip("/")
         short = name.rsplit("/", 1)[-1]
-        rgb_default, depth_default = type(self).CAMERA_TOPICS.get(short, (f"{short}/image_raw",
-                                                                          f"{short}/depth/image_raw"))
+        rgb_default, depth_default = self.CAMERA_TOPICS.get(  # type: ignore[attr-defined]
+            short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
         link = self.link  # type: ignore[attr-defined]
         rgb = ImageTopic(self.node, link.resolve(options.rgb_topic or rgb_default), "rgb")  # type: ignore[attr-defined]
         depth = (ImageTopic(self.node, link.resolve(options.depth_topic or depth_default), "depth")  # type: ignore[attr-defined]
@@ -336,9 +333,16 @@ class CameraObservations:
         assert options is not None
         h, w = self.image_size
         if self._camera_real:
+            from multiros.envs.real.errors import StaleStateError
+
             rgb_topic, depth_topic = self.camera_source
-            rgb = resize_nearest(rgb_topic.latest(options.image_timeout), h, w)
-            depth = None if depth_topic is None else resize_nearest(depth_topic.latest(options.image_timeout), h, w)
+            try:
+                rgb = resize_nearest(rgb_topic.latest(options.image_timeout), h, w)
+                depth = (None if depth_topic is None
+                         else resize_nearest(depth_topic.latest(options.image_timeout), h, w))
+            except StaleStateError as exc:  # the env stops, as for stale joint states
+                self.connection.fault = exc  # type: ignore[attr-defined]
+                raise
         else:
             frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth,  # type: ignore[attr-defined]
                                                 width=w, height=h)

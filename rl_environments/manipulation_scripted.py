@@ -1,4 +1,4 @@
-"""Scripted policies for the RX200 push and pick-and-place tasks, and demonstrations for training.
+"""Scripted policies for the push and pick-and-place tasks of every arm, and demonstrations for training.
 
 :class:`ScriptedPush` and :class:`ScriptedPickAndPlace` read only the observation (EE and object
 positions, finger positions, the goal) and return end-effector-delta actions with a gripper
@@ -34,7 +34,7 @@ def _parts(obs: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         o, goal = np.asarray(obs["observation"], dtype=np.float64), np.asarray(obs["desired_goal"], dtype=np.float64)
     else:
         o = np.asarray(obs, dtype=np.float64)
-        goal = o[30:33]
+        goal = o[-6:-3]  # a plain observation ends with the goal and goal minus object
     return o[0:3], o[3:6], o[9:11], goal
 
 
@@ -49,6 +49,8 @@ class ScriptedPickAndPlace:
     Args:
         ee_delta_coeff: metres per unit action (the task's ``ee_delta_coeff``).
         half: the object's half size.
+        closed: the finger position of the closed gripper (the task's ``gripper_min``): fingers
+            stopped short of it hold the object.
     """
 
     def __init__(self, ee_delta_coeff: float = 0.02, half: float = 0.015, closed: float = 0.015) -> None:
@@ -63,7 +65,7 @@ class ScriptedPickAndPlace:
         ee, obj, fingers, goal = _parts(obs)
         xy_err = float(np.linalg.norm(ee[:2] - obj[:2]))
         grasp_z = obj[2] + 0.003
-        held = self._closing >= 4 and fingers[0] > self.closed + 0.003 and np.linalg.norm(ee - obj) < 0.03
+        held = self._closing >= 4 and fingers[0] > self.closed + 0.003 and np.linalg.norm(ee - obj) < 2 * self.half
         if held:
             # carry: the object sits ~obj-ee below the EE; move so the object reaches the goal
             target = goal + (ee - obj)
@@ -96,7 +98,7 @@ def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace:
     if not getattr(task, "ee_action_type", False):
         raise ValueError("the scripted policies drive end-effector actions; make the env with ee_action_type=True")
     cls = ScriptedPush if task.task == "push" else ScriptedPickAndPlace
-    return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half)
+    return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0])
 
 
 def run_episode(env: Any, policy: Callable[[Any], Action], seed: int | None = None,

@@ -30,7 +30,7 @@ it (the action space's bounds, like every Box action).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from gymnasium import spaces
@@ -54,6 +54,9 @@ class ManipulationTask(BatchTask, ArmInterface):
     The task env calls :meth:`_setup_manipulation` after the robot env's constructor.
     """
 
+    #: The task needs the scene (a table and an object): the robot layers read it (a real one takes
+    #: the tracker's and the gripper's options then).
+    SCENE_TASK: ClassVar[bool] = True
     task: TaskKind
     cfg: dict[str, Any]
     goal: np.ndarray
@@ -142,7 +145,8 @@ class ManipulationTask(BatchTask, ArmInterface):
 
     def _show_goal(self) -> None:
         """A sphere the size of the cube at the goal (rendered images, the viewer, RViz); once per episode."""
-        at = self.connection.to_world(self.goal)
+        to_world = getattr(self.connection, "to_world", None)  # a simulated robot's world slot
+        at = self.goal if to_world is None else to_world(self.goal)
         marker = getattr(self, "_goal_marker", None)
         if marker is None:
             self._goal_marker = goal_marker(self.node, at, diameter=2 * self.half, ns=f"goal_{self.robot_name}")

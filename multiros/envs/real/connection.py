@@ -58,6 +58,7 @@ class RealConnection(RobotConnection):
         command_interface: str,
         controllers_list: Sequence[str],
         load_controllers: bool,
+        check_controllers: bool = True,
         reset_controllers: bool,
         reset_controllers_prompt: bool,
         joint_states_topic: str,
@@ -83,6 +84,7 @@ class RealConnection(RobotConnection):
         self.arm_controller_type = arm_controller_type
         self.command_interface = command_interface
         self.controllers_list = list(controllers_list)
+        self.check_controllers = bool(check_controllers)
         self.reset_controllers = bool(reset_controllers)
         self.reset_controllers_prompt = bool(reset_controllers_prompt)
         self.loop = loop
@@ -111,6 +113,9 @@ class RealConnection(RobotConnection):
     # -- start-up ---------------------------------------------------------------------------
     @property
     def _controllers(self) -> list[str]:
+        """The controllers the robot's controller manager must have active (none without one to ask)."""
+        if not self.check_controllers:
+            return []
         return ([self.arm_controller] if self.arm_controller else []) + [
             c for c in self.controllers_list if c != self.arm_controller]
 

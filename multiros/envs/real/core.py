@@ -46,6 +46,9 @@ class RealEnvCore(EnvCore):
             the default) or ``"action"`` (``<controller>/follow_joint_trajectory``, each goal checked).
         controllers_list: controllers that must be active (besides ``arm_controller``).
         load_controllers: load/configure/activate ``arm_controller`` and ``controllers_list`` at start.
+        check_controllers: ask the robot's ros2_control controller manager that they are active
+            (default); ``False`` for a driver without one (Niryo's ROS 2 bridge): the arm's command
+            topic or action server must still appear.
         reset_controllers: restart them on every reset; ``reset_controllers_prompt`` asks first.
         joint_states_topic: relative to the namespace unless absolute.
         environment_loop_rate, action_cycle_time: the control loop (see
@@ -87,6 +90,7 @@ class RealEnvCore(EnvCore):
         command_interface: str = "topic",
         controllers_list: Sequence[str] | None = None,
         load_controllers: bool = False,
+        check_controllers: bool = True,
         reset_controllers: bool = False,
         reset_controllers_prompt: bool = False,
         joint_states_topic: str = "joint_states",
@@ -157,7 +161,8 @@ class RealEnvCore(EnvCore):
                 robot_name=k["robot_name"] or (ns or "robot"), arm_joints=arm_joints,
                 arm_controller=k["arm_controller"], arm_controller_type=k["arm_controller_type"],
                 command_interface=k["command_interface"], controllers_list=list(k["controllers_list"] or []),
-                load_controllers=k["load_controllers"], reset_controllers=k["reset_controllers"],
+                load_controllers=k["load_controllers"], check_controllers=k["check_controllers"],
+                reset_controllers=k["reset_controllers"],
                 reset_controllers_prompt=k["reset_controllers_prompt"], joint_states_topic=k["joint_states_topic"],
                 loop=loop, safety=safety, joint_state_timeout=k["joint_state_timeout"],
                 startup_timeout=k["startup_timeout"], timeout_sec=k["timeout_sec"],

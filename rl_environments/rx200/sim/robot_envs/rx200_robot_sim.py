@@ -33,6 +33,11 @@ class RX200Robot(ArmRobot):
     GRIPPER_CONTROLLER = "gripper_controller"
     FINGER_JOINTS = ("left_finger", "right_finger")
     SCENE = rx200_description.SCENE
+    # The observation camera's default view (the description's render_camera's): lookat, distance,
+    # azimuth, elevation, relative to the base.
+    CAMERA_VIEW = ((0.164, 0.039, 0.115), 0.734, 140.0, -25.0)
+    # With use_zed2: the Zed2's left camera on Stereolabs' zed_wrapper topics.
+    CAMERA_TOPICS = {"zed2_left": ("zed2/zed_node/rgb/image_rect_color", "zed2/zed_node/depth/depth_registered")}
 
     @classmethod
     def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> RX200TopDownIK:

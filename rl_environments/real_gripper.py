@@ -1,0 +1,109 @@
+"""A real gripper, commanded the way its ROS 2 driver takes commands: the push and pick-and-place
+Real twins' finger target (the simulated finger joint's position, metres) mapped onto the driver's
+range and sent as
+
+* ``"trajectory"``: a one-point ``JointTrajectory`` on ``<controller>/joint_trajectory`` (a
+  JointTrajectoryController on the gripper joint: Interbotix' ``gripper_controller``);
+* ``"forward"``: ``std_msgs/Float64MultiArray`` on ``<controller>/commands`` (a forward or group
+  position controller);
+* ``"gripper_action"``: a ``control_msgs/action/GripperCommand`` goal on ``<controller>/gripper_cmd``
+  (a GripperActionController: PickNik's ``ros2_robotiq_gripper``), sent only when the target moves
+  (more than 1 % of the range) and never waited for, so the control loop keeps its rate;
+* ``"none"``: nothing (another process of yours drives the gripper).
+
+Every command is finite and clipped into the driver's range; nothing is sent once the env has
+stopped after a fault.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+__all__ = ["GRIPPER_INTERFACES", "RealGripper"]
+
+GRIPPER_INTERFACES = ("trajectory", "forward", "gripper_action", "none")
+
+
+class RealGripper:
+    """One env's gripper (see the module docstring).
+
+    Args:
+        env: the Real env (its robot link, control loop and connection).
+        interface: one of :data:`GRIPPER_INTERFACES`.
+        controller: the driver's gripper controller (relative to the robot's namespace).
+        joint: the gripper joint a trajectory commands.
+        env_range: the task's finger positions ``(closed, open)``.
+        real_range: the driver's values at ``(closed, open)`` (default: ``env_range``).
+        max_effort: a GripperCommand goal's effort limit (N; 0: the driver's default).
+    """
+
+    def __init__(self, env: Any, interface: str, controller: str, joint: str, env_range: Sequence[float],
+                 real_range: Sequence[float] | None = None, max_effort: float = 0.0) -> None:
+        if interface not in GRIPPER_INTERFACES:
+            raise ValueError(f"gripper_interface {interface!r} is not one of {list(GRIPPER_INTERFACES)}")
+        if interface != "none" and not controller:
+            raise ValueError(f"gripper_interface={interface!r} needs gripper_controller= (the driver's gripper "
+                             "controller)")
+        lo, hi = (float(v) for v in env_range)
+        rlo, rhi = (float(v) for v in (real_range if real_range is not None else env_range))
+        if not all(map(math.isfinite, (lo, hi, rlo, rhi))) or hi == lo:
+            raise ValueError(f"gripper ranges must be finite and not empty: env {env_range}, driver {real_range}")
+        self.env, self.interface, self.controller, self.joint = env, interface, controller, joint
+        self.env_range, self.real_range = (lo, hi), (rlo, rhi)
+        self.max_effort = float(max_effort)
+        self.last: float | None = None
+        self._client: Any = None
+        if interface == "gripper_action":
+            from multiros.ros.action import ActionClient
+            from multiros.ros.interfaces import get_action
+
+            self._goal_type = get_action("control_msgs/action/GripperCommand")
+            self._client = ActionClient(env.node, self._goal_type, env.link.resolve(f"{controller}/gripper_cmd"))
+
+    def to_driver(self, finger: float) -> float:
+        """The driver's value for the task's finger position (linear, clipped into the driver's range)."""
+        lo, hi = self.env_range
+        rlo, rhi = self.real_range
+        value = rlo + (float(finger) - lo) / (hi - lo) * (rhi - rlo)
+        return float(np.clip(value, min(rlo, rhi), max(rlo, rhi)))
+
+    def command(self, finger: float) -> None:
+        """Send the finger target ``finger`` (task units) to the driver."""
+        if not math.isfinite(float(finger)):
+            raise ValueError(f"gripper target {finger!r} is not finite; nothing was sent")
+        self.env.connection.ensure_commandable()
+        value = self.to_driver(finger)
+        if self.interface == "none":
+            return
+        if self.interface == "trajectory":
+            self.env.link.publish_trajectory(self.controller, [self.joint], np.array([value]), self.env.loop.cycle)
+        elif self.interface == "forward":
+            self.env.link.publish_forward(self.controller, np.array([value]))
+        else:
+            span = abs(self.real_range[1] - self.real_range[0])
+            if self.last is not None and abs(value - self.last) <= 0.01 * span:
+                return
+            goal = self._goal_type.Goal()
+            goal.command.position = value
+            goal.command.max_effort = self.max_effort
+            self._client.send_goal_async(goal)
+        self.last = value
+
+    def wait_ready(self, timeout: float) -> bool:
+        """Whether the driver's gripper interface is there (an action server, or a subscriber)."""
+        if self.interface == "none":
+            return True
+        if self.interface == "gripper_action":
+            return bool(self._client.wait_for_server(timeout_sec=timeout))
+        return bool(self.env.link.wait_for_subscriber(self.controller, self.interface, timeout))
+
+    def close(self) -> None:
+        if self._client is not None:
+            try:
+                self._client.destroy()
+            except Exception:  # noqa: BLE001 - closing goes on
+                pass
