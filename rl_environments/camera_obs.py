@@ -178,19 +178,29 @@ def look_at_rpy(position: Sequence[float], lookat: Sequence[float]) -> tuple[flo
 
 
 def camera_entity_urdf(position: Sequence[float], lookat: Sequence[float], width: int, height: int,
-                       fovy_deg: float) -> str:
-    """A URDF holding one depth camera sensor (``camera``) at the entity's origin aimed at ``lookat``
-    (given relative to ``position``'s frame: the entity is spawned at ``position``)."""
+                       fovy_deg: float, namespace: str) -> str:
+    """A URDF holding one depth camera sensor (``camera``) at the entity's origin, aimed at ``lookat``
+    (the entity is spawned at ``position``), publishing as gazebo_ros_camera does in ``namespace``:
+    ``<namespace>/camera/image_raw``, ``.../camera_info``, ``.../depth/image_raw``.
+
+    The mount is a prismatic joint of zero travel (horizontal): a description without a joint would be a
+    free-floating object and fall, one with a joint is a fixed-base entity."""
     pitch, yaw = look_at_rpy(position, lookat)
     hfov = 2.0 * math.atan(math.tan(math.radians(fovy_deg) / 2.0) * width / height)
     return (
         '<robot name="observation_camera">\n'
-        '  <link name="camera_link"/>\n'
+        '  <link name="world"/>\n'
+        '  <link name="camera_link"><inertial><mass value="0.01"/>'
+        '<inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial></link>\n'
+        '  <joint name="camera_mount" type="prismatic"><parent link="world"/><child link="camera_link"/>'
+        '<axis xyz="1 0 0"/><limit lower="0" upper="0" effort="1" velocity="1"/></joint>\n'
         '  <gazebo reference="camera_link">\n'
         f'    <sensor type="depth" name="{CAMERA_ENTITY}">\n'
         f'      <pose>0 0 0 0 {pitch!r} {yaw!r}</pose>\n'
         f'      <camera><horizontal_fov>{hfov!r}</horizontal_fov>'
         f'<image><width>{width}</width><height>{height}</height></image></camera>\n'
+        f'      <plugin name="{CAMERA_ENTITY}" filename="libgazebo_ros_camera.so">'
+        f'<ros><namespace>{namespace}</namespace></ros><camera_name>{CAMERA_ENTITY}</camera_name></plugin>\n'
         '    </sensor>\n'
         '  </gazebo>\n'
         '</robot>\n'
@@ -285,9 +295,9 @@ class CameraObservations:
                             lookat[2] - dist * math.sin(e))
             w, h = options.width or DEFAULT_SIZE, options.height or DEFAULT_SIZE
             entity = f"{self.robot_name}_{CAMERA_ENTITY}"  # type: ignore[attr-defined]
-            text = camera_entity_urdf(position, lookat, w, h, options.fovy)
+            text = camera_entity_urdf(position, lookat, w, h, options.fovy, conn.namespace)
             entity = self.sim.spawn_entity(  # type: ignore[attr-defined]
-                entity, uri="", resource_string=text, namespace=conn.namespace,
+                entity, uri="", resource_string=text, namespace=f"{conn.namespace.rstrip('/')}/{CAMERA_ENTITY}_mount",
                 position=tuple(conn.to_world(np.asarray(position, dtype=np.float64))),
                 timeout_sec=max(conn.timeout_sec, 30.0))
             self.camera_source = f"{entity}/{CAMERA_ENTITY}"

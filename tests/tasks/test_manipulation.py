@@ -12,7 +12,8 @@ import rl_environments
 from rl_environments.manipulation import RX200TopDownIK, rotation_velocity
 from rl_environments.manipulation_scripted import run_episode, scripted_policy
 
-IDS = rl_environments.MANIPULATION_ENV_IDS
+# The RX200's (the other arms': tests/tasks/test_arm_envs.py).
+IDS = ("RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0", "RX200PnPGoalSim-v0")
 GOAL_IDS = ("RX200PushGoalSim-v0", "RX200PnPGoalSim-v0")
 SEEDS = (0, 1, 2, 3, 4)
 
@@ -22,9 +23,9 @@ def _obs(o):
 
 
 def test_ids_are_registered_with_50_step_episodes():
-    assert set(IDS) <= set(rl_environments.ENV_IDS)
+    assert set(IDS) <= set(rl_environments.MANIPULATION_ENV_IDS) <= set(rl_environments.ENV_IDS)
     assert set(GOAL_IDS) <= set(rl_environments.GOAL_ENV_IDS)
-    for env_id in IDS:
+    for env_id in rl_environments.MANIPULATION_ENV_IDS:
         assert gym.spec(env_id).max_episode_steps == 50
 
 
