@@ -30,7 +30,7 @@ def test_ids_and_twins_are_registered_as_rl_environments_names_them():
     real = [i.replace("Sim-v0", "Real-v0") for i in NEW_SIM]
     assert set(NEW_SIM) | set(ZED2) <= set(rl_environments.ENV_IDS)
     assert set(real) <= set(rl_environments.REAL_ENV_IDS)
-    assert ZED2 == [f"RX200Zed2{t}Sim-v0" for t in ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")]
+    assert [f"RX200Zed2{t}Sim-v0" for t in ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")] == ZED2
     assert {"UR5ePnPGoalSim-v0", "NED2ReacherSim-v0", "VX300SPushReal-v0"} <= {*NEW_SIM, *real}
     for sim, twin in zip(NEW_SIM, real):
         assert rl_environments.SIM_TO_REAL[sim] == twin
