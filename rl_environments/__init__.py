@@ -15,6 +15,12 @@ ID                              entry point
 ``ABBIRB120ReacherGoalEnv-v0``  ``...reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv``
 ==============================  ========================================================================
 
+Every arm's tasks (``rl_environments.arm_reach``, ``rl_environments.arm_manipulation``) on the
+VX300S, UR5e and NED2 (``ARMS``): ``<ARM><task>Sim-v0`` for each ``<task>`` of ``ARM_TASKS``
+(``Reacher``, ``ReacherGoal``, ``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``), entry point
+``rl_environments.<arm>.sim:<ARM><task>Env``; the RX200's six observed through a Zed2 camera,
+``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``, ``rl_environments.rx200.sim.zed2``).
+
 Real-robot twins (same task, same spaces; they need a robot or a stand-in, see ``docs/real_robots.md``):
 
 ====================================  ==================================================================
@@ -24,11 +30,14 @@ Real-robot twins (same task, same spaces; they need a robot or a stand-in, see `
 ``ABBIRB120ReacherGoalRealEnv-v0``    ``...reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv``
 ====================================  ==================================================================
 
+and the arms' twins ``<ARM><task>Real-v0`` (``rl_environments.<arm>.real:<ARM><task>RealEnv``).
+
 ``ENV_IDS``/``GOAL_ENV_IDS`` are the simulated envs (they run anywhere); ``REAL_ENV_IDS``/
 ``REAL_GOAL_ENV_IDS`` the real ones, and ``SIM_TO_REAL`` maps each simulated ID to its real twin.
 The reach IDs have ``max_episode_steps=100``, push and pick-and-place (``MANIPULATION_ENV_IDS``) 50
-(``EPISODE_STEPS``). Robot description packages (``rx200_description``,
-``abb_irb120_description``) live in ``rl_environments.robots``.
+(``EPISODE_STEPS``), their Real twins alike. Robot description packages (``rx200_description``,
+``abb_irb120_description``, ``vx300s_description``, ``ur5e_description``, ``ned2_description``)
+live in ``rl_environments.robots``.
 """
 
 from __future__ import annotations
@@ -126,6 +135,9 @@ def register_envs() -> None:
 register_envs()
 
 __all__ = [
+    "ARMS",
+    "ARM_TASKS",
+    "CAMERA_ENV_IDS",
     "ENV_IDS",
     "ENV_SPECS",
     "EPISODE_STEPS",

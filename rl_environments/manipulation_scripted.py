@@ -65,7 +65,8 @@ class ScriptedPickAndPlace:
         ee, obj, fingers, goal = _parts(obs)
         xy_err = float(np.linalg.norm(ee[:2] - obj[:2]))
         grasp_z = obj[2] + 0.003
-        held = self._closing >= 4 and fingers[0] > self.closed + 0.003 and np.linalg.norm(ee - obj) < 2 * self.half
+        near = max(0.03, 2 * self.half)  # a big cube may slip along the pads and still be held
+        held = self._closing >= 4 and fingers[0] > self.closed + 0.003 and np.linalg.norm(ee - obj) < near
         if held:
             # carry: the object sits ~obj-ee below the EE; move so the object reaches the goal
             target = goal + (ee - obj)

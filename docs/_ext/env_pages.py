@@ -4,9 +4,11 @@ For every ID in ``rl_environments`` (simulated and Real), ``env_ids/<ID>.md`` ge
 the kind of env, the episode length, the task's keyword options (from the task class' signature),
 the observation and action spaces (from an env built with ``uniros.make``: a composed simulation
 node, about 0.1 s per ID; a Real env's spaces are its simulated twin's, which the tests compare),
-the picture ``_static/envs/<ID>.png`` when it exists, and the env module's docstring (its
-description, rewards, success and episode end). ``env_ids/_summary.md`` is the table the
-Environments page includes. Files are rewritten only when their text changes.
+the picture ``_static/envs/<ID>.png`` when it exists (a Real ID shows its simulated twin's), the
+env class' docstring, and the env module's docstring (its description, rewards, success and episode
+end) with those of the ``rl_environments`` modules either refers to by ``:mod:`` (an arm's IDs share
+one module and the tasks' modules say what every arm's task is). ``env_ids/_summary.md`` is the
+table the Environments page includes. Files are rewritten only when their text changes.
 
 Nothing here is committed output: ``docs/.gitignore`` ignores ``env_ids/``.
 """
@@ -42,6 +44,7 @@ class EnvInfo:
     action_space: Any = None
     options: list[tuple[str, str]] = field(default_factory=list)
     docstrings: list[tuple[str, str]] = field(default_factory=list)  # (module, docstring)
+    class_doc: str = ""
 
 
 def collect(build_spaces: bool = True) -> list[EnvInfo]:
@@ -62,8 +65,10 @@ def collect(build_spaces: bool = True) -> list[EnvInfo]:
         info = EnvInfo(env_id, str(spec.entry_point), real, env_id in goal_ids, spec.max_episode_steps, twin)
         module_name, _, class_name = info.entry_point.partition(":")
         module = importlib.import_module(module_name)
-        info.options = _task_options(getattr(module, class_name))
-        info.docstrings = _docstrings(module)
+        cls = getattr(module, class_name)
+        info.options = _task_options(cls)
+        info.class_doc = inspect.cleandoc(vars(cls).get("__doc__") or "")
+        info.docstrings = _docstrings(module, info.class_doc)
         if build_spaces and not real:
             env = uniros.make(env_id)
             try:
@@ -90,11 +95,12 @@ def _task_options(cls: type) -> list[tuple[str, str]]:
     return []
 
 
-def _docstrings(module: Any) -> list[tuple[str, str]]:
-    """The module's docstring, then those of the ``rl_environments`` modules it refers to by ``:mod:``."""
+def _docstrings(module: Any, class_doc: str = "") -> list[tuple[str, str]]:
+    """The module's docstring, then those of the ``rl_environments`` modules it or the env class'
+    docstring refers to by ``:mod:``."""
     doc = inspect.getdoc(module) or ""
     out = [(module.__name__, doc)]
-    for ref in dict.fromkeys(_MOD_REF.findall(doc)):
+    for ref in dict.fromkeys(_MOD_REF.findall(class_doc) + _MOD_REF.findall(doc)):
         if ref != module.__name__:
             out.append((ref, inspect.getdoc(importlib.import_module(ref)) or ""))
     return out
@@ -200,7 +206,10 @@ def render_page(info: EnvInfo, known_ids: set[str], srcdir: Path) -> str:
         if not doc:
             continue
         if i == 0:
-            lines += ["## Description", "", f"From the docstring of {{py:mod}}`{mod}`:", ""]
+            lines += ["## Description", ""]
+            if info.class_doc:
+                lines += [_markdown_docstring(info.class_doc, known_ids, info.env_id, demote=0)]
+            lines += [f"From the docstring of {{py:mod}}`{mod}`:", ""]
         else:
             lines += [f"### From {{py:mod}}`{mod}`", ""]
         lines.append(_markdown_docstring(doc, known_ids, info.env_id, demote=1 + (i > 0)))

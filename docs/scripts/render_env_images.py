@@ -1,9 +1,10 @@
 """Render the pictures of the docs from the current code: one PNG per simulated env ID and one for the README.
 
-Each image is the env's own ``render()`` (the robot's ``render_camera``) right after ``reset``, for the
-first seed whose goal marker (and, for push and pick-and-place, the cube) the robot does not hide from
-the camera; pick-and-place shows a goal in the air. The Real IDs have no images of their own: they share
-the task and the robot with their Sim twin (``rl_environments.SIM_TO_REAL``).
+Each image is the env's own ``render()`` (the robot's ``render_camera``; the Zed2 variants' Zed2)
+right after ``reset``, for the first seed whose goal marker (and, for push and pick-and-place, the
+cube) the robot does not hide from the camera; pick-and-place shows a goal in the air. The Real IDs
+have no images of their own: they share the task and the robot with their Sim twin
+(``rl_environments.SIM_TO_REAL``).
 
 Run from the repository root (headless machines need no display; EGL renders offscreen)::
 
@@ -39,7 +40,7 @@ SEEDS = range(40)
 def _visible(env, point: np.ndarray, radius: float, body: str = "") -> bool:
     """No geom (but those of ``body``) between the env's render camera and a sphere at ``point``
     (rays to its centre and rim)."""
-    world = env._connection.sim_node.world  # the composed node's world (a docs tool may look inside)
+    world = env.sim_connection.sim_node.world  # the composed node's world (a docs tool may look inside)
     model, data = world.model, world.data
     exclude = mujoco.mj_name2id(model, int(mujoco.mjtObj.mjOBJ_BODY), body) if body else -1
     pos, axes, _ = camera_pose(model, data, env._render_options[0])
@@ -56,7 +57,7 @@ def _visible(env, point: np.ndarray, radius: float, body: str = "") -> bool:
 
 def _apart(env, a: np.ndarray, b: np.ndarray, pixels: float) -> bool:
     """``a`` and ``b`` at least ``pixels`` apart in the env's rendered image (the view says where each is)."""
-    world = env._connection.sim_node.world
+    world = env.sim_connection.sim_node.world
     camera, width, height = env._render_options
     uv, _ = project_points(world.model, world.data, camera, [a, b], width=width, height=height)
     return bool(np.linalg.norm(uv[0] - uv[1]) >= pixels)
@@ -68,7 +69,9 @@ def _object(env) -> np.ndarray | None:
 
 def render_env(env_id: str, width: int, height: int) -> tuple[np.ndarray, int]:
     """The first frame after reset of the first seed showing the goal (and the object); returns it and the seed."""
-    env = uniros.make(env_id, render_mode="rgb_array", render_width=width, render_height=height).unwrapped
+    # A camera variant shows what its camera sees (the Zed2's left image), the others the robot's render camera.
+    view = {"render_camera": "rx200/zed2_left"} if "Zed2" in env_id else {}
+    env = uniros.make(env_id, render_mode="rgb_array", render_width=width, render_height=height, **view).unwrapped
     try:
         radius = float(env.half) if hasattr(env, "half") else float(env.tolerance)
         for seed in SEEDS:
