@@ -60,21 +60,19 @@ class ArmRobot(ArmInterface):
             ``SIM_TIMESTEP * NUM_SIM_STEPS`` (40 ms, Fetch's, by default).
         RENDER_CAMERA: the description's camera ``render()`` uses unless ``render_camera`` is
             given (in the world: ``"<robot_name>/<camera>"``); empty = the node's default view.
-
-    Push and pick-and-place (:class:`~rl_environments.manipulation_task.ManipulationTask`) also need:
-        GRIPPER_CONTROLLER: the controller commanding the first of ``FINGER_JOINTS`` (a position).
+        GRIPPER_CONTROLLER: push and pick-and-place: the controller commanding the first of
+            ``FINGER_JOINTS`` (a position).
         FINGER_JOINTS: the commanded finger joint and the one mimicking it.
         FINGER_MIMIC: the second finger's position per unit of the first (its URDF ``<mimic>``).
         SCENE: the push / pick-and-place scene, positions relative to the robot base (the description
-            package's ``SCENE``: ``robot_height``, ``table_center``, ``table_top``, ``object_half_size``,
-            ``init_ee_position``, the object, goal and end-effector boxes, ``target_height_max``,
-            ``max_object_distance``); ``mjcf/table.xml`` and ``mjcf/cube.xml`` of the package match it.
-        :meth:`top_down_ik`: the arm's IK with the gripper pointing down.
-
-    Camera observations (:mod:`rl_environments.camera_obs`):
-        CAMERA_VIEW: the default observation camera, ``((x, y, z) lookat, distance, azimuth,
-            elevation)`` relative to the robot base (metres, degrees): by default the description's
-            ``render_camera`` view.
+            package's ``SCENE``: ``robot_height``, ``table_center``, ``table_top``,
+            ``object_half_size``, ``init_ee_position``, the object, goal and end-effector boxes,
+            ``target_height_max``, ``max_object_distance``); the package's ``mjcf/table.xml`` and
+            ``mjcf/cube.xml`` match it. :meth:`top_down_ik` gives the arm's IK with the gripper
+            pointing down.
+        CAMERA_VIEW: camera observations (:mod:`rl_environments.camera_obs`): the default camera,
+            ``((x, y, z) lookat, distance, azimuth, elevation)`` relative to the robot base (metres,
+            degrees), by default the view of the description's ``render_camera``.
         CAMERA_TOPICS: a described camera's ``(rgb, depth)`` topics, relative to the robot's
             namespace, when not ``<camera>/image_raw`` and ``<camera>/depth/image_raw``.
     """

@@ -46,9 +46,10 @@ def _velocity_limits(chain: Any) -> np.ndarray | None:
 
 
 class RealArmRobot(ArmRobot):
-    """Robot-layer behaviour of a fixed-base arm driven through ros2_control.
+    """Robot-layer behaviour of a fixed-base arm driven through ros2_control; a real robot sets the
+    class attributes below besides :class:`~rl_environments.arm_robot.ArmRobot`'s.
 
-    Class attributes a real robot sets (besides :class:`ArmRobot`'s):
+    Attributes:
         REAL_NAMESPACE: the driver's namespace.
         REAL_ARM_CONTROLLER: the JointTrajectoryController over ``ARM_JOINTS``.
         REAL_CONTROLLERS: other controllers that must be active.

@@ -67,3 +67,20 @@ def test_picture_shown_when_it_exists(env_pages, infos, tmp_path):
     (tmp_path / "_static" / "envs" / "RX200ReacherGoalSim-v0.png").write_bytes(b"\x89PNG")
     page = env_pages.render_page(info, known, tmp_path)
     assert "![RX200ReacherGoalSim-v0 (the simulated twin)](../_static/envs/RX200ReacherGoalSim-v0.png)" in page
+
+
+def test_every_simulated_id_has_its_picture():
+    missing = [i for i in rl_environments.ENV_IDS if not (DOCS / "_static" / "envs" / f"{i}.png").is_file()]
+    assert not missing, f"render them: docs/scripts/render_env_images.py --ids {' '.join(missing)}"
+
+
+def test_an_arms_page_has_its_class_and_its_task(env_pages, infos):
+    by_id = {info.env_id: info for info in infos}
+    known = set(by_id)
+    page = env_pages.render_page(by_id["UR5ePnPGoalSim-v0"], known, DOCS)
+    assert page.index("the goal-conditioned UR5e pick-and-place") < page.index("From the docstring of")  # class first
+    assert "rl_environments.arm_manipulation" in page and "#### Rewards" in page
+    assert "rl_environments.arm_reach`" not in page  # only the modules this ID refers to
+    assert "![UR5ePnPGoalSim-v0](../_static/envs/UR5ePnPGoalSim-v0.png)" in page
+    real = env_pages.render_page(by_id["UR5ePnPGoalReal-v0"], known, DOCS)
+    assert "![UR5ePnPGoalSim-v0 (the simulated twin)]" in real and "PoseStamped" in real
