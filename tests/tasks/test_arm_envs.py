@@ -173,3 +173,15 @@ def test_a_camera_that_does_not_exist_or_cannot_render_says_so(monkeypatch):
     monkeypatch.setattr(mujoco, "Renderer", no_gl)
     with pytest.raises(RenderError, match="MUJOCO_GL=egl"):
         uniros.make("VX300SReacherSim-v0", rgb_obs_only=True)
+
+
+def test_batched_envs_observe_each_through_its_own_camera():
+    vec = uniros.make_vec("VX300SReacherGoalSim-v0", 2, rgb_plus_normal_obs=True, image_width=32, image_height=32)
+    try:
+        vec.reset(seed=0)
+        obs, *_ = vec.step(vec.action_space.sample())
+        assert obs["rgb"].shape == (2, 32, 32, 3) and obs["observation"].shape == (2, 21)
+        for j, env in enumerate(vec.batch.envs):  # each env's camera sees its own world slot
+            np.testing.assert_array_equal(env.read_images()[0], obs["rgb"][j])
+    finally:
+        vec.close()
