@@ -323,7 +323,7 @@ def _check_model(path: Path, spaces: tuple[Any, Any], algorithm: str) -> str | N
     except Exception as exc:  # a truncated or foreign zip fails in zipfile, pickle or torch
         return f"unreadable ({type(exc).__name__}: {exc})"
     if not data or not params:
-        return "not an SB3 model (no data or parameters)"
+        return "unreadable (no model data or parameters in it: truncated, or not an SB3 model)"
     saved_algo = algorithm_of_saved(str(getattr(data.get("policy_class"), "__module__", "")), data)
     if saved_algo is not None and saved_algo != algorithm:
         return f"a {saved_algo.upper()} model, but the run's config says algorithm: {algorithm}"

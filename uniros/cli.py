@@ -14,14 +14,18 @@ from pathlib import Path
 
 def _cmd_list(args: argparse.Namespace) -> int:
     import rl_environments
+    from uniros.train_config import shipped_config_ids
 
     goal = set(rl_environments.GOAL_ENV_IDS) | set(rl_environments.REAL_GOAL_ENV_IDS)
-    for title, specs in (("simulated (the simulation node; run anywhere)", rl_environments.ENV_SPECS),
+    configs = set(shipped_config_ids())
+    for title, specs in (("simulated (the simulation node; run anywhere); config: `uniros train ID` has a shipped "
+                          "training config", rl_environments.ENV_SPECS),
                          ("real (a ros2_control robot or a stand-in: docs/real_robots.md)",
                           rl_environments.REAL_ENV_SPECS)):
         print(f"# {title}")
         for env_id, entry_point in specs.items():
-            print(f"{env_id:32s} {'goal' if env_id in goal else 'plain':5s}  {entry_point}")
+            print(f"{env_id:32s} {'goal' if env_id in goal else 'plain':5s} {'config' if env_id in configs else '':6s} "
+                  f"{entry_point}")
     return 0
 
 

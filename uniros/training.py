@@ -495,6 +495,7 @@ def run_training(
     finally:
         if session is not None:
             session.close()
+        run.release()  # the run is written no more: another process (or call) may resume it
 
 
 def _eval_factory(env_id: str, config: TrainingConfig) -> Callable[[], Any]:
@@ -529,7 +530,7 @@ def _resume_session(session: Session, run: RunDir, note: Callable[[str], None]) 
     if choice.chosen is None:
         note(f"no usable checkpoint in {run.checkpoints}: starting the run again from step 0")
         run.clean_for_restart()
-        run.update_meta(steps=0, train_seconds=0.0)
+        run.update_meta(steps=0, train_seconds=0.0, resumed_from=None, resumed_without_buffer=False)
         session.build()
         return
     ckpt = choice.chosen.checkpoint
@@ -545,6 +546,7 @@ def _resume_session(session: Session, run: RunDir, note: Callable[[str], None]) 
     if overrides:
         note(f"hyperparameters changed since the run started, applied to the resumed model: {overrides}")
     session.build(resume=ckpt, buffer=choice.chosen.buffer, load_kwargs=overrides)
+    run.update_meta(resumed_from=ckpt.model.name, resumed_without_buffer=choice.without_buffer)
 
 
 def record_run_video(run: RunDir, env_id: str, config: TrainingConfig, *, episodes: int | None = None) -> Path:
