@@ -42,6 +42,29 @@ def _note(text: str) -> None:
     print(f"note: {text}", file=sys.stderr, flush=True)
 
 
+def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None:
+    """Which ROS 2 graph a run joins when it leaves the process (an existing node, Zenoh, a robot),
+    with a pointer to per-user domains and routers when it is the machine's default one."""
+    import os
+
+    import rl_environments
+    from multiros.ros.transport.zenoh.config import DEFAULT_ROUTER_ENDPOINT, ROUTER_ENV
+
+    real = env_id.rpartition(":")[2] in rl_environments.REAL_ENV_IDS
+    shared = real or env_kwargs.get("sim_mode") == "existing" or (
+        env_kwargs.get("transport") == "zenoh" and env_kwargs.get("sim_mode", "composed") == "composed")
+    if not shared:
+        return None
+    domain = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
+    text = (f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'} through the Zenoh "
+            f"router {router}")
+    if domain in ("", "0") and router == DEFAULT_ROUTER_ENDPOINT:
+        text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID and "
+                 f"{ROUTER_ENV} per user (docs/pitfalls.md, Shared machines)")
+    return text
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     from uniros.evaluation import EVAL_SEED, format_success
     from uniros.run_dir import check_run_name
@@ -92,7 +115,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config.n_envs = args.n_envs
     config.env_kwargs.update(_env_overrides(args))
     check_before_run(env_id, config, None if args.n_envs is None else f"--n-envs {args.n_envs}")
-    for text in (note_updates_per_env_step(config), fit_learning_starts(env_id, config)):
+    for text in (note_updates_per_env_step(config), fit_learning_starts(env_id, config),
+                 _shared_graph_note(env_id, config.env_kwargs)):
         if text:
             _note(text)
     config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
@@ -179,7 +203,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     from uniros.training import evaluate, load_for_eval, make_env, saved_env_kwargs
 
     env_id, model_path = _eval_target(args)
-    env = make_env(env_id, **{**saved_env_kwargs(model_path, env_id), **_env_overrides(args)})
+    kwargs = {**saved_env_kwargs(model_path, env_id), **_env_overrides(args)}
+    note = _shared_graph_note(env_id, kwargs)
+    if note:
+        _note(note)
+    env = make_env(env_id, **kwargs)
     try:
         from uniros.model_spaces import SpaceMismatchError, check_model_spaces
 
