@@ -89,7 +89,8 @@ def main() -> None:
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     rows = [run(env_id, args) for env_id in args.ids]
-    print(f"\n{'ID':28s} {'n':>2s} {'first >= %.2f' % args.target:>14s} {'train s':>8s} {'final success':>20s}")
+    first = f"first >= {args.target:.2f}"
+    print(f"\n{'ID':28s} {'n':>2s} {first:>14s} {'train s':>8s} {'final success':>20s}")
     for row in rows:
         final = row["final"]
         print(f"{row['env_id']:28s} {row['n_envs']:2d} {row['first_target'] or '-'!s:>14s} "

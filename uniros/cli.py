@@ -182,6 +182,8 @@ def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     if second is None:
         raise TrainingError("give a model: uniros eval ENV_ID MODEL, uniros eval RUN_DIR, or "
                             "uniros eval MODEL --env ENV_ID")
+    if args.env or first:
+        check_env_id(args.env or first)
     model_path = resolve_model_path(second)
     env_id = args.env or first or trained_env_id(model_path)
     if env_id is None:

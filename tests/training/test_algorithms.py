@@ -39,7 +39,7 @@ def test_the_table_decides_what_a_config_may_ask():
     config = parse_training_config({"algorithm": "tqc", "training_steps": 5, "use_HER": True,
                                     "tqc_params": {"top_quantiles_to_drop_per_net": 2}})
     assert config.algorithm == "tqc" and config.use_her
-    with pytest.raises(TrainingConfigError, match=r"use_HER needs an off-policy algorithm \(sac, .*tqc.*\), not 'trpo'"):
+    with pytest.raises(TrainingConfigError, match=r"use_HER needs an off-policy algorithm \(sac, .*tqc.*\), not 'trpo"):
         parse_training_config({"algorithm": "trpo", "training_steps": 5, "use_HER": True})
     with pytest.raises(TrainingConfigError, match="algorithm 'tqd' is not one of .*did you mean 'tqc'"):
         parse_training_config({"algorithm": "tqd", "training_steps": 5})
