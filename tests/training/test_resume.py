@@ -314,3 +314,11 @@ def test_a_refused_run_writes_nothing(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "does not take the env kwarg 'ee_action_type'" in err and "Traceback" not in err
     assert not list((tmp_path / "runs").iterdir()) if (tmp_path / "runs").exists() else True
+
+
+def test_a_resumed_run_reports_when_it_first_reached_the_target(run, capsys):
+    """The first evaluation at the target may lie before the resume (here every evaluation reaches
+    0.0): a resumed run reports it from evaluations.csv instead of "never reached"."""
+    code, text = _resume(run, capsys, "--target", "0.0")
+    assert code == 0, text
+    assert "first eval success >= 0.0: 50 steps" in text and "never reached" not in text
