@@ -19,6 +19,7 @@ from typing import Any
 
 from uniros.errors import TrainingConfigError
 
+#: Algorithm name (a config's ``algorithm``) -> ``"module:Class"`` of its implementation.
 ALGOS: dict[str, str] = {
     "sac": "stable_baselines3:SAC",
     "td3": "stable_baselines3:TD3",
@@ -32,6 +33,7 @@ ALGOS: dict[str, str] = {
     "qrdqn": "sb3_contrib:QRDQN",
     "ars": "sb3_contrib:ARS",
 }
+#: The names of :data:`ALGOS`, in its order.
 ALGORITHMS: tuple[str, ...] = tuple(ALGOS)
 
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+#: Episode ``i`` of every evaluation starts with ``env.reset(seed=EVAL_SEED + i)``.
 EVAL_SEED = 1_000_000
 
 
