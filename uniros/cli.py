@@ -10,6 +10,7 @@ import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
@@ -66,41 +67,46 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
-    from uniros.evaluation import EVAL_SEED, format_success
     from uniros.run_dir import check_run_name
-    from uniros.training import (
-        TrainingError,
-        TrainingInterrupted,
-        check_before_run,
-        check_env_id,
-        default_config_for,
-        evaluate,
-        fit_learning_starts,
-        load_for_eval,
-        load_training_config,
-        make_env,
-        note_updates_per_env_step,
-        open_run,
-        record_run_video,
-        run_training,
-        start_run,
-    )
+    from uniros.training import TrainingError, check_env_id, default_config_for, load_training_config, open_run
 
     if args.resume:
         if args.config or args.name:
             raise TrainingError("--resume continues a run with its own config.yaml: drop --config and --name")
         run, env_id, config = open_run(args.resume)  # locked from here on: a second --resume is refused
-        if args.env_id and args.env_id != env_id:
-            raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
-    else:
-        if not args.env_id:
-            raise TrainingError("give an env ID (e.g. RX200ReacherGoalSim-v0 or my_pkg.my_module:MyEnv-v0) "
-                                "or --resume RUN_DIR")
-        env_id = args.env_id
-        check_env_id(env_id)  # a user's module:ID is imported (and checked) before anything is written
-        if args.name is not None:
-            check_run_name(args.name)
-        config = load_training_config(args.config) if args.config else default_config_for(env_id)
+        try:
+            return _train(args, run, env_id, config)
+        finally:
+            run.release()
+    if not args.env_id:
+        raise TrainingError("give an env ID (e.g. RX200ReacherGoalSim-v0 or my_pkg.my_module:MyEnv-v0) "
+                            "or --resume RUN_DIR")
+    check_env_id(args.env_id)  # a user's module:ID is imported (and checked) before anything is written
+    if args.name is not None:
+        check_run_name(args.name)
+    config = load_training_config(args.config) if args.config else default_config_for(args.env_id)
+    return _train(args, None, args.env_id, config)
+
+
+def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
+    """``uniros train`` once the config is known: ``run`` is the resumed run (locked), or ``None``."""
+    from uniros.evaluation import EVAL_SEED, format_success
+    from uniros.training import (
+        TrainingError,
+        TrainingInterrupted,
+        check_before_run,
+        evaluate,
+        fit_learning_starts,
+        load_for_eval,
+        make_env,
+        note_updates_per_env_step,
+        record_run_video,
+        run_training,
+        start_run,
+    )
+
+    if args.resume and args.env_id and args.env_id != env_id:
+        raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
     if args.steps is not None:
         config.training_steps = args.steps
     if args.seed is not None:

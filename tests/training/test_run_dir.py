@@ -21,7 +21,7 @@ from uniros.cli import main as cli_main
 TINY = (
     "algorithm: sac\ntraining_steps: {steps}\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"
     "use_HER: true\nvideo_episodes: 1\nsac_params: {{learning_starts: 100, batch_size: 32, buffer_size: 50000}}\n"
-    "env_kwargs: {{ee_action_type: true}}\n"
+    "env_kwargs: {{ee_action_type: true, max_episode_steps: 50}}\n"
 )
 UNIROS = [sys.executable, "-c", "import sys; from uniros.cli import main; sys.exit(main())"]
 
@@ -71,9 +71,10 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
     second = _latest_steps(run)
     assert second > first  # the step count carried on
 
-    # A name in use is refused, not overwritten.
+    # A name in use is refused, not overwritten, and the message says how to continue that run.
     assert cli_main(args) == 2
-    assert "exists" in capsys.readouterr().err
+    assert f"holds a run that did not finish (interrupted): continue it from its checkpoint at {second} steps " \
+           f"with uniros train --resume {run}" in capsys.readouterr().err
 
     # A corrupt newest checkpoint: resume falls back to the previous one (which, with the default
     # retention, kept no replay buffer: it refills).
@@ -81,7 +82,7 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
     newest.write_bytes(b"not a zip")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        assert cli_main(["train", "--resume", str(run), "--eval-episodes", "5"]) == 0
+        assert cli_main(["train", "--resume", str(run), "--eval-episodes", "3"]) == 0
     # The resumed run starts a fresh episode: SB3's advice to keep the last trajectory does not apply.
     assert not [w for w in caught if "last trajectory in the replay buffer" in str(w.message)]
     out = capsys.readouterr()
@@ -92,7 +93,7 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
     ckpts = run / "checkpoints"
     assert len(list(ckpts.glob("model_*_steps.zip"))) == 3 and len(list(ckpts.glob("model_replay_buffer_*"))) == 1
     # The final evaluation and `uniros eval` play the same seeded episodes: the same figures.
-    final = re.search(r"final evaluation of best_model.zip over 5 episodes: success rate (\S+ \[\S+, \S+\]).*"
+    final = re.search(r"final evaluation of best_model.zip over 3 episodes: success rate (\S+ \[\S+, \S+\]).*"
                       r"mean return (\S+),", out.out)
     assert final, out.out
 
@@ -134,10 +135,10 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
         scalars |= set(acc.Tags()["scalars"])
     assert "eval/success_rate" in scalars
     # uniros eval: a run directory (its best model, its env), a missing file, a model for another env.
-    assert cli_main(["eval", str(run), "--episodes", "5"]) == 0
+    assert cli_main(["eval", str(run), "--episodes", "3"]) == 0
     out = capsys.readouterr().out
     assert "normalised with the saved statistics" in out
-    assert f"success rate {final[1]} (95% CI) over 5 episodes" in out and f"mean return {final[2]}," in out
+    assert f"success rate {final[1]} (95% CI) over 3 episodes" in out and f"mean return {final[2]}," in out
     assert cli_main(["eval", "RX200ReacherGoalSim-v0", str(tmp_path / "nope"), "--algo", "sac"]) == 2
     err = capsys.readouterr().err
     assert "not found" in err and ".zip.zip" not in err and "cannot tell" not in err
