@@ -120,7 +120,7 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
     frames = [np.asarray(f, dtype=int) for f in reader]
     assert len(frames) >= 2 + 5  # the reset frame, the steps, the last one held 0.5 s
     assert np.abs(frames[0] - frames[-1]).mean() > 1  # the robot moves
-    np.testing.assert_array_equal(frames[-1], frames[-5])  # the end is held
+    assert np.abs(frames[-1] - frames[-5]).mean() < 1.0  # the end is held (H.264 changes a few pixels)
     green = [int(((f[..., 1] - np.maximum(f[..., 0], f[..., 2])) > 60).sum()) for f in frames]
     # The goal marker (green) is drawn. How long it stays visible depends on the policy (a good one
     # parks the gripper on it), and the policy on where the signals above interrupted training:
