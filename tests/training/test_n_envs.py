@@ -139,6 +139,7 @@ def test_train_resume_on_a_batched_vector_env(tmp_path, capsys):
     assert len(episodes_after) > len(episodes)
 
 
+@pytest.mark.slow
 def test_gradient_steps_minus_one_keeps_one_update_per_env_step(tmp_path):
     """The shipped configs' gradient_steps: -1 (SB3: as many gradient steps as env steps collected)
     makes as many updates per env step with 4 envs as with one; a positive value gets a note."""

@@ -22,6 +22,8 @@ import yaml
 
 from uniros.cli import main as cli_main
 
+pytestmark = pytest.mark.slow  # each case trains (2-10 s on a quiet machine); the module ~1 minute
+
 HERE = Path(__file__).resolve().parent
 ENV = "point_goal_env:UnirosTestPointGoal-v0"
 CONFIG = """algorithm: sac
