@@ -26,6 +26,7 @@ from uniros.evaluation import EVAL_SEED, evaluate, format_success
 from uniros.training import (
     default_config_for,
     load_for_eval,
+    load_training_config,
     make_env,
     note_updates_per_env_step,
     run_training,
@@ -34,7 +35,7 @@ from uniros.training import (
 
 
 def run(env_id: str, args: argparse.Namespace) -> dict:
-    config = copy.deepcopy(default_config_for(env_id))
+    config = copy.deepcopy(load_training_config(args.config) if args.config else default_config_for(env_id))
     if args.steps:
         config.training_steps = args.steps
     if args.n_envs:
@@ -79,6 +80,7 @@ def run(env_id: str, args: argparse.Namespace) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--ids", nargs="+", default=list(rl_environments.ENV_IDS), choices=rl_environments.ENV_IDS)
+    parser.add_argument("--config", help="train with this YAML instead of the shipped one (a candidate for it)")
     parser.add_argument("--steps", type=int, help="override training_steps (default: the config's)")
     parser.add_argument("--n-envs", type=int, help="override n_envs")
     parser.add_argument("--eval-freq", type=int, help="override eval_freq")
