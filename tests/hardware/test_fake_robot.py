@@ -335,6 +335,7 @@ def test_faults_stall_and_reject_goals(graph):
             probe.close()
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_stopped_by_pid_and_with_its_owner(graph):
     robot = FakeRobotProcess("irb120", context=graph, args=["--log-level", "WARNING"], cwd=_CWD)
