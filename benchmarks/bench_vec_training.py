@@ -6,9 +6,10 @@ config's hyperparameters, normalised observations, one torch thread) on what ``u
 N > 1 an SB3 ``uniros.vec_env.BatchedVecEnv`` of N envs (one composed simulation node, one
 ``StepRobots`` request per vector step). Two ways to count updates:
 
-* ``same`` (the config as it is): ``train_freq`` 1 step, ``gradient_steps`` 1, so one gradient step
-  per *vector* step: N env steps per update.
-* ``per-env``: ``gradient_steps`` N, the same updates per env step as N = 1.
+* ``same``: ``train_freq`` 1 step, ``gradient_steps`` 1, so one gradient step per *vector* step: N
+  env steps per update (what a config with ``gradient_steps: 1`` gets).
+* ``per-env`` (the shipped configs: ``gradient_steps: -1``, SB3's "as many gradient steps as env
+  steps collected"): N gradient steps per vector step, the same updates per env step as N = 1.
 
 One setting must grow with N: HER samples only from ended episodes, so ``learning_starts`` is at
 least N episodes' steps (N x 100 for the reach IDs: N >= 6 with the shipped 500), as ``uniros train``
@@ -62,8 +63,7 @@ def run_one(env_id: str, base: TrainingConfig, n: int, mode: str, seed: int, *, 
     config.eval_freq = eval_freq  # env steps (the session evaluates every eval_freq // n vector steps)
     config.eval_episodes = eval_episodes
     config.progress_bar, config.stop_at_success = False, None
-    if mode == "per-env":
-        config.algo_params["gradient_steps"] = n * int(config.algo_params.get("gradient_steps", 1))
+    config.algo_params["gradient_steps"] = -1 if mode == "per-env" else 1
     fit_learning_starts(env_id, config)  # as uniros train does: HER needs an ended episode first
     started = time.perf_counter()
     session = _Watched(config, make_train_env(env_id, config),
@@ -76,7 +76,7 @@ def run_one(env_id: str, base: TrainingConfig, n: int, mode: str, seed: int, *, 
     first = session.steps_to_success
     held = None if first is None else min(r for s, _, r in session.curve if s >= first)
     starts = int(config.algo_params.get("learning_starts", 100))
-    grads = int(config.algo_params.get("gradient_steps", 1))
+    grads = n if mode == "per-env" else 1  # gradient steps per vector step
     updates = None if first is None else max(0, (first - starts) // n) * grads  # after learning_starts
     return Result(n, mode, seed, first, session.seconds_to_success, updates, held,
                   [r for _, _, r in session.curve], time.perf_counter() - started)

@@ -42,8 +42,12 @@ class CustomTaskEnv(CustomRobotEnv):
     def _set_episode_init_params(self) -> None:
         """Set the episode's initial parameters (robot pose, goal) at each reset."""
         # BLANK(init_params) -------------------------------------------------------------------
+        # self.move_to_initial_pose(self.joint_names_arm, [0.0] * len(self.joint_names_arm))
+        # self.goal = self.np_random.uniform([0.15, -0.2, 0.1], [0.35, 0.2, 0.35])
         pass
         # END BLANK ------------------------------------------------------------------------------
+        if getattr(self, "goal", None) is not None:
+            self.show_goal(self.goal, diameter=2 * getattr(self, "tolerance", 0.02))  # the green sphere in videos
 
     def _send_action(self, action: np.ndarray) -> None:
         """Send an action to the robot."""

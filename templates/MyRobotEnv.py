@@ -22,6 +22,7 @@ import numpy as np
 
 from multiros.envs import EnvError
 from multiros.envs.GazeboBaseEnv import GazeboBaseEnv
+from multiros.utils.ros_markers import goal_marker
 
 
 class MyRobotEnv(GazeboBaseEnv):
@@ -90,3 +91,15 @@ class MyRobotEnv(GazeboBaseEnv):
     def set_joint_targets(self, targets: np.ndarray) -> None:
         """Command the arm controller; the command travels with the next physics step."""
         self.send_command(self.arm_controller, targets)
+
+    def show_goal(self, position: Any, diameter: float = 0.04) -> None:
+        """Draw the goal as a green sphere (rendered images and videos, the viewer, RViz).
+
+        Publishes a ``visualization_msgs/Marker`` that the simulation node draws; call it once per
+        episode from a reset hook, never from the reward (HER calls that on batches).
+        """
+        marker = getattr(self, "_goal_marker", None)
+        if marker is None:
+            self._goal_marker = goal_marker(self.node, np.asarray(position, dtype=float), diameter=diameter)
+        else:
+            marker.update(position=np.asarray(position, dtype=float))

@@ -50,9 +50,10 @@ class MyTaskEnv(MyRobotEnv):
         """Task-side reset: e.g. sample this episode's target with ``self.np_random``."""
         # BLANK(init_pose) ---------------------------------------------------------------------
         # self.goal = self.np_random.uniform(self.goal_low, self.goal_high)
-        # from multiros.utils.ros_markers import goal_marker  (shows the goal in rendered images)
         pass
         # END BLANK ------------------------------------------------------------------------------
+        if getattr(self, "goal", None) is not None:
+            self.show_goal(self.goal, diameter=2 * getattr(self, "tolerance", 0.02))  # the green sphere in videos
 
     def _set_action(self, action: np.ndarray) -> None:
         """Turn a (clipped, checked) action into controller commands."""

@@ -58,6 +58,8 @@ class MyTaskGoalEnv(MyRobotGoalEnv):
         # self.goal = self.np_random.uniform(self.goal_low, self.goal_high)
         pass
         # END BLANK ------------------------------------------------------------------------------
+        if getattr(self, "goal", None) is not None:
+            self.show_goal(self.goal, diameter=2 * self.tolerance)  # the green sphere in videos and RViz
 
     def _set_action(self, action: np.ndarray) -> None:
         """Turn a (clipped, checked) action into controller commands."""

@@ -10,18 +10,23 @@ import logging
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 
 def _cmd_list(args: argparse.Namespace) -> int:
     import rl_environments
+    from uniros.train_config import shipped_config_ids
 
     goal = set(rl_environments.GOAL_ENV_IDS) | set(rl_environments.REAL_GOAL_ENV_IDS)
-    for title, specs in (("simulated (the simulation node; run anywhere)", rl_environments.ENV_SPECS),
+    configs = set(shipped_config_ids())
+    for title, specs in (("simulated (the simulation node; run anywhere); config: `uniros train ID` has a shipped "
+                          "training config", rl_environments.ENV_SPECS),
                          ("real (a ros2_control robot or a stand-in: docs/real_robots.md)",
                           rl_environments.REAL_ENV_SPECS)):
         print(f"# {title}")
         for env_id, entry_point in specs.items():
-            print(f"{env_id:32s} {'goal' if env_id in goal else 'plain':5s}  {entry_point}")
+            print(f"{env_id:32s} {'goal' if env_id in goal else 'plain':5s} {'config' if env_id in configs else '':6s} "
+                  f"{entry_point}")
     return 0
 
 
@@ -34,37 +39,74 @@ def _env_overrides(args: argparse.Namespace) -> dict[str, object]:
     return overrides
 
 
+def _note(text: str) -> None:
+    print(f"note: {text}", file=sys.stderr, flush=True)
+
+
+def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None:
+    """Which ROS 2 graph a run joins when it leaves the process (an existing node, Zenoh, a robot),
+    with a pointer to per-user domains and routers when it is the machine's default one."""
+    import os
+
+    import rl_environments
+    from multiros.ros.transport.zenoh.config import DEFAULT_ROUTER_ENDPOINT, ROUTER_ENV
+
+    real = env_id.rpartition(":")[2] in rl_environments.REAL_ENV_IDS
+    shared = real or env_kwargs.get("sim_mode") == "existing" or (
+        env_kwargs.get("transport") == "zenoh" and env_kwargs.get("sim_mode", "composed") == "composed")
+    if not shared:
+        return None
+    domain = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
+    text = (f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'} through the Zenoh "
+            f"router {router}")
+    if domain in ("", "0") and router == DEFAULT_ROUTER_ENDPOINT:
+        text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID and "
+                 f"{ROUTER_ENV} per user (docs/pitfalls.md, Shared machines)")
+    return text
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
-    from uniros.training import (
-        TrainingError,
-        TrainingInterrupted,
-        check_n_envs,
-        default_config_for,
-        evaluate,
-        fit_learning_starts,
-        load_for_eval,
-        load_training_config,
-        make_env,
-        open_run,
-        record_run_video,
-        resolve_env_id,
-        run_training,
-        start_run,
-    )
+    from uniros.run_dir import check_run_name
+    from uniros.training import TrainingError, check_env_id, default_config_for, load_training_config, open_run
 
     if args.resume:
         if args.config or args.name:
             raise TrainingError("--resume continues a run with its own config.yaml: drop --config and --name")
-        run, env_id, config = open_run(args.resume)
-        if args.env_id and args.env_id != env_id:
-            raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
-    else:
-        if not args.env_id:
-            raise TrainingError("give an env ID (e.g. RX200ReacherGoalSim-v0 or my_pkg.my_module:MyEnv-v0) "
-                                "or --resume RUN_DIR")
-        env_id = args.env_id
-        resolve_env_id(env_id)  # a user's module:ID is imported (and checked) before anything is written
-        config = load_training_config(args.config) if args.config else default_config_for(env_id)
+        run, env_id, config = open_run(args.resume)  # locked from here on: a second --resume is refused
+        try:
+            return _train(args, run, env_id, config)
+        finally:
+            run.release()
+    if not args.env_id:
+        raise TrainingError("give an env ID (e.g. RX200ReacherGoalSim-v0 or my_pkg.my_module:MyEnv-v0) "
+                            "or --resume RUN_DIR")
+    check_env_id(args.env_id)  # a user's module:ID is imported (and checked) before anything is written
+    if args.name is not None:
+        check_run_name(args.name)
+    config = load_training_config(args.config) if args.config else default_config_for(args.env_id)
+    return _train(args, None, args.env_id, config)
+
+
+def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
+    """``uniros train`` once the config is known: ``run`` is the resumed run (locked), or ``None``."""
+    from uniros.evaluation import EVAL_SEED, format_success
+    from uniros.training import (
+        TrainingError,
+        TrainingInterrupted,
+        check_before_run,
+        evaluate,
+        fit_learning_starts,
+        load_for_eval,
+        make_env,
+        note_updates_per_env_step,
+        record_run_video,
+        run_training,
+        start_run,
+    )
+
+    if args.resume and args.env_id and args.env_id != env_id:
+        raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
     if args.steps is not None:
         config.training_steps = args.steps
     if args.seed is not None:
@@ -78,10 +120,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
                                 "drop --n-envs")
         config.n_envs = args.n_envs
     config.env_kwargs.update(_env_overrides(args))
-    check_n_envs(env_id, config, None if args.n_envs is None else f"--n-envs {args.n_envs}")
-    changed = fit_learning_starts(env_id, config)
-    if changed:
-        print(f"note: {changed}", flush=True)
+    check_before_run(env_id, config, None if args.n_envs is None else f"--n-envs {args.n_envs}")
+    for text in (note_updates_per_env_step(config), fit_learning_starts(env_id, config),
+                 _shared_graph_note(env_id, config.env_kwargs)):
+        if text:
+            _note(text)
     config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
     if not args.resume:
         run = start_run(env_id, config, output=args.output, name=args.name, command=["uniros", *sys.argv[1:]])
@@ -91,14 +134,15 @@ def _cmd_train(args: argparse.Namespace) -> int:
     print(f"run directory: {run.root}", flush=True)
 
     def report(steps: int, seconds: float, rate: float) -> None:
-        print(f"  steps {steps:6d}  train time {seconds:7.1f} s  eval success {rate:.2f}", flush=True)
+        print(f"  steps {steps:6d}  train time {seconds:7.1f} s  eval success "
+              f"{format_success(rate, config.eval_episodes)}", flush=True)
 
     try:
-        result = run_training(run, env_id, config, resume=bool(args.resume), target=args.target, on_eval=report)
+        result = run_training(run, env_id, config, resume=bool(args.resume), target=args.target, on_eval=report,
+                              on_note=_note)
     except TrainingInterrupted as exc:
         print(f"\n{exc}", file=sys.stderr)
-        if exc.checkpoint is not None:
-            print(f"resume with: uniros train --resume {run.root}", file=sys.stderr)
+        print(f"resume with: uniros train --resume {run.root}", file=sys.stderr)
         return exc.exit_code
     print(f"trained {result.total_steps} steps in {result.train_seconds:.1f} s")
     if result.steps_to_success is not None:
@@ -111,13 +155,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
         env = make_env(env_id, **config.env_kwargs)
         try:
             model, normalizer = load_for_eval(model_path, env)
-            stats = evaluate(model, env, args.eval_episodes, seed=10_000_000 + (config.seed or 0),
-                             normalizer=normalizer)
+            stats = evaluate(model, env, args.eval_episodes, seed=EVAL_SEED, normalizer=normalizer)
         finally:
             env.close()
         print(f"final evaluation of {model_path.name} over {args.eval_episodes} episodes: success rate "
-              f"{stats['success_rate']:.2f}, mean return {stats['mean_return']:.2f}, "
-              f"mean length {stats['mean_length']:.1f}")
+              f"{format_success(stats['success_rate'], args.eval_episodes)} (95% CI), mean return "
+              f"{stats['mean_return']:.2f}, mean length {stats['mean_length']:.1f} "
+              f"(`uniros eval {run.root} --episodes {args.eval_episodes}` plays the same episodes)")
     if config.video and not args.no_video:
         try:
             result.files["video"] = record_run_video(run, env_id, config)
@@ -130,22 +174,53 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_eval(args: argparse.Namespace) -> int:
-    from uniros.training import evaluate, load_for_eval, make_env, resolve_model_path, saved_env_kwargs
+def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
+    """The env ID and model file of ``uniros eval`` from what was typed (ID MODEL, MODEL, MODEL --env ID)."""
+    from uniros.training import TrainingError, check_env_id, resolve_model_path, trained_env_id
 
-    if args.model is None:  # `uniros eval MODEL --env ID`
-        args.env_id, args.model = None, args.env_id
-    args.env_id = args.env or args.env_id
-    if args.env_id is None:
-        print("name the env: `uniros eval ENV_ID MODEL` or `uniros eval MODEL --env ENV_ID`", file=sys.stderr)
-        return 2
-    model_path = resolve_model_path(args.model)
-    env = make_env(args.env_id, **{**saved_env_kwargs(model_path, args.env_id), **_env_overrides(args)})
+    first, second = args.env_id, args.model
+    if second is None:  # one positional: a model (or a run directory), or an env ID without its model
+        if first is not None and not Path(first).exists() and (":" in first or first.endswith(("-v0", "-v1"))
+                                                                 or _registered(first)):
+            raise TrainingError(f"give the model to evaluate: uniros eval {first} MODEL (a .zip, or the run "
+                                "directory `uniros train` printed)")
+        first, second = None, first
+    if second is None:
+        raise TrainingError("give a model: uniros eval ENV_ID MODEL, uniros eval RUN_DIR, or "
+                            "uniros eval MODEL --env ENV_ID")
+    if args.env or first:
+        check_env_id(args.env or first)
+    model_path = resolve_model_path(second)
+    env_id = args.env or first or trained_env_id(model_path)
+    if env_id is None:
+        raise TrainingError(f"cannot tell which env {model_path} was trained on: uniros eval ENV_ID {second}")
+    check_env_id(env_id)
+    return env_id, model_path
+
+
+def _registered(env_id: str) -> bool:
+    import gymnasium as gym
+
+    import rl_environments  # noqa: F401 - registers the uniros IDs
+
+    return env_id in gym.registry
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    from uniros.evaluation import format_success
+    from uniros.training import evaluate, load_for_eval, make_env, saved_env_kwargs
+
+    env_id, model_path = _eval_target(args)
+    kwargs = {**saved_env_kwargs(model_path, env_id), **_env_overrides(args)}
+    note = _shared_graph_note(env_id, kwargs)
+    if note:
+        _note(note)
+    env = make_env(env_id, **kwargs)
     try:
         from uniros.model_spaces import SpaceMismatchError, check_model_spaces
 
         try:
-            check_model_spaces(model_path, env, args.env_id)
+            check_model_spaces(model_path, env, env_id)
         except SpaceMismatchError as exc:
             print(exc, file=sys.stderr)
             return 2
@@ -153,7 +228,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         stats = evaluate(model, env, args.episodes, seed=args.seed, normalizer=normalizer)
     finally:
         env.close()
-    print(f"{args.env_id}: success rate {stats['success_rate']:.2f} over {args.episodes} episodes, "
+    print(f"{env_id}: success rate {format_success(stats['success_rate'], args.episodes)} (95% CI) over "
+          f"{args.episodes} episodes (seeds {args.seed}-{args.seed + args.episodes - 1}), "
           f"mean return {stats['mean_return']:.2f}, mean length {stats['mean_length']:.1f}"
           + ("" if normalizer is None else " (observations normalised with the saved statistics)"))
     return 0
@@ -176,6 +252,9 @@ def _cmd_new(args: argparse.Namespace) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``uniros`` argument parser."""
+    from uniros.algorithms import ALGORITHMS
+    from uniros.evaluation import EVAL_SEED
+
     parser = argparse.ArgumentParser(prog="uniros", description="Robot RL on ROS 2 with a MuJoCo simulation node.")
     parser.add_argument("--log-level", default="WARNING", help="logging level (default: %(default)s)")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -198,23 +277,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="override the seed")
     p.add_argument("--n-envs", type=int, help="override n_envs: envs trained on at once, in one batched vector env")
     p.add_argument("--target", type=float, default=0.9, help="success rate that counts as solved")
-    p.add_argument("--eval-episodes", type=int, default=50, help="episodes of the final evaluation")
+    p.add_argument("--eval-episodes", type=int, default=50,
+                   help="episodes of the final evaluation (the ones `uniros eval` plays; 0: none)")
     p.add_argument("--output", default="runs", help="parent of the run directories (default: %(default)s)")
     p.add_argument("--name", help="run directory name (default: <env id>_<algo>_<timestamp>); never overwritten")
-    p.add_argument("--resume", metavar="RUN_DIR", help="continue an interrupted run from its latest checkpoint")
-    p.add_argument("--no-video", action="store_true", help="do not record best_model.mp4")
+    p.add_argument("--resume", metavar="RUN_DIR",
+                   help="continue a run from its newest usable checkpoint (from step 0 when it has none)")
+    p.add_argument("--no-video", action="store_true", help="do not record best_model.mp4 (real-time speed)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     env_options(p)
     p.set_defaults(func=_cmd_train)
 
     p = sub.add_parser("eval", help="evaluate a saved model")
-    p.add_argument("env_id", nargs="?", help="a registered env ID or module:ID (or give --env)")
+    p.add_argument("env_id", nargs="?", help="a registered env ID or module:ID (default: the run's, from its run.json)")
     p.add_argument("model", nargs="?", help="a model .zip (uniros' or rl-zoo3's) or a run directory (its best model)")
     p.add_argument("--env", help="evaluate on this env ID instead (equal spaces, e.g. RX200ReacherGoalReal-v0 for a "
                    "model trained on RX200ReacherGoalSim-v0)")
-    p.add_argument("--algo", help="sac, td3, ddpg, ppo, a2c or dqn (default: read from the model file)")
+    p.add_argument("--algo", help=f"one of {', '.join(ALGORITHMS)} (default: read from the model file)")
     p.add_argument("--episodes", type=int, default=50)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, default=EVAL_SEED,
+                   help="episode i is reset with seed + i (default: %(default)s, the episodes every uniros "
+                   "evaluation plays)")
     env_options(p)
     p.set_defaults(func=_cmd_eval)
 
@@ -243,8 +326,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     elif extra:
         parser.error(f"unrecognized arguments: {' '.join(extra)}")
     logging.basicConfig(level=args.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    from multiros.envs.errors import EnvError
+    from multiros.sim.client import SimulationNodeError
+    from uniros.errors import TrainingError
     from uniros.interrupts import sigterm_as_interrupt
-    from uniros.train_config import TrainingError
 
     try:
         with sigterm_as_interrupt():
@@ -252,9 +337,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as exc:
         print(f"\nuniros {args.command}: interrupted", file=sys.stderr)
         return 128 + int(getattr(exc, "signum", 2))
-    except (TrainingError, ValueError, LookupError, FileNotFoundError) as exc:
-        print(f"uniros {args.command}: error: {exc}", file=sys.stderr)
+    except (TrainingError, ValueError, LookupError, FileNotFoundError, EnvError, SimulationNodeError) as exc:
+        # A user's mistake or a missing robot/node: one or two lines, no traceback.
+        print(f"uniros {args.command}: error: {_one_message(exc)}", file=sys.stderr)
         return 2
+
+
+def _one_message(exc: BaseException) -> str:
+    """The exception's message (LookupError's KeyError quotes dropped); its type for a real robot's error."""
+    from multiros.envs.errors import EnvError
+
+    text = str(exc.args[0]) if isinstance(exc, KeyError) and exc.args else str(exc)
+    if isinstance(exc, EnvError) and not isinstance(exc, ValueError):
+        text = f"{type(exc).__name__}: {text}"
+    from multiros.envs.real.errors import RobotConnectionError
+
+    if isinstance(exc, RobotConnectionError):
+        text += ("\n  (a Real env drives a robot: start its driver, or `uniros-fake-robot` as a stand-in; "
+                 "see docs/real_robots.md)")
+    return text
 
 
 if __name__ == "__main__":

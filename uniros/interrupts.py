@@ -14,8 +14,8 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from uniros.errors import TrainingError
 from uniros.run_dir import Checkpoint
-from uniros.train_config import TrainingError
 
 
 class TrainingInterrupted(TrainingError, KeyboardInterrupt):

@@ -1,4 +1,4 @@
-"""What a run leaves for people: the learning-curve plot and the evaluation video."""
+"""What a run leaves for people: evaluations.csv, the learning-curve plot and the evaluation video."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-EVAL_FIELDS = ("steps", "train_seconds", "success_rate", "mean_return", "std_return", "mean_length")
+EVAL_FIELDS = ("steps", "train_seconds", "success_rate", "episodes", "mean_return", "std_return", "mean_length")
 
 
 def read_evaluations(path: Path) -> list[dict[str, float]]:
@@ -102,11 +102,24 @@ def plot_learning_curve(evaluations: Sequence[dict[str, float]], path: Path, *, 
     return fig
 
 
-def record_video(model: Any, make_env: Any, path: Path, *, episodes: int = 2, normalizer: Any = None,
-                 seed: int = 0, fps: int = 25) -> int:
-    """Record ``episodes`` deterministic episodes of ``model`` as an MP4 (headless rendering).
+def step_seconds(env: Any) -> float | None:
+    """Robot time per env step, measured from the env's simulation clock around one step (``None``
+    for an env without ``sim_time``); the env must have been reset."""
+    base = getattr(env, "unwrapped", env)
+    try:
+        return float(base.sim_time)
+    except (AttributeError, TypeError, ValueError):
+        return None
 
-    ``make_env(render_mode="rgb_array")`` builds the env. Returns the number of frames written.
+
+def record_video(model: Any, make_env: Any, path: Path, *, episodes: int = 3, normalizer: Any = None,
+                 seed: int = 0, fps: float | None = None, hold_seconds: float = 0.5) -> int:
+    """Record ``episodes`` deterministic episodes of ``model`` as an MP4 at real-time speed.
+
+    ``make_env(render_mode="rgb_array")`` builds the env (rendered headless). One frame per env
+    step, played at ``fps`` (default: the env's step rate, read from its simulation clock, so a
+    second of video is a second of robot time; else ``metadata["render_fps"]``). Each episode's
+    last frame is held ``hold_seconds`` so that its end can be seen. Returns the number of frames.
     """
     os.environ.setdefault("MUJOCO_GL", "egl")
     import imageio.v2 as imageio
@@ -114,7 +127,8 @@ def record_video(model: Any, make_env: Any, path: Path, *, episodes: int = 2, no
     from uniros.run_dir import atomic_write
 
     env = make_env(render_mode="rgb_array")
-    frames = []
+    frames: list[Any] = []
+    rate = fps
     try:
         for i in range(episodes):
             obs, _ = env.reset(seed=seed + i)
@@ -123,14 +137,22 @@ def record_video(model: Any, make_env: Any, path: Path, *, episodes: int = 2, no
             while not done:
                 policy_obs = obs if normalizer is None else normalizer.normalize_obs(obs)
                 action, _ = model.predict(policy_obs, deterministic=True)
+                before = step_seconds(env)
                 obs, _, terminated, truncated, _ = env.step(action)
+                after = step_seconds(env)
+                if rate is None and before is not None and after is not None and after > before:
+                    rate = 1.0 / (after - before)
                 frames.append(env.render())
                 done = terminated or truncated
+            if rate is None:
+                rate = float(getattr(env, "metadata", {}).get("render_fps") or 25)
+            frames.extend([frames[-1]] * max(0, round(hold_seconds * rate)))
     finally:
         env.close()
+    rate = rate or 25.0
 
     def write(tmp: Path) -> None:
-        with imageio.get_writer(str(tmp), format="FFMPEG", fps=fps, codec="libx264", macro_block_size=1,
+        with imageio.get_writer(str(tmp), format="FFMPEG", fps=rate, codec="libx264", macro_block_size=1,
                                 ffmpeg_log_level="error") as writer:
             for frame in frames:
                 writer.append_data(np.asarray(frame))

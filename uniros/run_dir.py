@@ -1,192 +1,75 @@
-"""A training run's directory, and checkpoints that survive interruption.
+"""A training run's directory: its layout, its lock, and its record (``run.json``).
 
 Layout (``uniros train``; never overwritten, one directory per run)::
 
     runs/<name>/
       config.yaml                 the resolved training config
-      run.json                    env ID, env kwargs, algorithm, status, steps done
+      run.json                    env ID, env kwargs, algorithm, status, steps done, the config it started with
       monitor/                    train.monitor.csv, eval.monitor.csv (SB3 Monitor)
       tensorboard/                TensorBoard events and progress.csv (SB3 logger)
       checkpoints/                <prefix>_<N>_steps.zip, <prefix>_replay_buffer_<N>_steps.pkl,
-                                  <prefix>_vecnormalize_<N>_steps.pkl, latest.json
+                                  <prefix>_vecnormalize_<N>_steps.pkl, latest.json (:mod:`uniros.checkpoints`)
       evaluations.csv             steps, train seconds, success rate, mean return, per evaluation
       best_model.zip              the model with the best evaluation (+ .vecnormalize.pkl)
       final_model.zip             the model at the end (+ .vecnormalize.pkl)
       learning_curve.png          success rate and return against env steps
-      best_model.mp4              the best model, a few evaluation episodes
+      best_model.mp4              the best model, a few evaluation episodes at real-time speed
 
-Every file is written to a temporary name and renamed into place, and ``latest.json`` names a
-checkpoint only once all its files are complete: a process killed at any point leaves the previous
-checkpoint usable.
+One process at a time writes a run: :meth:`RunDir.lock` takes an exclusive ``flock`` on
+``<run>/.lock`` (released by the kernel when the process ends, however it ends), and a second
+``uniros train --resume`` of the same run is refused. Names stay inside the output folder: a run
+name is one plain path component.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import pickle
 import re
+import shutil
 import time
-import warnings
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from uniros.checkpoints import (
+    Checkpoint,
+    atomic_write,
+    list_checkpoints,
+    load_replay_buffer,
+    normalizer_path,
+    remove_stale_temporaries,
+    save_checkpoint,
+    save_model_with_stats,
+    save_replay_buffer,
+    write_json,
+)
+from uniros.errors import TrainingError
 
-from uniros.train_config import TrainingError
+MAX_NAME_LENGTH = 128
+_PLAIN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
+# What a run directory holds before its run.json is written: a start killed then left only these.
+_SKELETON = {"monitor", "checkpoints", "tensorboard", "config.yaml", ".lock"}
 
 
 class RunDirError(TrainingError, ValueError):
-    """A run directory is missing, incomplete, or would be overwritten."""
+    """A run directory is missing, incomplete, in use, or would be overwritten."""
 
 
-def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` then rename ``tmp`` to ``path`` (a reader never sees a half-written file)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".tmp{os.getpid()}_{path.name}")  # same suffix: writers that go by it still work
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+def check_run_name(name: str) -> str:
+    """``name`` if it is one plain directory name (no ``/``, ``..``, absolute path or overlong name).
 
-
-def write_json(path: Path, data: Any) -> None:
-    """Write ``data`` as JSON, atomically."""
-    atomic_write(path, lambda tmp: tmp.write_text(json.dumps(data, indent=2) + "\n"))
-
-
-def _save_model_zip(model: Any, path: Path) -> None:
-    atomic_write(path, lambda tmp: model.save(str(tmp)))  # the temporary name ends in .zip: SB3 keeps it
-
-
-# -- replay buffers: only the filled part is written -------------------------------------------
-def _restore_buffer(cls: type, state: dict[str, Any], size: int) -> Any:
-    """Unpickle a compact replay buffer back into a full-size one (SB3's ``load_replay_buffer`` works)."""
-
-    def pad(value: Any) -> Any:
-        if isinstance(value, np.ndarray) and value.ndim and value.shape[0] < size:
-            full = np.zeros((size, *value.shape[1:]), dtype=value.dtype)
-            full[: value.shape[0]] = value
-            return full
-        if isinstance(value, dict):
-            return {k: pad(v) for k, v in value.items()}
-        return value
-
-    buffer = cls.__new__(cls)
-    restored = {k: pad(v) if k in state.get("_uniros_sliced", ()) else v for k, v in state.items()}
-    restored.pop("_uniros_sliced", None)
-    if getattr(type(buffer), "__setstate__", None) is not None:
-        buffer.__setstate__(restored)
-    else:
-        buffer.__dict__.update(restored)
-    return buffer
-
-
-class _CompactBuffer:
-    """Pickles a replay buffer without its unused capacity (a 1e6-step buffer is hundreds of MB)."""
-
-    def __init__(self, buffer: Any) -> None:
-        self.buffer = buffer
-
-    def __reduce__(self) -> tuple[Any, ...]:
-        buffer = self.buffer
-        size = int(buffer.buffer_size)
-        upper = size if buffer.full else int(buffer.pos)
-        getstate = getattr(buffer, "__getstate__", None)
-        state = dict(getstate() if getstate is not None else buffer.__dict__)
-        if state is buffer.__dict__:
-            state = dict(state)
-        sliced = []
-        for key, value in list(state.items()):
-            if isinstance(value, np.ndarray) and value.ndim and value.shape[0] == size:
-                state[key] = value[:upper]
-                sliced.append(key)
-            elif isinstance(value, dict) and value and all(
-                isinstance(v, np.ndarray) and v.ndim and v.shape[0] == size for v in value.values()
-            ):
-                state[key] = {k: v[:upper] for k, v in value.items()}
-                sliced.append(key)
-        state["_uniros_sliced"] = tuple(sliced)
-        return (_restore_buffer, (type(buffer), state, size))
-
-
-def save_replay_buffer(model: Any, path: Path) -> None:
-    """Save ``model``'s replay buffer compactly; ``model.load_replay_buffer(path)`` reads it back."""
-
-    def write(tmp: Path) -> None:
-        with open(tmp, "wb") as f:
-            pickle.dump(_CompactBuffer(model.replay_buffer), f, protocol=pickle.HIGHEST_PROTOCOL)
-
-    atomic_write(path, write)
-
-
-def load_replay_buffer(model: Any, path: Path) -> None:
-    """Load a replay buffer saved by :func:`save_replay_buffer` (or SB3) into ``model`` for a run
-    that goes on with a fresh episode.
-
-    A resumed or reloaded run resets its env, so the episode that was running when the buffer was
-    saved never continues: SB3's HER buffer rightly truncates it, and the advice its warning gives
-    (keep the trajectory when in the same episode) does not apply. That warning alone is silenced.
+    Raises:
+        RunDirError: the message says what a name may hold.
     """
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="The last trajectory in the replay buffer will be truncated")
-        model.load_replay_buffer(str(path), truncate_last_traj=True)
+    if not _PLAIN_NAME.match(name) or len(name) > MAX_NAME_LENGTH:
+        raise RunDirError(f"--name {name[:60] + ('...' if len(name) > 60 else '')!r} must be one plain directory "
+                          f"name of at most {MAX_NAME_LENGTH} letters, digits, '.', '_', '+' or '-', not starting "
+                          "with '.' (the run directory goes inside --output)")
+    return name
 
 
-# -- checkpoints ---------------------------------------------------------------------------------
-@dataclass
-class Checkpoint:
-    """One complete checkpoint."""
-
-    steps: int
-    model: Path
-    replay_buffer: Path | None
-    vecnormalize: Path | None
-
-
-def save_checkpoint(
-    model: Any, normalizer: Any, folder: Path, prefix: str, *, replay_buffer: bool = True
-) -> Checkpoint:
-    """Save model, replay buffer and normalisation statistics, then point ``latest.json`` at them.
-
-    File names follow SB3's ``CheckpointCallback``.
-    """
-    steps = int(model.num_timesteps)
-    ckpt = Checkpoint(steps, folder / f"{prefix}_{steps}_steps.zip", None, None)
-    _save_model_zip(model, ckpt.model)
-    if replay_buffer and getattr(model, "replay_buffer", None) is not None:
-        ckpt.replay_buffer = folder / f"{prefix}_replay_buffer_{steps}_steps.pkl"
-        save_replay_buffer(model, ckpt.replay_buffer)
-    if normalizer is not None:
-        ckpt.vecnormalize = folder / f"{prefix}_vecnormalize_{steps}_steps.pkl"
-        atomic_write(ckpt.vecnormalize, lambda tmp: normalizer.save(str(tmp)))
-    write_json(folder / "latest.json", {
-        "steps": steps,
-        "model": ckpt.model.name,
-        "replay_buffer": ckpt.replay_buffer.name if ckpt.replay_buffer else None,
-        "vecnormalize": ckpt.vecnormalize.name if ckpt.vecnormalize else None,
-        "time": time.strftime("%Y-%m-%d %H:%M:%S"),
-    })
-    return ckpt
-
-
-def list_checkpoints(folder: Path, prefix: str | None = None) -> list[Checkpoint]:
-    """Checkpoints in ``folder``, newest first (files as SB3's ``CheckpointCallback`` names them)."""
-    found = []
-    pattern = re.compile(r"^(?P<prefix>.+)_(?P<steps>\d+)_steps\.zip$")
-    for path in folder.glob("*_steps.zip") if folder.is_dir() else ():
-        match = pattern.match(path.name)
-        if not match or (prefix is not None and match["prefix"] != prefix):
-            continue
-        p, steps = match["prefix"], int(match["steps"])
-        buffer = folder / f"{p}_replay_buffer_{steps}_steps.pkl"
-        norm = folder / f"{p}_vecnormalize_{steps}_steps.pkl"
-        found.append(Checkpoint(steps, path, buffer if buffer.is_file() else None, norm if norm.is_file() else None))
-    return sorted(found, key=lambda c: c.steps, reverse=True)
+def _sanitized(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._+-]", "-", text).lstrip(".-") or "run"
 
 
 # -- the run directory ---------------------------------------------------------------------------
@@ -195,29 +78,44 @@ class RunDir:
 
     def __init__(self, root: Path) -> None:
         self.root = Path(root)
+        self._lock_fd: int | None = None
+        self.created_here = False  # made by this process (RunDir.create): discard() may remove it
 
     @classmethod
     def create(cls, parent: str | Path, name: str | None, env_id: str, algorithm: str) -> RunDir:
-        """A new run directory ``parent/name`` (default: ``<env id>_<algo>_<timestamp>``); never reuses one."""
+        """A new run directory ``parent/name`` (default: ``<env id>_<algo>_<timestamp>``), locked by
+        this process; never reuses a run's directory.
+
+        A directory a killed start left behind (no ``run.json``, nothing but the empty layout) is
+        taken over.
+
+        Raises:
+            RunDirError: a bad name, the name is taken (the message says how to continue that run),
+                or another process is creating it.
+        """
         parent = Path(parent)
         if name is None:
             stamp = time.strftime("%Y%m%d-%H%M%S")
-            base = f"{env_id.rpartition(':')[2]}_{algorithm}_{stamp}"
+            base = _sanitized(f"{env_id.rpartition(':')[2]}_{algorithm}_{stamp}")[:MAX_NAME_LENGTH - 8]
             name, n = base, 1
-            while (parent / name).exists():
+            while (parent / name).exists() and not _abandoned_start(parent / name):
                 n += 1
                 name = f"{base}_{n}"
-        elif "/" in name or name in ("", ".", ".."):
-            raise RunDirError(f"--name {name!r} must be a plain directory name")
+        check_run_name(name)
         root = parent / name
-        if root.exists():
-            raise RunDirError(
-                f"run directory {str(root)!r} exists: pick another --name, or continue it with --resume {root}"
-            )
-        root.mkdir(parents=True)
+        if root.exists() and not _abandoned_start(root):
+            raise RunDirError(_taken_message(root))
+        root.mkdir(parents=True, exist_ok=True)
+        run = cls(root)
+        run.lock()
+        run.created_here = True
+        if run.meta.exists():  # another process finished creating it between our check and the lock
+            run.release()
+            raise RunDirError(_taken_message(root))
         for sub in ("monitor", "checkpoints", "tensorboard"):
-            (root / sub).mkdir()
-        return cls(root)
+            (root / sub).mkdir(exist_ok=True)
+        remove_stale_temporaries(root)
+        return run
 
     @classmethod
     def open(cls, root: str | Path) -> RunDir:
@@ -226,10 +124,10 @@ class RunDir:
         if not run.root.is_dir():
             raise RunDirError(f"run directory {str(run.root)!r} not found")
         if not run.config.is_file() or not run.meta.is_file():
-            raise RunDirError(
-                f"{str(run.root)!r} is not a uniros run directory (no config.yaml and run.json); "
-                "pass the directory `uniros train` printed"
-            )
+            hint = (" (a start that was killed before it wrote run.json: start it again with "
+                    f"uniros train ID --name {run.root.name} --output {run.root.parent})") if _abandoned_start(
+                run.root) else "; pass the directory `uniros train` printed"
+            raise RunDirError(f"{str(run.root)!r} is not a uniros run directory (no config.yaml and run.json){hint}")
         return run
 
     config = property(lambda self: self.root / "config.yaml")
@@ -256,15 +154,100 @@ class RunDir:
         data.update(values)
         write_json(self.meta, data)
 
+    # -- one writer at a time --
+    def lock(self) -> None:
+        """Take the run's lock for this process (kept until :meth:`release` or the process ends).
 
-def normalizer_path(model_path: Path) -> Path:
-    """Where uniros keeps a model's ``VecNormalize`` statistics: ``<model>.vecnormalize.pkl``."""
-    return model_path.with_name(model_path.name[: -len(".zip")] + ".vecnormalize.pkl") if model_path.name.endswith(
-        ".zip") else model_path.with_name(model_path.name + ".vecnormalize.pkl")
+        Raises:
+            RunDirError: another process holds it.
+        """
+        if self._lock_fd is not None:
+            return
+        try:
+            import fcntl
+        except ImportError:  # no flock (Windows): one writer is the user's to ensure
+            return
+        fd = os.open(self.root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 64).decode(errors="replace").strip() or "unknown"
+            os.close(fd)
+            raise RunDirError(f"run {str(self.root)!r} is in use by another uniros process (pid {holder}): wait "
+                              "for it to end, or stop it; two processes writing one run would mix its files") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        self._lock_fd = fd
+
+    def release(self) -> None:
+        """Release the lock (the next writer may take it)."""
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)  # closing the descriptor drops the flock
+            self._lock_fd = None
+
+    @property
+    def locked(self) -> bool:
+        """Whether this object holds the run's lock."""
+        return self._lock_fd is not None
+
+    def discard(self) -> None:
+        """Remove a run directory this process created (a run refused before it learnt anything)."""
+        if not self.created_here:
+            return
+        self.release()
+        shutil.rmtree(self.root, ignore_errors=True)
+
+    def clean_for_restart(self) -> None:
+        """Remove what an earlier attempt wrote (checkpoints, logs, evaluations, models), keeping
+        ``config.yaml`` and ``run.json``: the run starts again from step 0 under its name."""
+        assert self.locked, "clean_for_restart needs the run's lock"
+        for sub in ("monitor", "checkpoints", "tensorboard"):
+            shutil.rmtree(self.root / sub, ignore_errors=True)
+            (self.root / sub).mkdir()
+        for path in self.root.iterdir():
+            if path.is_file() and path.name not in ("config.yaml", "run.json", ".lock"):
+                path.unlink()
 
 
-def save_model_with_stats(model: Any, normalizer: Any, path: Path) -> None:
-    """Save a model and, when observations are normalised, its statistics next to it."""
-    _save_model_zip(model, path)
-    if normalizer is not None:
-        atomic_write(normalizer_path(path), lambda tmp: normalizer.save(str(tmp)))
+def _abandoned_start(root: Path) -> bool:
+    """``root`` is what a killed ``RunDir.create`` left: no ``run.json``, nothing but the empty layout."""
+    if not root.is_dir() or (root / "run.json").exists():
+        return False
+    for path in root.iterdir():
+        if path.name.startswith(".tmp"):
+            continue
+        if path.name not in _SKELETON or (path.is_dir() and any(path.iterdir())):
+            return False
+    return True
+
+
+def _taken_message(root: Path) -> str:
+    try:
+        meta = json.loads((root / "run.json").read_text())
+    except (OSError, ValueError):
+        meta = {}
+    status = meta.get("status")
+    if status == "finished":
+        return f"run directory {str(root)!r} holds a finished run: pick another --name"
+    if status in ("created", "running", "interrupted", "failed"):
+        steps = list_checkpoints(root / "checkpoints")
+        where = (f"from its checkpoint at {steps[0].steps} steps" if steps
+                 else "again from step 0 (it has no checkpoint)")
+        return (f"run directory {str(root)!r} holds a run that did not finish ({status}): continue it {where} with "
+                f"uniros train --resume {root}, or pick another --name")
+    return f"{str(root)!r} exists and is not a run this version of uniros can continue: pick another --name"
+
+
+__all__ = [
+    "Checkpoint",
+    "RunDir",
+    "RunDirError",
+    "atomic_write",
+    "check_run_name",
+    "load_replay_buffer",
+    "normalizer_path",
+    "save_checkpoint",
+    "save_model_with_stats",
+    "save_replay_buffer",
+    "write_json",
+]

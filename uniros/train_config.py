@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import difflib
 import inspect
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
@@ -20,18 +21,19 @@ from typing import Any
 
 import yaml
 
-ALGORITHMS = ("sac", "td3", "ddpg", "ppo", "a2c", "dqn")
-OFF_POLICY = frozenset({"sac", "td3", "ddpg", "dqn"})
-_SDE = frozenset({"sac", "ppo", "a2c"})
-_NOISE = frozenset({"sac", "td3", "ddpg"})
+from uniros.algorithms import (
+    ALGORITHMS,
+    algorithm_class,
+    is_off_policy,
+    names_where,
+    takes_action_noise,
+    takes_sde,
+)
+from uniros.errors import TrainingConfigError, TrainingError
 
-
-class TrainingError(Exception):
-    """A training run cannot go on: the message says what is wrong and what to do."""
-
-
-class TrainingConfigError(TrainingError, ValueError):
-    """A training YAML is missing, malformed, or has an unknown, misspelt or mistyped key."""
+# A checkpoint prefix is part of file names inside the run folder: one plain name component.
+_PLAIN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
+MAX_PREFIX_LENGTH = 64
 
 
 # Top-level keys: (type, default). ``...`` as default: required.
@@ -47,8 +49,11 @@ _TOP: dict[str, tuple[Any, Any]] = {
     "stop_at_success": ((float, int), None),
     "env_kwargs": (dict, None),
     "video": (bool, True),
-    "video_episodes": (int, 2),
+    "video_episodes": (int, 3),
     "progress_bar": (bool, True),
+    "demonstrations": (int, 0),
+    "keep_checkpoints": (int, 3),
+    "keep_replay_buffers": (int, 1),
     # sb3_ros_support / FRobs_RL
     "save_freq": (int, 1000),
     "save_prefix": (str, "model"),
@@ -91,7 +96,7 @@ class TrainingConfig:
     """A parsed training YAML.
 
     Attributes:
-        algorithm: ``sac``, ``td3``, ``ddpg``, ``ppo``, ``a2c`` or ``dqn``.
+        algorithm: a name of :data:`uniros.algorithms.ALGOS` (``sac``, ``td3``, ``tqc``, ``ppo``, ...).
         training_steps: env steps to train for (in total: a resumed run trains the rest).
         algo_params: keyword arguments of the SB3 algorithm (``<algo>_params``).
         use_her, her_params: HER replay (goal envs, off-policy algorithms).
@@ -115,7 +120,13 @@ class TrainingConfig:
             With ``n_envs`` N, every ``save_freq // N`` vector steps.
         save_prefix, trained_model_name, save_replay_buffer, load_model, model_name, log_folder,
             log_interval, reset_num_timesteps: as in sb3_ros_support (see docs/training.md).
-        video, video_episodes: record an MP4 of the best model after a run.
+        keep_checkpoints: model checkpoints kept (the newest; with their normalisation
+            statistics); 0 keeps every one (SB3's ``CheckpointCallback``).
+        keep_replay_buffers: of those, how many newest keep their replay buffer (the large part);
+            0 keeps it with every kept checkpoint.
+        demonstrations: scripted episodes put into the replay buffer before learning (push and
+            pick-and-place: :mod:`rl_environments.manipulation_scripted`); 0: none.
+        video, video_episodes: record an MP4 of the best model after a run (real-time speed).
         progress_bar: show SB3's progress bar (rate and ETA).
     """
 
@@ -146,8 +157,11 @@ class TrainingConfig:
     log_folder: str | None = None
     log_interval: int = 4
     reset_num_timesteps: bool = False
+    keep_checkpoints: int = 3
+    keep_replay_buffers: int = 1
+    demonstrations: int = 0
     video: bool = True
-    video_episodes: int = 2
+    video_episodes: int = 3
     progress_bar: bool = True
     source: str = "<defaults>"
 
@@ -163,6 +177,8 @@ class TrainingConfig:
             "eval_freq": self.eval_freq,
             "eval_episodes": self.eval_episodes, "stop_at_success": self.stop_at_success,
             "save_freq": self.save_freq, "save_prefix": self.save_prefix,
+            "keep_checkpoints": self.keep_checkpoints, "keep_replay_buffers": self.keep_replay_buffers,
+            "demonstrations": self.demonstrations,
             "trained_model_name": self.trained_model_name, "save_replay_buffer": self.save_replay_buffer,
             "log_interval": self.log_interval, "reset_num_timesteps": self.reset_num_timesteps,
             "use_HER": self.use_her, "her_params": dict(self.her_params),
@@ -204,10 +220,46 @@ def _typed(mapping: Mapping[str, Any], key: str, source: str) -> Any:
 
 def algo_keywords(algorithm: str) -> set[str]:
     """The keyword arguments an ``<algo>_params`` block may set (the SB3 class's, minus uniros' own)."""
-    import stable_baselines3 as sb3
+    return set(inspect.signature(algorithm_class(algorithm).__init__).parameters) - _MANAGED
 
-    cls = getattr(sb3, algorithm.upper())
-    return set(inspect.signature(cls.__init__).parameters) - _MANAGED
+
+# Hyperparameters whose type a YAML gets wrong most often, checked before SB3 sees them (SB3 would
+# fail later with a traceback, or on resume not at all). Schedules are not expressible in YAML.
+_NUMBER_PARAMS = ("learning_rate", "gamma", "tau", "gae_lambda", "vf_coef", "max_grad_norm", "clip_range",
+                  "exploration_fraction", "exploration_initial_eps", "exploration_final_eps", "target_kl")
+_INT_PARAMS = ("buffer_size", "learning_starts", "batch_size", "gradient_steps", "n_steps", "n_epochs",
+               "target_update_interval", "policy_delay")
+
+
+def _check_param_types(params: Mapping[str, Any], where: str) -> None:
+    for key in _NUMBER_PARAMS:
+        value = params.get(key)
+        if key in params and (isinstance(value, bool) or not isinstance(value, (int, float))):
+            raise TrainingConfigError(f"{where}.{key} must be a number, got {value!r}")
+    for key in _INT_PARAMS:
+        value = params.get(key)
+        if key in params and (isinstance(value, bool) or not isinstance(value, int)):
+            if key == "gradient_steps" and value is None:
+                continue
+            raise TrainingConfigError(f"{where}.{key} must be an integer, got {value!r}")
+    ent = params.get("ent_coef")
+    if "ent_coef" in params and not (isinstance(ent, (int, float)) and not isinstance(ent, bool)) and not (
+            isinstance(ent, str) and re.fullmatch(r"auto(_[0-9.eE+-]+)?", ent)):
+        raise TrainingConfigError(f"{where}.ent_coef must be a number, 'auto' or 'auto_<initial value>', "
+                                  f"got {ent!r}")
+
+
+def check_save_prefix(prefix: str, where: str = "save_prefix") -> str:
+    """``prefix`` if it is a plain file-name part (checkpoints stay inside their folder).
+
+    Raises:
+        TrainingConfigError: a path (``../x``, ``/abs``, ``a/b``), an empty, hidden or overlong name.
+    """
+    if not isinstance(prefix, str) or not _PLAIN_NAME.match(prefix) or len(prefix) > MAX_PREFIX_LENGTH:
+        raise TrainingConfigError(
+            f"{where} {prefix!r} must be a plain name of at most {MAX_PREFIX_LENGTH} letters, digits, '.', '_', "
+            "'+' or '-', not starting with '.' (checkpoints are written inside the run's checkpoints/ folder)")
+    return prefix
 
 
 def parse_training_config(
@@ -234,7 +286,12 @@ def parse_training_config(
     named = _typed(data, "algorithm", source)
     algo = (named or (blocks[0] if len(blocks) == 1 else None) or algorithm or "sac").lower()
     if algo not in ALGORITHMS:
-        raise TrainingConfigError(f"{source}: algorithm {algo!r} is not one of {ALGORITHMS}")
+        raise TrainingConfigError(f"{source}: algorithm {algo!r} is not one of {list(ALGORITHMS)}"
+                                  + _nearest(algo, ALGORITHMS).replace("; valid keys:", "; algorithms:"))
+    try:
+        algorithm_class(algo)
+    except TrainingConfigError as exc:
+        raise TrainingConfigError(f"{source}: {exc}") from None
     if algorithm is not None and algo != algorithm:
         raise TrainingConfigError(
             f"{source} is a {algo.upper()} config ({'algorithm: ' + algo if named else algo + '_params'}), "
@@ -251,6 +308,7 @@ def parse_training_config(
         raise TrainingConfigError(f"{source}: key '{algo}_params' must be dict, got {params!r}")
     params = dict(params)
     _check_keys(params, algo_keywords(algo), f"{source}: {algo}_params")
+    _check_param_types(params, f"{source}: {algo}_params")
     if isinstance(params.get("train_freq"), Mapping):
         tf = params["train_freq"]
         _check_keys(tf, {"freq", "unit"}, f"{source}: {algo}_params.train_freq")
@@ -264,7 +322,7 @@ def parse_training_config(
         _check_keys(block, valid, f"{source}: {key}")
         nested[key] = dict(block)
     noise = None
-    if _typed(data, "use_action_noise", source) and algo in _NOISE:
+    if _typed(data, "use_action_noise", source) and takes_action_noise(algo):
         noise = {"mean": 0.0, "sigma": 0.1, **nested["action_noise"]}
     noise_type = _typed(data, "action_noise_type", source).lower()
     if noise_type not in ("normal", "ornstein"):
@@ -275,16 +333,28 @@ def parse_training_config(
             raise TrainingConfigError(f"{source}: missing key 'policy_params' (use_custom_policy is true)")
         policy = nested["policy_params"]
     use_her = bool(_typed(data, "use_HER", source))
-    if use_her and algo not in OFF_POLICY:
+    if use_her and not is_off_policy(algo):
         raise TrainingConfigError(
-            f"{source}: use_HER needs an off-policy algorithm (sac, td3, ddpg, dqn), not {algo!r}"
+            f"{source}: use_HER needs an off-policy algorithm ({', '.join(names_where(is_off_policy))}), not {algo!r}"
         )
     her = nested["her_params"]
     for obsolete in ("online_sampling", "max_episode_length"):
         her.pop(obsolete, None)  # read by old SB3 versions, gone since SB3 1.7
     use_sde = bool(_typed(data, "use_sde", source))
-    if use_sde and algo not in _SDE:
-        raise TrainingConfigError(f"{source}: use_sde works with sac, ppo and a2c, not {algo!r}")
+    if use_sde and not takes_sde(algo):
+        raise TrainingConfigError(f"{source}: use_sde works with {', '.join(names_where(takes_sde))}, not {algo!r}")
+    demonstrations = _typed(data, "demonstrations", source)
+    if demonstrations is None or demonstrations < 0:
+        raise TrainingConfigError(f"{source}: demonstrations must be 0 (none) or a number of episodes, "
+                                  f"got {demonstrations}")
+    if demonstrations and not is_off_policy(algo):
+        raise TrainingConfigError(f"{source}: demonstrations go into a replay buffer: they need an off-policy "
+                                  f"algorithm ({', '.join(names_where(is_off_policy))}), not {algo!r}")
+    keep = {k: _typed(data, k, source) for k in ("keep_checkpoints", "keep_replay_buffers")}
+    for key, value in keep.items():
+        if value is None or value < 0:
+            raise TrainingConfigError(f"{source}: {key} must be 0 (keep all) or positive, got {value}")
+    save_prefix = check_save_prefix(_typed(data, "save_prefix", source), f"{source}: save_prefix")
     stop = _typed(data, "stop_at_success", source)
     positive = {k: _typed(data, k, source) for k in ("training_steps", "eval_episodes", "log_interval", "n_envs")}
     for key, value in positive.items():
@@ -314,7 +384,10 @@ def parse_training_config(
         torch_threads=_typed(data, "torch_threads", source),
         n_envs=positive["n_envs"],
         save_freq=_typed(data, "save_freq", source),
-        save_prefix=_typed(data, "save_prefix", source),
+        save_prefix=save_prefix,
+        keep_checkpoints=keep["keep_checkpoints"],
+        keep_replay_buffers=keep["keep_replay_buffers"],
+        demonstrations=demonstrations,
         trained_model_name=_typed(data, "trained_model_name", source),
         save_replay_buffer=_typed(data, "save_replay_buffer", source),
         load_model=_typed(data, "load_model", source),
@@ -362,3 +435,18 @@ def save_training_config(config: TrainingConfig, path: Path) -> None:
     """Write the resolved config (every key, defaults filled in) as YAML."""
     header = f"# resolved training config (from {config.source})\n"
     path.write_text(header + yaml.safe_dump(config.to_dict(), sort_keys=False))
+
+
+__all__ = [
+    "ALGORITHMS",
+    "TrainingConfig",
+    "TrainingConfigError",
+    "TrainingError",
+    "algo_keywords",
+    "check_save_prefix",
+    "default_config_for",
+    "load_training_config",
+    "parse_training_config",
+    "save_training_config",
+    "shipped_config_ids",
+]

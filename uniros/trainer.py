@@ -21,14 +21,23 @@ from typing import Any
 
 import numpy as np
 
-from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
-from uniros.run_dir import (
+from uniros.algorithms import (
+    algorithm_class,
+    algorithm_of_saved,
+    is_off_policy,
+    policy_names,
+    takes_action_noise,
+)
+from uniros.checkpoints import (
     Checkpoint,
-    list_checkpoints,
-    load_replay_buffer,
+    latest_checkpoint,
+    normalizer_path,
+    put_replay_buffer,
     save_checkpoint,
     save_model_with_stats,
 )
+from uniros.evaluation import EVAL_SEED, evaluate
+from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError
 
 _logger = logging.getLogger(__name__)
@@ -87,17 +96,11 @@ def _policy_kwargs(config: TrainingConfig) -> dict[str, Any] | None:
     return pk
 
 
-def algorithm_class(name: str) -> Any:
-    """The SB3 class of algorithm ``name`` (``sac``, ``td3``, ...)."""
-    import stable_baselines3 as sb3
-
-    return getattr(sb3, name.upper())
-
-
 def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
-    """The SB3 model for ``config`` on ``env`` (a gymnasium env or a VecEnv)."""
-    import stable_baselines3 as sb3
+    """The model for ``config`` on ``env`` (a gymnasium env or a VecEnv), of the class
+    :data:`uniros.algorithms.ALGOS` names."""
     from gymnasium import spaces
+    from stable_baselines3 import HerReplayBuffer
     from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
 
     apply_torch_threads(config.torch_threads)
@@ -107,10 +110,14 @@ def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
     kwargs.setdefault("device", "cpu")
     obs_space = env.observation_space
     policy = "MultiInputPolicy" if isinstance(obs_space, spaces.Dict) else "MlpPolicy"
+    if policy not in policy_names(config.algorithm):
+        raise TrainingConfigError(f"{config.source}: {config.algorithm} has no {policy} (it has "
+                                  f"{list(policy_names(config.algorithm))}): pick another algorithm for this env's "
+                                  f"{type(obs_space).__name__} observations")
     if config.use_her:
         if not isinstance(obs_space, spaces.Dict):
             raise TrainingConfigError(f"{config.source}: use_HER needs a goal env (Dict observation space)")
-        kwargs["replay_buffer_class"] = sb3.HerReplayBuffer
+        kwargs["replay_buffer_class"] = HerReplayBuffer
         kwargs["replay_buffer_kwargs"] = {"n_sampled_goal": 4, "goal_selection_strategy": "future", **config.her_params}
     pk = _policy_kwargs(config)
     if pk is not None:
@@ -118,7 +125,7 @@ def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
     if config.use_sde:
         kwargs["use_sde"] = True
         kwargs.update(config.sde_params)
-    if config.action_noise is not None and config.algorithm in ("td3", "ddpg", "sac"):
+    if config.action_noise is not None and takes_action_noise(config.algorithm):
         if not isinstance(env.action_space, spaces.Box):
             raise TrainingConfigError(f"{config.source}: use_action_noise needs a continuous (Box) action space")
         n = env.action_space.shape[0]
@@ -168,7 +175,7 @@ def _per_vector_step(env_steps: int, n_envs: int) -> int:
 
 
 def _callback_classes() -> tuple[type, type, type]:
-    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
     class StopOnRequest(BaseCallback):  # type: ignore[misc]
         """Ends ``learn`` at the first env step after a stop was requested (see ``stop_at_next_step``)."""
@@ -181,7 +188,8 @@ def _callback_classes() -> tuple[type, type, type]:
             return self.request.signum is None
 
     class CheckpointEvery(_aligned(CheckpointCallback)):  # type: ignore[misc]
-        """SB3's ``CheckpointCallback``, saving through the session (atomic files, ``latest.json``)."""
+        """SB3's ``CheckpointCallback``, saving through the session (atomic files, ``latest.json``,
+        retention)."""
 
         def __init__(self, session: Session, save_freq: int) -> None:
             super().__init__(save_freq=_per_vector_step(save_freq, session.model.n_envs),
@@ -194,15 +202,16 @@ def _callback_classes() -> tuple[type, type, type]:
                 self.session.checkpoint()
             return True
 
-    class SuccessEval(_aligned(EvalCallback)):  # type: ignore[misc]
-        """SB3's ``EvalCallback``, recording the success rate, keeping the best model by it."""
+    class SuccessEval(_aligned(BaseCallback)):  # type: ignore[misc]
+        """SB3's ``EvalCallback`` on uniros' seeded evaluation episodes: every ``eval_freq`` env
+        steps, ``eval_episodes`` deterministic episodes (episode i reset with ``EVAL_SEED + i``,
+        observations normalised with the training statistics), the success rate recorded
+        (``eval/success_rate`` in TensorBoard) and the best model kept."""
 
         def __init__(self, session: Session, eval_env: Any) -> None:
-            config = session.config
-            super().__init__(eval_env, n_eval_episodes=config.eval_episodes,
-                             eval_freq=_per_vector_step(config.eval_freq, session.model.n_envs),
-                             deterministic=True, verbose=0, warn=False)
-            self.session = session
+            super().__init__()
+            self.session, self.eval_env = session, eval_env
+            self.eval_freq = _per_vector_step(session.config.eval_freq, session.model.n_envs)
 
         def _on_step(self) -> bool:
             if not (self.eval_freq > 0 and self.n_calls % self.eval_freq == 0):
@@ -210,13 +219,17 @@ def _callback_classes() -> tuple[type, type, type]:
             s = self.session
             if s.stop_request.signum is not None:
                 return False
-            if s.config.seed is not None:
-                self.eval_env.seed(s.config.seed + 10_000 + len(s.evaluations))
             started, seconds = time.perf_counter(), s.train_seconds()  # before this evaluation
-            keep_going = super()._on_step()
-            rate = float(np.mean(self._is_success_buffer)) if self._is_success_buffer else float("nan")
-            keep_going = s.after_eval(int(self.num_timesteps), rate, float(self.last_mean_reward),
-                                      seconds=seconds) and keep_going
+            stats = evaluate(self.model, self.eval_env, s.config.eval_episodes, seed=EVAL_SEED,
+                             normalizer=s.normalizer)
+            rate = stats["success_rate"] if s.success_info else float("nan")
+            self.logger.record("eval/mean_reward", stats["mean_return"])
+            self.logger.record("eval/mean_ep_length", stats["mean_length"])
+            if s.success_info:
+                self.logger.record("eval/success_rate", rate)
+            self.logger.dump(self.num_timesteps)
+            keep_going = s.after_eval(int(self.num_timesteps), rate, stats["mean_return"], seconds=seconds,
+                                      episodes=int(stats["episodes"]))
             s.excluded += time.perf_counter() - started
             return keep_going
 
@@ -271,12 +284,10 @@ class Session:
 
     # -- environments --
     def _monitored(self, env: Any, name: str) -> Any:
-        """``env`` as an SB3 ``VecEnv`` whose episodes go to ``<monitor>/<name>.monitor.csv``.
+        """The training env as an SB3 ``VecEnv`` whose episodes go to ``<monitor>/<name>.monitor.csv``.
 
-        A gymnasium env gets SB3's ``Monitor`` in a ``DummyVecEnv``. When the training env is a
-        ``VecEnv`` (``n_envs`` > 1: the batched vector env), every env gets ``VecMonitor`` (the
-        evaluation env in a ``DummyVecEnv`` first), which writes the same file: SB3 copies the
-        ``VecNormalize`` statistics to the evaluation env along the wrappers, so both chains match.
+        A gymnasium env gets SB3's ``Monitor`` in a ``DummyVecEnv``; a ``VecEnv`` (``n_envs`` > 1:
+        the batched vector env) gets ``VecMonitor``, which writes the same file.
         """
         from stable_baselines3.common.monitor import Monitor
         from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv, VecMonitor
@@ -285,17 +296,25 @@ class Session:
         keys = ("is_success",) if self.success_info else ()
         # A new file gets SB3's header lines (SB3 writes them only when overriding); a resumed run appends.
         fresh = filename is None or not Path(f"{filename}.{Monitor.EXT}").is_file()
-        if isinstance(self.env, VecEnv):
+        if isinstance(env, VecEnv):
             from stable_baselines3.common.monitor import ResultsWriter
 
-            venv = env if isinstance(env, VecEnv) else DummyVecEnv([lambda: env])
-            monitored = VecMonitor(venv, info_keywords=keys)
+            monitored = VecMonitor(env, info_keywords=keys)
             if filename is not None:  # VecMonitor would always start a new file: a resumed run appends
                 monitored.results_writer = ResultsWriter(filename, header={"t_start": monitored.t_start},
                                                          extra_keys=keys, override_existing=fresh)
             return monitored
         monitored = Monitor(env, filename=filename, info_keywords=keys, override_existing=fresh)
         return DummyVecEnv([lambda: monitored])
+
+    def _eval_monitored(self, env: Any) -> Any:
+        """The evaluation env (one gymnasium env), its episodes in ``<monitor>/eval.monitor.csv``."""
+        from stable_baselines3.common.monitor import Monitor
+
+        filename = None if self.paths.monitor is None else str(self.paths.monitor / "eval")
+        fresh = filename is None or not Path(f"{filename}.{Monitor.EXT}").is_file()
+        return Monitor(env, filename=filename, info_keywords=("is_success",) if self.success_info else (),
+                       override_existing=fresh)
 
     def _vec(self, venv: Any, *, training: bool, stats: Path | None = None) -> Any:
         from stable_baselines3.common.vec_env import VecNormalize
@@ -318,8 +337,17 @@ class Session:
             self.model.set_logger(configure(str(self.paths.logs), formats))
 
     # -- model --
-    def build(self, resume: Checkpoint | None = None, load: Path | None = None) -> Any:
-        """Create the model, or load it from a checkpoint (``resume``) or a saved model (``load``)."""
+    def build(self, resume: Checkpoint | None = None, load: Path | None = None, *, buffer: Any = None,
+              load_kwargs: dict[str, Any] | None = None) -> Any:
+        """Create the model, or load it from a checkpoint (``resume``) or a saved model (``load``).
+
+        Args:
+            buffer: the checkpoint's replay buffer, already read
+                (:func:`uniros.checkpoints.check_checkpoint`); with ``resume`` and no buffer, an
+                off-policy model starts from an empty one that fills for ``learning_starts`` steps
+                (and the demonstrations) before updates go on.
+            load_kwargs: hyperparameters that replace the saved model's (SB3's ``load(**kwargs)``).
+        """
         from stable_baselines3.common.vec_env import VecEnv
 
         apply_torch_threads(self.config.torch_threads)
@@ -330,25 +358,57 @@ class Session:
         source = resume.model if resume is not None else load
         stats = resume.vecnormalize if resume is not None else None
         if source is not None and stats is None and self.config.normalize:
-            from uniros.run_dir import normalizer_path
-
             candidate = normalizer_path(Path(source))
             stats = candidate if candidate.is_file() else None
         venv = self._vec(self._monitored(self.env, "train"), training=True, stats=stats)
         self.normalizer = venv if self.config.normalize else None
         if source is None:
             self.model = build_model(self.config, venv, verbose=self.verbose)
+            self._add_demonstrations()
         else:
-            self.model = load_model(Path(source), venv, algorithm=self.config.algorithm)
-            if resume is not None and resume.replay_buffer is not None and hasattr(self.model, "replay_buffer"):
-                try:
-                    load_replay_buffer(self.model, resume.replay_buffer)
-                except Exception as exc:  # a corrupt pickle: say which file
-                    raise TrainingError(f"replay buffer {resume.replay_buffer} cannot be read ({exc})") from exc
+            self.model = load_model(Path(source), venv, algorithm=self.config.algorithm, **(load_kwargs or {}))
+            if buffer is not None:
+                put_replay_buffer(self.model, buffer)
+            elif resume is not None and is_off_policy(self.config.algorithm):
+                self._refill_from(int(self.model.num_timesteps))
         self._logger()
         if self.make_eval_env is not None and self.config.eval_freq > 0:
-            self._eval_env = self._vec(self._monitored(self.make_eval_env(), "eval"), training=False)
+            self._eval_env = self._eval_monitored(self.make_eval_env())
         return self.model
+
+    def _add_demonstrations(self) -> None:
+        """Put ``config.demonstrations`` scripted episodes into the replay buffer (seeds ``seed + 10,000 + k``)."""
+        if not self.config.demonstrations:
+            return
+        from rl_environments.manipulation_scripted import fill_replay_buffer
+
+        if self.make_eval_env is None or self.model.n_envs != 1:
+            raise TrainingConfigError(f"{self.config.source}: demonstrations need n_envs: 1 and an env to play them in")
+        env = self.make_eval_env()
+        try:
+            stats = fill_replay_buffer(self.model, env, self.config.demonstrations,
+                                       seed=(self.config.seed or 0) + 10_000)
+        except (AttributeError, ValueError) as exc:
+            raise TrainingConfigError(f"{self.config.source}: demonstrations: no scripted policy for this env "
+                                      f"({exc}); uniros has them for push and pick-and-place") from exc
+        finally:
+            env.close()
+        _logger.info("%d demonstration episodes (%d transitions, success %.2f) in the replay buffer",
+                     stats["episodes"], stats["transitions"], stats["success_rate"])
+
+    def _refill_from(self, steps: int) -> None:
+        """An off-policy model resumed without its replay buffer: updates wait until the empty buffer
+        holds ``learning_starts`` new steps (at least an episode per env, which HER needs)."""
+        starts = int(self.config.algo_params.get("learning_starts", 100))
+        limit = getattr(getattr(self.make_eval_env, "spec", None), "max_episode_steps", None)
+        self.model.learning_starts = steps + max(starts, int(limit or 0) * int(self.model.n_envs))
+        self._add_demonstrations()
+
+    def restore_success(self, rows: list[dict[str, float]]) -> None:
+        """Set ``steps_to_success``/``seconds_to_success`` from earlier evaluations (a resumed run)."""
+        hit = next((r for r in rows if r.get("success_rate", float("nan")) >= self.target), None)
+        self.steps_to_success = None if hit is None else int(hit["steps"])
+        self.seconds_to_success = None if hit is None else float(hit.get("train_seconds", float("nan")))
 
     # -- outputs --
     def checkpoint(self) -> Checkpoint | None:
@@ -356,7 +416,9 @@ class Session:
         if self.paths.checkpoints is None or self.model is None:
             return None
         started = time.perf_counter()
-        ckpt = save_checkpoint(self.model, self.normalizer, self.paths.checkpoints, self.paths.prefix)
+        ckpt = save_checkpoint(self.model, self.normalizer, self.paths.checkpoints, self.paths.prefix,
+                               keep_checkpoints=self.config.keep_checkpoints,
+                               keep_replay_buffers=self.config.keep_replay_buffers)
         self._write_meta(status="running")
         self.excluded += time.perf_counter() - started
         return ckpt
@@ -375,7 +437,8 @@ class Session:
         RunDir(self.paths.meta.parent).update_meta(steps=int(self.model.num_timesteps),
                                                    train_seconds=round(self.train_seconds(), 3), **values)
 
-    def after_eval(self, steps: int, rate: float, mean_return: float, *, seconds: float | None = None) -> bool:
+    def after_eval(self, steps: int, rate: float, mean_return: float, *, seconds: float | None = None,
+                   episodes: int | None = None) -> bool:
         """Record an evaluation, keep the best model; False stops training (``stop_at_success``).
 
         ``seconds``: training seconds at ``steps`` (default: now; the evaluation callback passes the
@@ -383,7 +446,8 @@ class Session:
         """
         seconds = self.train_seconds() if seconds is None else seconds
         best = max(self.evaluations, key=_eval_key, default=None)
-        row = {"steps": steps, "train_seconds": round(seconds, 3), "success_rate": rate, "mean_return": mean_return}
+        row = {"steps": steps, "train_seconds": round(seconds, 3), "success_rate": rate, "mean_return": mean_return,
+               "episodes": self.config.eval_episodes if episodes is None else episodes}
         self.evaluations.append(row)
         if self.paths.evaluations is not None:
             from uniros.reports import write_evaluations
@@ -458,8 +522,10 @@ def _eval_key(row: dict[str, float]) -> tuple[float, float]:
     return (-1.0 if rate != rate else rate, row["mean_return"])
 
 
-def load_model(path: Path, env: Any, *, algorithm: str | None = None) -> Any:
-    """Load a saved SB3 model for ``env``, with clear errors for a missing, corrupt or mismatched file.
+def load_model(path: Path, env: Any, *, algorithm: str | None = None, **kwargs: Any) -> Any:
+    """Load a saved model for ``env``, with clear errors for a missing, corrupt or mismatched file.
+
+    ``kwargs`` replace saved hyperparameters (SB3's ``load(**kwargs)``).
 
     Raises:
         ModelFileError: the file is missing, not an SB3 model, for another algorithm or another env.
@@ -479,7 +545,7 @@ def load_model(path: Path, env: Any, *, algorithm: str | None = None) -> Any:
     if problem:
         raise ModelFileError(problem)
     try:
-        return algorithm_class(algo).load(str(path), env=env, device="cpu")
+        return algorithm_class(algo).load(str(path), env=env, device="cpu", **kwargs)
     except (zipfile.BadZipFile, ValueError, KeyError, EOFError, RuntimeError, TypeError) as exc:
         raise ModelFileError(
             f"{path} cannot be loaded as a {algo.upper()} model ({type(exc).__name__}: {exc})"
@@ -491,11 +557,9 @@ class ModelFileError(TrainingError, ValueError):
 
 
 def algorithm_of(path: Path) -> str:
-    """The algorithm a saved SB3 ``.zip`` was trained with (from its policy class)."""
+    """The algorithm a saved ``.zip`` was trained with (from its policy class and saved attributes)."""
     import json
     import zipfile
-
-    from uniros.train_config import ALGORITHMS
 
     try:
         with zipfile.ZipFile(path) as archive:
@@ -503,22 +567,22 @@ def algorithm_of(path: Path) -> str:
     except (zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
         raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
     module = str((data.get("policy_class") or {}).get("__module__", ""))
-    for algo in ALGORITHMS:
-        if f".{algo}." in f".{module}.":
-            return algo
-    raise ModelFileError(f"cannot tell the algorithm of {path} (policy module {module!r}); pass --algo")
+    algo = algorithm_of_saved(module, data)
+    if algo is None:
+        raise ModelFileError(f"cannot tell the algorithm of {path} (policy module {module!r}); pass --algo")
+    return algo
 
 
-def latest_checkpoint(folder: Path, prefix: str | None = None) -> list[Checkpoint]:
-    """Complete checkpoints, the one ``latest.json`` names first, then the others newest first."""
-    import json
-
-    found = list_checkpoints(folder, prefix)
-    latest = folder / "latest.json"
-    if latest.is_file():
-        try:
-            named = json.loads(latest.read_text())["model"]
-            found.sort(key=lambda c: c.model.name != named)
-        except (ValueError, KeyError, TypeError):
-            _logger.warning("%s is unreadable; using the newest checkpoint files", latest)
-    return found
+__all__ = [
+    "Checkpoint",
+    "ModelFileError",
+    "Paths",
+    "Session",
+    "algorithm_class",
+    "algorithm_of",
+    "apply_torch_threads",
+    "build_model",
+    "latest_checkpoint",
+    "load_model",
+    "spaces_mismatch",
+]

@@ -23,12 +23,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from multiros.envs.real.core import SIMULATION_KNOBS, RealEnvCore
 from rl_environments import SIM_TO_REAL
+from uniros.checkpoints import normalizer_path, remove_stale_temporaries, save_model_with_stats
+from uniros.evaluation import EVAL_SEED, evaluate, format_success, wilson_interval
 from uniros.interrupts import TrainingInterrupted, sigterm_as_interrupt
-from uniros.run_dir import RunDir, RunDirError, normalizer_path, save_model_with_stats
+from uniros.run_dir import RunDir, RunDirError, check_run_name
 from uniros.train_config import (
     ALGORITHMS,
     TrainingConfig,
@@ -44,7 +44,6 @@ from uniros.trainer import (
     Paths,
     Session,
     build_model,
-    latest_checkpoint,
     load_model,
 )
 
@@ -103,10 +102,25 @@ def _import_env_module(module: str) -> None:
 
 
 def make_env(env_id: str, **kwargs: Any) -> Any:
-    """``uniros.make`` for a registered ID or a ``module:ID``."""
+    """``uniros.make`` for a registered ID or a ``module:ID``.
+
+    Raises:
+        TrainingError: the env does not take one of ``kwargs`` (the message names it).
+    """
+    import re
+
     import uniros
 
-    return uniros.make(resolve_env_id(env_id), **kwargs)
+    try:
+        return uniros.make(resolve_env_id(env_id), **kwargs)
+    except TypeError as exc:
+        match = re.search(r"unexpected keyword argument\(?s?\)? \[?'([^']+)'", str(exc))
+        if match is None or match[1] not in kwargs:
+            raise
+        accepted = str(exc).partition(" accepts: ")[2]
+        raise TrainingError(f"{env_id} does not take the env kwarg {match[1]!r} (env_kwargs of the config, e.g. a "
+                            "shipped RX200 config's ee_action_type on another env): remove it"
+                            + (f"; it accepts: {accepted}" if accepted else "")) from None
 
 
 _make_env = make_env  # ``train`` has a parameter of that name
@@ -213,35 +227,6 @@ def reports_success(env: Any, env_id: str | None = None) -> bool:
     return isinstance(getattr(env, "unwrapped", env), GoalEnv) or spec_id in rl_environments.ENV_IDS
 
 
-# -- evaluation ------------------------------------------------------------------------------------
-def evaluate(
-    model: Any, env: Any, episodes: int, *, seed: int | None = None, normalizer: Any = None
-) -> dict[str, float]:
-    """Run ``episodes`` deterministic episodes; success = the final ``info["is_success"]``.
-
-    ``normalizer`` (a ``VecNormalize``) normalises observations as during training.
-    """
-    successes, returns, lengths = [], [], []
-    for i in range(episodes):
-        obs, info = env.reset(seed=None if seed is None or i > 0 else seed)
-        done, total, steps = False, 0.0, 0
-        while not done:
-            policy_obs = obs if normalizer is None else normalizer.normalize_obs(obs)
-            action, _ = model.predict(policy_obs, deterministic=True)
-            obs, reward, terminated, truncated, info = env.step(action)
-            total += float(reward)
-            steps += 1
-            done = terminated or truncated
-        successes.append(float(bool(info.get("is_success", False))))
-        returns.append(total)
-        lengths.append(steps)
-    return {
-        "success_rate": float(np.mean(successes)),
-        "mean_return": float(np.mean(returns)),
-        "mean_length": float(np.mean(lengths)),
-    }
-
-
 # -- the legacy programmatic entry point (benchmarks) ---------------------------------------------
 @dataclass
 class TrainingResult:
@@ -319,31 +304,119 @@ def train(
 
 
 # -- runs with a run directory (uniros train) -------------------------------------------------------
+def check_before_run(env_id: str, config: TrainingConfig, origin: str | None = None) -> None:
+    """Refuse what cannot work before a run directory is written: an unknown env ID (with the close
+    ones), an ``n_envs`` the env cannot batch (:func:`check_n_envs`), demonstrations for an env
+    without a scripted policy, or with ``n_envs`` > 1.
+
+    Raises:
+        TrainingError: the message says what is wrong and what to do.
+    """
+    import rl_environments
+
+    check_env_id(env_id)
+    check_n_envs(env_id, config, origin)
+    if config.demonstrations:
+        bare = env_id.rpartition(":")[2]
+        if bare not in rl_environments.MANIPULATION_ENV_IDS:
+            raise TrainingConfigError(f"{config.source}: demonstrations: {config.demonstrations}, but uniros has "
+                                      f"scripted demonstrations for {list(rl_environments.MANIPULATION_ENV_IDS)} only, "
+                                      f"not {env_id}: set demonstrations: 0")
+        if config.env_kwargs.get("ee_action_type") is False:
+            raise TrainingConfigError(f"{config.source}: demonstrations are end-effector actions: drop "
+                                      "ee_action_type: false from env_kwargs, or set demonstrations: 0")
+        if config.n_envs > 1:
+            raise TrainingConfigError(f"{config.source}: demonstrations fill one env's replay buffer: train with "
+                                      "n_envs: 1, or set demonstrations: 0")
+
+
+def check_env_id(env_id: str) -> str:
+    """The bare ID of a registered ID or an importable ``module:ID``.
+
+    Raises:
+        TrainingError: not registered (``unknown env ..., did you mean ...``) or not importable.
+    """
+    import difflib
+
+    import gymnasium as gym
+
+    bare = resolve_env_id(env_id)
+    if bare not in gym.registry:
+        close = difflib.get_close_matches(bare, list(gym.registry), n=3, cutoff=0.6)
+        hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+        raise TrainingError(f"unknown env {env_id!r}{hint} (`uniros list` shows the registered IDs; your own env: "
+                            "my_pkg.my_module:MyEnv-v0)")
+    return bare
+
+
+def note_updates_per_env_step(config: TrainingConfig) -> str | None:
+    """A note when ``n_envs`` > 1 gives fewer gradient updates per env step than one env would.
+
+    SB3 counts ``gradient_steps`` per vector step (per ``train_freq`` rollout); ``-1`` makes as
+    many as env steps were collected, so one update per env step at any ``n_envs`` (the shipped
+    configs use it).
+    """
+    from uniros.algorithms import is_off_policy
+
+    grads = config.algo_params.get("gradient_steps", 1)
+    if config.n_envs <= 1 or not is_off_policy(config.algorithm) or not isinstance(grads, int) or grads < 0:
+        return None
+    return (f"gradient_steps {grads} with {config.n_envs} envs makes {grads} update(s) per {config.n_envs} env steps "
+            f"({grads / config.n_envs:g} per env step, one env gets {grads}); gradient_steps: -1 keeps one per env "
+            "step (SB3: as many as env steps collected)")
+
+
 def start_run(env_id: str, config: TrainingConfig, *, output: str | Path = "runs", name: str | None = None,
               command: list[str] | None = None) -> RunDir:
-    """Create the run directory and write the resolved config and ``run.json``.
+    """Create the run directory (locked by this process) and write the resolved config and ``run.json``.
 
-    An ``n_envs`` that cannot work is refused first (:func:`check_n_envs`), and HER's
-    ``learning_starts`` is raised for it (:func:`fit_learning_starts`), so ``config.yaml`` holds
-    what the run trains with.
+    What cannot work is refused first (:func:`check_before_run`), and HER's ``learning_starts`` is
+    raised for ``n_envs`` (:func:`fit_learning_starts`), so ``config.yaml`` holds what the run trains
+    with. If the run then fails before it starts learning (:func:`run_training`), the directory is
+    removed again: a refused run leaves nothing.
     """
-    check_n_envs(env_id, config)
+    if name is not None:
+        check_run_name(name)
+    check_before_run(env_id, config)
     changed = fit_learning_starts(env_id, config)
     if changed:
         _logger.warning("%s", changed)
     run = RunDir.create(output, name, env_id, config.algorithm)
+    run.created_here = True
     save_training_config(config, run.config)
     run.update_meta(env_id=env_id, algorithm=config.algorithm, env_kwargs=config.env_kwargs, status="created",
-                    steps=0, train_seconds=0.0, command=command or [])
+                    steps=0, train_seconds=0.0, command=command or [],
+                    started_with=config.to_dict()["model_params"])
     return run
 
 
 def open_run(run_dir: str | Path) -> tuple[RunDir, str, TrainingConfig]:
-    """An existing run directory, its env ID and its resolved config (for ``--resume``)."""
+    """An existing run directory, locked by this process, its env ID and its resolved config (for
+    ``--resume``); stale temporary files of killed writes are removed.
+
+    Raises:
+        RunDirError: not a run directory, or another process writes it.
+        TrainingConfigError: its ``config.yaml`` is invalid, or edited in a way a resumed run cannot
+            honour (:func:`uniros.resume.resume_overrides`).
+    """
+    from uniros.resume import resume_overrides, started_config
+
     run = RunDir.open(run_dir)
-    meta = run.read_meta()
-    config = load_training_config(run.config)
-    config.env_kwargs = dict(meta.get("env_kwargs", config.env_kwargs))
+    run.lock()
+    try:
+        remove_stale_temporaries(run.root)
+        meta = run.read_meta()
+        config = load_training_config(run.config)
+        started = started_config(meta, str(run.config))
+        if started is not None:
+            resume_overrides(started, config)
+        else:  # runs of earlier versions: the env kwargs of run.json
+            config.env_kwargs = dict(meta.get("env_kwargs", config.env_kwargs))
+        if "env_id" not in meta:
+            raise RunDirError(f"{run.meta} names no env_id: not a run `uniros train` wrote")
+    except BaseException:
+        run.release()
+        raise
     return run, str(meta["env_id"]), config
 
 
@@ -356,34 +429,43 @@ def run_training(
     target: float = 0.9,
     on_eval: Callable[[int, float, float], None] | None = None,
     verbose: int = 0,
+    on_note: Callable[[str], None] | None = None,
 ) -> TrainingResult:
-    """Train into ``run`` (new, or ``resume`` from its latest complete checkpoint), then write the final
+    """Train into ``run`` (new, or ``resume`` from its newest usable checkpoint), then write the final
     model, the learning curve and the video.
+
+    A resumed run takes the newest checkpoint whose files all load (model, replay buffer,
+    statistics), says which it skipped and why (``on_note``, default: a warning), and starts again
+    from step 0 when there is none; ``run.json`` says ``failed`` (and why) when training raises.
+    A new run that fails before it learns leaves no directory.
 
     Raises:
         TrainingInterrupted: Ctrl-C or SIGTERM; a checkpoint was saved first.
         TrainingError: bad config, env or files (clear message).
     """
-    from uniros.reports import plot_learning_curve, read_evaluations
+    from uniros.reports import plot_learning_curve
 
+    note = on_note or (lambda text: _logger.warning("%s", text))
     paths = Paths(checkpoints=run.checkpoints, prefix=config.save_prefix, logs=run.tensorboard,
                   monitor=run.monitor, evaluations=run.evaluations, best_model=run.best_model, meta=run.meta)
-    with sigterm_as_interrupt():
-        changed = fit_learning_starts(env_id, config)
-        if changed:
-            _logger.warning("%s", changed)
-        env = make_train_env(env_id, config)
-        session = Session(config, env, make_eval_env=lambda: make_env(env_id, **config.env_kwargs), paths=paths,
-                          on_eval=on_eval, target=target, verbose=verbose,
-                          success_info=reports_success(env, resolve_env_id(env_id)))
-        try:
+    run.lock()
+    session = None
+    learning = False
+    try:
+        with sigterm_as_interrupt():
+            changed = fit_learning_starts(env_id, config)
+            if changed:
+                note(changed)
+            env = make_train_env(env_id, config)
+            session = Session(config, env, make_eval_env=_eval_factory(env_id, config), paths=paths,
+                              on_eval=on_eval, target=target, verbose=verbose,
+                              success_info=reports_success(env, resolve_env_id(env_id)))
             if resume:
-                session.evaluations = read_evaluations(run.evaluations)
-                session.prior_seconds = float(run.read_meta().get("train_seconds", 0.0))
-                _build_from_checkpoints(session, run)
+                _resume_session(session, run, note)
             else:
                 session.build()
             run.update_meta(status="running")
+            learning = True
             session.learn()
             save_model_with_stats(session.model, session.normalizer, run.final_model)
             session.checkpoint()
@@ -399,26 +481,72 @@ def run_training(
                                     monitor_csv=run.monitor / "train.monitor.csv")
                 files["curve"] = run.curve
             return _result(session, run_dir=run.root, files=files)
-        finally:
+    except TrainingInterrupted:
+        raise
+    except BaseException as exc:
+        if session is not None:
             session.close()
+            session = None
+        if not learning and not resume and getattr(run, "created_here", False):
+            run.discard()  # nothing learnt: a refused run leaves nothing
+        elif learning and not isinstance(exc, KeyboardInterrupt):
+            run.update_meta(status="failed", error=f"{type(exc).__name__}: {exc}"[:500])
+        raise
+    finally:
+        if session is not None:
+            session.close()
+        run.release()  # the run is written no more: another process (or call) may resume it
 
 
-def _build_from_checkpoints(session: Session, run: RunDir) -> None:
-    candidates = latest_checkpoint(run.checkpoints, session.paths.prefix)
-    if not candidates:
-        raise RunDirError(f"{run.root} has no checkpoint to resume from (none in {run.checkpoints})")
-    problems = []
-    for ckpt in candidates:
-        try:
-            session.build(resume=ckpt)
-        except TrainingError as exc:
-            problems.append(str(exc))
-            _logger.warning("checkpoint %s unusable (%s); trying an older one", ckpt.model, exc)
-            continue
-        if problems:
-            print(f"warning: skipped {len(problems)} unusable checkpoint(s): {'; '.join(problems)}", file=sys.stderr)
+def _eval_factory(env_id: str, config: TrainingConfig) -> Callable[[], Any]:
+    """Builds one env of ``env_id`` (evaluation, demonstrations); ``.spec`` gives its episode limit."""
+    import gymnasium as gym
+
+    def factory() -> Any:
+        return make_env(env_id, **config.env_kwargs)
+
+    bare = resolve_env_id(env_id)
+    factory.spec = gym.spec(bare) if bare in gym.registry else None  # type: ignore[attr-defined]
+    return factory
+
+
+def _resume_session(session: Session, run: RunDir, note: Callable[[str], None]) -> None:
+    """Build ``session`` from the run's newest usable checkpoint (see :mod:`uniros.resume`), or
+    from scratch when none is."""
+    from uniros.algorithms import is_off_policy
+    from uniros.reports import read_evaluations, write_evaluations
+    from uniros.resume import choose_checkpoint, resume_overrides, started_config
+
+    config = session.config
+    meta = run.read_meta()
+    started = started_config(meta, str(run.config))
+    overrides = resume_overrides(started, config) if started is not None else {}
+    env = session.env
+    choice = choose_checkpoint(run.checkpoints, config.save_prefix, config,
+                               observation_space=env.observation_space, action_space=env.action_space,
+                               needs_buffer=is_off_policy(config.algorithm))
+    for line in choice.report():
+        note(line)
+    if choice.chosen is None:
+        note(f"no usable checkpoint in {run.checkpoints}: starting the run again from step 0")
+        run.clean_for_restart()
+        run.update_meta(steps=0, train_seconds=0.0, resumed_from=None, resumed_without_buffer=False)
+        session.build()
         return
-    raise RunDirError(f"no usable checkpoint in {run.checkpoints}: {'; '.join(problems)}")
+    ckpt = choice.chosen.checkpoint
+    rows = [r for r in read_evaluations(run.evaluations) if r.get("steps", 0) <= ckpt.steps]
+    if choice.skipped:  # evaluations after the checkpoint resumed from belong to steps that are redone
+        write_evaluations(run.evaluations, rows)
+    session.evaluations = rows
+    seconds = float(meta.get("train_seconds", 0.0))
+    if int(meta.get("steps", ckpt.steps)) > ckpt.steps and rows:
+        seconds = float(rows[-1].get("train_seconds", seconds))
+    session.prior_seconds = seconds
+    session.restore_success(rows)
+    if overrides:
+        note(f"hyperparameters changed since the run started, applied to the resumed model: {overrides}")
+    session.build(resume=ckpt, buffer=choice.chosen.buffer, load_kwargs=overrides)
+    run.update_meta(resumed_from=ckpt.model.name, resumed_without_buffer=choice.without_buffer)
 
 
 def record_run_video(run: RunDir, env_id: str, config: TrainingConfig, *, episodes: int | None = None) -> Path:
@@ -433,7 +561,7 @@ def record_run_video(run: RunDir, env_id: str, config: TrainingConfig, *, episod
         env.close()
     target = run.video if model_path == run.best_model else run.root / "final_model.mp4"
     record_video(model, lambda **kw: make_env(env_id, **{**config.env_kwargs, **kw}), target,
-                 episodes=episodes or config.video_episodes, normalizer=normalizer, seed=(config.seed or 0) + 777)
+                 episodes=episodes or config.video_episodes, normalizer=normalizer, seed=EVAL_SEED)
     return target
 
 
@@ -469,6 +597,18 @@ def resolve_model_path(model: str | Path) -> Path:
     if path.suffix != ".zip" and path.with_name(path.name + ".zip").is_file():
         return path.with_name(path.name + ".zip")
     raise ModelFileError(f"model file {str(path)!r} not found")
+
+
+def trained_env_id(model_path: Path) -> str | None:
+    """The env ID a model was trained on, from its run's ``run.json`` (or ``<model>.env.json``)."""
+    for meta in (model_path.parent / "run.json", model_path.with_suffix(".env.json")):
+        try:
+            env_id = json.loads(meta.read_text()).get("env_id")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(env_id, str) and env_id:
+            return env_id
+    return None
 
 
 def saved_env_kwargs(model_path: Path, env_id: str | None = None) -> dict[str, Any]:
@@ -549,6 +689,7 @@ def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None) -
 
 __all__ = [
     "ALGORITHMS",
+    "EVAL_SEED",
     "ModelFileError",
     "RunDir",
     "RunDirError",
@@ -558,12 +699,16 @@ __all__ = [
     "TrainingInterrupted",
     "TrainingResult",
     "build_model",
+    "check_before_run",
+    "check_env_id",
     "default_config_for",
     "evaluate",
     "find_normalizer",
+    "format_success",
     "load_for_eval",
     "load_training_config",
     "make_env",
+    "note_updates_per_env_step",
     "open_run",
     "parse_training_config",
     "record_run_video",
@@ -572,4 +717,6 @@ __all__ = [
     "run_training",
     "start_run",
     "train",
+    "trained_env_id",
+    "wilson_interval",
 ]

@@ -91,7 +91,13 @@ def _run_page(page: str, tmp_path: Path, *, slow: bool) -> int:
     return ran
 
 
-@pytest.mark.parametrize("page", _page_ids())
+# Pages whose fast blocks take over 10 s together on a quiet machine (each block makes an env, so a
+# simulation node): marked slow as a whole, so that `-m "not slow"` stays quick (CI runs them all).
+HEAVY_PAGES = {"docs/create_env.md", "docs/concepts.md", "docs/vector_envs.md"}
+
+
+@pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if p in HEAVY_PAGES else p
+                                  for p in _page_ids()])
 def test_page_code_runs(page, tmp_path):
     _run_page(page, tmp_path, slow=False)
 

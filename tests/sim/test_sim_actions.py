@@ -105,6 +105,13 @@ def test_follow_joint_trajectory_reaches_the_goal_with_feedback(sim):
     feedback = []
     handle = _send(action, _goal([0.3, 0.2, 0.1], 0.4, goal_tol=0.03, goal_time=1.0), feedback.append)
     assert handle.accepted
+    # Feedback goes out while the trajectory runs and reaches the client on its delivery thread; the
+    # client drops a goal's feedback callback once the result arrives. Run a part of the trajectory,
+    # and wait (bounded) for its feedback before asking for the result.
+    client.step_robot("arm", steps=25)
+    deadline = time.monotonic() + 10.0
+    while not feedback and time.monotonic() < deadline:
+        time.sleep(0.01)
     response = _step_until(client, handle.get_result_async())
     assert response.status == STATUS_SUCCEEDED and response.result.error_code == FJT.SUCCESSFUL
     assert np.max(np.abs(_positions(client) - [0.3, 0.2, 0.1])) < 0.03

@@ -421,3 +421,50 @@ def test_filled_template_steps_in_a_batched_vector_env(tmp_path, case):
         batched.close()
         separate.close()
         del gymnasium.registry[pkg.ENV_ID]
+
+
+def _green_pixels(image: np.ndarray) -> int:
+    image = np.asarray(image, dtype=int)
+    return int(((image[..., 1] - np.maximum(image[..., 0], image[..., 2])) > 60).sum())
+
+
+@needs_stack
+@pytest.mark.parametrize("case", ["multiros", "multiros_goal", "frobs"])
+def test_filled_templates_draw_the_goal_marker(tmp_path, case):
+    """The task templates draw their goal (``show_goal`` of the robot templates) once the goal blank
+    is filled: rendered images show the green sphere where the goal is."""
+    import gymnasium
+
+    pkg, cls = make_filled(tmp_path, case)
+    env = cls(render_mode="rgb_array")
+    try:
+        env.reset(seed=0)
+        assert env.unwrapped._goal_marker is not None
+        shown = _green_pixels(env.render())
+        env.unwrapped.show_goal([5.0, 5.0, -5.0])  # out of the camera's view: the green goes with it
+        assert shown > 20 and _green_pixels(env.render()) == 0
+    finally:
+        env.close()
+        del gymnasium.registry[pkg.ENV_ID]
+
+
+@needs_stack
+def test_a_shipped_rx200_config_on_a_template_env_is_a_short_error(tmp_path, capsys):
+    """The shipped RX200 config sets ee_action_type, which a template env does not take: one line,
+    exit code 2, no run directory."""
+    import gymnasium
+
+    from uniros.cli import main
+
+    pkg, _ = make_filled(tmp_path, "multiros_goal")
+    from importlib import resources
+
+    shipped = resources.files("rl_environments.config").joinpath("training", "RX200ReacherGoalSim-v0.yaml")
+    try:
+        code = main(["train", pkg.ENV_ID, "--config", str(shipped), "--output", str(tmp_path / "runs")])
+        err = capsys.readouterr().err
+        assert code == 2 and f"{pkg.ENV_ID} does not take the env kwarg 'ee_action_type'" in err
+        assert "Traceback" not in err and len(err.strip().splitlines()) <= 2
+        assert not (tmp_path / "runs").exists() or not list((tmp_path / "runs").iterdir())
+    finally:
+        del gymnasium.registry[pkg.ENV_ID]

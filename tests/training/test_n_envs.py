@@ -17,7 +17,7 @@ from uniros.training import check_n_envs, fit_learning_starts, make_train_env, s
 
 TINY = (
     "algorithm: sac\ntraining_steps: 800\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"
-    "use_HER: true\nsac_params: {learning_starts: 100, batch_size: 32, buffer_size: 50000}\n"
+    "use_HER: true\nkeep_checkpoints: 0\nsac_params: {learning_starts: 100, batch_size: 32, buffer_size: 50000}\n"
     "env_kwargs: {ee_action_type: true, max_episode_steps: 50}\n"
 )
 
@@ -98,9 +98,10 @@ def test_train_resume_on_a_batched_vector_env(tmp_path, capsys):
     args = ["train", "RX200ReacherGoalSim-v0", "--config", str(cfg), "--n-envs", "4", "--output",
             str(tmp_path / "runs"), "--name", "r4", "--eval-episodes", "2", "--no-video", "--no-progress"]
     assert cli_main(args) == 0
-    out = capsys.readouterr().out
-    assert "x 4 envs" in out
-    assert "note: learning_starts 100 -> 200" in out  # 4 envs x 50-step episodes
+    out = capsys.readouterr()
+    assert "x 4 envs" in out.out
+    assert "note: learning_starts 100 -> 200" in out.err  # 4 envs x 50-step episodes
+    assert "note: gradient_steps 1 with 4 envs makes 1 update(s) per 4 env steps" in out.err
 
     saved = yaml.safe_load((run / "config.yaml").read_text())["model_params"]
     assert saved["n_envs"] == 4 and saved["sac_params"]["learning_starts"] == 200
@@ -136,6 +137,36 @@ def test_train_resume_on_a_batched_vector_env(tmp_path, capsys):
     comments_after, episodes_after = _monitor_rows(run / "monitor" / "train.monitor.csv")
     assert len(comments_after) == 1 and episodes_after[:len(episodes)] == episodes
     assert len(episodes_after) > len(episodes)
+
+
+@pytest.mark.slow
+def test_gradient_steps_minus_one_keeps_one_update_per_env_step(tmp_path):
+    """The shipped configs' gradient_steps: -1 (SB3: as many gradient steps as env steps collected)
+    makes as many updates per env step with 4 envs as with one; a positive value gets a note."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from uniros.trainer import Session
+    from uniros.training import note_updates_per_env_step
+
+    updates = {}
+    for n in (1, 4):
+        config = parse_training_config({"training_steps": 200, "n_envs": n, "eval_freq": 0, "save_freq": 0,
+                                        "progress_bar": False, "sac_params": {
+                                            "learning_starts": 40, "batch_size": 8, "gradient_steps": -1},
+                                        "use_custom_policy": True, "policy_params": {"net_arch": [8]}}, "cfg.yaml")
+        assert note_updates_per_env_step(config) is None
+        env = gym.make("Pendulum-v1") if n == 1 else DummyVecEnv([lambda: gym.make("Pendulum-v1")] * n)
+        session = Session(config, env, success_info=False)
+        try:
+            session.build()
+            session.learn()
+            updates[n] = session.model._n_updates
+        finally:
+            session.close()
+    assert updates[1] == 200 - 40 and abs(updates[4] - updates[1]) <= 4
+    positive = parse_training_config({"training_steps": 10, "n_envs": 8, "sac_params": {"gradient_steps": 2}})
+    assert "2 update(s) per 8 env steps (0.25 per env step" in note_updates_per_env_step(positive)
 
 
 def test_trainer_classes_train_the_env_they_are_given(tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -20,7 +21,7 @@ from uniros.cli import main as cli_main
 TINY = (
     "algorithm: sac\ntraining_steps: {steps}\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"
     "use_HER: true\nvideo_episodes: 1\nsac_params: {{learning_starts: 100, batch_size: 32, buffer_size: 50000}}\n"
-    "env_kwargs: {{ee_action_type: true}}\n"
+    "env_kwargs: {{ee_action_type: true, max_episode_steps: 50}}\n"
 )
 UNIROS = [sys.executable, "-c", "import sys; from uniros.cli import main; sys.exit(main())"]
 
@@ -70,22 +71,31 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
     second = _latest_steps(run)
     assert second > first  # the step count carried on
 
-    # A name in use is refused, not overwritten.
+    # A name in use is refused, not overwritten, and the message says how to continue that run.
     assert cli_main(args) == 2
-    assert "exists" in capsys.readouterr().err
+    assert f"holds a run that did not finish (interrupted): continue it from its checkpoint at {second} steps " \
+           f"with uniros train --resume {run}" in capsys.readouterr().err
 
-    # A corrupt newest checkpoint: resume falls back to the previous one.
+    # A corrupt newest checkpoint: resume falls back to the previous one (which, with the default
+    # retention, kept no replay buffer: it refills).
     newest = run / "checkpoints" / f"model_{second}_steps.zip"
     newest.write_bytes(b"not a zip")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        assert cli_main(["train", "--resume", str(run), "--eval-episodes", "2"]) == 0
+        assert cli_main(["train", "--resume", str(run), "--eval-episodes", "3"]) == 0
     # The resumed run starts a fresh episode: SB3's advice to keep the last trajectory does not apply.
     assert not [w for w in caught if "last trajectory in the replay buffer" in str(w.message)]
     out = capsys.readouterr()
-    assert "skipped 1 unusable checkpoint" in out.err
+    assert f"skipped checkpoint at {second} steps: model_{second}_steps.zip: unreadable" in out.err
     meta = json.loads((run / "run.json").read_text())
     assert meta["status"] == "finished" and meta["steps"] == 900
+    # Retention: three model checkpoints, one replay buffer, whatever the run's length.
+    ckpts = run / "checkpoints"
+    assert len(list(ckpts.glob("model_*_steps.zip"))) == 3 and len(list(ckpts.glob("model_replay_buffer_*"))) == 1
+    # The final evaluation and `uniros eval` play the same seeded episodes: the same figures.
+    final = re.search(r"final evaluation of best_model.zip over 3 episodes: success rate (\S+ \[\S+, \S+\]).*"
+                      r"mean return (\S+),", out.out)
+    assert final, out.out
 
     # The files are real.
     for name in ("config.yaml", "final_model.zip", "final_model.vecnormalize.pkl", "best_model.zip",
@@ -105,14 +115,17 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
 
     png = imageio.imread(run / "learning_curve.png")
     assert png.shape[0] > 100 and png.std() > 10
-    frames = [np.asarray(f, dtype=int) for f in imageio.get_reader(str(run / "best_model.mp4"))]
-    assert len(frames) == 101
+    reader = imageio.get_reader(str(run / "best_model.mp4"))
+    assert reader.get_meta_data()["fps"] == 10  # real time: the reach task steps every 100 ms
+    frames = [np.asarray(f, dtype=int) for f in reader]
+    assert len(frames) >= 2 + 5  # the reset frame, the steps, the last one held 0.5 s
     assert np.abs(frames[0] - frames[-1]).mean() > 1  # the robot moves
+    assert np.abs(frames[-1] - frames[-5]).mean() < 1.0  # the end is held (H.264 changes a few pixels)
     green = [int(((f[..., 1] - np.maximum(f[..., 0], f[..., 2])) > 60).sum()) for f in frames]
-    # The goal marker (green) is in the frames (it may hide behind the arm in some).
-    # A good policy parks the gripper on the marker, hiding it for the rest of the episode: ask for
-    # it in a good share of the frames, not in most of them.
-    assert sum(g > 20 for g in green) > 0.4 * len(frames), "the goal marker is not visible"
+    # The goal marker (green) is drawn. How long it stays visible depends on the policy (a good one
+    # parks the gripper on it), and the policy on where the signals above interrupted training:
+    # tests/training/test_reports.py checks the marker on a fixed trajectory.
+    assert max(green) > 20, "the goal marker is not visible"
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     scalars = set()
@@ -121,9 +134,11 @@ def test_interrupt_resume_and_the_run_directory(tmp_path, capsys):
         acc.Reload()
         scalars |= set(acc.Tags()["scalars"])
     assert "eval/success_rate" in scalars
-    # uniros eval: a run directory (its best model), a missing file, a model for another env.
-    assert cli_main(["eval", "RX200ReacherGoalSim-v0", str(run), "--episodes", "1"]) == 0
-    assert "normalised with the saved statistics" in capsys.readouterr().out
+    # uniros eval: a run directory (its best model, its env), a missing file, a model for another env.
+    assert cli_main(["eval", str(run), "--episodes", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "normalised with the saved statistics" in out
+    assert f"success rate {final[1]} (95% CI) over 3 episodes" in out and f"mean return {final[2]}," in out
     assert cli_main(["eval", "RX200ReacherGoalSim-v0", str(tmp_path / "nope"), "--algo", "sac"]) == 2
     err = capsys.readouterr().err
     assert "not found" in err and ".zip.zip" not in err and "cannot tell" not in err

@@ -54,6 +54,7 @@ def test_td3_as_the_seed_docs_use_it_then_continue_with_load_model(tmp_path):
     assert loaded.num_timesteps == 120
 
 
+@pytest.mark.slow
 def test_goal_class_default_config_and_wrong_algorithm(tmp_path):
     env = uniros.make("RX200ReacherGoalSim-v0")
     try:

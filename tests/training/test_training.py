@@ -7,6 +7,7 @@ import copy
 import numpy as np
 import pytest
 
+import rl_environments
 import uniros
 from uniros.cli import main as cli_main
 from uniros.training import (
@@ -19,12 +20,29 @@ from uniros.training import (
 )
 
 
-def test_shipped_configs_parse():
-    for env_id in ("RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0"):
-        config = default_config_for(env_id)
-        assert config.algorithm == "sac" and config.use_her and config.normalize
-        assert config.policy_params["net_arch"] == [64, 64]
-        assert config.algo_params["train_freq"] == (1, "step")
+@pytest.mark.parametrize("env_id", rl_environments.ENV_IDS)
+def test_every_simulated_id_ships_a_config_that_parses(env_id):
+    config = default_config_for(env_id)
+    assert config.algorithm == "sac" and config.training_steps >= 10_000
+    assert config.use_her == (env_id in rl_environments.GOAL_ENV_IDS)
+    # One update per env step at any n_envs (docs/training.md, "Several envs at once").
+    assert config.algo_params["gradient_steps"] == -1 and config.algo_params["train_freq"] == (1, "step")
+    assert (config.demonstrations > 0) == (env_id in rl_environments.MANIPULATION_ENV_IDS)
+    assert config.eval_freq > 0 and config.save_freq > 0 and config.keep_replay_buffers == 1
+
+
+def test_rl_zoo3_hyperparameters_cover_every_simulated_id():
+    from importlib import resources
+
+    import yaml
+
+    folder = resources.files("rl_environments.config").joinpath("training", "rl_zoo3")
+    for algo in ("sac", "tqc"):
+        data = yaml.safe_load(folder.joinpath(f"{algo}.yml").read_text())
+        assert set(data) == set(rl_environments.ENV_IDS), algo
+        for env_id, params in data.items():
+            assert params["policy"] == ("MultiInputPolicy" if env_id in rl_environments.GOAL_ENV_IDS else "MlpPolicy")
+            assert ("replay_buffer_class" in params) == (env_id in rl_environments.GOAL_ENV_IDS)
 
 
 def test_frobs_style_yaml_parses(tmp_path):
@@ -97,9 +115,38 @@ def test_cli_list(capsys):
     assert "RX200ReacherGoalReal-v0" in out and "ABBIRB120ReacherGoalRealEnv-v0" in out
 
 
-def test_cli_errors_are_reported_with_exit_code_2(capsys, tmp_path):
-    assert cli_main(["train", "NoSuchEnv-v0", "--output", str(tmp_path)]) == 2
-    assert "no shipped training config" in capsys.readouterr().err
+def _error(capsys, *argv: str) -> str:
+    assert cli_main(list(argv)) == 2
+    err = capsys.readouterr().err
+    error = [line for line in err.strip().splitlines() if not line.startswith("note: ")]
+    assert "Traceback" not in err and len(error) <= 2, err
+    return err
+
+
+def test_common_mistakes_are_one_or_two_lines_with_exit_code_2(capsys, tmp_path):
+    out = tmp_path / "runs"
+    assert "unknown env 'RX200ReacherGoalSm-v0'; did you mean 'RX200ReacherGoalSim-v0'" in _error(
+        capsys, "train", "RX200ReacherGoalSm-v0", "--output", str(out))
+    assert "give the model to evaluate: uniros eval RX200ReacherGoalSim-v0 MODEL" in _error(
+        capsys, "eval", "RX200ReacherGoalSim-v0")
+    assert "unknown env 'NoSuchEnv-v0'" in _error(capsys, "eval", "NoSuchEnv-v0", str(tmp_path))
+    assert "no shipped training config for 'CartPole-v1'" in _error(
+        capsys, "train", "CartPole-v1", "--output", str(out))
+    cfg = tmp_path / "bogus.yaml"
+    cfg.write_text("training_steps: 100\nvideo: false\nenv_kwargs: {bogus_knob: 1}\n")
+    err = _error(capsys, "train", "RX200ReacherGoalSim-v0", "--config", str(cfg), "--output", str(out))
+    assert "RX200ReacherGoalSim-v0 does not take the env kwarg 'bogus_knob'" in err
+    assert not out.exists() or not list(out.iterdir())  # a refused run writes nothing
+
+
+def test_a_real_env_without_a_robot_is_a_short_error(capsys, tmp_path):
+    cfg = tmp_path / "real.yaml"
+    cfg.write_text("training_steps: 100\nvideo: false\nuse_HER: true\nenv_kwargs: {startup_timeout: 1.0}\n")
+    out = tmp_path / "runs"
+    err = _error(capsys, "train", "RX200ReacherGoalReal-v0", "--config", str(cfg), "--output", str(out))
+    assert "RobotConnectionError: no usable joint states from /rx200/joint_states" in err
+    assert "uniros-fake-robot" in err
+    assert not out.exists() or not list(out.iterdir())
 
 
 @pytest.mark.slow

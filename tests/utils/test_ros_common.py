@@ -167,6 +167,7 @@ def test_shell_strings_and_foreign_pids_refused():
         other.wait(timeout=10)
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_kill_all_only_touches_own_children():
     outsider = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])

@@ -27,6 +27,7 @@ def _rollout(vec, steps: int = 8) -> list:
     return out
 
 
+@pytest.mark.slow
 def test_process_and_k_process_forms_equal_composed() -> None:
     """Node in another process, and K=2 nodes in 2 processes (2 robots each): same observations."""
     composed = uniros.make_vec(ENV, 4, vectorization_mode="batched")
@@ -52,6 +53,7 @@ def test_process_and_k_process_forms_equal_composed() -> None:
         assert all(p.poll() is not None for p in procs)  # stopped (and reaped) by close()
 
 
+@pytest.mark.slow
 def test_dead_node_is_named_within_bounded_time() -> None:
     vec = uniros.make_vec(ENV, 2, vectorization_mode="batched", sim_mode="process",
                           vector_kwargs={"num_nodes": 2, "timeout_sec": 5.0})
