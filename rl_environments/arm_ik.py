@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -40,7 +40,7 @@ class TopDownIK(Protocol):
     lower: np.ndarray
     upper: np.ndarray
 
-    def solve(self, target: Sequence[float], yaw: float | None = None,
+    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
               q0: Sequence[float] | None = None) -> np.ndarray:
         """Joint targets (``joint_names`` order, within the limits) for the grasp point at ``target``."""
         ...
@@ -78,13 +78,13 @@ class VX300STopDownIK:
     def __init__(self, lower: Sequence[float] | None = None, upper: Sequence[float] | None = None) -> None:
         from rl_environments.robots import vx300s_description as pkg
 
-        self.joint_names = pkg.ARM_JOINTS
+        self.joint_names: tuple[str, ...] = tuple(pkg.ARM_JOINTS)
         self.lower = np.asarray(pkg.JOINT_LOWER if lower is None else lower, dtype=np.float64)
         self.upper = np.asarray(pkg.JOINT_UPPER if upper is None else upper, dtype=np.float64)
         self._a = float(np.hypot(*self.UPPER))
         self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
 
-    def solve(self, target: Sequence[float], yaw: float | None = None,
+    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
               q0: Sequence[float] | None = None) -> np.ndarray:
         x, y, z = (float(v) for v in target)
         r = float(np.hypot(x, y))
@@ -164,7 +164,7 @@ class NumericTopDownIK:
         rot[:, third] = np.cross(a, c) if (self._approach + 1) % 3 == self._closing else np.cross(c, a)
         return rot
 
-    def solve(self, target: Sequence[float], yaw: float | None = None,
+    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
               q0: Sequence[float] | None = None) -> np.ndarray:
         target = np.asarray(target, dtype=np.float64)
         yaw = _closing_yaw(float(target[0]), float(target[1]), yaw)
@@ -186,6 +186,7 @@ class NumericTopDownIK:
                 best = result
             if result.converged:
                 break
+        assert best is not None  # attempts is never empty
         return np.clip(best.q, self.lower, self.upper)
 
 
@@ -213,7 +214,7 @@ class NED2TopDownIK(NumericTopDownIK):
                          lower=lower, upper=upper)
 
 
-_IK = {"vx300s": VX300STopDownIK, "ur5e": UR5eTopDownIK, "ned2": NED2TopDownIK}
+_IK: dict[str, Callable[[], TopDownIK]] = {"vx300s": VX300STopDownIK, "ur5e": UR5eTopDownIK, "ned2": NED2TopDownIK}
 
 
 def top_down_ik(arm: str) -> TopDownIK:

@@ -48,6 +48,7 @@ class ArmInterface:
     arrays follow ``ARM_JOINTS``.
     """
 
+    ROBOT_NAME: ClassVar[str]
     ARM_JOINTS: ClassVar[tuple[str, ...]]
     EE_LINK: ClassVar[str]
     ARM_CONTROLLER: ClassVar[str]
@@ -73,6 +74,8 @@ class ArmInterface:
                                  tolerance: float = 1e-3) -> None: ...
 
         def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray: ...
+
+        def frame_position(self, frame: str) -> np.ndarray: ...
 
         def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray: ...
 

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -61,6 +61,9 @@ from rl_environments.manipulation_task import ManipulationTask, TaskKind
 from rl_environments.reach import RewardType, goal_distance, parse_reward_type, reward_from_distance
 from rl_environments.reach_task import stack_rows
 from rl_environments.task_config import load_task_config, vector
+
+if TYPE_CHECKING:
+    from rl_environments.arm_interface import ArmInterface
 
 __all__ = ["ArmGoalManipulationTask", "ArmManipulationTask", "EPISODE_STEPS", "load_manipulation_config",
            "manipulation_schema"]
@@ -106,14 +109,14 @@ def manipulation_schema(n_joints: int) -> dict[str, Any]:
     }
 
 
-def load_manipulation_config(robot: type, name: str | Path | None = None) -> dict[str, Any]:
+def load_manipulation_config(robot: type[ArmInterface], name: str | Path | None = None) -> dict[str, Any]:
     """Load and check a push / pick-and-place config for ``robot`` (an arm's robot layer class): by
     default ``<ROBOT_NAME>_manipulation_task_config.yaml``, keys under ``<ROBOT_NAME>:``, the scene's
     keys from ``robot.SCENE`` unless the file gives them."""
-    arm = robot.ROBOT_NAME  # type: ignore[attr-defined]
+    arm = robot.ROBOT_NAME
     name = name if name is not None else f"{arm}_manipulation_task_config.yaml"
-    scene = {k: v for k, v in robot.SCENE.items() if k in SCENE_KEYS}  # type: ignore[attr-defined]
-    cfg = load_task_config(name, manipulation_schema(len(robot.ARM_JOINTS)), section=arm,  # type: ignore[attr-defined]
+    scene = {k: v for k, v in robot.SCENE.items() if k in SCENE_KEYS}
+    cfg = load_task_config(name, manipulation_schema(len(robot.ARM_JOINTS)), section=arm,
                            defaults=scene)
     check_arm_joints(cfg, robot, name)
     return cfg

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from gymnasium import spaces
@@ -49,6 +49,9 @@ from rl_environments.camera_obs import CameraObservations
 from rl_environments.reach import goal_reward, parse_reward_type
 from rl_environments.reach_task import GoalReachTask, ReachTask, stack_rows
 from rl_environments.task_config import TaskConfigError, load_task_config, vector
+
+if TYPE_CHECKING:
+    from rl_environments.arm_interface import ArmInterface
 
 __all__ = ["ArmGoalReachTask", "ArmReachTask", "REACH_NUM_SIM_STEPS", "load_reach_config", "reach_schema",
            "reach_settings"]
@@ -83,20 +86,20 @@ def reach_schema(n_joints: int) -> dict[str, Any]:
     }
 
 
-def check_arm_joints(cfg: dict[str, Any], robot: type, source: str | Path) -> None:
+def check_arm_joints(cfg: dict[str, Any], robot: type[ArmInterface], source: str | Path) -> None:
     """A config's ``arm_joints`` must be the robot's ``ARM_JOINTS``, in order."""
     joints = tuple(cfg["arm_joints"])
-    if joints != tuple(robot.ARM_JOINTS):  # type: ignore[attr-defined]
-        raise TaskConfigError(f"{source}: arm_joints {list(joints)} are not {robot.__name__}'s joints "  # type: ignore[attr-defined]
+    if joints != tuple(robot.ARM_JOINTS):
+        raise TaskConfigError(f"{source}: arm_joints {list(joints)} are not {robot.__name__}'s joints "
                               f"{list(robot.ARM_JOINTS)} (in that order)")
 
 
-def load_reach_config(robot: type, name: str | Path | None = None) -> dict[str, Any]:
+def load_reach_config(robot: type[ArmInterface], name: str | Path | None = None) -> dict[str, Any]:
     """Load and check a reach config for ``robot`` (an arm's robot layer class): by default
     ``<ROBOT_NAME>_reach_task_config.yaml``, keys under ``<ROBOT_NAME>:``."""
-    arm = robot.ROBOT_NAME  # type: ignore[attr-defined]
+    arm = robot.ROBOT_NAME
     name = name if name is not None else f"{arm}_reach_task_config.yaml"
-    cfg = load_task_config(name, reach_schema(len(robot.ARM_JOINTS)), section=arm)  # type: ignore[attr-defined]
+    cfg = load_task_config(name, reach_schema(len(robot.ARM_JOINTS)), section=arm)
     check_arm_joints(cfg, robot, name)
     return cfg
 

@@ -101,6 +101,11 @@ class ArmRobot(ArmInterface):
     CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
                                                                                       -25.0)
     CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]] = {}
+    # The scene of push and pick-and-place (set by the manipulation task: place_object uses them).
+    table_entity: str
+    table_frame: str
+    table_pose: np.ndarray
+    object_entity: str
 
     @classmethod
     def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> TopDownIK:
@@ -224,7 +229,7 @@ class ArmRobot(ArmInterface):
 
     def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
         """Teleport the object (at rest) to its episode start; put the table back when knocked."""
-        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:  # type: ignore[attr-defined]
+        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
             self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
         self.connection.place_entity(self.object_entity, position, quat)
 

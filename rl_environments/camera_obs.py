@@ -45,7 +45,7 @@ import logging
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -229,6 +229,19 @@ class CameraObservations:
     """
 
     CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = {}
+    observation_space: spaces.Space[Any]  # the task's; the images join it in setup_cameras
+
+    if TYPE_CHECKING:  # the robot layer's members the cameras use (an arm's ArmRobot / RealArmRobot)
+        connection: Any
+        robot_name: str
+        node: Any
+        sim: Any
+        link: Any
+        CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]]
+        CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]]
+
+        @property
+        def base_position(self) -> np.ndarray: ...
     camera: CameraOptions | None = None
     camera_source: Any = None  # the world's camera name (simulation) or the image topics (real)
     _camera_real: bool = False
@@ -252,7 +265,7 @@ class CameraObservations:
         self.camera = options
         if options is None:
             return
-        state = self.observation_space  # type: ignore[has-type]
+        state = self.observation_space
         self._state_space = state
         self._camera_real = self._is_real()
         if self._camera_real:
@@ -279,13 +292,13 @@ class CameraObservations:
     def _setup_sim_camera(self, options: CameraOptions) -> None:
         from multiros.sim.errors import RenderError
 
-        conn = self.connection  # type: ignore[attr-defined]
+        conn = self.connection
         if options.camera_name is not None:
             name = options.camera_name.strip("/")
-            self.camera_source = name if "/" in name else f"{self.robot_name}/{name}"  # type: ignore[attr-defined]
+            self.camera_source = name if "/" in name else f"{self.robot_name}/{name}"
         else:
-            base = np.asarray(self.base_position, dtype=np.float64)  # type: ignore[attr-defined]
-            (lx, ly, lz), dist, az, el = self.CAMERA_VIEW  # type: ignore[attr-defined]
+            base = np.asarray(self.base_position, dtype=np.float64)
+            (lx, ly, lz), dist, az, el = self.CAMERA_VIEW
             lookat = options.lookat if options.lookat is not None else tuple(base + (lx, ly, lz))
             if options.position is not None:
                 position = options.position
@@ -294,9 +307,9 @@ class CameraObservations:
                 position = (lookat[0] - dist * math.cos(e) * math.cos(a), lookat[1] - dist * math.cos(e) * math.sin(a),
                             lookat[2] - dist * math.sin(e))
             w, h = options.width or DEFAULT_SIZE, options.height or DEFAULT_SIZE
-            entity = f"{self.robot_name}_{CAMERA_ENTITY}"  # type: ignore[attr-defined]
+            entity = f"{self.robot_name}_{CAMERA_ENTITY}"
             text = camera_entity_urdf(position, lookat, w, h, options.fovy, conn.namespace)
-            entity = self.sim.spawn_entity(  # type: ignore[attr-defined]
+            entity = self.sim.spawn_entity(
                 entity, uri="", resource_string=text, namespace=f"{conn.namespace.rstrip('/')}/{CAMERA_ENTITY}_mount",
                 position=tuple(conn.to_world(np.asarray(position, dtype=np.float64))),
                 timeout_sec=max(conn.timeout_sec, 30.0))
@@ -318,11 +331,11 @@ class CameraObservations:
 
         name = (options.camera_name or CAMERA_ENTITY).strip("/")
         short = name.rsplit("/", 1)[-1]
-        rgb_default, depth_default = self.CAMERA_TOPICS.get(  # type: ignore[attr-defined]
+        rgb_default, depth_default = self.CAMERA_TOPICS.get(
             short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
-        link = self.link  # type: ignore[attr-defined]
-        rgb = ImageTopic(self.node, link.resolve(options.rgb_topic or rgb_default), "rgb")  # type: ignore[attr-defined]
-        depth = (ImageTopic(self.node, link.resolve(options.depth_topic or depth_default), "depth")  # type: ignore[attr-defined]
+        link = self.link
+        rgb = ImageTopic(self.node, link.resolve(options.rgb_topic or rgb_default), "rgb")
+        depth = (ImageTopic(self.node, link.resolve(options.depth_topic or depth_default), "depth")
                  if options.depth else None)
         self.camera_source = (rgb, depth)
         if options.width is None or options.height is None:
@@ -330,7 +343,7 @@ class CameraObservations:
                 raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither")
             h = w = DEFAULT_SIZE
             if options.camera_name is not None:  # the camera's own size: its first image says
-                first = rgb.wait_first(self.connection.startup_timeout)  # type: ignore[attr-defined]
+                first = rgb.wait_first(self.connection.startup_timeout)
                 h, w = first.shape[:2]
             self.image_size = (int(h), int(w))
         else:
@@ -351,10 +364,10 @@ class CameraObservations:
                 depth = (None if depth_topic is None
                          else resize_nearest(depth_topic.latest(options.image_timeout), h, w))
             except StaleStateError as exc:  # the env stops, as for stale joint states
-                self.connection.fault = exc  # type: ignore[attr-defined]
+                self.connection.fault = exc
                 raise
         else:
-            frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth,  # type: ignore[attr-defined]
+            frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth,
                                                 width=w, height=h)
             rgb, depth = frame.rgb, frame.depth
         assert rgb is not None

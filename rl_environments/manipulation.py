@@ -123,9 +123,9 @@ class RX200TopDownIK:
         self._a = float(np.hypot(*self.UPPER))
         self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
 
-    joint_names = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
+    joint_names: tuple[str, ...] = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
 
-    def solve(self, target: Sequence[float], yaw: float | None = None,
+    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
               q0: Sequence[float] | None = None) -> np.ndarray:
         """Joint targets (clipped into the limits) putting ``ee_gripper_link`` at ``target``
         (base frame), gripper vertical; an unreachable target is pulled in to the reachable edge.

@@ -288,3 +288,18 @@ class RealArmRobot(ArmRobot):
             if part is not None:
                 part.close()
         super().close()  # type: ignore[misc]
+
+
+class TaskJointLimits:
+    """Mixed in before a Real twin's task: the task config's joint range tightens the safety rules'
+    (the tighter bound wins)."""
+
+    if TYPE_CHECKING:
+        min_joint_pos: np.ndarray
+        max_joint_pos: np.ndarray
+
+        def apply_task_joint_limits(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None: ...
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.apply_task_joint_limits(self.min_joint_pos, self.max_joint_pos)

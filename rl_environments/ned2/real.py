@@ -12,34 +12,25 @@ and command the gripper through its driver (:mod:`rl_environments.real_arm_robot
 
 from __future__ import annotations
 
-from typing import Any
-
 from rl_environments.arm_manipulation import ArmGoalManipulationTask, ArmManipulationTask
 from rl_environments.arm_reach import ArmGoalReachTask, ArmReachTask
 from rl_environments.ned2.robot import NED2RobotRealEnv, NED2RobotRealGoalEnv
+from rl_environments.real_arm_robot import TaskJointLimits
 
 
-class _TaskLimits:
-    """The task config's joint range tightens the safety rules' (the tighter bound wins)."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.apply_task_joint_limits(self.min_joint_pos, self.max_joint_pos)  # type: ignore[attr-defined]
-
-
-class NED2ReacherRealEnv(_TaskLimits, ArmReachTask, NED2RobotRealEnv):
+class NED2ReacherRealEnv(TaskJointLimits, ArmReachTask, NED2RobotRealEnv):
     """``NED2ReacherReal-v0``: ``NED2ReacherSim-v0``'s reach on a real NED2 (arguments:
     :class:`~rl_environments.arm_reach.ArmReachTask`; robot and loop knobs:
     :class:`~multiros.envs.real.core.RealEnvCore` and
     :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`)."""
 
 
-class NED2ReacherGoalRealEnv(_TaskLimits, ArmGoalReachTask, NED2RobotRealGoalEnv):
+class NED2ReacherGoalRealEnv(TaskJointLimits, ArmGoalReachTask, NED2RobotRealGoalEnv):
     """``NED2ReacherGoalReal-v0``: ``NED2ReacherGoalSim-v0``'s goal-conditioned reach on a real NED2
     (arguments: :class:`~rl_environments.arm_reach.ArmGoalReachTask`)."""
 
 
-class NED2PushRealEnv(_TaskLimits, ArmManipulationTask, NED2RobotRealEnv):
+class NED2PushRealEnv(TaskJointLimits, ArmManipulationTask, NED2RobotRealEnv):
     """``NED2PushReal-v0``: ``NED2PushSim-v0``'s push on a real NED2, the object's pose from a tracker
     (arguments: :class:`~rl_environments.arm_manipulation.ArmManipulationTask` and
     :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`)."""
@@ -47,21 +38,21 @@ class NED2PushRealEnv(_TaskLimits, ArmManipulationTask, NED2RobotRealEnv):
     TASK = "push"
 
 
-class NED2PushGoalRealEnv(_TaskLimits, ArmGoalManipulationTask, NED2RobotRealGoalEnv):
+class NED2PushGoalRealEnv(TaskJointLimits, ArmGoalManipulationTask, NED2RobotRealGoalEnv):
     """``NED2PushGoalReal-v0``: ``NED2PushGoalSim-v0``'s goal-conditioned push on a real NED2
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 
     TASK = "push"
 
 
-class NED2PnPRealEnv(_TaskLimits, ArmManipulationTask, NED2RobotRealEnv):
+class NED2PnPRealEnv(TaskJointLimits, ArmManipulationTask, NED2RobotRealEnv):
     """``NED2PnPReal-v0``: ``NED2PnPSim-v0``'s pick-and-place on a real NED2, the object's pose from a
     tracker (arguments: :class:`~rl_environments.arm_manipulation.ArmManipulationTask`)."""
 
     TASK = "pnp"
 
 
-class NED2PnPGoalRealEnv(_TaskLimits, ArmGoalManipulationTask, NED2RobotRealGoalEnv):
+class NED2PnPGoalRealEnv(TaskJointLimits, ArmGoalManipulationTask, NED2RobotRealGoalEnv):
     """``NED2PnPGoalReal-v0``: ``NED2PnPGoalSim-v0``'s goal-conditioned pick-and-place on a real NED2
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 

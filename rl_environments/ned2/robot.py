@@ -42,7 +42,6 @@ class NED2Robot(ArmRobot):
     DESCRIPTION_PACKAGE = pkg.PACKAGE_NAME
     DESCRIPTION_MODULE = "rl_environments.robots.ned2_description"
     XACRO_FILE = pkg.URDF_XACRO.name
-    XACRO_ARGS: dict[str, str] = {}
     CONTROLLERS_FILE = pkg.CONTROLLERS_YAML.name
     ARM_JOINTS = pkg.ARM_JOINTS
     BASE_LINK = pkg.BASE_LINK

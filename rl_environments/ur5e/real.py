@@ -12,34 +12,25 @@ and command the gripper through its driver (:mod:`rl_environments.real_arm_robot
 
 from __future__ import annotations
 
-from typing import Any
-
 from rl_environments.arm_manipulation import ArmGoalManipulationTask, ArmManipulationTask
 from rl_environments.arm_reach import ArmGoalReachTask, ArmReachTask
+from rl_environments.real_arm_robot import TaskJointLimits
 from rl_environments.ur5e.robot import UR5eRobotRealEnv, UR5eRobotRealGoalEnv
 
 
-class _TaskLimits:
-    """The task config's joint range tightens the safety rules' (the tighter bound wins)."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.apply_task_joint_limits(self.min_joint_pos, self.max_joint_pos)  # type: ignore[attr-defined]
-
-
-class UR5eReacherRealEnv(_TaskLimits, ArmReachTask, UR5eRobotRealEnv):
+class UR5eReacherRealEnv(TaskJointLimits, ArmReachTask, UR5eRobotRealEnv):
     """``UR5eReacherReal-v0``: ``UR5eReacherSim-v0``'s reach on a real UR5e (arguments:
     :class:`~rl_environments.arm_reach.ArmReachTask`; robot and loop knobs:
     :class:`~multiros.envs.real.core.RealEnvCore` and
     :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`)."""
 
 
-class UR5eReacherGoalRealEnv(_TaskLimits, ArmGoalReachTask, UR5eRobotRealGoalEnv):
+class UR5eReacherGoalRealEnv(TaskJointLimits, ArmGoalReachTask, UR5eRobotRealGoalEnv):
     """``UR5eReacherGoalReal-v0``: ``UR5eReacherGoalSim-v0``'s goal-conditioned reach on a real UR5e
     (arguments: :class:`~rl_environments.arm_reach.ArmGoalReachTask`)."""
 
 
-class UR5ePushRealEnv(_TaskLimits, ArmManipulationTask, UR5eRobotRealEnv):
+class UR5ePushRealEnv(TaskJointLimits, ArmManipulationTask, UR5eRobotRealEnv):
     """``UR5ePushReal-v0``: ``UR5ePushSim-v0``'s push on a real UR5e, the object's pose from a tracker
     (arguments: :class:`~rl_environments.arm_manipulation.ArmManipulationTask` and
     :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`)."""
@@ -47,21 +38,21 @@ class UR5ePushRealEnv(_TaskLimits, ArmManipulationTask, UR5eRobotRealEnv):
     TASK = "push"
 
 
-class UR5ePushGoalRealEnv(_TaskLimits, ArmGoalManipulationTask, UR5eRobotRealGoalEnv):
+class UR5ePushGoalRealEnv(TaskJointLimits, ArmGoalManipulationTask, UR5eRobotRealGoalEnv):
     """``UR5ePushGoalReal-v0``: ``UR5ePushGoalSim-v0``'s goal-conditioned push on a real UR5e
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 
     TASK = "push"
 
 
-class UR5ePnPRealEnv(_TaskLimits, ArmManipulationTask, UR5eRobotRealEnv):
+class UR5ePnPRealEnv(TaskJointLimits, ArmManipulationTask, UR5eRobotRealEnv):
     """``UR5ePnPReal-v0``: ``UR5ePnPSim-v0``'s pick-and-place on a real UR5e, the object's pose from a
     tracker (arguments: :class:`~rl_environments.arm_manipulation.ArmManipulationTask`)."""
 
     TASK = "pnp"
 
 
-class UR5ePnPGoalRealEnv(_TaskLimits, ArmGoalManipulationTask, UR5eRobotRealGoalEnv):
+class UR5ePnPGoalRealEnv(TaskJointLimits, ArmGoalManipulationTask, UR5eRobotRealGoalEnv):
     """``UR5ePnPGoalReal-v0``: ``UR5ePnPGoalSim-v0``'s goal-conditioned pick-and-place on a real UR5e
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 

@@ -12,34 +12,25 @@ and command the gripper through its driver (:mod:`rl_environments.real_arm_robot
 
 from __future__ import annotations
 
-from typing import Any
-
 from rl_environments.arm_manipulation import ArmGoalManipulationTask, ArmManipulationTask
 from rl_environments.arm_reach import ArmGoalReachTask, ArmReachTask
+from rl_environments.real_arm_robot import TaskJointLimits
 from rl_environments.vx300s.robot import VX300SRobotRealEnv, VX300SRobotRealGoalEnv
 
 
-class _TaskLimits:
-    """The task config's joint range tightens the safety rules' (the tighter bound wins)."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.apply_task_joint_limits(self.min_joint_pos, self.max_joint_pos)  # type: ignore[attr-defined]
-
-
-class VX300SReacherRealEnv(_TaskLimits, ArmReachTask, VX300SRobotRealEnv):
+class VX300SReacherRealEnv(TaskJointLimits, ArmReachTask, VX300SRobotRealEnv):
     """``VX300SReacherReal-v0``: ``VX300SReacherSim-v0``'s reach on a real VX300S (arguments:
     :class:`~rl_environments.arm_reach.ArmReachTask`; robot and loop knobs:
     :class:`~multiros.envs.real.core.RealEnvCore` and
     :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`)."""
 
 
-class VX300SReacherGoalRealEnv(_TaskLimits, ArmGoalReachTask, VX300SRobotRealGoalEnv):
+class VX300SReacherGoalRealEnv(TaskJointLimits, ArmGoalReachTask, VX300SRobotRealGoalEnv):
     """``VX300SReacherGoalReal-v0``: ``VX300SReacherGoalSim-v0``'s goal-conditioned reach on a real VX300S
     (arguments: :class:`~rl_environments.arm_reach.ArmGoalReachTask`)."""
 
 
-class VX300SPushRealEnv(_TaskLimits, ArmManipulationTask, VX300SRobotRealEnv):
+class VX300SPushRealEnv(TaskJointLimits, ArmManipulationTask, VX300SRobotRealEnv):
     """``VX300SPushReal-v0``: ``VX300SPushSim-v0``'s push on a real VX300S, the object's pose from a tracker
     (arguments: :class:`~rl_environments.arm_manipulation.ArmManipulationTask` and
     :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`)."""
@@ -47,21 +38,21 @@ class VX300SPushRealEnv(_TaskLimits, ArmManipulationTask, VX300SRobotRealEnv):
     TASK = "push"
 
 
-class VX300SPushGoalRealEnv(_TaskLimits, ArmGoalManipulationTask, VX300SRobotRealGoalEnv):
+class VX300SPushGoalRealEnv(TaskJointLimits, ArmGoalManipulationTask, VX300SRobotRealGoalEnv):
     """``VX300SPushGoalReal-v0``: ``VX300SPushGoalSim-v0``'s goal-conditioned push on a real VX300S
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 
     TASK = "push"
 
 
-class VX300SPnPRealEnv(_TaskLimits, ArmManipulationTask, VX300SRobotRealEnv):
+class VX300SPnPRealEnv(TaskJointLimits, ArmManipulationTask, VX300SRobotRealEnv):
     """``VX300SPnPReal-v0``: ``VX300SPnPSim-v0``'s pick-and-place on a real VX300S, the object's pose from a
     tracker (arguments: :class:`~rl_environments.arm_manipulation.ArmManipulationTask`)."""
 
     TASK = "pnp"
 
 
-class VX300SPnPGoalRealEnv(_TaskLimits, ArmGoalManipulationTask, VX300SRobotRealGoalEnv):
+class VX300SPnPGoalRealEnv(TaskJointLimits, ArmGoalManipulationTask, VX300SRobotRealGoalEnv):
     """``VX300SPnPGoalReal-v0``: ``VX300SPnPGoalSim-v0``'s goal-conditioned pick-and-place on a real VX300S
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 

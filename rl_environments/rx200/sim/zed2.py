@@ -15,6 +15,7 @@ at 640 x 360), or ``normal_obs_only=True`` for the state alone with the camera s
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotEnv, RX200RobotGoalEnv
@@ -31,8 +32,8 @@ ZED2_CAMERA: dict[str, Any] = {"camera_name": "zed2_left", "rgb_plus_depth_plus_
 
 
 class _Zed2:
-    XACRO_ARGS: ClassVar[dict[str, str]] = {"robot_name": "rx200", "use_zed2": "true"}
-    CAMERA_DEFAULTS: ClassVar[dict[str, Any]] = ZED2_CAMERA
+    XACRO_ARGS: ClassVar[Mapping[str, str]] = {"robot_name": "rx200", "use_zed2": "true"}
+    CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = ZED2_CAMERA
 
 
 class RX200Zed2ReacherEnv(_Zed2, RX200ReachTask, RX200RobotEnv):

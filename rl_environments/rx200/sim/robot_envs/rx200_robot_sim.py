@@ -7,8 +7,8 @@ and the gripper controller, and return the ``rx200/ee_gripper_link`` pose with e
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
 
 from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from rl_environments.arm_robot import ArmRobot
@@ -23,7 +23,7 @@ class RX200Robot(ArmRobot):
     DESCRIPTION_PACKAGE = "rx200_description"
     DESCRIPTION_MODULE = "rl_environments.robots.rx200_description"
     XACRO_FILE = "rx200.urdf.xacro"
-    XACRO_ARGS = {"robot_name": "rx200"}
+    XACRO_ARGS: ClassVar[Mapping[str, str]] = {"robot_name": "rx200"}
     CONTROLLERS_FILE = "rx200_controllers.yaml"
     ARM_JOINTS = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
     BASE_LINK = "rx200/base_link"
@@ -37,7 +37,8 @@ class RX200Robot(ArmRobot):
     # azimuth, elevation, relative to the base.
     CAMERA_VIEW = ((0.164, 0.039, 0.115), 0.734, 140.0, -25.0)
     # With use_zed2: the Zed2's left camera on Stereolabs' zed_wrapper topics.
-    CAMERA_TOPICS = {"zed2_left": ("zed2/zed_node/rgb/image_rect_color", "zed2/zed_node/depth/depth_registered")}
+    CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]] = {
+        "zed2_left": ("zed2/zed_node/rgb/image_rect_color", "zed2/zed_node/depth/depth_registered")}
 
     @classmethod
     def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> RX200TopDownIK:
