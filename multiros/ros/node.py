@@ -13,7 +13,7 @@ from multiros.ros.clock import Clock
 from multiros.ros.context import Context, get_default_context
 from multiros.ros.exceptions import NotInitializedException
 from multiros.ros.graph import CLIENT, PUBLISHER, SERVICE, SUBSCRIPTION
-from multiros.ros.logging import RosLogger, get_logger
+from multiros.ros.logging import RosLogger, get_logger, release_logger
 from multiros.ros.names import (
     expand_topic_name,
     normalize_namespace,
@@ -81,7 +81,7 @@ class Node:
         validate_node_name(node_name)
         self._name = args.node_name_for(node_name)
         self._namespace = args.namespace_for(self._name, normalize_namespace(namespace))
-        self._logger = get_logger(self.get_fully_qualified_name())
+        self._logger = get_logger(self.get_fully_qualified_name(), node=True)
         self._clock = Clock()
         # Reentrant: a callback of this node may call a service of this same node in-process.
         self._callback_lock = threading.RLock()
@@ -289,6 +289,7 @@ class Node:
             self._wire.close()
             self._wire = None
         self.context._remove_node(self)
+        release_logger(self.get_fully_qualified_name())  # a node named with a counter leaves no logger behind
 
     def __enter__(self) -> Node:
         return self
