@@ -26,6 +26,7 @@ __all__ = ["LogThrottle", "RosLogger", "get_logger", "release_logger"]
 _ROOT = "ros"
 _lock = threading.Lock()
 _users: dict[str, int] = {}  # logger name -> nodes using it now
+_logging.getLogger(_ROOT)  # a logger, not a placeholder that would keep a reference to every node's logger
 
 
 class RosLogger(_logging.LoggerAdapter):
@@ -81,6 +82,14 @@ def release_logger(name: str) -> None:
             if any(key.startswith(prefix) for key in manager.loggerDict):
                 return
             del manager.loggerDict[dotted]
+            parent = dotted.rpartition(".")[0]
+            while parent:  # a placeholder for a missing parent (``ros.ns`` of ``ros.ns.node``) maps its children
+                holder = manager.loggerDict.get(parent)
+                if isinstance(holder, _logging.PlaceHolder):
+                    holder.loggerMap.pop(logger, None)
+                    if not holder.loggerMap:
+                        del manager.loggerDict[parent]
+                parent = parent.rpartition(".")[0]
 
 
 class LogThrottle:
@@ -128,7 +137,7 @@ class LogThrottle:
             elif last_in_full:
                 self._next = self._clock() + self.interval_sec
         if suppressed:
-            msg = f"{msg} ({suppressed} more like this in the last {self.interval_sec:g} s were not logged)"
+            msg = f"{msg} ({suppressed} more like this since the last line were not logged)"
         elif last_in_full:
             msg = f"{msg} (more like this: at most one line per {self.interval_sec:g} s)"
         logger.log(level, msg, *args)

@@ -8,6 +8,7 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from multiros.ros.callback_groups import CallbackGroup
 from multiros.ros.client import Client
 from multiros.ros.clock import Clock
 from multiros.ros.context import Context, get_default_context
@@ -183,11 +184,16 @@ class Node:
 
     def create_service(
         self, srv_type: Any, srv_name: str, callback: Callable[[Any, Any], Any], *,
-        qos_profile: QoSProfile = qos_profile_services_default, **_kwargs: Any,
+        qos_profile: QoSProfile = qos_profile_services_default, callback_group: CallbackGroup | None = None,
+        **_kwargs: Any,
     ) -> Service:
-        """Create a service; ``callback(request, response)`` must return the response."""
+        """Create a service; ``callback(request, response)`` must return the response.
+
+        ``callback_group``: a :class:`~multiros.ros.callback_groups.ReentrantCallbackGroup` lets
+        calls run concurrently (the callback guards its own state); default: under the node's lock.
+        """
         self._check_alive()
-        srv = Service(self, srv_type, self.resolve_service_name(srv_name), callback, qos_profile)
+        srv = Service(self, srv_type, self.resolve_service_name(srv_name), callback, qos_profile, callback_group)
         self.context.registry.add_service(srv)
         srv._wire = self.context.transport.add_service(srv)
         self.services.append(srv)

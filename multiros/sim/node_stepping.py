@@ -112,7 +112,7 @@ def step_robot(node: SimulationNode, request: Any, response: Any) -> Any:
     with node.lock:
         robot = node._robots.get(entity)
         if robot is None:
-            fail(res, NOT_FOUND, f"no robot {entity!r}; robots: {list(node._robots)}")
+            fail(res, NOT_FOUND, node.unknown_robot_message(entity))
             return response
         try:
             for command in request.commands:
@@ -135,8 +135,10 @@ def step_robot(node: SimulationNode, request: Any, response: Any) -> Any:
             try:
                 node._step_world(steps)
             except UnstableSimulationError as exc:
-                fail(res, response.UNSTABLE, str(exc))
-                return response
+                if entity in exc.entities:
+                    fail(res, response.UNSTABLE, str(exc))
+                    return response
+                # another entity diverged: contained by the world, this robot's step is complete
             except StepInterruptedError as exc:
                 fail(res, FAILED, str(exc))
                 return response
@@ -294,6 +296,8 @@ class StepRobotsCall:
             for j, item in enumerate(self.items):
                 if item.entity in exc.entities:
                     self.status[j], self.message[j] = RobotStepResult.UNSTABLE, str(exc)
+                    if item.entity in exc.removed:  # gone from the world: no state to read
+                        self._prepared[j] = (None, None)
         except StepInterruptedError as exc:
             self._interrupted = exc
 
@@ -371,7 +375,7 @@ def _prepare(node: SimulationNode, world: World, item: StepItem, status: list[in
     entity = item.entity
     robot = node._robots.get(entity)
     if robot is None:
-        status[j], message[j] = RobotStepResult.UNKNOWN_ROBOT, f"no robot {entity!r}"
+        status[j], message[j] = RobotStepResult.UNKNOWN_ROBOT, node.unknown_robot_message(entity)
         return None, None
     _reset_and_command(node, world, item, status, message, j)
     if not item.frames:
