@@ -69,8 +69,17 @@ class FairLock:
                 return True
             waiter = _Waiter(me)
             self._queue.append(waiter)
-        if waiter.gate.acquire(timeout=timeout if timeout is not None and timeout >= 0 else -1):
-            return True  # handed over: the releasing thread made us the owner
+        try:
+            if waiter.gate.acquire(timeout=timeout if timeout is not None and timeout >= 0 else -1):
+                return True  # handed over: the releasing thread made us the owner
+        except BaseException:  # KeyboardInterrupt while waiting: leave no turn to a thread that gave up
+            with self._mutex:
+                if self._owner == me:
+                    self._depth = 1
+                    self._release_turn()
+                else:
+                    self._queue.remove(waiter)
+            raise
         with self._mutex:
             if self._owner == me:  # handed over between the timeout and here
                 return True
@@ -84,11 +93,15 @@ class FairLock:
         if self._depth:
             return
         with self._mutex:
-            if self._queue:
-                self._hand_over()
-            else:
-                self._owner = None
-                self._held.release()
+            self._release_turn()
+
+    def _release_turn(self) -> None:
+        """The owner is done (``_mutex`` held): hand over to the first waiter, or free the lock."""
+        if self._queue:
+            self._hand_over()
+        else:
+            self._owner = None
+            self._held.release()
 
     def _hand_over(self) -> None:
         """Make the first waiter the owner (``_mutex`` held, queue not empty; ``_held`` stays held)."""
@@ -117,8 +130,16 @@ class FairLock:
             waiter = _Waiter(self._owner)
             self._queue.append(waiter)
             self._hand_over()
-        waiter.gate.acquire()
+        interrupted: BaseException | None = None
+        while True:  # the caller holds the lock again when this returns or raises: it will release it
+            try:
+                waiter.gate.acquire()
+                break
+            except BaseException as exc:  # KeyboardInterrupt: raise it once our turn is back
+                interrupted = exc
         self._depth = depth  # the hand-over made us the owner at depth 1
+        if interrupted is not None:
+            raise interrupted
         return True
 
     def locked(self) -> bool:

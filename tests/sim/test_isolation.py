@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 import zenoh
+from raw_calls import raw_get_entities
 from raw_zenoh import open_peer_session
 
 from multiros import ros
@@ -318,30 +319,10 @@ def test_a_private_graph_refuses_intruders_and_serves_its_owner(tmp_path):
                        lambda: zenoh.open(zenoh.Config.from_file(str(config)))):  # rmw_zenoh's ZENOH_SESSION_CONFIG_URI
             session = opener()
             try:
-                assert _raw_get_entities(session, conn.context.domain_id) == ["rx200"]
+                assert raw_get_entities(session, conn.context.domain_id) == ["rx200"]
             finally:
                 session.close()
     finally:
         folder = os.path.dirname(private_graph_credentials(conn.context)["auth_dictionary"])
         conn.close()
     assert not os.path.exists(folder)  # the secret is gone with the graph
-
-
-def _raw_get_entities(session: zenoh.Session, domain: int, timeout: float = 10.0) -> list[str]:
-    """``GetEntities`` as an rmw_zenoh client sends it (key, CDR payload, attachment), until answered."""
-    import struct
-
-    from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
-    from multiros.sim.distro_adapters import get_service
-
-    type_name = "simulation_interfaces/srv/GetEntities"
-    srv = get_service(type_name)
-    key = f"{domain}/mujoco_sim/get_entities/{dds_type_name(type_name)}/{type_hash(srv)}"
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:  # the node's queryable reaches a new session within milliseconds
-        attachment = struct.pack("<qqB", 1, time.time_ns(), 16) + bytes(range(16))
-        replies = list(session.get(key, payload=serialize_message(srv.Request()), attachment=attachment,
-                                   target=zenoh.QueryTarget.ALL_COMPLETE, timeout=1.0))
-        if replies and replies[0].ok is not None:
-            return list(deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response).entities)
-    raise AssertionError(f"no answer to GetEntities within {timeout} s")
