@@ -5,13 +5,16 @@ Each attack runs against a victim RX200 holding its initial pose and prints what
 * ``stiff``: an MJCF hinge with stiffness=1000, springref=0.5 on a 1 g capsule, 2 m away (inside
   every description limit): is it refused at spawn, and do the victim's steps still succeed, advance
   time, and cost what they cost before?
+* ``stiff_late``: the same hinge on a node whose spawn trial is off (``trial_steps=0``), standing in
+  for an entity whose physics fails only later: what the victim's steps see then.
 * ``overlap``: a 100 kg box spawned through the victim's forearm: refused, or how far is the arm thrown?
 * ``drop``: a 100 t box spawned 1 m above the victim: refused, or how far is the arm thrown?
 * ``flood``: 4 attackers, each its own Zenoh session, sending ``StepSimulation`` with the node's
   maximum step count back to back while the victim calls ``StepRobot`` (10 steps): the victim's
   latency (median, 95th percentile) against the same calls alone.
 * ``intruder``: an owner's ``sim_mode="process"`` node; another local process finds the private
-  router's port and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
+  router's port (and every port the owner and its child listen on, as ``ss -ltnp`` shows them)
+  and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
   ``DeleteEntity(rx200)``: answered or refused?
 
     python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood intruder]
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import struct
 import threading
 import time
@@ -33,6 +37,7 @@ from multiros.ros.interfaces import dds_type_name, deserialize_message, serializ
 from multiros.sim.client import SimulationClient, SimulationServiceError
 from multiros.sim.distro_adapters import get_service
 from multiros.sim.launch import compose, connect, free_loopback_endpoint
+from multiros.sim.limits import DescriptionLimits
 
 RX200 = ("package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
          "&__controllers=joint_state_broadcaster,arm_position_controller")
@@ -45,8 +50,8 @@ BOX = """<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="
 DOMAIN = 57
 
 
-def _victim(ctx: Context) -> tuple[object, SimulationClient]:
-    sim = compose("mujoco_sim", context=ctx, spin_topics=False)
+def _victim(ctx: Context, **node_kwargs: object) -> tuple[object, SimulationClient]:
+    sim = compose("mujoco_sim", context=ctx, spin_topics=False, **node_kwargs)
     client = SimulationClient(Node("victim", context=ctx), "/mujoco_sim", timeout_sec=60.0)
     client.wait_until_ready(20.0)
     client.spawn_entity("rx200", uri=RX200)
@@ -62,10 +67,10 @@ def _spawn(client: SimulationClient, name: str, text: str, position: tuple[float
         return f"REFUSED ({exc.message[:160]})"
 
 
-def attack_stiff() -> None:
+def attack_stiff(late: bool = False) -> None:
     ctx = Context(transport="inproc").init()
     try:
-        _, client = _victim(ctx)
+        _, client = _victim(ctx, **({"description_limits": DescriptionLimits(trial_steps=0)} if late else {}))
         t0 = time.perf_counter()
         for _ in range(50):
             client.step_robot("rx200", {ARM: HOLD}, 10)
@@ -84,7 +89,8 @@ def attack_stiff() -> None:
         per_call = (time.perf_counter() - t0) / 50
         sim_time = client.step_robot("rx200", {ARM: HOLD}, 0).sim_time
         entities = client.get_entities()
-        print(f"stiff hinge: spawn {outcome}; victim steps failed {failed}/50 (one reset after 25); "
+        what = "stiff hinge (no spawn trial)" if late else "stiff hinge"
+        print(f"{what}: spawn {outcome}; victim steps failed {failed}/50 (one reset after 25); "
               f"sim time after {sim_time:.3f} s; {per_call * 1e3:.2f} ms per call vs {alone * 1e3:.2f} ms alone "
               f"({per_call / alone:.1f}x); entities {entities}")
     finally:
@@ -197,35 +203,56 @@ def attack_flood(attackers: int = 4, seconds: float = 4.0) -> None:
         ctx.try_shutdown()
 
 
+def _listening_ports(pid: int) -> set[int]:
+    """Loopback TCP ports a process listens on, as ``ss -ltnp`` shows them to anyone on the machine."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[len("socket:["):-1])
+    with open("/proc/net/tcp") as f:
+        rows = [line.split() for line in f.readlines()[1:]]
+    return {int(r[1].split(":")[1], 16) for r in rows if r[3] == "0A" and r[9] in inodes}
+
+
 def attack_intruder() -> None:
     conn = connect("process", timeout_sec=60.0)
-    intruder = None
     try:
         conn.client.spawn_entity("rx200", uri=RX200)
-        endpoint = conn.context.transport_options["router_endpoint"]  # what `ss -ltnp` shows anyone
         domain = conn.context.domain_id
-        try:
-            intruder = _RawPeer(endpoint, domain)
-            listed, deadline = None, time.monotonic() + 5.0
-            while listed is None and time.monotonic() < deadline:  # the node's services reach it in ms, if ever
-                listed = intruder.call("mujoco_sim", "get_entities", "simulation_interfaces/srv/GetEntities",
-                                       timeout=0.5)
-            deleted = intruder.call("mujoco_sim", "delete_entity", "simulation_interfaces/srv/DeleteEntity",
-                                    timeout=3.0, entity="rx200")
-            seen = "no answer" if listed is None else f"answered {list(listed.entities)}"
-            done = "no answer" if deleted is None else f"result {deleted.result.result} {deleted.result.error_message}"
-        except Exception as exc:  # noqa: BLE001 - a refused session is the defence
-            seen = done = f"session refused ({type(exc).__name__}: {str(exc)[:80]})"
+        assert conn.pid is not None
+        ports = sorted(_listening_ports(conn.pid) | _listening_ports(os.getpid()))
+        outcomes = []
+        for port in ports:
+            intruder = None
+            try:
+                intruder = _RawPeer(f"tcp/127.0.0.1:{port}", domain)
+                listed, deadline = None, time.monotonic() + 3.0
+                while listed is None and time.monotonic() < deadline:  # the node's services reach it in ms, if ever
+                    listed = intruder.call("mujoco_sim", "get_entities", "simulation_interfaces/srv/GetEntities",
+                                           timeout=0.5)
+                deleted = intruder.call("mujoco_sim", "delete_entity", "simulation_interfaces/srv/DeleteEntity",
+                                        timeout=2.0, entity="rx200")
+                seen = "no answer" if listed is None else f"answered {list(listed.entities)}"
+                done = "no answer" if deleted is None else f"result {deleted.result.result}"
+            except Exception as exc:  # noqa: BLE001 - a refused session is the defence
+                seen = done = f"session refused ({type(exc).__name__})"
+            finally:
+                if intruder is not None:
+                    intruder.close()
+            outcomes.append(f"port {port}: GetEntities {seen}, DeleteEntity(rx200) {done}")
         owner = conn.client.get_entities()
-        print(f"intruder at {endpoint}: GetEntities {seen}; DeleteEntity(rx200) {done}; the owner sees {owner}")
+        print(f"intruder without the secret at the {len(ports)} listening ports of the owner and its child: "
+              f"{'; '.join(outcomes)}; the owner sees {owner}")
     finally:
-        if intruder is not None:
-            intruder.close()
         conn.close()
 
 
-ATTACKS = {"stiff": attack_stiff, "overlap": attack_overlap, "drop": attack_drop, "flood": attack_flood,
-           "intruder": attack_intruder}
+ATTACKS = {"stiff": attack_stiff, "stiff_late": lambda: attack_stiff(late=True), "overlap": attack_overlap,
+           "drop": attack_drop, "flood": attack_flood, "intruder": attack_intruder}
 
 
 def main() -> None:
