@@ -118,6 +118,13 @@ def private_environment(env: Mapping[str, str] | None = None) -> dict[str, str]:
 
 #: The user name of a private graph's credentials (the password is the secret).
 PRIVATE_USER = "uniros-owner"
+#: Zenoh settings of every session of a private graph (rmw_zenoh's ``ZENOH_CONFIG_OVERRIDE`` syntax).
+#: Peers reach each other only over a direct link, which each one found by gossip used to open to
+#: the other at the same moment; with both ends authenticating, such a crossing sometimes left no
+#: link at all (a child node never seen by its owner, about one start in seven). With
+#: ``greater-zid`` only one end of each pair opens it.
+PRIVATE_GRAPH_OVERRIDE = 'scouting/gossip/autoconnect_strategy={peer: {to_router: "always", to_peer: "greater-zid"}}'
+_AUTOCONNECT = {"peer": {"to_router": "always", "to_peer": "greater-zid"}}
 #: Context options and the environment variables that carry them to a child (multiros.ros.transport.zenoh.network).
 _CREDENTIAL_VARS = (("user", "UNIROS_ZENOH_USER"), ("password", "UNIROS_ZENOH_PASSWORD"),
                     ("auth_dictionary", "UNIROS_ZENOH_AUTH_DICTIONARY"))
@@ -155,6 +162,7 @@ def private_context(attempts: int = 5) -> Context:
         TransportError: no router could be started in ``attempts`` tries.
     """
     env = private_environment()
+    env["ZENOH_CONFIG_OVERRIDE"] = PRIVATE_GRAPH_OVERRIDE
     last: Exception | None = None
     for _ in range(max(1, attempts)):
         secret = _Secret()
@@ -193,6 +201,8 @@ def child_environment(ctx: Context) -> dict[str, str]:
     if endpoint:
         env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
     credentials = private_graph_credentials(ctx)
+    if ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE:
+        env["ZENOH_CONFIG_OVERRIDE"] = PRIVATE_GRAPH_OVERRIDE
     for option, var in _CREDENTIAL_VARS:
         if option in credentials:
             env[var] = credentials[option]
@@ -216,6 +226,8 @@ def write_session_config(ctx: Context, path: str | os.PathLike[str]) -> Path:
         "listen": {"endpoints": ["tcp/127.0.0.1:0"]},
         "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
     }
+    if ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE:
+        config["scouting"]["gossip"]["autoconnect_strategy"] = _AUTOCONNECT
     credentials = private_graph_credentials(ctx)
     if credentials:
         usrpwd = {"user": credentials.get("user"), "password": credentials.get("password")}

@@ -24,7 +24,7 @@ from raw_calls import raw_get_entities
 from raw_zenoh import open_peer_session
 
 from multiros import ros
-from multiros.ros.processes import private_graph_credentials, write_session_config
+from multiros.ros.processes import PRIVATE_GRAPH_OVERRIDE, private_graph_credentials, write_session_config
 from multiros.sim.client import SimulationClient
 from multiros.sim.launch import connect, free_loopback_endpoint, local_description_dirs, private_context
 
@@ -103,7 +103,8 @@ def test_private_context_has_its_own_router_and_ignores_shared_settings(monkeypa
     try:
         endpoint = ctx.transport_options["router_endpoint"]
         assert endpoint.startswith("tcp/127.0.0.1:") and endpoint != os.environ["UNIROS_ZENOH_ROUTER"]
-        assert not [k for k in ctx.env if "ZENOH" in k]
+        assert [k for k in ctx.env if "ZENOH" in k] == ["ZENOH_CONFIG_OVERRIDE"]  # ours, not the user's
+        assert ctx.env["ZENOH_CONFIG_OVERRIDE"] == PRIVATE_GRAPH_OVERRIDE
     finally:
         ctx.try_shutdown()
 
