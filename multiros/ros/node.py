@@ -8,12 +8,13 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from multiros.ros.callback_groups import CallbackGroup
 from multiros.ros.client import Client
 from multiros.ros.clock import Clock
 from multiros.ros.context import Context, get_default_context
 from multiros.ros.exceptions import NotInitializedException
 from multiros.ros.graph import CLIENT, PUBLISHER, SERVICE, SUBSCRIPTION
-from multiros.ros.logging import RosLogger, get_logger
+from multiros.ros.logging import RosLogger, get_logger, release_logger
 from multiros.ros.names import (
     expand_topic_name,
     normalize_namespace,
@@ -81,7 +82,7 @@ class Node:
         validate_node_name(node_name)
         self._name = args.node_name_for(node_name)
         self._namespace = args.namespace_for(self._name, normalize_namespace(namespace))
-        self._logger = get_logger(self.get_fully_qualified_name())
+        self._logger = get_logger(self.get_fully_qualified_name(), node=True)
         self._clock = Clock()
         # Reentrant: a callback of this node may call a service of this same node in-process.
         self._callback_lock = threading.RLock()
@@ -183,11 +184,16 @@ class Node:
 
     def create_service(
         self, srv_type: Any, srv_name: str, callback: Callable[[Any, Any], Any], *,
-        qos_profile: QoSProfile = qos_profile_services_default, **_kwargs: Any,
+        qos_profile: QoSProfile = qos_profile_services_default, callback_group: CallbackGroup | None = None,
+        **_kwargs: Any,
     ) -> Service:
-        """Create a service; ``callback(request, response)`` must return the response."""
+        """Create a service; ``callback(request, response)`` must return the response.
+
+        ``callback_group``: a :class:`~multiros.ros.callback_groups.ReentrantCallbackGroup` lets
+        calls run concurrently (the callback guards its own state); default: under the node's lock.
+        """
         self._check_alive()
-        srv = Service(self, srv_type, self.resolve_service_name(srv_name), callback, qos_profile)
+        srv = Service(self, srv_type, self.resolve_service_name(srv_name), callback, qos_profile, callback_group)
         self.context.registry.add_service(srv)
         srv._wire = self.context.transport.add_service(srv)
         self.services.append(srv)
@@ -289,6 +295,7 @@ class Node:
             self._wire.close()
             self._wire = None
         self.context._remove_node(self)
+        release_logger(self.get_fully_qualified_name())  # a node named with a counter leaves no logger behind
 
     def __enter__(self) -> Node:
         return self

@@ -5,20 +5,36 @@ Shared by everything that starts ROS nodes in child processes (the simulation no
 mode, ``uniros-fake-robot``, tests): every child is registered and stopped by PID at interpreter
 exit, and a child given ``--owner-pid`` exits within about a second of its owner's death, whatever
 ended the owner (``SIGKILL`` included).
+
+A private graph is closed to everyone but its owner: :func:`private_context` makes a fresh secret
+(Zenoh user/password authentication, ``transport/auth/usrpwd``) and writes the one accepted
+``user:password`` line to a dictionary file only this user can read (``0600`` in a ``0700``
+folder). The router and every session of the graph listen with that dictionary, so a connection
+without the secret is refused before it can see a key, to the router's port and to each session's
+own port alike; the owner's children get the secret through their environment
+(:func:`child_environment`, readable by this user only); :func:`write_session_config` writes it as
+a Zenoh session config file for rmw_zenoh (``ZENOH_SESSION_CONFIG_URI``) and Zenoh tools. The
+folder is removed when the context shuts down (or at exit). Processes of the same user can read
+that file and the owner's memory anyway: the boundary is between users, as for any file.
 """
 
 from __future__ import annotations
 
 import argparse
 import atexit
+import json
 import logging
 import os
+import secrets
+import shutil
 import signal
 import socket
 import subprocess
+import tempfile
 import threading
 import weakref
 from collections.abc import Mapping
+from pathlib import Path
 
 from multiros.ros.context import Context
 from multiros.ros.exceptions import TransportError
@@ -31,12 +47,14 @@ __all__ = [
     "free_loopback_endpoint",
     "private_context",
     "private_environment",
+    "private_graph_credentials",
     "start_child_program",
     "stop_event",
     "stop_process",
     "track_child",
     "untrack_child",
     "watch_owner",
+    "write_session_config",
 ]
 
 _logger = logging.getLogger(__name__)
@@ -98,9 +116,45 @@ def private_environment(env: Mapping[str, str] | None = None) -> dict[str, str]:
     return {k: v for k, v in source.items() if not k.startswith(SHARED_GRAPH_PREFIXES)}
 
 
-def private_context(attempts: int = 5) -> Context:
-    """A Zenoh context with its own router on a free loopback port, deaf to the shared graph.
+#: The user name of a private graph's credentials (the password is the secret).
+PRIVATE_USER = "uniros-owner"
+#: Zenoh settings of every session of a private graph (rmw_zenoh's ``ZENOH_CONFIG_OVERRIDE`` syntax).
+#: Peers reach each other only over a direct link, which each one found by gossip used to open to
+#: the other at the same moment; with both ends authenticating, such a crossing sometimes left no
+#: link at all (a child node never seen by its owner, about one start in seven). With
+#: ``greater-zid`` only one end of each pair opens it.
+PRIVATE_GRAPH_OVERRIDE = 'scouting/gossip/autoconnect_strategy={peer: {to_router: "always", to_peer: "greater-zid"}}'
+_AUTOCONNECT = {"peer": {"to_router": "always", "to_peer": "greater-zid"}}
+#: Context options and the environment variables that carry them to a child (multiros.ros.transport.zenoh.network).
+_CREDENTIAL_VARS = (("user", "UNIROS_ZENOH_USER"), ("password", "UNIROS_ZENOH_PASSWORD"),
+                    ("auth_dictionary", "UNIROS_ZENOH_AUTH_DICTIONARY"))
 
+
+class _Secret:
+    """A fresh password and its one-line dictionary file in a folder only this user can open."""
+
+    def __init__(self) -> None:
+        self.password = secrets.token_urlsafe(32)
+        self.folder = tempfile.mkdtemp(prefix="uniros-graph-")  # mode 0700
+        self.dictionary = os.path.join(self.folder, "users.txt")
+        fd = os.open(self.dictionary, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+        with os.fdopen(fd, "w") as f:
+            f.write(f"{PRIVATE_USER}:{self.password}\n")
+        self._finalizer = weakref.finalize(self, shutil.rmtree, self.folder, True)  # also at exit
+
+    def options(self) -> dict[str, str]:
+        return {"user": PRIVATE_USER, "password": self.password, "auth_dictionary": self.dictionary}
+
+    def remove(self) -> None:
+        self._finalizer()
+
+
+def private_context(attempts: int = 5) -> Context:
+    """A Zenoh context with its own router on a free loopback port, closed to other users and deaf
+    to the shared graph.
+
+    The router and the context's session accept only connections that present this context's
+    fresh secret (see the module docstring); :func:`child_environment` hands it to children.
     The ``ZENOH_*`` and ``UNIROS_ZENOH_*`` variables are ignored, so a user's multi-host set-up
     never leaks into it. A port taken between probing and binding is retried on another port.
 
@@ -108,25 +162,83 @@ def private_context(attempts: int = 5) -> Context:
         TransportError: no router could be started in ``attempts`` tries.
     """
     env = private_environment()
+    env["ZENOH_CONFIG_OVERRIDE"] = PRIVATE_GRAPH_OVERRIDE
     last: Exception | None = None
     for _ in range(max(1, attempts)):
-        ctx = Context(transport="zenoh", env=env, router="embedded", router_endpoint=free_loopback_endpoint())
+        secret = _Secret()
+        ctx = Context(transport="zenoh", env=env, router="embedded", router_endpoint=free_loopback_endpoint(),
+                      **secret.options())
         try:
-            return ctx.init()
+            ctx.init()
         except TransportError as exc:  # port taken meanwhile: another port
+            secret.remove()
             last = exc
+            continue
+        ctx.on_shutdown(secret.remove)
+        return ctx
     raise TransportError(f"could not start a private Zenoh router on loopback after {attempts} tries: {last}")
 
 
+def private_graph_credentials(ctx: Context) -> dict[str, str]:
+    """The Zenoh credentials ``ctx``'s graph requires (``user``, ``password``, ``auth_dictionary``;
+    empty for a graph without authentication)."""
+    out = {}
+    for option, var in _CREDENTIAL_VARS:
+        value = ctx.transport_options.get(option) or ctx.env.get(var)
+        if value:
+            out[option] = str(value)
+    return out
+
+
 def child_environment(ctx: Context) -> dict[str, str]:
-    """Environment variables that make a child process join ``ctx``'s ROS graph."""
+    """Environment variables that make a child process join ``ctx``'s ROS graph: its domain, its
+    router and, for a private graph, its credentials (never on a command line, which every user
+    can read; a process's environment is readable by its own user only)."""
     env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": ctx.transport_name}
     if ctx.transport_name != "zenoh":
         return env
     endpoint = ctx.transport_options.get("router_endpoint") or ctx.env.get("UNIROS_ZENOH_ROUTER")
     if endpoint:
         env["UNIROS_ZENOH_ROUTER"] = str(endpoint)
+    credentials = private_graph_credentials(ctx)
+    if ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE:
+        env["ZENOH_CONFIG_OVERRIDE"] = PRIVATE_GRAPH_OVERRIDE
+    for option, var in _CREDENTIAL_VARS:
+        if option in credentials:
+            env[var] = credentials[option]
     return env
+
+
+def write_session_config(ctx: Context, path: str | os.PathLike[str]) -> Path:
+    """Write a Zenoh session config (JSON5) that joins ``ctx``'s graph, for rmw_zenoh
+    (``ZENOH_SESSION_CONFIG_URI=<path>`` with ``RMW_IMPLEMENTATION=rmw_zenoh_cpp`` and
+    ``ROS_DOMAIN_ID`` = ``ctx.domain_id``) or any Zenoh tool: peer mode, the graph's router, loopback,
+    no multicast scouting, and the graph's credentials. The file holds the secret: it is created
+    with mode ``0600`` (an existing file is refused). Returns the path.
+
+    Raises:
+        FileExistsError: ``path`` exists.
+    """
+    endpoint = ctx.transport_options.get("router_endpoint") or ctx.env.get("UNIROS_ZENOH_ROUTER")
+    config: dict = {
+        "mode": "peer",
+        "connect": {"endpoints": [str(endpoint)] if endpoint else []},
+        "listen": {"endpoints": ["tcp/127.0.0.1:0"]},
+        "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
+    }
+    if ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE:
+        config["scouting"]["gossip"]["autoconnect_strategy"] = _AUTOCONNECT
+    credentials = private_graph_credentials(ctx)
+    if credentials:
+        usrpwd = {"user": credentials.get("user"), "password": credentials.get("password")}
+        if "auth_dictionary" in credentials:
+            usrpwd["dictionary_file"] = credentials["auth_dictionary"]
+        config["transport"] = {"auth": {"usrpwd": usrpwd}}
+    target = Path(path)
+    fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w") as f:
+        json.dump(config, f, indent=2)
+    return target
 
 
 def add_child_options(parser: argparse.ArgumentParser) -> None:

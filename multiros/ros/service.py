@@ -3,8 +3,10 @@
 Execution model: a call from a client in the same context runs the callback synchronously in
 the caller's thread (no queue, no serialization, no copy of the request); a call arriving over
 the wire runs it on the transport's receive thread and replies from there. Either way the
-node's callback lock is held, so a node's callbacks never run concurrently. Services therefore
-answer without anyone spinning the server node.
+node's callback lock is held, so a node's callbacks never run concurrently, unless the service
+belongs to a :class:`~multiros.ros.callback_groups.ReentrantCallbackGroup` (no lock) or a
+``MutuallyExclusiveCallbackGroup`` (that group's lock). Services therefore answer without anyone
+spinning the server node.
 
 Deferred responses: a callback may return a ``Future`` instead of the response (the action
 server's ``get_result`` does, to answer when the goal ends). The node lock is released at once;
@@ -17,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from multiros.ros.callback_groups import CallbackGroup
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError
 from multiros.ros.graph import type_name_of
 from multiros.ros.qos import QoSProfile
@@ -33,7 +36,7 @@ class Service:
 
     def __init__(
         self, node: Node, srv_type: Any, srv_name: str, callback: Callable[[Any, Any], Any],
-        qos_profile: QoSProfile,
+        qos_profile: QoSProfile, callback_group: CallbackGroup | None = None,
     ) -> None:
         self.node = node
         self.srv_type = srv_type
@@ -42,7 +45,7 @@ class Service:
         self.callback = callback
         self.qos_profile = qos_profile
         self._response_cls = srv_type.Response
-        self._lock = node._callback_lock
+        self._lock = node._callback_lock if callback_group is None else callback_group.lock
         self._wire: Any = None
 
     @property
@@ -54,13 +57,18 @@ class Service:
 
         Returns the response, or a ``Future`` of it when the callback deferred its answer.
         """
-        with self._lock:
-            try:
-                response = self.callback(request, self._response_cls())
-            except Exception as exc:
-                raise ServiceCallError(
-                    self.srv_name, f"the service callback raised {type(exc).__name__}: {exc}"
-                ) from exc
+        lock = self._lock
+        if lock is not None:
+            lock.acquire()
+        try:
+            response = self.callback(request, self._response_cls())
+        except Exception as exc:
+            raise ServiceCallError(
+                self.srv_name, f"the service callback raised {type(exc).__name__}: {exc}"
+            ) from exc
+        finally:
+            if lock is not None:
+                lock.release()
         if response is None:
             raise ServiceCallError(self.srv_name, "the service callback returned None; it must return the response")
         return response

@@ -16,9 +16,11 @@ and the fake robot (:mod:`multiros.hardware.fake_robot`, over its ``FakeHardware
 
 from __future__ import annotations
 
+import logging
 import threading
 from typing import Any
 
+from multiros.ros.logging import LogThrottle
 from multiros.sim.actions import TrajectoryActions
 from multiros.sim.controllers import JointTrajectoryController
 from multiros.sim.distro_adapters import create_services, get_message, get_service
@@ -52,6 +54,7 @@ class ControllerInterfaces:
         self.robot = robot
         self.ns = ns
         self.lock = lock
+        self._ignored = LogThrottle()  # bad commands from the wire: a few lines, then one per interval
         self.actions = actions
         self._command_subs: dict[str, Any] = {}
         self._services: list[Any] = []
@@ -106,7 +109,8 @@ class ControllerInterfaces:
             try:
                 self.world.set_command(self.robot, controller, msg.data)
             except (CommandError, ControllerError) as exc:
-                self.node.get_logger().warning("%s/%s/commands: %s (ignored)", self.ns, controller, exc)
+                self._ignored.log(self.node.get_logger(), logging.WARNING, "%s/%s/commands: %s (ignored)", self.ns,
+                                  controller, exc)
 
     def _on_trajectory(self, controller: str, msg: Any) -> None:
         times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points]
@@ -120,7 +124,8 @@ class ControllerInterfaces:
                                     time=self.world.time)
                 self.world.controllers_changed(self.robot)
             except (CommandError, ControllerError) as exc:
-                self.node.get_logger().warning("%s/%s/joint_trajectory: %s (ignored)", self.ns, controller, exc)
+                self._ignored.log(self.node.get_logger(), logging.WARNING, "%s/%s/joint_trajectory: %s (ignored)",
+                                  self.ns, controller, exc)
 
     # -- controller manager services ----------------------------------------------------------
     def _list(self, request: Any, response: Any) -> Any:

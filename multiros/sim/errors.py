@@ -63,12 +63,28 @@ class ControllerError(SimError):
 class UnstableSimulationError(SimError):
     """Physics diverged (MuJoCo BADQACC/BADQPOS/BADQVEL warning or NaN state).
 
-    The entities named in ``entities`` were restored to their last good state; the others were not touched.
+    The entities named in ``entities`` diverged: each was restored to its last good state at rest,
+    or, when it diverged again from its own spawn state, removed from the world (those are also in
+    ``removed``). The others completed the call untouched.
     """
 
-    def __init__(self, message: str, *, entities: tuple[str, ...]) -> None:
+    def __init__(self, message: str, *, entities: tuple[str, ...], removed: tuple[str, ...] = ()) -> None:
         super().__init__(message)
         self.entities = entities
+        self.removed = removed
+
+
+class SpawnRefusedError(SimError):
+    """A spawned entity may not share the world: it diverges, overlaps another entity, or would
+    fall onto a lighter one. The world is as before the spawn.
+
+    Attributes:
+        reason: ``"unstable"``, ``"overlap"`` or ``"landing"``.
+    """
+
+    def __init__(self, message: str, *, reason: str) -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 class StepInterruptedError(SimError):

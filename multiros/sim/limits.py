@@ -32,6 +32,9 @@ __all__ = [
     "MAX_STEPS_PER_CALL",
     "STEP_CHUNK",
     "MAX_ROBOTS",
+    "SPAWN_TRIAL_STEPS",
+    "MAX_SPAWN_PENETRATION",
+    "MAX_LOAD_RATIO",
 ]
 
 MAX_DESCRIPTION_CHARS = 4_000_000  # characters of URDF/MJCF text (after xacro); real robots: < 500 k
@@ -63,10 +66,25 @@ STEP_CHUNK = 1_000
 # step at ~20 env steps/s each; beyond that a second node (another core) serves more than a bigger batch.
 MAX_ROBOTS = 256
 
+# Admission of a spawned entity into a shared world (multiros.sim.world_admission). Physics steps of
+# a trial run of the whole world with the newcomer, on a scratch copy: an entity that diverges on
+# its own (a joint stiffness far beyond its inertia) does so within a few steps; 100 steps are
+# 0.2 s at the default 2 ms step and cost 1-2 ms per RX200 in the world.
+SPAWN_TRIAL_STEPS = 100
+# Metres by which a spawned entity's collision geometry may reach into another entity's (objects
+# placed resting on a table touch it; anything deeper is thrown out by the contact solver).
+MAX_SPAWN_PENETRATION = 0.002
+# A free object may be spawned above a movable entity (a robot's links, another free object) only
+# if it is at most this many times as heavy as that entity: a 100 t box dropped onto a 2 kg arm
+# throws it; a cube stacked on a cube of its own mass does not.
+MAX_LOAD_RATIO = 1.0
+
 
 @dataclass(frozen=True)
 class DescriptionLimits:
-    """Size and value bounds checked on every description before it reaches the world.
+    """Size and value bounds checked on every description before it reaches the world, and the
+    admission checks of a spawned entity (``trial_steps`` 0 turns the trial off; ``max_penetration``
+    and ``max_load_ratio`` ``inf`` turn the overlap and landing checks off).
 
     Attributes mirror the module constants of the same (upper-case) names; see there for units.
     """
@@ -85,3 +103,6 @@ class DescriptionLimits:
     max_mesh_bytes: int = MAX_MESH_BYTES
     max_mesh_vertices: int = MAX_MESH_VERTICES
     max_texture_pixels: int = MAX_TEXTURE_PIXELS
+    trial_steps: int = SPAWN_TRIAL_STEPS
+    max_penetration: float = MAX_SPAWN_PENETRATION
+    max_load_ratio: float = MAX_LOAD_RATIO

@@ -21,6 +21,7 @@ controller command topics; ``/tf``.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import re
 import threading
 import time
@@ -31,15 +32,18 @@ from typing import Any
 import numpy as np
 
 from multiros.ros import Node, ParameterDescriptor
+from multiros.ros.callback_groups import ReentrantCallbackGroup
 from multiros.ros.executors import SingleThreadedExecutor
+from multiros.ros.logging import LogThrottle
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
 from multiros.sim.actions import SimulateStepsAction
 from multiros.sim.cameras import CameraFrame, CameraHub, CameraSpec
 from multiros.sim.description import SourcePolicy
 from multiros.sim.distro_adapters import create_services, get_message, get_service
-from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError
-from multiros.sim.limits import MAX_ROBOTS, MAX_STEPS_PER_CALL, DescriptionLimits
+from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError, UnstableSimulationError
+from multiros.sim.fair_lock import FairLock
+from multiros.sim.limits import MAX_ROBOTS, MAX_STEPS_PER_CALL, STEP_CHUNK, DescriptionLimits
 from multiros.sim.node_load import LoadMeter, get_node_load
 from multiros.sim.node_results import FAILED, NOT_FOUND, OK, Result, fail, guarded, ok
 from multiros.sim.node_spawn import spawn_entity
@@ -58,6 +62,9 @@ MarkerArray = get_message("visualization_msgs/msg/MarkerArray")
 
 # The native (Rolling) variants; Jazzy/Kilted peers are served through multiros.sim.distro_adapters.
 _SRV = {name: get_service(type_name) for name, type_name in SIM_SERVICES.items()}
+
+_TURN_SEC = 0.002  # work a long step call does between two turns of the others (seconds)
+_MIN_CHUNK = 10  # steps
 
 _FEATURES = [
     SimulatorFeatures.SPAWNING,
@@ -149,11 +156,15 @@ class SimulationNode(Node):
         self._executor: Any = None
         self._spin_thread: threading.Thread | None = None
         self.world = world if world is not None else World(options)
+        # One lock over the world, granting turns first come first served; long step calls give way
+        # between chunks (multiros.sim.fair_lock), so no client monopolises the node.
         self._runner = RealTimeRunner(
             self.world, real_time_factor=real_time_factor, on_chunk=self._after_realtime_chunk,
-            on_error=self._realtime_error,
+            on_error=self._realtime_error, lock=FairLock(),
         )
         self.lock = self._runner.lock
+        self._step_cost = 2e-5  # seconds per physics step, a running estimate (sizes the chunks of long calls)
+        self._state_lock = threading.Lock()  # SetSimulationState transitions, one at a time
         self._state = SimulationState.STATE_PAUSED
         self._robots: dict[str, RobotInterfaces] = {}
         self._frame_sets = FrameSetCache(max(64, 2 * self.max_robots))  # StepRobot(s)' frame sets
@@ -170,6 +181,7 @@ class SimulationNode(Node):
         # Zenoh its receive thread, in order with the requests behind it), never later from a topic
         # executor: the goal marker an env publishes in reset() is in the very next rendered image.
         self._renderer_lock = threading.Lock()
+        self._ignored_markers = LogThrottle()
         for sub in self._marker_subs:
             sub._deliver_directly(wire_inline=True)
         # Camera topics (sensor_msgs/Image, CameraInfo) of the entities' cameras (multiros.sim.cameras).
@@ -191,9 +203,13 @@ class SimulationNode(Node):
         """Create the simulation services (once); until then the node answers no service call."""
         if self._services:
             return
+        # Concurrent: every callback guards the world with the node's lock, so a quick request is
+        # answered while a long one is in progress (and waits its turn, not the whole long call).
+        group = ReentrantCallbackGroup()
         self._services = [  # every served distribution's variant of each (multiros.sim.distro_adapters)
             srv for name, type_name in SIM_SERVICES.items()
-            for srv in create_services(self, type_name, f"~/{name}", getattr(self, f"_srv_{name}"))
+            for srv in create_services(self, type_name, f"~/{name}", getattr(self, f"_srv_{name}"),
+                                       callback_group=group)
         ]
         self._simulate_steps = SimulateStepsAction(self)  # ~/simulate_steps (multiros.sim.actions)
 
@@ -230,7 +246,23 @@ class SimulationNode(Node):
         self._after_step()
 
     def _realtime_error(self, exc: BaseException) -> None:
+        if isinstance(exc, UnstableSimulationError):  # contained: real time goes on
+            self._on_unstable(exc)
+            self.get_logger().warning("%s", exc)
+            return
         self.get_logger().error("real-time physics stopped: %s", exc)
+
+    def _on_unstable(self, exc: UnstableSimulationError) -> None:
+        """Drop the ROS interfaces of robots the world removed (lock held by this thread's call)."""
+        for name in exc.removed:
+            self._detach_robot(name)
+
+    def unknown_robot_message(self, name: str) -> str:
+        """Why no robot ``name`` is served: the world removed it (and why), or it is not there."""
+        reason = self.world.removal_reason(name)
+        if reason is not None and not self.world.has_entity(name):
+            return f"robot {name!r} {reason}"
+        return f"no robot {name!r}; robots: {list(self._robots)}"
 
     def _attach_robot(self, name: str) -> None:
         info = self.world.entity(name)
@@ -445,6 +477,10 @@ class SimulationNode(Node):
         return response
 
     def _srv_set_simulation_state(self, request: Any, response: Any) -> Any:
+        with self._state_lock:
+            return self._set_simulation_state(request, response)
+
+    def _set_simulation_state(self, request: Any, response: Any) -> Any:
         target = int(request.state.state)
         valid = (SimulationState.STATE_STOPPED, SimulationState.STATE_PLAYING, SimulationState.STATE_PAUSED)
         if target not in valid:
@@ -462,12 +498,32 @@ class SimulationNode(Node):
         return response
 
     def _step_world(self, steps: int) -> None:
-        """Step in chunks that stop when the node shuts down (lock held by the caller)."""
+        """Step (lock held by the caller); a long call runs in chunks of about
+        :data:`_TURN_SEC` of work, between which it stops when the node shuts down and lets every
+        request that arrived meanwhile have its turn. Robots the world removed lose their interfaces.
+
+        Raises:
+            UnstableSimulationError, StepInterruptedError: as ``World.step``.
+        """
         start = time.perf_counter()
+        chunk = max(_MIN_CHUNK, min(STEP_CHUNK, int(_TURN_SEC / self._step_cost)))
         try:
-            self.world.step(steps, should_stop=self._stopping.is_set)
+            self.world.step(steps, should_stop=self._between_chunks, chunk=chunk)
+        except UnstableSimulationError as exc:
+            self._on_unstable(exc)
+            raise
         finally:
-            self.load.record(steps, time.perf_counter() - start)
+            elapsed = time.perf_counter() - start
+            self.load.record(steps, elapsed)
+            if steps >= 10:
+                self._step_cost = 0.8 * self._step_cost + 0.2 * max(elapsed / steps, 1e-7)
+
+    def _between_chunks(self) -> bool:
+        """Between two chunks of a long step call: True to stop (shutting down); else give way."""
+        if self._stopping.is_set():
+            return True
+        self.lock.yield_turn()
+        return self._stopping.is_set()
 
     @guarded
     def _srv_step_simulation(self, request: Any, response: Any) -> Any:
@@ -490,7 +546,7 @@ class SimulationNode(Node):
         with self.lock:
             robot = self._robots.get(request.entity)
             if robot is None:
-                fail(response.result, NOT_FOUND, f"no robot {request.entity!r}; robots: {list(self._robots)}")
+                fail(response.result, NOT_FOUND, self.unknown_robot_message(request.entity))
                 return response
             velocities = js.velocity if len(js.velocity) else None
             try:
@@ -553,7 +609,8 @@ class SimulationNode(Node):
         try:
             apply_marker(self._get_renderer(), marker)
         except ValueError as exc:
-            self.get_logger().warning("marker %s/%s ignored: %s", marker.ns, marker.id, exc)
+            self._ignored_markers.log(self.get_logger(), logging.WARNING, "marker %s/%s ignored: %s", marker.ns,
+                                      marker.id, exc)
 
     def _srv_render_camera(self, request: Any, response: Any) -> Any:
         from multiros.sim.render_service import render_image_msgs

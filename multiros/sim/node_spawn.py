@@ -18,7 +18,7 @@ import numpy as np
 
 from multiros.sim import convert
 from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
-from multiros.sim.errors import ControllerError, DescriptionError, EntityError
+from multiros.sim.errors import ControllerError, DescriptionError, EntityError, SpawnRefusedError
 from multiros.sim.node_results import FAILED, fail, ok
 
 if TYPE_CHECKING:
@@ -114,6 +114,12 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
             return response
         except ValueError as exc:
             fail(res, response.INVALID_POSE, str(exc))
+            return response
+        try:  # before any step: refused, it never touched the others
+            node.world.admit(info.name, limits)
+        except SpawnRefusedError as exc:
+            node.world.delete(info.name)
+            fail(res, response.RESOURCE_PARSE_ERROR if exc.reason == "unstable" else response.INVALID_POSE, str(exc))
             return response
         try:
             node._attach_robot(info.name)

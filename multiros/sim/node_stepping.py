@@ -127,7 +127,7 @@ def step_robot(node: SimulationNode, request: Any, response: Any) -> Any:
         fail(res, exc.code, exc.message)
         return response
     if code == RobotStepResult.UNKNOWN_ROBOT:
-        fail(res, NOT_FOUND, f"{message}; robots: {list(node._robots)}")
+        fail(res, NOT_FOUND, message)
     elif code != RobotStepResult.OK:
         fail(res, code, message)
     else:
@@ -284,6 +284,8 @@ class StepRobotsCall:
             for j, item in enumerate(self.items):
                 if item.entity in exc.entities:
                     self.status[j], self.message[j] = RobotStepResult.UNSTABLE, str(exc)
+                    if item.entity in exc.removed:  # gone from the world: no state to read
+                        self._prepared[j] = (None, None)
         except StepInterruptedError as exc:
             self._interrupted = exc
 
@@ -363,7 +365,7 @@ def _prepare(node: SimulationNode, world: World, item: StepItem, status: list[in
     entity = item.entity
     robot = node._robots.get(entity)
     if robot is None:
-        status[j], message[j] = RobotStepResult.UNKNOWN_ROBOT, f"no robot {entity!r}"
+        status[j], message[j] = RobotStepResult.UNKNOWN_ROBOT, node.unknown_robot_message(entity)
         return None, None
     _reset_and_command(node, world, item, status, message, j)
     if not item.frames:

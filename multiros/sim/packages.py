@@ -27,6 +27,7 @@ import re
 from collections.abc import Iterable, Mapping
 from importlib.metadata import entry_points
 from pathlib import Path
+from typing import Any
 from urllib.parse import unquote, urlparse
 
 from multiros.sim.errors import DescriptionError, PackageNotFoundError
@@ -56,6 +57,16 @@ class PackageIndex:
         self._use_entry_points = use_entry_points
         self._environ = environ
         self._explicit = {k: Path(v).expanduser().absolute() for k, v in (packages or {}).items()}
+        self._entry_points: tuple[Any, ...] | None = None
+
+    def _description_entry_points(self) -> tuple[Any, ...]:
+        """The ``uniros.description_packages`` entry points, read once per index: reading them
+        scans every installed distribution's metadata (milliseconds, and importlib keeps a lookup
+        per scan), and an env's ``make`` looks packages up several times. A package installed
+        after the index's first lookup is found by a new index (a new process)."""
+        if self._entry_points is None:
+            self._entry_points = tuple(entry_points(group=ENTRY_POINT_GROUP)) if self._use_entry_points else ()
+        return self._entry_points
 
     # ------------------------------------------------------------------ lookup
     def find_package_share(self, name: str) -> Path:
@@ -86,7 +97,7 @@ class PackageIndex:
         ``<AMENT_PREFIX_PATH entry>/share`` and the ``ROS_PACKAGE_PATH`` entries."""
         roots: list[Path] = [*self._explicit.values(), *self._extra]
         if self._use_entry_points:
-            for ep in entry_points(group=ENTRY_POINT_GROUP):
+            for ep in self._description_entry_points():
                 root = _python_package_dir(ep.value)
                 if root is not None:
                     roots.append(root.absolute())
@@ -142,7 +153,7 @@ class PackageIndex:
     def _find_entry_point(self, name: str, searched: list[str]) -> Path | None:
         if not self._use_entry_points:
             return None
-        eps = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+        eps = [ep for ep in self._description_entry_points() if ep.name == name]
         if not eps:
             searched.append(f"entry points '{ENTRY_POINT_GROUP}'")
         for ep in eps:

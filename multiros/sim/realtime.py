@@ -9,7 +9,7 @@ from __future__ import annotations
 import threading
 import time as _time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from multiros.sim.errors import UnstableSimulationError
 
@@ -33,14 +33,16 @@ class RealTimeRunner:
         on_chunk: ``callback(world)`` after each chunk, with the lock held (publish /clock, joint states).
         on_error: ``callback(exc)`` for an exception raised by a chunk (the runner keeps running
             after UnstableSimulationError, stops after anything else).
-        lock: the lock to hold while stepping (default: a new RLock, exposed as ``lock``).
+        lock: the (reentrant) lock to hold while stepping, any object with ``acquire``/``release``
+            (default: a new RLock), exposed as ``lock``; the node passes a
+            :class:`~multiros.sim.fair_lock.FairLock`.
         max_lag: seconds behind the deadline before the pacing restarts from now.
     """
 
     def __init__(self, world: World, *, real_time_factor: float = 1.0, chunk_steps: int = 10,
                  on_chunk: Callable[[World], None] | None = None,
                  on_error: Callable[[BaseException], None] | None = None,
-                 lock: threading.RLock | None = None, max_lag: float = 0.25) -> None:
+                 lock: Any = None, max_lag: float = 0.25) -> None:
         if chunk_steps < 1:
             raise ValueError(f"chunk_steps must be >= 1, got {chunk_steps}")
         self.world = world

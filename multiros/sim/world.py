@@ -14,6 +14,8 @@ The world is split over a few modules, all re-exported here:
 * :mod:`multiros.sim.world_types`: options, categories, reset scopes, entity/joint state records;
 * :mod:`multiros.sim.world_model`: spec assembly, id binding, servo gains, actuator writes;
 * :mod:`multiros.sim.world_step`: ``time``, ``step`` and divergence recovery (a mixin of World);
+* :mod:`multiros.sim.world_admission`: ``admit``, the checks a spawned entity passes before it
+  shares the world (a mixin of World);
 * :mod:`multiros.sim.frames`: :class:`FrameSet`;
 * :mod:`multiros.sim.realtime`: :class:`RealTimeRunner`.
 
@@ -40,6 +42,7 @@ from multiros.sim.errors import ControllerError, DescriptionError, EntityError
 from multiros.sim.frames import FrameSet
 from multiros.sim.packages import PackageIndex, default_index
 from multiros.sim.realtime import RealTimeRunner
+from multiros.sim.world_admission import WorldAdmission
 from multiros.sim.world_model import (
     DEFAULT_CONTROLLERS,
     add_to_spec,
@@ -83,10 +86,11 @@ __all__ = [
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-class World(WorldStepping):
+class World(WorldStepping, WorldAdmission):
     """A MuJoCo world holding robots and objects, each an entity with a name and a namespace.
 
-    ``time`` and ``step`` come from :class:`~multiros.sim.world_step.WorldStepping`.
+    ``time`` and ``step`` come from :class:`~multiros.sim.world_step.WorldStepping`, ``admit`` from
+    :class:`~multiros.sim.world_admission.WorldAdmission`.
 
     Args:
         options: physics and scene options.
@@ -102,6 +106,7 @@ class World(WorldStepping):
         self.index = package_index or default_index()
         self.mesh_cache = MeshCache(mesh_cache)
         self._entities: dict[str, EntityRecord] = {}
+        self._removed: dict[str, str] = {}  # entities the world removed itself, and why (the latest 256)
         self._launched: dict[str, dict] = {}  # the launched world: spawn recipes, in spawn order
         self._frame_sets: weakref.WeakSet[FrameSet] = weakref.WeakSet()
         self._callbacks: list[Callable[[], None]] = []
@@ -215,6 +220,7 @@ class World(WorldStepping):
         gravcomp = self.options.gravity_compensation if gravity_compensation is None else gravity_compensation
         added = add_to_spec(self._spec, ent, gravcomp and category == EntityCategory.ROBOT and not floating)
         self._entities[name] = ent
+        self._removed.pop(name, None)
         try:
             self._recompile()
         except Exception as exc:
@@ -310,7 +316,26 @@ class World(WorldStepping):
         try:
             return self._entities[name]
         except KeyError:
-            raise EntityError(f"unknown entity '{name}'; entities are {list(self._entities)}") from None
+            raise EntityError(self.unknown_entity_message(name)) from None
+
+    def unknown_entity_message(self, name: str) -> str:
+        """Why there is no entity ``name``: the world removed it (and why), or it never was."""
+        if name in self._removed:
+            return f"entity '{name}' {self._removed[name]}"
+        return f"unknown entity '{name}'; entities are {list(self._entities)}"
+
+    def removal_reason(self, name: str) -> str | None:
+        """Why the world removed entity ``name`` by itself (physics it cannot simulate), else None."""
+        return self._removed.get(name)
+
+    def _forget_entity(self, ent: EntityRecord, reason: str) -> None:
+        """Take an entity out of the spec and the world's records, remembering why (no recompile)."""
+        remove_from_spec(self._spec, ent)
+        del self._entities[ent.name]
+        self._removed.pop(ent.name, None)
+        self._removed[ent.name] = reason
+        while len(self._removed) > 256:
+            del self._removed[next(iter(self._removed))]
 
     def _robot(self, name: str) -> EntityRecord:
         ent = self._get(name)

@@ -6,7 +6,12 @@ actuator commands, then advances in chunks bounded by the next controller update
 time-varying robot. When MuJoCo reports a bad qpos/qvel/qacc, :meth:`WorldStepping._recover`
 replays the call one physics step at a time from the snapshot (deterministic), restores the entity
 that diverges to its pre-call state at rest, lets the others complete the call, and raises
-:class:`~multiros.sim.errors.UnstableSimulationError` naming the culprits.
+:class:`~multiros.sim.errors.UnstableSimulationError` naming the culprits. An entity that diverges
+again from its own spawn state at rest cannot be simulated at this time step at all (a joint
+stiffness far beyond what its inertia allows, say): it is removed from the world there and then,
+so that it cannot stall everyone else's steps call after call, and the error names it in
+``removed``. None of this costs anything on a step call where nothing diverges (one comparison
+of MuJoCo's three warning counters per call).
 """
 
 from __future__ import annotations
@@ -20,6 +25,11 @@ from multiros.sim.errors import StepInterruptedError, UnstableSimulationError
 from multiros.sim.limits import STEP_CHUNK
 from multiros.sim.world_model import apply_initial, read_state, write_actuators
 from multiros.sim.world_types import EntityRecord
+
+#: Why an entity was removed (the rest of a step call's error message, and of later requests naming it).
+REMOVED_REASON = ("diverged again from its own spawn state at rest, so it cannot be simulated at this time step; "
+                  "it was removed from the world (check its joint stiffness and damping against its link masses, "
+                  "and its gains, or lower the time step)")
 
 _BAD_WARNINGS = tuple(int(w) for w in (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                                        mujoco.mjtWarning.mjWARN_BADQVEL))
@@ -37,30 +47,36 @@ class WorldStepping:
     _state_spec: int
     _warn_counts: np.ndarray
     _kinematics_stale: bool = False  # frame poses trail qpos by one physics step (after a step call)
+    _recompile: Callable[[], None]
+    _forget_entity: Callable[[EntityRecord, str], None]  # take out of the spec and the entities, with a reason
 
     @property
     def time(self) -> float:
         """Simulation time in seconds."""
         return float(self._data.time)
 
-    def step(self, n: int = 1, *, should_stop: Callable[[], bool] | None = None) -> None:
+    def step(self, n: int = 1, *, should_stop: Callable[[], bool] | None = None, chunk: int = STEP_CHUNK) -> None:
         """Advance ``n`` physics steps; controllers update at their rate within the steps.
 
         Args:
             n: physics steps.
-            should_stop: with more than ``limits.STEP_CHUNK`` steps, they run in chunks of that
-                many (bit-identical to one call) and ``should_stop()`` is asked before each chunk;
-                True stops the call there (the node passes its shutdown flag).
+            should_stop: with more than ``chunk`` steps, they run in chunks of that many
+                (bit-identical to one call) and ``should_stop()`` is asked before each chunk;
+                True stops the call there (the node passes its shutdown flag, and lets other
+                requests have their turn there).
+            chunk: steps per chunk (default ``limits.STEP_CHUNK``).
 
         Raises:
             UnstableSimulationError: physics diverged; the named entities were restored to the
                 state they had before this call (before the chunk, when chunked), their velocities
-                zeroed, the others continue.
+                zeroed, or removed (``removed``: they diverged again from their spawn state); the
+                others continue.
             StepInterruptedError: ``should_stop()`` returned True; ``steps_done`` steps were done.
         """
         if n < 0:
             raise ValueError(f"step count must be >= 0, got {n}")
-        if should_stop is None or n <= STEP_CHUNK:
+        chunk = max(1, int(chunk))
+        if should_stop is None or n <= chunk:
             self._step(n)
             return
         done = 0
@@ -68,9 +84,9 @@ class WorldStepping:
             if should_stop():
                 raise StepInterruptedError(f"stepping stopped after {done} of {n} steps (shutting down)",
                                            steps_done=done)
-            chunk = min(STEP_CHUNK, n - done)
-            self._step(chunk)
-            done += chunk
+            part = min(chunk, n - done)
+            self._step(part)
+            done += part
 
     def _step(self, n: int) -> None:
         if n == 0:
@@ -139,17 +155,19 @@ class WorldStepping:
 
     def _recover(self, n: int) -> None:
         """Replay the step call one physics step at a time from the snapshot (deterministic), find
-        the entity that diverges first, restore it to its pre-call state at rest, and go on; the
-        other entities complete all ``n`` steps as if nothing happened."""
-        m, d = self._model, self._data
-        mujoco.mj_setState(m, d, self._snap, self._state_spec)
+        the entity that diverges first, restore it to its pre-call state at rest (a second time: to
+        its spawn state; a third: remove it), and go on; the other entities complete all ``n``
+        steps as if nothing happened."""
+        mujoco.mj_setState(self._model, self._data, self._snap, self._state_spec)
         for ent in self._entities.values():
             ent.countdown = ent.snap_countdown
         self._sync_warn_counts()
-        culprits: dict[str, int] = {}
+        strikes: dict[str, int] = {}
+        removed: list[str] = []
         good = np.empty_like(self._snap)
         done, attempts = 0, 0
         while done < n:
+            m, d = self._model, self._data
             mujoco.mj_getState(m, d, good, self._state_spec)
             counts = {e.name: e.countdown for e in self._entities.values()}
             self._advance(1)
@@ -160,18 +178,28 @@ class WorldStepping:
             # others through the solver), the owners of the index MuJoCo warned about, the bad ones after.
             after, warned = self._diverged(), self._warned()
             mujoco.mj_setState(m, d, good, self._state_spec)
-            bad = self._diverged() or warned or after or list(self._entities.values())
+            named = self._diverged() or warned or after
+            bad = named or list(self._entities.values())
             for ent in self._entities.values():
                 ent.countdown = counts[ent.name]
             attempts += 1
+            doomed = []
             for ent in bad:
-                culprits[ent.name] = culprits.get(ent.name, 0) + 1
-                if culprits[ent.name] == 1:
+                strikes[ent.name] = strikes.get(ent.name, 0) + 1
+                if strikes[ent.name] == 1:
                     d.qpos[ent.qpos_idx] = self._snap_qpos_of(ent)
                     d.qvel[ent.dof_idx] = 0.0
-                else:  # restoring did not help: back to the spawn state
+                elif strikes[ent.name] == 2 or not named:  # restoring did not help: back to the spawn state
                     apply_initial(m, d, ent)
+                else:  # it diverges from its own spawn state at rest: it cannot be simulated here
+                    doomed.append(ent)
                 d.qacc_warmstart[ent.dof_idx] = 0.0
+            if doomed:
+                self._remove_diverging(doomed, d.time)
+                removed += [ent.name for ent in doomed]
+                bad = [ent for ent in bad if ent not in doomed]
+                m, d = self._model, self._data
+                good = np.empty_like(self._snap)
             mujoco.mj_forward(m, d)
             for ent in bad:
                 if ent.cm is not None:
@@ -179,18 +207,35 @@ class WorldStepping:
                     ent.cm.hold(d.time)
                     write_actuators(m, d, ent)
             self._sync_warn_counts()
-            if attempts > 2 * max(1, len(self._entities)):
+            if attempts > 3 * max(1, len(self._entities) + len(removed)):  # nobody to blame: all back at rest
                 mujoco.mj_setState(m, d, self._snap, self._state_spec)
                 for ent in self._entities.values():
                     apply_initial(m, d, ent)
                 mujoco.mj_forward(m, d)
                 break
         self._sync_warn_counts()
-        names = tuple(culprits)
-        raise UnstableSimulationError(
-            f"physics diverged (MuJoCo bad qpos/qvel/qacc) in entity(s) {list(names)} near t={d.time:.4f}s; "
-            f"they were restored to their state before this step call, at rest, while the other entities "
-            f"stepped on. Lower the timestep, the gains or the commanded efforts.", entities=names)
+        names = tuple(strikes)
+        kept = [name for name in names if name not in removed]
+        message = (f"physics diverged (MuJoCo bad qpos/qvel/qacc) in entity(s) {list(names)} near "
+                   f"t={self._data.time:.4f}s")
+        if kept:
+            message += (f"; {kept} were restored to their state before this step call, at rest, while the other "
+                        f"entities stepped on. Lower the timestep, the gains or the commanded efforts")
+        if removed:
+            message += f"; {removed} {REMOVED_REASON}"
+        raise UnstableSimulationError(message + ".", entities=names, removed=tuple(removed))
+
+    def _remove_diverging(self, doomed: list[EntityRecord], time: float) -> None:
+        """Take entities out of the world in the middle of a recovery; the others keep their state
+        (``MjSpec.recompile`` carries it over by name) and their pre-call snapshot."""
+        pre_call = {e.name: self._snap_qpos_of(e) for e in self._entities.values() if e not in doomed}
+        for ent in doomed:
+            self._forget_entity(ent, f"{REMOVED_REASON} (at t={time:.4f} s)")
+        self._recompile()
+        self._snap = np.empty(mujoco.mj_stateSize(self._model, self._state_spec))
+        mujoco.mj_getState(self._model, self._data, self._snap, self._state_spec)
+        for ent in self._entities.values():
+            self._snap[1 + ent.qpos_idx] = pre_call[ent.name]
 
     def _warned(self) -> list[EntityRecord]:
         """Owners of the index a new bad-state warning reported: bad qpos/qvel first (they name the

@@ -24,6 +24,7 @@ from multiros.ros import Context, Node
 from multiros.ros.action import STATUS_ABORTED, STATUS_CANCELED, STATUS_SUCCEEDED, ActionClient
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.interfaces import get_action, get_message, get_service
+from multiros.ros.processes import child_environment
 from multiros.sim.controllers import JointMode
 from multiros.sim.launch import private_context
 
@@ -350,8 +351,7 @@ def test_stopped_by_pid_and_with_its_owner(graph):
     owner = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
     child = subprocess.Popen([sys.executable, "-m", "multiros.hardware.fake_robot", "--robot", "irb120",
                               "--router", "none", "--owner-pid", str(owner.pid), "--log-level", "ERROR"],
-                             env={**os.environ, "UNIROS_ZENOH_ROUTER": graph.transport_options["router_endpoint"],
-                                  "ROS_DOMAIN_ID": str(graph.domain_id)}, cwd=_CWD)
+                             env={**os.environ, **child_environment(graph)}, cwd=_CWD)
     try:
         owner.kill()
         owner.wait(timeout=10)

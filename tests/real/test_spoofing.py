@@ -4,7 +4,8 @@ within the safety rules, watched on the robot side (issue 28, item 1).
 * A forging publisher that is in the graph (a second ROS node on the robot's ``joint_states``) is
   refused by name, at start-up and when it appears mid-episode; nothing more is sent.
 * A forging peer outside the graph (a raw Zenoh session putting well-formed samples on the topic's
-  key, no liveliness token) cannot steer the commands: states outside the joint limits or moving
+  key, no liveliness token; given the private graph's credentials, as a process of the same user
+  could read them) cannot steer the commands: states outside the joint limits or moving
   faster than the robot can are dropped, and every command stays within the cap of the env's own
   previous command.
 * A reset move takes the time its speed needs, whatever the states claim.
@@ -56,7 +57,12 @@ class Forger:
         if raw:
             from raw_zenoh import open_peer_session
 
-            self.session = open_peer_session(ctx.transport.settings.router_endpoint)
+            from multiros.ros.processes import private_graph_credentials
+
+            # The graph is private: another user's process gets no connection at all. This forger
+            # stands for one that can connect (the user's own, or a shared graph's peer).
+            self.session = open_peer_session(ctx.transport.settings.router_endpoint,
+                                             credentials=private_graph_credentials(ctx))
             self.key = wire.topic_key(ctx.domain_id, TOPIC, "sensor_msgs::msg::dds_::JointState_",
                                       type_hash("sensor_msgs/msg/JointState"))
         self.sub = self.node.create_subscription(JointState, TOPIC, self._on, 10)

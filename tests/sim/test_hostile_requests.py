@@ -23,7 +23,7 @@ from raw_zenoh import open_peer_session
 from multiros.ros import Context
 from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
 from multiros.sim.distro_adapters import get_service
-from multiros.sim.limits import MAX_DESCRIPTION_CHARS, MAX_STEPS_PER_CALL
+from multiros.sim.limits import MAX_DESCRIPTION_CHARS, MAX_STEPS_PER_CALL, DescriptionLimits
 from multiros.sim.node import SimulationNode
 from multiros.sim.packages import PackageIndex
 from multiros.sim.world import World, WorldOptions
@@ -106,7 +106,7 @@ class Rig:
         (self.outside / "secret.stl").write_text(f"solid {SECRET}\nendsolid\n")
         (self.outside / "secret.xml").write_text(f"<mujoco><worldbody><body name='{SECRET}'/></worldbody></mujoco>")
         (self.outside / "secret.yaml").write_text(f"{SECRET}: 1\n")
-        endpoint = _free_endpoint()
+        self.endpoint = endpoint = _free_endpoint()
         self.ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router_endpoint=endpoint).init()
         index = PackageIndex([DATA], use_entry_points=False, environ={})
         world = World(WorldOptions(), package_index=index, mesh_cache=root / "meshes")
@@ -139,16 +139,19 @@ class Rig:
         res = self.peer.call("get_entity_state", self.peer.request("get_entity_state", entity="arm"), timeout=1.0)
         assert res.result.result == OK and time.monotonic() - t0 < 1.0
 
-    def spawn(self, *, uri: str = "", text: str = "", name: str = "intruder"):
+    def spawn(self, *, uri: str = "", text: str = "", name: str = "intruder", position=(0.0, 0.0, 0.0)):
         req = self.peer.request("spawn_entity", name=name)
         req.entity_resource.uri = uri
         req.entity_resource.resource_string = text
+        p = req.initial_pose.pose.position
+        p.x, p.y, p.z = (float(v) for v in position)
         return self.peer.call("spawn_entity", req, timeout=20.0)
 
-    def refused(self, code: int, *, uri: str = "", text: str = "", expect: tuple[str, ...] = ()) -> str:
+    def refused(self, code: int, *, uri: str = "", text: str = "", expect: tuple[str, ...] = (),
+                position=(0.0, 0.0, 0.0)) -> str:
         """Send a spawn that must be refused with ``code``; check the node and the world; return the message."""
         before, children = self.snapshot(), _children_of(os.getpid())
-        res = self.spawn(uri=uri, text=text)
+        res = self.spawn(uri=uri, text=text, position=position)
         message = res.result.error_message
         assert res.result.result == code, message
         assert message and SECRET not in message
@@ -399,6 +402,104 @@ def test_shutdown_interrupts_a_long_allowed_step(tmp_path):
         if not destroyed:
             rig.node.destroy_node()
         rig.ctx.try_shutdown()
+
+
+# -- neighbours: entities within every limit that would harm the others --------------------------------
+STIFF_HINGE = ('<mujoco><worldbody><body name="b"><joint name="hinge" type="hinge" axis="0 1 0" stiffness="1000" '
+               'springref="0.5"/><geom type="capsule" size="0.01 0.05" mass="0.001"/></body></worldbody></mujoco>')
+INVALID_POSE = 109  # SpawnEntity
+
+
+def _box(mass: float, half: float = 0.05) -> str:
+    return (f'<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="{half} {half} {half}" '
+            f'mass="{mass}"/></body></worldbody></mujoco>')
+
+
+def test_an_entity_that_diverges_on_its_own_is_refused_at_spawn(rig):
+    """A 1 g capsule on a hinge of stiffness 1000: inside every limit, it diverged on every step and
+    made every other robot's steps fail (sim time stuck at 0, calls 16x slower)."""
+    rig.refused(RESOURCE_PARSE_ERROR, text=STIFF_HINGE, position=(2.0, 0.0, 0.5),
+                expect=("'intruder'", "diverges within", "stiffness"))
+
+
+def test_an_entity_overlapping_another_is_refused_at_spawn(rig):
+    """A 100 kg box spawned through the arm's second link would be thrown out and throw the arm."""
+    rig.refused(INVALID_POSE, text=_box(100.0), position=(0.03, 0.0, 0.25),
+                expect=("'intruder'", "into entity 'arm'", "mm"))
+
+
+def test_a_heavy_object_above_a_lighter_entity_is_refused_at_spawn(rig):
+    """A 10 t box 0.5 m above the arm would fall onto it."""
+    rig.refused(INVALID_POSE, text=_box(1e4), position=(0.05, 0.0, 1.0),
+                expect=("'intruder'", "would fall", "onto entity 'arm'", "kg"))
+
+
+def test_objects_on_the_floor_and_stacked_on_their_peers_are_accepted(rig):
+    """What the checks allow: a box resting on the floor beside the arm, a second one of its mass
+    dropped onto it, and a light one above the arm (the contact solver copes with those)."""
+    spawned = []
+    try:
+        for name, mass, position in (("crate", 2.0, (0.5, 0.0, 0.05)), ("stacked", 2.0, (0.5, 0.0, 0.3)),
+                                     ("light", 0.5, (0.05, 0.0, 1.0))):
+            res = rig.spawn(text=_box(mass), name=name, position=position)
+            assert res.result.result == OK, res.result.error_message
+            spawned.append(name)
+    finally:
+        for name in spawned:
+            rig.peer.call("delete_entity", rig.peer.request("delete_entity", entity=name))
+
+
+def test_an_entity_diverging_at_run_time_is_removed_alone_and_its_owner_told(tmp_path):
+    """Admitted without the spawn trial (as an entity whose physics only fails later would be):
+    the first step removes it; the arm's step succeeds and time advances; later requests naming it
+    say why it is gone."""
+    rig = Rig(tmp_path, description_limits=DescriptionLimits(trial_steps=0))
+    try:
+        assert rig.spawn(text=STIFF_HINGE, name="hostile", position=(2.0, 0.0, 0.5)).result.result == OK
+        t0 = rig.node.world.time
+        for _ in range(20):
+            res = rig.peer.call("step_robot", rig.peer.request("step_robot", entity="arm", steps=10))
+            assert res.result.result == OK, res.result.error_message
+        assert rig.node.world.time == pytest.approx(t0 + 200 * rig.node.world.timestep)
+        assert rig.node.world.entity_names() == ("arm",)
+        res = rig.peer.call("step_robot", rig.peer.request("step_robot", entity="hostile", steps=1))
+        assert res.result.result == 2  # RESULT_NOT_FOUND
+        assert "removed from the world" in res.result.error_message and "stiffness" in res.result.error_message
+        rig.assert_alive()
+    finally:
+        rig.close()
+
+
+def test_a_long_step_call_gives_way_to_other_clients(tmp_path):
+    """Three clients send StepSimulation with many steps at once: a fourth client's StepRobot is
+    answered while all three are still in progress (it waits its turn, not for their calls)."""
+    rig = Rig(tmp_path)
+    attackers = [RawPeer(rig.endpoint) for _ in range(3)]
+    try:
+        for peer in attackers:  # each has its own connection, as separate processes would
+            peer.call("get_entity_state", peer.request("get_entity_state", entity="arm"), timeout=10.0)
+        start = rig.node.world.time
+        pending = [peer.send("step_simulation", peer.request("step_simulation", steps=MAX_STEPS_PER_CALL),
+                             timeout=120.0) for peer in attackers]
+        finished = [threading.Event() for _ in attackers]
+        threads = [threading.Thread(target=lambda p=p, f=f: (list(p), f.set()), daemon=True)
+                   for p, f in zip(pending, finished)]
+        for thread in threads:
+            thread.start()
+        deadline = time.monotonic() + 30.0
+        while rig.node.world.time == start and time.monotonic() < deadline:
+            time.sleep(0.005)
+        for _ in range(5):
+            res = rig.peer.call("step_robot", rig.peer.request("step_robot", entity="arm", steps=10), timeout=60.0)
+            assert res.result.result == OK, res.result.error_message
+        assert not any(f.is_set() for f in finished), "the short calls waited for a whole long call"
+        for thread in threads:
+            thread.join(timeout=120.0)
+        assert all(f.is_set() for f in finished)
+    finally:
+        for peer in attackers:
+            peer.close()
+        rig.close()
 
 
 # -- world level -----------------------------------------------------------------------------------

@@ -16,10 +16,15 @@ import tempfile
 import textwrap
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
+import zenoh
+from raw_calls import raw_get_entities
+from raw_zenoh import open_peer_session
 
 from multiros import ros
+from multiros.ros.processes import PRIVATE_GRAPH_OVERRIDE, private_graph_credentials, write_session_config
 from multiros.sim.client import SimulationClient
 from multiros.sim.launch import connect, free_loopback_endpoint, local_description_dirs, private_context
 
@@ -98,7 +103,8 @@ def test_private_context_has_its_own_router_and_ignores_shared_settings(monkeypa
     try:
         endpoint = ctx.transport_options["router_endpoint"]
         assert endpoint.startswith("tcp/127.0.0.1:") and endpoint != os.environ["UNIROS_ZENOH_ROUTER"]
-        assert not [k for k in ctx.env if "ZENOH" in k]
+        assert [k for k in ctx.env if "ZENOH" in k] == ["ZENOH_CONFIG_OVERRIDE"]  # ours, not the user's
+        assert ctx.env["ZENOH_CONFIG_OVERRIDE"] == PRIVATE_GRAPH_OVERRIDE
     finally:
         ctx.try_shutdown()
 
@@ -258,3 +264,66 @@ def test_a_robot_file_directly_in_home_is_not_a_folder_to_trust(tmp_path, monkey
     urdf.write_text("<robot name='r'/>")
     with pytest.raises(ValueError, match="folder .* of its own"):
         local_description_dirs(str(urdf))
+
+
+def _listening_ports(pid: int) -> set[int]:
+    """Loopback TCP ports a process listens on, as ``ss -ltnp`` shows them to anyone on the machine."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        with contextlib.suppress(OSError):
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+            if link.startswith("socket:["):
+                inodes.add(link[len("socket:["):-1])
+    ports = set()
+    with open("/proc/net/tcp") as f:
+        for line in f.readlines()[1:]:
+            fields = line.split()
+            local, state, inode = fields[1], fields[3], fields[9]
+            if state == "0A" and inode in inodes:  # LISTEN
+                ports.add(int(local.split(":")[1], 16))
+    return ports
+
+
+def _intruder_refused(endpoint: str, credentials: dict | None = None) -> bool:
+    try:
+        session = open_peer_session(endpoint, credentials=credentials, connect_timeout_ms=1000)
+    except zenoh.ZError:
+        return True
+    session.close()
+    return False
+
+
+@pytest.mark.slow
+def test_a_private_graph_refuses_intruders_and_serves_its_owner(tmp_path):
+    """Another local process finds the owner's ports (the router's and each session's) and connects
+    without the secret: refused at every port; the owner, its child and peers given the
+    credentials (directly, or through a Zenoh session config file as rmw_zenoh reads it) work."""
+    conn = connect("process", timeout_sec=30.0)
+    try:
+        conn.client.spawn_entity("rx200", uri=RX200)
+        router = conn.context.transport_options["router_endpoint"]
+        ports = _listening_ports(conn.pid) | _listening_ports(os.getpid())
+        assert int(router.rsplit(":", 1)[1]) in ports and len(ports) >= 3  # router, owner session, child session
+        for port in sorted(ports):
+            assert _intruder_refused(f"tcp/127.0.0.1:{port}"), f"port {port} accepted a peer without the secret"
+        wrong = {**private_graph_credentials(conn.context), "password": "guess"}
+        wrong.pop("auth_dictionary")
+        assert _intruder_refused(router, wrong)
+        assert conn.client.get_entities() == ["rx200"]  # nothing reached the node
+        conn.client.step_robot("rx200", steps=10)
+
+        config = write_session_config(conn.context, tmp_path / "session.json5")
+        assert config.stat().st_mode & 0o777 == 0o600
+        credentials = private_graph_credentials(conn.context)
+        assert credentials["password"] not in Path(f"/proc/{conn.pid}/cmdline").read_text()  # visible to all users
+        for opener in (lambda: open_peer_session(router, credentials=credentials, connect_timeout_ms=5000),
+                       lambda: zenoh.open(zenoh.Config.from_file(str(config)))):  # rmw_zenoh's ZENOH_SESSION_CONFIG_URI
+            session = opener()
+            try:
+                assert raw_get_entities(session, conn.context.domain_id) == ["rx200"]
+            finally:
+                session.close()
+    finally:
+        folder = os.path.dirname(private_graph_credentials(conn.context)["auth_dictionary"])
+        conn.close()
+    assert not os.path.exists(folder)  # the secret is gone with the graph

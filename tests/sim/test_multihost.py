@@ -182,3 +182,57 @@ def test_wrong_password_cannot_reach_the_node(tmp_path) -> None:
             bad.init()
     finally:
         _stop(node)
+
+
+_ACL = """{
+  enabled: true,
+  default_permission: "deny",
+  rules: [
+    { id: "operate", permission: "allow", flows: ["ingress", "egress"], key_exprs: ["**"],
+      messages: ["put", "delete", "declare_subscriber", "query", "reply", "declare_queryable",
+                 "liveliness_token", "liveliness_query", "declare_liveliness_subscriber"] },
+    { id: "watch", permission: "allow", flows: ["ingress", "egress"], key_exprs: ["**"],
+      messages: ["put", "declare_subscriber", "liveliness_token", "liveliness_query",
+                 "declare_liveliness_subscriber"] },
+  ],
+  subjects: [ { id: "operators", usernames: ["sim", "trainer"] }, { id: "viewers", usernames: ["viewer"] } ],
+  policies: [ { rules: ["operate"], subjects: ["operators"] }, { rules: ["watch"], subjects: ["viewers"] } ],
+}"""
+
+
+def test_a_shared_node_with_access_control_serves_operators_only(tmp_path) -> None:
+    """A shared ``uniros-sim`` with user/password authentication and Zenoh access control (as the
+    docs set it up): an operator's GetEntities is answered; a viewer, authenticated but only allowed
+    to watch, gets no answer to any service call (queries are not among its messages); someone
+    without a password gets no connection. The peers are plain Zenoh sessions, as rmw_zenoh opens them."""
+    import zenoh
+    from raw_calls import raw_get_entities
+    from raw_zenoh import open_peer_session
+
+    users = tmp_path / "users.txt"
+    users.write_text("sim:node-secret\ntrainer:train-secret\nviewer:view-secret\n")
+    acl = tmp_path / "acl.json5"
+    acl.write_text(_ACL)
+    router = free_loopback_endpoint()
+    node = _start_node([], "mujoco_sim", _clean_env(
+        UNIROS_ZENOH_ROUTER=router, UNIROS_ZENOH_USER="sim", UNIROS_ZENOH_PASSWORD="node-secret",
+        UNIROS_ZENOH_AUTH_DICTIONARY=str(users), UNIROS_ZENOH_ACCESS_CONTROL=str(acl)), f"rx200={RX200}")
+    try:
+        operator = viewer = None
+        try:
+            operator = open_peer_session(router, credentials={"user": "trainer", "password": "train-secret"},
+                                         connect_timeout_ms=60000)  # until the node's router listens
+            assert raw_get_entities(operator, int(DOMAIN), timeout=60.0) == ["rx200"]
+            viewer = open_peer_session(router, credentials={"user": "viewer", "password": "view-secret"},
+                                       connect_timeout_ms=10000)
+            with pytest.raises(AssertionError, match="no answer"):
+                raw_get_entities(viewer, int(DOMAIN), timeout=3.0)
+            with pytest.raises(zenoh.ZError):
+                open_peer_session(router, connect_timeout_ms=1000)
+            assert raw_get_entities(operator, int(DOMAIN)) == ["rx200"]
+        finally:
+            for session in (operator, viewer):
+                if session is not None:
+                    session.close()
+    finally:
+        _stop(node)

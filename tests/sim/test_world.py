@@ -333,6 +333,60 @@ def test_unstable_entity_is_contained(make_world):
     assert np.all(np.isfinite(world.joint_state("arm").position))
 
 
+STIFF_HINGE = ('<mujoco><worldbody><body name="b"><joint name="hinge" type="hinge" axis="0 1 0" stiffness="1000" '
+               'springref="0.5"/><geom type="capsule" size="0.01 0.05" mass="0.001"/></body></worldbody></mujoco>')
+
+
+def test_an_entity_that_diverges_from_its_spawn_state_is_removed_alone(make_world):
+    """It used to be restored call after call, and to reset the whole world (time and all) when
+    restoring did not help: every other robot's steps failed."""
+    def fresh():
+        w = make_world()
+        w.spawn("arm", ARM_XACRO)
+        w.set_command("arm", "", [0.3, 0.2, 0.1])
+        w.step(20)
+        return w
+
+    world, reference = fresh(), fresh()
+    world.spawn("hostile", STIFF_HINGE, pose=([2, 0, 0.5], [1, 0, 0, 0]))  # no admission checks here
+    with pytest.raises(UnstableSimulationError) as info:
+        world.step(30)
+    reference.step(30)
+    assert info.value.entities == ("hostile",) and info.value.removed == ("hostile",)
+    assert "removed from the world" in str(info.value)
+    assert world.entity_names() == ("arm",) and world.time == reference.time
+    np.testing.assert_allclose(world.joint_state("arm").position, reference.joint_state("arm").position,
+                               rtol=0, atol=1e-9)
+    with pytest.raises(EntityError, match="hostile.*removed from the world"):
+        world.joint_state("hostile")
+    world.step(100)  # no error any more
+    world.spawn("hostile", ARM_XACRO, pose=([1, 0, 0], [1, 0, 0, 0]))  # the name is free again
+    assert world.removal_reason("hostile") is None
+
+
+def test_admission_refuses_what_would_harm_the_others(make_world):
+    from multiros.sim.errors import SpawnRefusedError
+    from multiros.sim.limits import DescriptionLimits
+
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    box = ('<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="0.05 0.05 0.05" '
+           'mass="{m}"/></body></worldbody></mujoco>')
+    cases = [("stiff", STIFF_HINGE, [2, 0, 0.5], "unstable"), ("through", box.format(m=1), [0.03, 0, 0.25], "overlap"),
+             ("above", box.format(m=1e4), [0.05, 0, 1.0], "landing")]
+    for name, text, position, reason in cases:
+        world.spawn(name, text, pose=(position, [1, 0, 0, 0]))
+        with pytest.raises(SpawnRefusedError) as info:
+            world.admit(name)
+        assert info.value.reason == reason and f"'{name}'" in str(info.value)
+        world.delete(name)
+    off = DescriptionLimits(trial_steps=0, max_penetration=float("inf"), max_load_ratio=float("inf"))
+    for name, text, position, _ in cases:  # each check can be turned off
+        world.spawn(name, text, pose=(position, [1, 0, 0, 0]))
+        world.admit(name, off)
+        world.delete(name)
+
+
 def test_realtime_runner_paces_and_stops(arm_world):
     chunks = []
     done = threading.Event()

@@ -20,7 +20,8 @@ option                     environment variable                  meaning
 ``auth_dictionary``        ``UNIROS_ZENOH_AUTH_DICTIONARY``      file of ``user:password`` lines that
                                                                  incoming connections must match
 ``access_control``         ``UNIROS_ZENOH_ACCESS_CONTROL``       JSON5 file with Zenoh's
-                                                                 ``access_control`` object (router)
+                                                                 ``access_control`` object (router
+                                                                 and session)
 =========================  ====================================  =====================================
 
 Lists are comma-separated in variables. Endpoints are Zenoh locators: ``tcp/10.0.0.5:7447``,
@@ -195,13 +196,14 @@ class NetworkSettings:
             config.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(self.auth_dictionary))
 
     def apply_to_session(self, config: zenoh.Config, router_endpoint: str, *, defaults: bool) -> None:
-        """Set endpoints (only when ``defaults``: no user config file), TLS and authentication."""
+        """Set endpoints (only when ``defaults``: no user config file), TLS, authentication and access control."""
         if defaults:
             config.insert_json5("connect/endpoints", json.dumps(_unique((router_endpoint, *self.connect))))
             config.insert_json5("listen/endpoints", json.dumps(list(self.listen)))
         elif self.connect:
             config.insert_json5("connect/endpoints", json.dumps(list(self.connect)))
         self._apply_common(config)
+        self._apply_access_control(config)
 
     def apply_to_router(self, config: zenoh.Config, router_endpoint: str, *, defaults: bool) -> None:
         """Set the router's endpoints, TLS, authentication and access control."""
@@ -214,6 +216,11 @@ class NetworkSettings:
             if self.router_connect:
                 config.insert_json5("connect/endpoints", json.dumps(list(self.router_connect)))
         self._apply_common(config)
+        self._apply_access_control(config)
+
+    def _apply_access_control(self, config: zenoh.Config) -> None:
+        # Peers exchange data directly (the router relays nothing between them), so the rules
+        # must hold in every session that serves something, not only in the router.
         if self.access_control:
             text = Path(self.access_control).read_text(encoding="utf-8")
             try:

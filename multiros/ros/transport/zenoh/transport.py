@@ -26,6 +26,7 @@ import zenoh.ext as zext
 
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError, TransportError
 from multiros.ros.graph import CLIENT, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
+from multiros.ros.logging import LogThrottle
 from multiros.ros.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from multiros.ros.task import Future
 from multiros.ros.transport.base import Transport
@@ -394,6 +395,7 @@ class _SubscriptionHandle(_Token):
         self.key = key
         self._session = transport.session
         self._inline = False
+        self._drops = LogThrottle()  # a flood of bad samples logs a few lines, then one per interval
         self._sub = self._declare(self._on_sample)
         super().__init__(transport, token_key)
 
@@ -423,13 +425,15 @@ class _SubscriptionHandle(_Token):
     def _on_sample(self, sample: zenoh.Sample) -> None:
         att = sample.attachment
         if att is None:
-            _log.warning("dropped a sample on '%s': no attachment (rmw_zenoh requires one)", self.key)
+            self._drops.log(_log, logging.WARNING, "dropped a sample on '%s': no attachment (rmw_zenoh requires one)",
+                            self.key)
             return
         try:
             wire.decode_attachment(att.to_bytes())
             msg = self._codec.deserialize(sample.payload.to_bytes(), self._msg_type)
         except Exception as exc:  # noqa: BLE001 - anything from the wire may be garbage
-            _log.warning("dropped a malformed sample on '%s': %s: %s", self.key, type(exc).__name__, str(exc))
+            self._drops.log(_log, logging.WARNING, "dropped a malformed sample on '%s': %s: %s", self.key,
+                            type(exc).__name__, str(exc))
             return
         self._sub_entity._enqueue(msg)
 
@@ -444,6 +448,7 @@ class _ServiceHandle(_Token):
         self._request_type = srv.srv_type.Request
         self._fmt = transport.settings.attachment_format
         self.key = key
+        self._drops = LogThrottle()
         # complete=True: rmw_zenoh clients query with target ALL_COMPLETE.
         self._queryable = transport.session.declare_queryable(key, self._on_query, complete=True)
         super().__init__(transport, token_key)
@@ -472,7 +477,8 @@ class _ServiceHandle(_Token):
                 raise ValueError("request has no payload")
             request = self._codec.deserialize(payload.to_bytes(), self._request_type)
         except Exception as exc:  # noqa: BLE001 - garbage from the wire must not kill the node
-            _log.warning("service '%s': dropped a malformed request: %s: %s", name, type(exc).__name__, str(exc))
+            self._drops.log(_log, logging.WARNING, "service '%s': dropped a malformed request: %s: %s", name,
+                            type(exc).__name__, str(exc))
             _reply_err(query, f"service '{name}': malformed request: {exc}")
             return False
         try:

@@ -1,0 +1,267 @@
+"""What a hostile (or careless) neighbour can do to a victim robot on one simulation node, measured.
+
+Each attack runs against a victim RX200 holding its initial pose and prints what the victim sees:
+
+* ``stiff``: an MJCF hinge with stiffness=1000, springref=0.5 on a 1 g capsule, 2 m away (inside
+  every description limit): is it refused at spawn, and do the victim's steps still succeed, advance
+  time, and cost what they cost before?
+* ``stiff_late``: the same hinge on a node whose spawn trial is off (``trial_steps=0``), standing in
+  for an entity whose physics fails only later: what the victim's steps see then.
+* ``overlap``: a 100 kg box spawned through the victim's forearm: refused, or how far is the arm thrown?
+* ``drop``: a 100 t box spawned 1 m above the victim: refused, or how far is the arm thrown?
+* ``flood``: 4 attackers, each its own Zenoh session, sending ``StepSimulation`` with the node's
+  maximum step count back to back while the victim calls ``StepRobot`` (10 steps): the victim's
+  latency (median, 95th percentile) against the same calls alone.
+* ``intruder``: an owner's ``sim_mode="process"`` node; another local process finds the private
+  router's port (and every port the owner and its child listen on, as ``ss -ltnp`` shows them)
+  and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
+  ``DeleteEntity(rx200)``: answered or refused?
+
+    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood intruder]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import struct
+import threading
+import time
+
+import numpy as np
+import zenoh
+
+from multiros.ros import Context, Node
+from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
+from multiros.sim.client import SimulationClient, SimulationServiceError
+from multiros.sim.distro_adapters import get_service
+from multiros.sim.launch import compose, connect, free_loopback_endpoint
+from multiros.sim.limits import DescriptionLimits
+
+RX200 = ("package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
+         "&__controllers=joint_state_broadcaster,arm_position_controller")
+ARM = "arm_position_controller"
+HOLD = [0.0, 0.0, 0.0, 0.0, 0.0]
+STIFF = """<mujoco><worldbody><body name="b"><joint name="hinge" type="hinge" axis="0 1 0" stiffness="1000"
+ springref="0.5"/><geom type="capsule" size="0.01 0.05" mass="0.001"/></body></worldbody></mujoco>"""
+BOX = """<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="{h} {h} {h}" mass="{m}"/>
+</body></worldbody></mujoco>"""
+DOMAIN = 57
+
+
+def _victim(ctx: Context, **node_kwargs: object) -> tuple[object, SimulationClient]:
+    sim = compose("mujoco_sim", context=ctx, spin_topics=False, **node_kwargs)
+    client = SimulationClient(Node("victim", context=ctx), "/mujoco_sim", timeout_sec=60.0)
+    client.wait_until_ready(20.0)
+    client.spawn_entity("rx200", uri=RX200)
+    client.step_robot("rx200", {ARM: HOLD}, 200)
+    return sim, client
+
+
+def _spawn(client: SimulationClient, name: str, text: str, position: tuple[float, float, float]) -> str:
+    try:
+        client.spawn_entity(name, resource_string=text, position=position)
+        return "spawned"
+    except SimulationServiceError as exc:
+        return f"REFUSED ({exc.message[:160]})"
+
+
+def attack_stiff(late: bool = False) -> None:
+    ctx = Context(transport="inproc").init()
+    try:
+        _, client = _victim(ctx, **({"description_limits": DescriptionLimits(trial_steps=0)} if late else {}))
+        t0 = time.perf_counter()
+        for _ in range(50):
+            client.step_robot("rx200", {ARM: HOLD}, 10)
+        alone = (time.perf_counter() - t0) / 50
+        outcome = _spawn(client, "hostile", STIFF, (2.0, 0.0, 0.5))
+        failed, start_time = 0, None
+        t0 = time.perf_counter()
+        for i in range(50):
+            if i == 25:
+                client.reset_simulation(3)  # TIME | STATE: what an env's reset does
+            try:
+                state = client.step_robot("rx200", {ARM: HOLD}, 10)
+                start_time = state.sim_time if start_time is None else start_time
+            except SimulationServiceError:
+                failed += 1
+        per_call = (time.perf_counter() - t0) / 50
+        sim_time = client.step_robot("rx200", {ARM: HOLD}, 0).sim_time
+        entities = client.get_entities()
+        what = "stiff hinge (no spawn trial)" if late else "stiff hinge"
+        print(f"{what}: spawn {outcome}; victim steps failed {failed}/50 (one reset after 25); "
+              f"sim time after {sim_time:.3f} s; {per_call * 1e3:.2f} ms per call vs {alone * 1e3:.2f} ms alone "
+              f"({per_call / alone:.1f}x); entities {entities}")
+    finally:
+        ctx.try_shutdown()
+
+
+def _thrown(name: str, text: str, position: tuple[float, float, float]) -> None:
+    ctx = Context(transport="inproc").init()
+    try:
+        _, client = _victim(ctx)
+        before = np.array(client.step_robot("rx200", {ARM: HOLD}, 0).position[:5])
+        outcome = _spawn(client, name, text, position)
+        worst = 0.0
+        for _ in range(100):  # 0.2 s held at the initial pose
+            state = client.step_robot("rx200", {ARM: HOLD}, 10)
+            worst = max(worst, float(np.max(np.abs(np.array(state.position[:5]) - before))))
+        print(f"{name}: spawn {outcome}; victim arm thrown up to {worst:.3f} rad from its held pose in 2 s")
+    finally:
+        ctx.try_shutdown()
+
+
+def attack_overlap() -> None:
+    _thrown("overlap_box", BOX.format(h=0.05, m=100.0), (0.2, 0.0, 0.3))
+
+
+def attack_drop() -> None:
+    _thrown("heavy_box", BOX.format(h=0.1, m=1e5), (0.2, 0.0, 1.3))
+
+
+class _RawPeer:
+    """A foreign rmw_zenoh client: a plain zenoh session, hand-made keys and attachments."""
+
+    def __init__(self, endpoint: str, domain: int, user: str | None = None, password: str | None = None) -> None:
+        config = zenoh.Config()
+        config.insert_json5("mode", '"peer"')
+        config.insert_json5("connect/endpoints", json.dumps([endpoint]))
+        config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+        config.insert_json5("scouting/multicast/enabled", "false")
+        if user is not None:
+            config.insert_json5("transport/auth/usrpwd/user", json.dumps(user))
+            config.insert_json5("transport/auth/usrpwd/password", json.dumps(password))
+        self.session = zenoh.open(config)
+        self.domain = domain
+        self.seq = 0
+
+    def call(self, node: str, service: str, type_name: str, timeout: float = 5.0, **fields: object) -> object:
+        srv = get_service(type_name)
+        key = f"{self.domain}/{node}/{service}/{dds_type_name(type_name)}/{type_hash(srv)}"
+        self.seq += 1
+        attachment = struct.pack("<qqB", self.seq, time.time_ns(), 16) + bytes(range(16))
+        replies = list(self.session.get(key, payload=serialize_message(srv.Request(**fields)), attachment=attachment,
+                                        target=zenoh.QueryTarget.ALL_COMPLETE, timeout=timeout))
+        if not replies or replies[0].ok is None:
+            return None
+        return deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response)
+
+    def close(self) -> None:
+        self.session.close()
+
+
+def attack_flood(attackers: int = 4, seconds: float = 4.0) -> None:
+    endpoint = free_loopback_endpoint()
+    ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
+    peers: list[_RawPeer] = []
+    stop = threading.Event()
+    try:
+        sim = compose("mujoco_sim", context=ctx, spin_topics=False)
+        victim_ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none",
+                             router_endpoint=endpoint).init()
+        client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
+        client.wait_until_ready(20.0)
+        client.spawn_entity("rx200", uri=RX200)
+
+        def victim_latencies(duration: float) -> np.ndarray:
+            lat, end = [], time.monotonic() + duration
+            while time.monotonic() < end:
+                t = time.perf_counter()
+                client.step_robot("rx200", {ARM: HOLD}, 10)
+                lat.append(time.perf_counter() - t)
+            return np.array(lat)
+
+        alone = victim_latencies(1.0)
+        peers = [_RawPeer(endpoint, DOMAIN) for _ in range(attackers)]
+        answered = [0] * attackers
+
+        def attack(i: int) -> None:
+            while not stop.is_set():
+                if peers[i].call("mujoco_sim", "step_simulation", "simulation_interfaces/srv/StepSimulation",
+                                 timeout=60.0, steps=sim.max_steps_per_call) is not None:
+                    answered[i] += 1
+
+        threads = [threading.Thread(target=attack, args=(i,), daemon=True) for i in range(attackers)]
+        for t in threads:
+            t.start()
+        time.sleep(0.5)  # the attackers' first calls are in
+        busy = victim_latencies(seconds)
+        stop.set()
+        for t in threads:
+            t.join(timeout=120)
+        print(f"flood: {attackers} attackers x StepSimulation({sim.max_steps_per_call}); victim StepRobot(10) "
+              f"median {np.median(busy) * 1e3:.2f} ms, p95 {np.percentile(busy, 95) * 1e3:.2f} ms, "
+              f"{len(busy)} calls in {seconds:g} s (alone: median {np.median(alone) * 1e3:.2f} ms); attackers' "
+              f"calls answered {sum(answered)}")
+        client.close()
+        victim_ctx.try_shutdown()
+    finally:
+        stop.set()
+        for p in peers:
+            p.close()
+        ctx.try_shutdown()
+
+
+def _listening_ports(pid: int) -> set[int]:
+    """Loopback TCP ports a process listens on, as ``ss -ltnp`` shows them to anyone on the machine."""
+    inodes = set()
+    for fd in os.listdir(f"/proc/{pid}/fd"):
+        try:
+            link = os.readlink(f"/proc/{pid}/fd/{fd}")
+        except OSError:
+            continue
+        if link.startswith("socket:["):
+            inodes.add(link[len("socket:["):-1])
+    with open("/proc/net/tcp") as f:
+        rows = [line.split() for line in f.readlines()[1:]]
+    return {int(r[1].split(":")[1], 16) for r in rows if r[3] == "0A" and r[9] in inodes}
+
+
+def attack_intruder() -> None:
+    conn = connect("process", timeout_sec=60.0)
+    try:
+        conn.client.spawn_entity("rx200", uri=RX200)
+        domain = conn.context.domain_id
+        assert conn.pid is not None
+        ports = sorted(_listening_ports(conn.pid) | _listening_ports(os.getpid()))
+        outcomes = []
+        for port in ports:
+            intruder = None
+            try:
+                intruder = _RawPeer(f"tcp/127.0.0.1:{port}", domain)
+                listed, deadline = None, time.monotonic() + 3.0
+                while listed is None and time.monotonic() < deadline:  # the node's services reach it in ms, if ever
+                    listed = intruder.call("mujoco_sim", "get_entities", "simulation_interfaces/srv/GetEntities",
+                                           timeout=0.5)
+                deleted = intruder.call("mujoco_sim", "delete_entity", "simulation_interfaces/srv/DeleteEntity",
+                                        timeout=2.0, entity="rx200")
+                seen = "no answer" if listed is None else f"answered {list(listed.entities)}"
+                done = "no answer" if deleted is None else f"result {deleted.result.result}"
+            except Exception as exc:  # noqa: BLE001 - a refused session is the defence
+                seen = done = f"session refused ({type(exc).__name__})"
+            finally:
+                if intruder is not None:
+                    intruder.close()
+            outcomes.append(f"port {port}: GetEntities {seen}, DeleteEntity(rx200) {done}")
+        owner = conn.client.get_entities()
+        print(f"intruder without the secret at the {len(ports)} listening ports of the owner and its child: "
+              f"{'; '.join(outcomes)}; the owner sees {owner}")
+    finally:
+        conn.close()
+
+
+ATTACKS = {"stiff": attack_stiff, "stiff_late": lambda: attack_stiff(late=True), "overlap": attack_overlap,
+           "drop": attack_drop, "flood": attack_flood, "intruder": attack_intruder}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--attacks", nargs="+", choices=sorted(ATTACKS), default=list(ATTACKS))
+    args = parser.parse_args()
+    for name in args.attacks:
+        ATTACKS[name]()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,100 @@
+"""Node loggers leave nothing behind, and warnings about wire garbage are rate-limited."""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import pytest
+from raw_zenoh import open_peer_session
+
+from multiros import ros
+from multiros.ros.interfaces import get_message
+from multiros.ros.logging import LogThrottle
+from multiros.ros.transport.zenoh import wire
+
+String = get_message("std_msgs/msg/String")
+STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_throttle_logs_a_burst_then_one_line_per_interval_with_the_count(caplog) -> None:
+    clock = FakeClock()
+    throttle = LogThrottle(burst=3, interval_sec=10.0, clock=clock)
+    log = logging.getLogger("test.throttle")
+    with caplog.at_level(logging.WARNING, logger="test.throttle"):
+        logged = [throttle.log(log, logging.WARNING, "bad sample %d", i) for i in range(100)]
+        assert logged[:3] == [True] * 3 and not any(logged[3:])
+        clock.now = 10.5
+        assert throttle.log(log, logging.WARNING, "bad sample %d", 100)
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines[:2] == ["bad sample 0", "bad sample 1"]
+    assert "at most one line per 10 s" in lines[2]
+    assert lines[3] == "bad sample 100 (97 more like this since the last line were not logged)"
+    assert throttle.seen == 101
+    with pytest.raises(ValueError):
+        LogThrottle(interval_sec=0)
+
+
+def test_nodes_with_fresh_names_leave_no_logger_behind() -> None:
+    manager = logging.Logger.manager
+    with ros.Context(transport="inproc", env={}) as ctx:
+        before = set(manager.loggerDict)
+        for i in range(50):
+            node = ros.Node(f"env_{i}", context=ctx, namespace="/ns" if i % 2 else "/")
+            node.get_logger().info("hello")
+            node.destroy_node()
+        assert set(manager.loggerDict) - before == set()  # nor placeholders of namespaces (ros.ns)
+        # A logger someone configured stays, with its configuration, for the next node of that name.
+        configured = logging.getLogger("ros.configured")
+        configured.setLevel(logging.ERROR)
+        node = ros.Node("configured", context=ctx)
+        node.destroy_node()
+        assert manager.loggerDict.get("ros.configured") is configured
+        # Two nodes of one name share the logger until both are gone.
+        a, b = ros.Node("twin", context=ctx), ros.Node("twin", context=ctx)
+        a.destroy_node()
+        assert "ros.twin" in manager.loggerDict
+        b.destroy_node()
+        assert "ros.twin" not in manager.loggerDict
+
+
+@pytest.mark.slow
+def test_a_flood_of_malformed_samples_logs_a_few_lines(caplog, router_endpoint: str) -> None:
+    """Hundreds of bad samples from a foreign peer: a handful of warning lines, not one per sample."""
+    with ros.Context(transport="zenoh", env={}, router_endpoint=router_endpoint) as ctx:
+        node = ros.Node("victim", context=ctx)
+        got = []
+        node.create_subscription(String, "/flood", got.append, 10)
+        topic = f"0/flood/std_msgs::msg::dds_::String_/{STRING_HASH}"
+        good_att = wire.encode_attachment(1, 0, bytes(16))
+        valid = b"\x00\x01\x00\x00\x03\x00\x00\x00ok\x00"  # CDR of String(data="ok")
+        peer = open_peer_session(router_endpoint)
+        try:
+            executor = ros.SingleThreadedExecutor(context=ctx)
+            executor.add_node(node)
+            deadline = time.monotonic() + 10.0
+            while not got and time.monotonic() < deadline:  # the peer's samples reach the node
+                peer.put(topic, valid, attachment=good_att)
+                executor.spin_once(0.05)
+            assert got, "the foreign peer's samples never arrived"
+            with caplog.at_level(logging.WARNING, logger="multiros.ros.transport.zenoh.transport"):
+                for i in range(300):
+                    peer.put(topic, b"\xff" * (i % 7), attachment=good_att if i % 2 else None)
+                got.clear()
+                deadline = time.monotonic() + 10.0
+                while not got and time.monotonic() < deadline:  # samples arrive in order: all 300 were handled
+                    peer.put(topic, valid, attachment=good_att)
+                    executor.spin_once(0.05)
+            assert got
+            dropped = [r for r in caplog.records if "dropped" in r.getMessage()]
+            assert 1 <= len(dropped) <= 6, [r.getMessage() for r in dropped]
+        finally:
+            peer.close()
