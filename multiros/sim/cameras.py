@@ -317,9 +317,8 @@ class CameraHub:
     # -- images -------------------------------------------------------------------------------
     def _state_key(self, renderer: Any) -> tuple:
         data = self._node.world.data
-        markers = tuple(sorted(renderer.markers.items()))
         return (self._node.world.time, data.qpos.tobytes(), data.mocap_pos.tobytes(), data.mocap_quat.tobytes(),
-                markers, id(self._node.world.model))
+                id(self._node.world.model))
 
     def _image(self, camera: str, width: int, height: int, depth: bool) -> np.ndarray:
         """One image of the world's current state, rendered at most once per state (caller holds the
@@ -332,7 +331,7 @@ class CameraHub:
                 self._cache = _Cache(key)
             image = self._cache.images.get(slot)
         if image is None:
-            image = renderer.render(camera, width=width, height=height, depth=depth, fast=self.fast)
+            image = renderer.render(camera, width=width, height=height, depth=depth, fast=self.fast, markers=False)
             image.flags.writeable = False
             with self._cache_lock:
                 if self._cache.key == key:

@@ -229,7 +229,7 @@ class Renderer:
         return int(camera)
 
     def render(self, camera: str | int | FreeCamera | None = None, *, width: int = 640, height: int = 480,
-               depth: bool = False, fast: bool = False) -> np.ndarray:
+               depth: bool = False, fast: bool = False, markers: bool = True) -> np.ndarray:
         """Render one image.
 
         Args:
@@ -238,6 +238,7 @@ class Renderer:
             depth: return depth in metres (float32, HxW) instead of RGB (uint8, HxWx3).
             fast: no shadows, no reflections, no multisampling (what a camera sensor's observations
                 need; in software GL a tenth of the cost, ``benchmarks/bench_camera_cost.py``).
+            markers: draw the goal markers (a camera sensor does not: a real camera sees none).
         """
         r = self._renderer(width, height, fast)
         self.world.sync_kinematics()  # the image shows the joint state, not one physics step before it
@@ -245,7 +246,8 @@ class Renderer:
         if fast:
             r.scene.flags[int(mujoco.mjtRndFlag.mjRND_SHADOW)] = 0
             r.scene.flags[int(mujoco.mjtRndFlag.mjRND_REFLECTION)] = 0
-        self.add_markers_to_scene(r.scene)
+        if markers:
+            self.add_markers_to_scene(r.scene)
         try:
             if depth:
                 r.enable_depth_rendering()
