@@ -14,6 +14,9 @@ image with batch 256 took over a second per step here, so the default image is 4
 * ``pixels``: ``rgb_obs_only=True``: ``observation`` is the camera's RGB image (``--size`` pixels a
   side, uint8), so the arm's configuration comes from pixels only;
   ``achieved_goal`` (the EE position) and ``desired_goal`` stay vectors, as HER needs them.
+* ``pixels_blind``: as ``pixels``, but the policy and critics do not see ``achieved_goal`` (HER
+  still relabels with it): where the gripper is must be read from the image. ``pixels`` can learn
+  from its two vectors alone (EE position and goal), so only this run shows learning from pixels.
 
 Every ``--eval-every`` env steps: success rate over ``--eval-episodes`` deterministic episodes, and
 the wall clock (training only, evaluation excluded). Prints a table per run, writes ``--json``.
@@ -41,7 +44,7 @@ def make_env(run: str, size: int, seed: int) -> Any:
     import uniros
 
     kwargs: dict[str, Any] = {"seed": seed}
-    if run == "pixels":
+    if run != "state":
         kwargs.update(rgb_obs_only=True, image_width=size, image_height=size)
     return uniros.make(ENV_ID, **kwargs)
 
@@ -69,6 +72,20 @@ def train(run: str, args: argparse.Namespace) -> dict[str, Any]:
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize, VecTransposeImage
 
     torch.set_num_threads(1)
+    extractor: dict[str, Any] = {}
+    if run == "pixels_blind":
+        from stable_baselines3.common.torch_layers import CombinedExtractor
+
+        class WithoutAchievedGoal(CombinedExtractor):
+            """SB3's extractor over every key but ``achieved_goal``."""
+
+            def __init__(self, observation_space: Any, **kwargs: Any) -> None:
+                from gymnasium import spaces
+
+                seen = {k: v for k, v in observation_space.spaces.items() if k != "achieved_goal"}
+                super().__init__(spaces.Dict(seen), **kwargs)
+
+        extractor = {"features_extractor_class": WithoutAchievedGoal}
     train_env = make_env(run, args.size, args.seed)
     eval_env = make_env(run, args.size, args.seed + 10_000)
     # Images channel-first below the normaliser (SB3 stores the normaliser's original observations).
@@ -80,12 +97,14 @@ def train(run: str, args: argparse.Namespace) -> dict[str, Any]:
                 learning_rate=1e-3, buffer_size=args.buffer, batch_size=args.batch, gamma=0.95, tau=0.005,
                 learning_starts=args.learning_starts, ent_coef="auto", train_freq=1, gradient_steps=1,
                 policy_kwargs={"net_arch": [64, 64], "share_features_extractor": True,
-                               "features_extractor_kwargs": {"cnn_output_dim": 64}},
+                               "features_extractor_kwargs": {"cnn_output_dim": 64}, **extractor},
                 seed=args.seed, verbose=0, device="cpu")
     curve: list[dict[str, float]] = []
     trained = 0.0
     steps = 0
-    print(f"\n{run}: {ENV_ID}{' rgb_obs_only ' + str(args.size) + 'x' + str(args.size) if run == 'pixels' else ''}")
+    seen = f" rgb_obs_only {args.size}x{args.size}" if run != "state" else ""
+    seen += " (policy without achieved_goal)" if run == "pixels_blind" else ""
+    print(f"\n{run}: {ENV_ID}{seen}")
     print(f"{'steps':>7} {'success':>8} {'train s':>8} {'ms/step':>8}")
     try:
         while steps < args.steps:
@@ -119,7 +138,7 @@ def _save(path: str, run: str, curve: list[dict[str, float]]) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--runs", nargs="+", default=["state", "pixels"], choices=["state", "pixels"])
+    parser.add_argument("--runs", nargs="+", default=["state", "pixels"], choices=["state", "pixels", "pixels_blind"])
     parser.add_argument("--steps", type=int, default=20_000, help="env steps per run")
     parser.add_argument("--size", type=int, default=48, help="image side in pixels (pixels run)")
     parser.add_argument("--buffer", type=int, default=50_000,

@@ -30,10 +30,14 @@ Action = np.ndarray
 
 def _parts(obs: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """EE position, object position, finger positions and goal from a goal dict or a plain observation."""
-    if isinstance(obs, dict):
-        o, goal = np.asarray(obs["observation"], dtype=np.float64), np.asarray(obs["desired_goal"], dtype=np.float64)
+    state = obs["observation"] if isinstance(obs, dict) else obs  # a camera env's state is "observation"
+    o = np.asarray(state, dtype=np.float64)
+    if o.ndim != 1:
+        raise ValueError("the scripted policies read the state observation; a camera env needs it next to "
+                         "the images (rgb_plus_normal_obs or rgb_plus_depth_plus_normal_obs)")
+    if isinstance(obs, dict) and "desired_goal" in obs:
+        goal = np.asarray(obs["desired_goal"], dtype=np.float64)
     else:
-        o = np.asarray(obs, dtype=np.float64)
         goal = o[-6:-3]  # a plain observation ends with the goal and goal minus object
     return o[0:3], o[3:6], o[9:11], goal
 
@@ -121,6 +125,15 @@ def run_episode(env: Any, policy: Callable[[Any], Action], seed: int | None = No
             "truncated_reason": info.get("truncated_reason")}
 
 
+def _as_stored(value: Any, space: Any) -> np.ndarray:
+    """One observation part as the buffer stores it: a batch of one, camera images channel-first
+    when the model's space is (SB3's CNNs; the env gives H x W x C)."""
+    v = np.asarray(value)
+    if v.ndim == 3 and v.shape != space.shape and (v.shape[2], v.shape[0], v.shape[1]) == space.shape:
+        v = np.transpose(v, (2, 0, 1))
+    return v[None]
+
+
 def fill_replay_buffer(model: Any, env: Any, episodes: int, seed: int = 0) -> dict[str, float]:
     """Add ``episodes`` scripted episodes to an SB3 off-policy model's replay buffer.
 
@@ -141,8 +154,9 @@ def fill_replay_buffer(model: Any, env: Any, episodes: int, seed: int = 0) -> di
     def add(obs: Any, next_obs: Any, action: Any, reward: float, terminated: bool, truncated: bool,
             info: dict[str, Any]) -> None:
         nonlocal transitions
-        wrap = (lambda o: {k: np.asarray(v)[None] for k, v in o.items()}) if isinstance(obs, dict) else (
-            lambda o: np.asarray(o)[None])
+        space = buffer.observation_space
+        wrap = (lambda o: {k: _as_stored(v, space[k]) for k, v in o.items()}) if isinstance(obs, dict) else (
+            lambda o: _as_stored(o, space))
         info = dict(info)
         if truncated and not terminated:
             info["TimeLimit.truncated"] = True

@@ -24,9 +24,11 @@ def model_spaces(model_path: str | Path) -> tuple[Any, Any]:
 
 def check_model_spaces(model_path: str | Path, env: Any, env_id: str = "") -> None:
     """Raise :class:`SpaceMismatchError` naming the difference unless ``env``'s spaces equal the model's."""
+    from uniros.image_spaces import channel_first_space
+
     obs, act = model_spaces(model_path)
     problems = []
-    if obs != env.observation_space:
+    if obs != channel_first_space(env.observation_space):  # the model holds images channel-first
         problems.append(f"observation space: model {obs}, env {env.observation_space}")
     if act != env.action_space:
         problems.append(f"action space: model {act}, env {env.action_space}")

@@ -37,6 +37,7 @@ from uniros.checkpoints import (
     save_model_with_stats,
 )
 from uniros.evaluation import EVAL_SEED, evaluate
+from uniros.image_spaces import channel_first_space, images_channel_first, vector_keys
 from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError
 
@@ -149,6 +150,8 @@ def spaces_mismatch(model_path: Path, env: Any) -> str | None:
     data, _, _ = load_from_zip_file(str(model_path), load_data=True, device="cpu")
     for name in ("observation_space", "action_space"):
         saved, current = (data or {}).get(name), getattr(env, name)
+        if name == "observation_space":  # the model holds camera images channel-first
+            current = channel_first_space(current)
         if saved is not None and saved != current:
             return (f"{model_path} was trained with {name} {saved}, but the env has {current}: "
                     "evaluate it on the env ID and env kwargs it was trained with")
@@ -317,8 +320,12 @@ class Session:
                        override_existing=fresh)
 
     def _vec(self, venv: Any, *, training: bool, stats: Path | None = None) -> Any:
+        """The training env as the model sees it: camera images channel-first (below the normaliser,
+        so that HER's buffer holds them as the model's space says), then the normaliser, which
+        leaves images out."""
         from stable_baselines3.common.vec_env import VecNormalize
 
+        venv = images_channel_first(venv)
         if not self.config.normalize:
             return venv
         gamma = float(self.config.algo_params.get("gamma", 0.99))
@@ -326,7 +333,8 @@ class Session:
             norm = VecNormalize.load(str(stats), venv)
             norm.training = training
         else:
-            norm = VecNormalize(venv, gamma=gamma, norm_reward=False, training=training)
+            norm = VecNormalize(venv, gamma=gamma, norm_reward=False, training=training,
+                                norm_obs_keys=vector_keys(venv.observation_space))
         return norm
 
     def _logger(self) -> None:

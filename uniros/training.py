@@ -671,7 +671,9 @@ def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None) -
 
     normalizer = None
     stats = find_normalizer(model_path)
-    venv = DummyVecEnv([lambda: env])
+    from uniros.image_spaces import images_channel_first
+
+    venv = images_channel_first(DummyVecEnv([lambda: env]))
     if stats is not None:
         try:
             normalizer = VecNormalize.load(str(stats), venv)

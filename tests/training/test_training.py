@@ -41,7 +41,8 @@ def test_rl_zoo3_hyperparameters_cover_every_simulated_id():
         data = yaml.safe_load(folder.joinpath(f"{algo}.yml").read_text())
         assert set(data) == set(rl_environments.ENV_IDS), algo
         for env_id, params in data.items():
-            assert params["policy"] == ("MultiInputPolicy" if env_id in rl_environments.GOAL_ENV_IDS else "MlpPolicy")
+            dict_obs = env_id in rl_environments.GOAL_ENV_IDS or env_id in rl_environments.CAMERA_ENV_IDS
+            assert params["policy"] == ("MultiInputPolicy" if dict_obs else "MlpPolicy"), env_id
             assert ("replay_buffer_class" in params) == (env_id in rl_environments.GOAL_ENV_IDS)
 
 
