@@ -420,14 +420,26 @@ def shipped_config_ids() -> list[str]:
     return sorted(p.name[: -len(".yaml")] for p in root.iterdir() if p.name.endswith(".yaml"))
 
 
+def _simulated_twin(env_id: str) -> str | None:
+    """The simulated twin of a Real ID of rl_environments, if ``env_id`` is one."""
+    import rl_environments
+
+    return next((sim for sim, real in rl_environments.SIM_TO_REAL.items() if real == env_id), None)
+
+
 def default_config_for(env_id: str) -> TrainingConfig:
     """The training config uniros ships for ``env_id`` (``config/training/<env_id>.yaml``)."""
     bare = env_id.rpartition(":")[2]
     candidate = resources.files("rl_environments.config").joinpath("training", f"{bare}.yaml")
     if not candidate.is_file():
+        twin = _simulated_twin(bare)
+        if twin is not None:
+            raise TrainingConfigError(
+                f"no shipped training config for {env_id!r}: it drives a real robot. Train its simulated twin "
+                f"({twin}) and run the model here with `uniros eval {bare} MODEL`, or pass --config FILE")
         raise TrainingConfigError(
-            f"no shipped training config for {env_id!r}; shipped: {shipped_config_ids()}. Pass --config FILE"
-        )
+            f"no shipped training config for {env_id!r} (`uniros list` marks the IDs that have one). "
+            "Pass --config FILE")
     return load_training_config(Path(str(candidate)))
 
 
