@@ -30,7 +30,8 @@ import numpy as np
 
 from multiros.utils.kinematics import KinematicChain, quat_from_matrix
 
-__all__ = ["NED2TopDownIK", "NumericTopDownIK", "TopDownIK", "UR5eTopDownIK", "VX300STopDownIK", "top_down_ik"]
+__all__ = ["NED2TopDownIK", "NumericTopDownIK", "TopDownIK", "UR5eTopDownIK", "VX300STopDownIK", "solve_each",
+           "top_down_ik"]
 
 
 class TopDownIK(Protocol):
@@ -44,6 +45,18 @@ class TopDownIK(Protocol):
               q0: Sequence[float] | None = None) -> np.ndarray:
         """Joint targets (``joint_names`` order, within the limits) for the grasp point at ``target``."""
         ...
+
+    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
+                   q0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`solve` for N targets (N x 3), seeds ``q0`` (N x joints); N x joints."""
+        ...
+
+
+def solve_each(ik: TopDownIK, targets: np.ndarray, yaws: Sequence[float] | None = None,
+               q0: np.ndarray | None = None) -> np.ndarray:
+    """``solve_rows`` of an IK that solves one target at a time (iterative ones): row by row."""
+    return np.array([ik.solve(t, None if yaws is None else yaws[j], None if q0 is None else q0[j])
+                     for j, t in enumerate(np.asarray(targets, dtype=np.float64))])
 
 
 def _wrap(angle: float) -> float:
@@ -83,6 +96,11 @@ class VX300STopDownIK:
         self.upper = np.asarray(pkg.JOINT_UPPER if upper is None else upper, dtype=np.float64)
         self._a = float(np.hypot(*self.UPPER))
         self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
+
+    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
+                   q0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`solve` for N targets, row by row."""
+        return solve_each(self, targets, yaws, q0)
 
     def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
               q0: Sequence[float] | None = None) -> np.ndarray:
@@ -163,6 +181,11 @@ class NumericTopDownIK:
         # a right-handed frame: x = y cross z, y = z cross x, z = x cross y
         rot[:, third] = np.cross(a, c) if (self._approach + 1) % 3 == self._closing else np.cross(c, a)
         return rot
+
+    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
+                   q0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`solve` for N targets, row by row."""
+        return solve_each(self, targets, yaws, q0)
 
     def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
               q0: Sequence[float] | None = None) -> np.ndarray:

@@ -157,8 +157,7 @@ class _Common(CameraObservations, ManipulationTask):
     def _raw_and_faults(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
         """The raw observations, each env's faults noted in its info."""
         raw = cls.batch_raw_observation(envs, states)
-        for j, env in enumerate(envs):
-            env.check_faults(raw[j, 3:6])
+        cls.batch_check_faults(envs, raw[:, 3:6])
         return raw
 
 
@@ -265,8 +264,13 @@ class ArmGoalManipulationTask(_Common):
         tolerance = stack_rows(envs, "tolerance")
         success = distance <= tolerance
         n = len(envs)
-        reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], tolerance[j:j + 1], env.reward_type))[0]
-                           for j, env in enumerate(envs)], dtype=np.float64)
+        kinds = {env.reward_type for env in envs}
+        if len(kinds) == 1:
+            reward = np.asarray(reward_from_distance(distance, tolerance, kinds.pop()), dtype=np.float64)
+        else:
+            reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], tolerance[j:j + 1],
+                                                               env.reward_type))[0] for j, env in enumerate(envs)],
+                              dtype=np.float64)
         terminated = success & stack_rows(envs, "terminate_on_success").astype(bool)
         truncated = np.zeros(n, dtype=bool)
         for j, env in enumerate(envs):

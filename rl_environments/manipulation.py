@@ -24,6 +24,7 @@ __all__ = [
     "goal_reward",
     "is_success",
     "quat_to_euler",
+    "rotation_velocities",
     "rotation_velocity",
     "RewardType",
 ]
@@ -89,18 +90,32 @@ def quat_to_euler(q: np.ndarray) -> np.ndarray:
 
 def rotation_velocity(q0: np.ndarray, q1: np.ndarray, dt: float) -> np.ndarray:
     """World-frame angular velocity taking orientation ``q0`` to ``q1`` in ``dt`` seconds."""
-    w0, v0 = q0[0], -np.asarray(q0[1:])  # conjugate of q0
-    w1, v1 = q1[0], np.asarray(q1[1:])
+    return rotation_velocities(np.asarray(q0)[None], np.asarray(q1)[None], np.array([dt]))[0]
+
+
+def rotation_velocities(q0: np.ndarray, q1: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """World-frame angular velocities (N x 3) taking orientations ``q0`` to ``q1`` (N x 4, ``w, x, y,
+    z``) in ``dt`` seconds (N); zero where the rotation is below 1e-12 or ``dt <= 0``."""
+    q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
+    w0, v0 = q0[:, 0], -q0[:, 1:]  # conjugate of q0
+    w1, v1 = q1[:, 0], q1[:, 1:]
     # q1 * conj(q0): the world-frame rotation between them
-    w = w1 * w0 - v1 @ v0
-    v = w1 * v0 + w0 * v1 + np.cross(v1, v0)
-    if w < 0:
-        w, v = -w, -v
-    s = float(np.linalg.norm(v))
-    if s < 1e-12 or dt <= 0:
-        return np.zeros(3)
-    angle = 2.0 * np.arctan2(s, w)
-    return v / s * angle / dt
+    w = w1 * w0 - np.einsum("ij,ij->i", v1, v0)
+    c = np.empty_like(v1)  # v1 x v0
+    c[:, 0] = v1[:, 1] * v0[:, 2] - v1[:, 2] * v0[:, 1]
+    c[:, 1] = v1[:, 2] * v0[:, 0] - v1[:, 0] * v0[:, 2]
+    c[:, 2] = v1[:, 0] * v0[:, 1] - v1[:, 1] * v0[:, 0]
+    v = w1[:, None] * v0 + w0[:, None] * v1 + c
+    flip = w < 0
+    w = np.where(flip, -w, w)
+    v = np.where(flip[:, None], -v, v)
+    s = np.sqrt(np.einsum("ij,ij->i", v, v))
+    ok = (s >= 1e-12) & (np.asarray(dt) > 0)
+    out = np.zeros_like(v)
+    if ok.any():
+        angle = 2.0 * np.arctan2(s[ok], w[ok])
+        out[ok] = v[ok] / s[ok, None] * (angle / np.asarray(dt, dtype=np.float64)[ok])[:, None]
+    return out
 
 
 class RX200TopDownIK:
@@ -133,28 +148,35 @@ class RX200TopDownIK:
         ``yaw``: the direction (rad about +z) the fingers close along; None closes them across the
         radial direction (wrist_rotate 0). ``q0`` is not needed (closed form) and accepted as every
         arm's top-down IK takes it (:class:`rl_environments.arm_ik.TopDownIK`)."""
-        x, y, z = (float(v) for v in target)
-        waist = float(np.arctan2(y, x)) if np.hypot(x, y) > 1e-6 else 0.0
-        r = float(np.hypot(x, y))
+        return self.solve_rows(np.asarray(target, dtype=np.float64)[None], None if yaw is None else [yaw])[0]
+
+    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
+                   q0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`solve` for N targets (N x 3) at once, in one numpy pass (N x 5)."""
+        t = np.asarray(targets, dtype=np.float64)
+        x, y, z = t[:, 0], t[:, 1], t[:, 2]
+        r = np.hypot(x, y)
+        waist = np.where(r > 1e-6, np.arctan2(y, x), 0.0)
         dr, dz = r, z + self.TIP - self.SHOULDER_Z
         a, b = self._a, self.FOREARM
-        dist = float(np.hypot(dr, dz))
-        dist_c = min(max(dist, abs(a - b) + 1e-6), a + b - 1e-6)
-        if dist_c != dist and dist > 1e-9:
-            dr, dz = dr * dist_c / dist, dz * dist_c / dist
+        dist = np.hypot(dr, dz)
+        dist_c = np.minimum(np.maximum(dist, abs(a - b) + 1e-6), a + b - 1e-6)
+        scale = (dist_c != dist) & (dist > 1e-9)
+        ratio = np.divide(dist_c, dist, out=np.ones_like(dist), where=scale)
+        dr, dz = np.where(scale, dr * ratio, dr), np.where(scale, dz * ratio, dz)
         cos_rel = (dist_c**2 - a * a - b * b) / (2 * a * b)
-        rel = -float(np.arccos(np.clip(cos_rel, -1.0, 1.0)))  # elbow up: the forearm folds down
-        phi1 = float(np.arctan2(dz, dr) - np.arctan2(b * np.sin(rel), a + b * np.cos(rel)))
+        rel = -np.arccos(np.clip(cos_rel, -1.0, 1.0))  # elbow up: the forearm folds down
+        phi1 = np.arctan2(dz, dr) - np.arctan2(b * np.sin(rel), a + b * np.cos(rel))
         phi2 = phi1 + rel
         shoulder = self._alpha0 - phi1
         elbow = -phi2 - shoulder
         wrist = np.pi / 2 - shoulder - elbow
-        rotate = 0.0
-        if yaw is not None:  # wrist_rotate = 0 closes along waist + pi/2; +t turns that by -t about +z
-            rotate = float((waist + np.pi / 2 - yaw + np.pi) % (2 * np.pi) - np.pi)
-            if abs(rotate) > np.pi / 2:  # the same grasp half a turn round turns the wrist less
-                rotate = float((rotate + 2 * np.pi) % (2 * np.pi) - np.pi)
-        return np.clip(np.array([waist, shoulder, elbow, wrist, rotate]), self.lower, self.upper)
+        rotate = np.zeros_like(waist)
+        if yaws is not None:  # wrist_rotate = 0 closes along waist + pi/2; +t turns that by -t about +z
+            rotate = (waist + np.pi / 2 - np.asarray(yaws, dtype=np.float64) + np.pi) % (2 * np.pi) - np.pi
+            # the same grasp half a turn round turns the wrist less
+            rotate = np.where(np.abs(rotate) > np.pi / 2, (rotate + 2 * np.pi) % (2 * np.pi) - np.pi, rotate)
+        return np.clip(np.stack([waist, shoulder, elbow, wrist, rotate], axis=1), self.lower, self.upper)
 
 
 def object_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, threshold: float,

@@ -39,8 +39,8 @@ from multiros.envs.batch_task import BatchTask
 from multiros.robot_state import RobotStates
 from multiros.utils.ros_markers import goal_marker
 from rl_environments.arm_interface import ArmInterface
-from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, rotation_velocity, yaw_quat
-from rl_environments.reach_task import stack_rows
+from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, rotation_velocities, yaw_quat
+from rl_environments.reach_task import column, stack_rows
 
 TaskKind = Literal["push", "pnp"]
 
@@ -64,8 +64,9 @@ class ManipulationTask(BatchTask, ArmInterface):
     joint_targets: np.ndarray
     gripper_target: float
     _last: tuple[float, np.ndarray, np.ndarray, np.ndarray]
-    _vel: tuple[np.ndarray, np.ndarray, np.ndarray]
+    _vel: np.ndarray  # EE linear, object linear, object angular velocity (9)
     _episode_start: bool
+    ik_key: tuple[type, bytes, bytes]  # envs with equal keys solve a batch's IK in one call
 
     if TYPE_CHECKING:  # the simulated env core's, below the robot layer
         @property
@@ -92,8 +93,11 @@ class ManipulationTask(BatchTask, ArmInterface):
         self.tolerance = float(cfg["distance_threshold"] if distance_threshold is None else distance_threshold)
         self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
         self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
-        self.ik = type(self).top_down_ik(np.maximum(self.chain.lower, self.min_joint_pos),
-                                         np.minimum(self.chain.upper, self.max_joint_pos))
+        ik_lower = np.maximum(self.chain.lower, self.min_joint_pos)
+        ik_upper = np.minimum(self.chain.upper, self.max_joint_pos)
+        self.ik = type(self).top_down_ik(ik_lower, ik_upper)
+        # envs whose IKs are alike (same class and limits) solve a batch's targets in one call
+        self.ik_key = (type(self.ik), ik_lower.tobytes(), ik_upper.tobytes())
         base = self.base_position
         self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
         self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
@@ -161,9 +165,13 @@ class ManipulationTask(BatchTask, ArmInterface):
         current = cls.arm_positions_of(states)
         if all(env.ee_action_type for env in envs):
             ee = cls.ee_positions_of(envs, states)
-            targets = np.array([env.ik.solve(np.clip(ee[j] - env.base_position + actions[j, :3] * env.ee_delta_coeff,
-                                                     env.ee_low, env.ee_high), q0=current[j])
-                                for j, env in enumerate(envs)])
+            goals = np.clip(ee - stack_rows(envs, "base_position") + actions[:, :3] * column(envs, "ee_delta_coeff"),
+                            stack_rows(envs, "ee_low"), stack_rows(envs, "ee_high"))
+            key = envs[0].ik_key
+            if all(env.ik_key == key for env in envs):  # one arm, one set of limits: one pass
+                targets = envs[0].ik.solve_rows(goals, q0=current)
+            else:
+                targets = np.array([env.ik.solve(goals[j], q0=current[j]) for j, env in enumerate(envs)])
         elif not any(env.ee_action_type for env in envs):
             targets = current + actions[:, :-1] * stack_rows(envs, "delta_coeff")[:, None]
         else:
@@ -192,14 +200,7 @@ class ManipulationTask(BatchTask, ArmInterface):
         and each env's velocity tracking moved on to this state."""
         ee = cls.ee_positions_of(envs, states)
         obj, obj_q = cls.object_poses_of(envs, states)
-        t = cls.observation_time(envs, states)
-        vel = np.empty((len(envs), 9))
-        for j, env in enumerate(envs):
-            if env._episode_start:
-                env._episode_start = False
-                env._last = (t, ee[j].copy(), obj[j].copy(), obj_q[j].copy())
-                env._vel = (np.zeros(3), np.zeros(3), np.zeros(3))
-            vel[j] = np.concatenate(env._moved_to(t, ee[j], obj[j], obj_q[j]))
+        vel = cls.batch_velocities(envs, cls.observation_time(envs, states), ee, obj, obj_q)
         finger = cls.finger_index(states.names)
         arm = cls.arm_positions_of(states)
         return np.concatenate([ee, obj, obj - ee, states.position[:, finger], quat_to_euler(obj_q), vel[:, 3:6],
@@ -210,16 +211,31 @@ class ManipulationTask(BatchTask, ArmInterface):
         where = {name: i for i, name in enumerate(names)}
         return [where[f] for f in cls.FINGER_JOINTS]
 
-    def _moved_to(self, t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, ...]:
-        """EE linear, object linear and object angular velocity since the previous state (finite
-        differences over the sim time between them); the tracking moves on to this state."""
-        t0, ee0, p0, q0 = self._last
-        if t != t0:
-            dt = t - t0
-            self._vel = ((ee - ee0) / dt, (p - p0) / dt, rotation_velocity(q0, q, dt)) if dt > 0 else (
-                np.zeros(3), np.zeros(3), np.zeros(3))
-            self._last = (t, ee.copy(), p.copy(), q.copy())
-        return self._vel
+    @staticmethod
+    def batch_velocities(envs: Sequence[Any], t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """N envs' EE linear, object linear and object angular velocities (N x 9) since each env's
+        previous state (finite differences over the sim time between them, zero at an episode's first
+        state); each env's tracking moves on to this state (time ``t``, rows of ``ee``, ``p``, ``q``)."""
+        for j, env in enumerate(envs):
+            if env._episode_start:
+                env._episode_start = False
+                env._last = (t, ee[j].copy(), p[j].copy(), q[j].copy())
+                env._vel = np.zeros(9)
+        vel = np.stack([env._vel for env in envs])
+        moved = [j for j, env in enumerate(envs) if env._last[0] != t]
+        if moved:
+            dt = np.array([t - envs[j]._last[0] for j in moved])
+            ee0, p0, q0 = (np.stack([envs[j]._last[k] for j in moved]) for k in (1, 2, 3))
+            step = dt[:, None]
+            new = np.concatenate([(ee[moved] - ee0) / np.where(step > 0, step, 1.0),
+                                  (p[moved] - p0) / np.where(step > 0, step, 1.0),
+                                  rotation_velocities(q0, q[moved], dt)], axis=1)
+            new[dt <= 0] = 0.0
+            vel[moved] = new
+            for k, j in enumerate(moved):
+                envs[j]._vel = new[k]
+                envs[j]._last = (t, ee[j].copy(), p[j].copy(), q[j].copy())
+        return vel
 
     def object_position(self) -> np.ndarray:
         """World position of the object's centre after the last step."""
@@ -233,7 +249,7 @@ class ManipulationTask(BatchTask, ArmInterface):
         self._episode_start = False
         self._last = (type(self).observation_time([self], self.connection.states), self.ee_position(),
                       self.object_position(), self.object_orientation())
-        self._vel = (np.zeros(3), np.zeros(3), np.zeros(3))
+        self._vel = np.zeros(9)
 
     def raw_observation(self) -> np.ndarray:
         """Fetch's observation plus the arm joints (25 + arm joints values): EE position, object
@@ -264,14 +280,19 @@ class ManipulationTask(BatchTask, ArmInterface):
     def check_faults(self, obj: np.ndarray | None = None) -> None:
         """Set ``info["truncated_reason"]`` when the object fell off the table or left the arm's reach
         (``obj``: the object's position after the step, read from the state when not given)."""
-        if self.info.get("truncated_reason"):
-            return
-        base = self.base_position
-        rel = (self.object_position() if obj is None else obj) - base
-        if rel[2] + base[2] < self.table_top - float(self.cfg["fall_margin"]):
-            self.info["truncated_reason"] = "object_fell_off_table"
-        elif float(np.hypot(rel[0], rel[1])) > float(self.cfg["max_object_distance"]):
-            self.info["truncated_reason"] = "object_out_of_reach"
+        type(self).batch_check_faults([self], np.asarray(self.object_position() if obj is None else obj)[None])
+
+    @staticmethod
+    def batch_check_faults(envs: Sequence[Any], obj: np.ndarray) -> None:
+        """:meth:`check_faults` of N envs, their objects at the rows of ``obj`` (N x 3)."""
+        base = stack_rows(envs, "base_position")
+        rel = obj - base
+        fell = rel[:, 2] + base[:, 2] < np.array([env.table_top - float(env.cfg["fall_margin"]) for env in envs])
+        away = np.hypot(rel[:, 0], rel[:, 1]) > np.array([float(env.cfg["max_object_distance"]) for env in envs])
+        for j in np.flatnonzero(fell | away).tolist():
+            info = envs[j].info
+            if not info.get("truncated_reason"):
+                info["truncated_reason"] = "object_fell_off_table" if fell[j] else "object_out_of_reach"
 
     def object_goal_distance(self) -> float:
         """Distance of the object's centre from the goal."""
