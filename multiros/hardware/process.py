@@ -89,9 +89,10 @@ class FakeRobotProcess:
         finally:
             node.destroy_node()
 
-    def stop(self) -> None:
-        """Stop the child by PID (SIGINT, then SIGTERM, then SIGKILL, bounded waits)."""
-        stop_process(self.process)
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stop the child by PID: SIGINT, then SIGTERM, then SIGKILL, each given ``timeout`` seconds
+        (its clean shutdown takes well under a second on a quiet machine; a loaded one needs more)."""
+        stop_process(self.process, timeout=timeout)
         untrack_child(self.process)
 
     def __enter__(self) -> FakeRobotProcess:
