@@ -1,7 +1,7 @@
 """The config shipped for every simulated ID: each loads and its env takes its env kwargs; `uniros
 train ID` from the command line, a short run (200 steps) of the real thing, demonstrations, HER and
-camera images included, then `uniros eval` on it, for the RX200 and IRB120 IDs, one other arm and
-a Zed2 variant (the other arms' configs are the RX200's settings on the same tasks).
+camera images included, then `uniros eval` on it, for one ID of each kind of config (the other
+arms' configs are the RX200's settings on the same tasks).
 Whether the configs learn is benchmarks/bench_shipped_configs.py's job (hours for push)."""
 
 from __future__ import annotations
@@ -16,8 +16,10 @@ import uniros
 from uniros.cli import main as cli_main
 from uniros.train_config import default_config_for
 
-CLI_RUNS = [i for i in rl_environments.ENV_IDS if i.startswith(("RX200R", "RX200P", "ABBIRB120"))] + [
-    "VX300SPnPGoalSim-v0", "RX200Zed2ReacherGoalSim-v0"]
+# One run per kind of config (the main suite's time): HER with normalisation, plain SAC with the shaped
+# reward, FRobs_RL's IRB120, demonstrations without HER, demonstrations with HER on another arm, a camera.
+CLI_RUNS = ["RX200ReacherGoalSim-v0", "RX200ReacherSim-v0", "ABBIRB120ReacherEnv-v0", "RX200PushSim-v0",
+            "VX300SPnPGoalSim-v0", "RX200Zed2ReacherGoalSim-v0"]
 
 
 @pytest.mark.slow
