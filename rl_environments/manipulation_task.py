@@ -226,9 +226,8 @@ class ManipulationTask(BatchTask, ArmInterface):
         if moved:
             dt = np.array([t - envs[j]._last[0] for j in moved])
             ee0, p0, q0 = (np.stack([envs[j]._last[k] for j in moved]) for k in (1, 2, 3))
-            step = dt[:, None]
-            new = np.concatenate([(ee[moved] - ee0) / np.where(step > 0, step, 1.0),
-                                  (p[moved] - p0) / np.where(step > 0, step, 1.0),
+            step = np.where(dt > 0, dt, 1.0)[:, None]  # rows with dt <= 0 are zeroed below
+            new = np.concatenate([(ee[moved] - ee0) / step, (p[moved] - p0) / step,
                                   rotation_velocities(q0, q[moved], dt)], axis=1)
             new[dt <= 0] = 0.0
             vel[moved] = new

@@ -315,7 +315,7 @@ class CameraHub:
         return None
 
     # -- images -------------------------------------------------------------------------------
-    def _state_key(self, renderer: Any) -> tuple:
+    def _state_key(self) -> tuple:
         data = self._node.world.data
         return (self._node.world.time, data.qpos.tobytes(), data.mocap_pos.tobytes(), data.mocap_quat.tobytes(),
                 id(self._node.world.model))
@@ -323,15 +323,15 @@ class CameraHub:
     def _image(self, camera: str, width: int, height: int, depth: bool) -> np.ndarray:
         """One image of the world's current state, rendered at most once per state (caller holds the
         node's lock)."""
-        renderer = self._renderer()
-        key = self._state_key(renderer)
+        key = self._state_key()
         slot = (camera, width, height, depth)
         with self._cache_lock:
             if self._cache.key != key:
                 self._cache = _Cache(key)
             image = self._cache.images.get(slot)
         if image is None:
-            image = renderer.render(camera, width=width, height=height, depth=depth, fast=self.fast, markers=False)
+            image = self._renderer().render(camera, width=width, height=height, depth=depth, fast=self.fast,
+                                            markers=False)
             image.flags.writeable = False
             with self._cache_lock:
                 if self._cache.key == key:
