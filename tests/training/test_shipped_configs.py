@@ -76,3 +76,15 @@ def test_demonstrations_of_a_camera_env_go_into_the_buffer_channel_first():
     finally:
         train.close()
         demo.close()
+
+
+def test_scripted_policy_on_an_image_only_observation_says_what_it_needs():
+    from rl_environments.manipulation_scripted import scripted_policy
+
+    env = uniros.make("RX200PushGoalSim-v0", rgb_obs_only=True, image_width=48, image_height=36)
+    try:
+        obs, _ = env.reset(seed=0)
+        with pytest.raises(ValueError, match="needs it next to the images"):
+            scripted_policy(env)(obs)
+    finally:
+        env.close()

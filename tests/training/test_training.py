@@ -133,6 +133,9 @@ def test_common_mistakes_are_one_or_two_lines_with_exit_code_2(capsys, tmp_path)
     assert "unknown env 'NoSuchEnv-v0'" in _error(capsys, "eval", "NoSuchEnv-v0", str(tmp_path))
     assert "no shipped training config for 'CartPole-v1'" in _error(
         capsys, "train", "CartPole-v1", "--output", str(out))
+    real = _error(capsys, "train", "RX200ReacherGoalReal-v0", "--output", str(out))
+    assert "it drives a real robot. Train its simulated twin (RX200ReacherGoalSim-v0)" in real
+    assert "uniros eval RX200ReacherGoalReal-v0 MODEL" in real
     cfg = tmp_path / "bogus.yaml"
     cfg.write_text("training_steps: 100\nvideo: false\nenv_kwargs: {bogus_knob: 1}\n")
     err = _error(capsys, "train", "RX200ReacherGoalSim-v0", "--config", str(cfg), "--output", str(out))
