@@ -5,10 +5,21 @@ Zenoh routers on the default port 7447 and ROS nodes on domain 0. Before anythin
 the session points every default at a private place: ``UNIROS_ZENOH_ROUTER`` at a free loopback port
 and ``ROS_DOMAIN_ID`` at a non-zero domain, and drops the other ``ZENOH_*`` and ``UNIROS_ZENOH_*``
 variables a user's shell may set. Child processes the tests start inherit these. ``test_isolation.py`` checks they hold.
+
+Stable-Baselines3 makes a fresh ``SB3-<date>`` folder in the system's temporary directory for every
+``learn()`` of a model without a logger of its own; ``SB3_LOGDIR`` sends them to one folder of the
+session's, removed at its end.
+
+Torch runs one thread (``OMP_NUM_THREADS=1``, inherited by the processes the tests start): the suite's
+networks are small, and two threads on a loaded 2-core machine made SB3's updates up to 7x slower
+(rl-zoo3's 300-step run: 107 s against 15 s).
 """
 
+import atexit
 import os
+import shutil
 import socket
+import tempfile
 
 import multiros  # noqa: F401  (sets MUJOCO_GL=egl when there is no display and none was chosen)
 
@@ -23,3 +34,8 @@ for _key in [k for k in os.environ if k.startswith(("ZENOH_", "UNIROS_ZENOH_"))]
     os.environ.pop(_key)
 os.environ["UNIROS_ZENOH_ROUTER"] = _free_loopback_endpoint()
 os.environ["ROS_DOMAIN_ID"] = str(101 + os.getpid() % 100)  # 101..200: never 0, within ROS' 0..232
+os.environ["OMP_NUM_THREADS"] = "1"  # before torch is imported: its default thread count reads it
+
+_sb3_logs = tempfile.mkdtemp(prefix="uniros-tests-sb3-")
+os.environ["SB3_LOGDIR"] = _sb3_logs
+atexit.register(shutil.rmtree, _sb3_logs, ignore_errors=True)

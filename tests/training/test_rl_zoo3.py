@@ -21,7 +21,8 @@ def test_rl_zoo3_train_enjoy_and_uniros_eval(tmp_path, capsys):
     common = ["--algo", "sac", "--env", "RX200ReacherGoalSim-v0", "--gym-packages", "uniros", "-f", "logs",
               "--env-kwargs", "ee_action_type:True"]
     train = [sys.executable, "-m", "rl_zoo3.train", *common, "-conf", conf, "-n", "300", "--eval-freq", "150",
-             "--eval-episodes", "2", "--seed", "0", "--hyperparams", "learning_starts:100"]
+             "--eval-episodes", "2", "--seed", "0", "--hyperparams", "learning_starts:100",
+             "--num-threads", "1"]
     done = subprocess.run(train, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=240)
     assert done.returncode == 0, done.stderr[-2000:]
     run = tmp_path / "logs" / "sac" / "RX200ReacherGoalSim-v0_1"
