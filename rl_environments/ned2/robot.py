@@ -25,12 +25,10 @@ driven by your own node). Every name is an option (``namespace=``, ``arm_control
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
-from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
-from multiros.envs.real import RealBaseEnv, RealGoalEnv
 from rl_environments.arm_ik import NED2TopDownIK
 from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv, ArmRobotRealEnv, ArmRobotRealGoalEnv
 from rl_environments.real_arm_robot import RealArmRobot
 from rl_environments.robots import ned2_description as pkg
 
@@ -78,29 +76,17 @@ class NED2RealRobot(NED2Robot, RealArmRobot):
     MAX_JOINT_DELTA = 0.15
 
 
-class NED2RobotEnv(NED2Robot, MujocoBaseEnv):
+class NED2RobotEnv(NED2Robot, ArmRobotEnv):
     """The NED2 robot layer for plain task envs on the simulation node."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class NED2RobotGoalEnv(NED2Robot, MujocoGoalEnv):
+class NED2RobotGoalEnv(NED2Robot, ArmRobotGoalEnv):
     """The NED2 robot layer for goal-conditioned task envs on the simulation node."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class NED2RobotRealEnv(NED2RealRobot, RealBaseEnv):
+class NED2RobotRealEnv(NED2RealRobot, ArmRobotRealEnv):
     """The real NED2 robot layer for plain task envs."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
 
-
-class NED2RobotRealGoalEnv(NED2RealRobot, RealGoalEnv):
+class NED2RobotRealGoalEnv(NED2RealRobot, ArmRobotRealGoalEnv):
     """The real NED2 robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))

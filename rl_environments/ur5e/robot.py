@@ -19,12 +19,10 @@ option (``namespace=``, ``arm_controller=``, ``gripper_controller=``, ``joint_st
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
-from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
-from multiros.envs.real import RealBaseEnv, RealGoalEnv
 from rl_environments.arm_ik import UR5eTopDownIK
 from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv, ArmRobotRealEnv, ArmRobotRealGoalEnv
 from rl_environments.real_arm_robot import RealArmRobot
 from rl_environments.robots import ur5e_description as pkg
 
@@ -72,29 +70,17 @@ class UR5eRealRobot(UR5eRobot, RealArmRobot):
     MAX_JOINT_DELTA = 0.15
 
 
-class UR5eRobotEnv(UR5eRobot, MujocoBaseEnv):
+class UR5eRobotEnv(UR5eRobot, ArmRobotEnv):
     """The UR5e robot layer for plain task envs on the simulation node."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class UR5eRobotGoalEnv(UR5eRobot, MujocoGoalEnv):
+class UR5eRobotGoalEnv(UR5eRobot, ArmRobotGoalEnv):
     """The UR5e robot layer for goal-conditioned task envs on the simulation node."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class UR5eRobotRealEnv(UR5eRealRobot, RealBaseEnv):
+class UR5eRobotRealEnv(UR5eRealRobot, ArmRobotRealEnv):
     """The real UR5e robot layer for plain task envs."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
 
-
-class UR5eRobotRealGoalEnv(UR5eRealRobot, RealGoalEnv):
+class UR5eRobotRealGoalEnv(UR5eRealRobot, ArmRobotRealGoalEnv):
     """The real UR5e robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))

@@ -18,12 +18,10 @@ trajectories). Every name is an option (``namespace=``, ``arm_controller=``, ``g
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
 
-from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
-from multiros.envs.real import RealBaseEnv, RealGoalEnv
 from rl_environments.arm_ik import VX300STopDownIK
 from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv, ArmRobotRealEnv, ArmRobotRealGoalEnv
 from rl_environments.real_arm_robot import RealArmRobot
 from rl_environments.robots import vx300s_description as pkg
 
@@ -70,29 +68,17 @@ class VX300SRealRobot(VX300SRobot, RealArmRobot):
     MAX_JOINT_DELTA = 0.15
 
 
-class VX300SRobotEnv(VX300SRobot, MujocoBaseEnv):
+class VX300SRobotEnv(VX300SRobot, ArmRobotEnv):
     """The VX300S robot layer for plain task envs on the simulation node."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class VX300SRobotGoalEnv(VX300SRobot, MujocoGoalEnv):
+class VX300SRobotGoalEnv(VX300SRobot, ArmRobotGoalEnv):
     """The VX300S robot layer for goal-conditioned task envs on the simulation node."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class VX300SRobotRealEnv(VX300SRealRobot, RealBaseEnv):
+class VX300SRobotRealEnv(VX300SRealRobot, ArmRobotRealEnv):
     """The real VX300S robot layer for plain task envs."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
 
-
-class VX300SRobotRealGoalEnv(VX300SRealRobot, RealGoalEnv):
+class VX300SRobotRealGoalEnv(VX300SRealRobot, ArmRobotRealGoalEnv):
     """The real VX300S robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))

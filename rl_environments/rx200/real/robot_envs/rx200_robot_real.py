@@ -9,9 +9,7 @@ an option: ``namespace=``, ``arm_controller=``, ``joint_states_topic=``, ``comma
 
 from __future__ import annotations
 
-from typing import Any
-
-from multiros.envs.real import RealBaseEnv, RealGoalEnv
+from rl_environments.arm_robot_envs import ArmRobotRealEnv, ArmRobotRealGoalEnv
 from rl_environments.real_arm_robot import RealArmRobot
 from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200Robot
 
@@ -29,16 +27,10 @@ class RX200RealRobot(RX200Robot, RealArmRobot):
     MAX_JOINT_DELTA = 0.15
 
 
-class RX200RobotRealEnv(RX200RealRobot, RealBaseEnv):
+class RX200RobotRealEnv(RX200RealRobot, ArmRobotRealEnv):
     """The real RX200 robot layer for plain task envs; keyword arguments go to
     :class:`~multiros.envs.RealBaseEnv` (robot defaults filled in)."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
 
-
-class RX200RobotRealGoalEnv(RX200RealRobot, RealGoalEnv):
+class RX200RobotRealGoalEnv(RX200RealRobot, ArmRobotRealGoalEnv):
     """The real RX200 robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))

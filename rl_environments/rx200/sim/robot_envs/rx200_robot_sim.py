@@ -8,10 +8,10 @@ and the gripper controller, and return the ``rx200/ee_gripper_link`` pose with e
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import ClassVar
 
-from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv
 from rl_environments.manipulation import RX200TopDownIK
 from rl_environments.robots import rx200_description
 
@@ -50,16 +50,10 @@ class RX200Robot(ArmRobot):
         self.connection.set_joint_positions(self.FINGER_JOINTS[:1], [opening])
 
 
-class RX200RobotEnv(RX200Robot, MujocoBaseEnv):
+class RX200RobotEnv(RX200Robot, ArmRobotEnv):
     """The RX200 robot layer for plain (non-goal) task envs. Keyword arguments go to
     :class:`~multiros.envs.MujocoBaseEnv` (robot defaults filled in)."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class RX200RobotGoalEnv(RX200Robot, MujocoGoalEnv):
+class RX200RobotGoalEnv(RX200Robot, ArmRobotGoalEnv):
     """The RX200 robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
