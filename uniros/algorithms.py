@@ -4,7 +4,8 @@
 that an algorithm is added in one line. Everything else (off-policy or not, whether it takes action
 noise, gSDE, a ``MultiInputPolicy`` for goal envs) is read from the class itself, never from lists
 kept beside the table. Stable-Baselines3's algorithms and sb3-contrib's (TQC, rl-zoo3's choice for
-the Fetch tasks, CrossQ, TRPO, QR-DQN, ARS) are in the table; sb3-contrib comes with the ``train``
+the Fetch tasks, CrossQ, TRPO, QR-DQN, ARS) are in the table, and uniros' ``drq_sac`` (SAC from
+pixels, :mod:`uniros.pixel_sac`); sb3-contrib comes with the ``train``
 extra (``pip install 'uniros[train]'``). RecurrentPPO is left out: its LSTM policies keep a hidden
 state that uniros' evaluation and video code do not carry between steps.
 """
@@ -32,6 +33,7 @@ ALGOS: dict[str, str] = {
     "trpo": "sb3_contrib:TRPO",
     "qrdqn": "sb3_contrib:QRDQN",
     "ars": "sb3_contrib:ARS",
+    "drq_sac": "uniros.pixel_sac:DrQSAC",
 }
 #: The names of :data:`ALGOS`, in its order.
 ALGORITHMS: tuple[str, ...] = tuple(ALGOS)
@@ -58,7 +60,21 @@ def algorithm_class(name: str) -> Any:
 
 
 def _parameters(name: str) -> set[str]:
-    return set(inspect.signature(algorithm_class(name).__init__).parameters)
+    return algorithm_keywords(algorithm_class(name))
+
+
+def algorithm_keywords(cls: type) -> set[str]:
+    """The keyword arguments ``cls`` takes: its ``__init__``'s, and, where that passes ``**kwargs`` on,
+    its base classes' (``DrQSAC`` takes SAC's)."""
+    names: set[str] = set()
+    for klass in cls.__mro__:
+        if "__init__" not in vars(klass):
+            continue
+        params = inspect.signature(klass.__init__).parameters
+        names |= {n for n, p in params.items() if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)}
+        if not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            break
+    return names
 
 
 def is_off_policy(name: str) -> bool:
@@ -116,7 +132,7 @@ def algorithm_of_saved(policy_module: str, data: Mapping[str, Any]) -> str | Non
             continue
         modules = {getattr(policy, "__module__", "") for policy in getattr(cls, "policy_aliases", {}).values()}
         if policy_module in modules:
-            own = set(inspect.signature(cls.__init__).parameters) - _NOT_SAVED
+            own = algorithm_keywords(cls) - _NOT_SAVED
             candidates.append((len(own - set(data)), -len(own), name))
     if not candidates:
         return None

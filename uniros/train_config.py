@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import copy
 import difflib
-import inspect
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -24,6 +23,7 @@ import yaml
 from uniros.algorithms import (
     ALGORITHMS,
     algorithm_class,
+    algorithm_keywords,
     is_off_policy,
     names_where,
     takes_action_noise,
@@ -220,7 +220,7 @@ def _typed(mapping: Mapping[str, Any], key: str, source: str) -> Any:
 
 def algo_keywords(algorithm: str) -> set[str]:
     """The keyword arguments an ``<algo>_params`` block may set (the SB3 class's, minus uniros' own)."""
-    return set(inspect.signature(algorithm_class(algorithm).__init__).parameters) - _MANAGED
+    return algorithm_keywords(algorithm_class(algorithm)) - _MANAGED
 
 
 # Hyperparameters whose type a YAML gets wrong most often, checked before SB3 sees them (SB3 would

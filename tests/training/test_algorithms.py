@@ -17,6 +17,7 @@ SMALL = {
     "crossq": {"learning_starts": 10, "batch_size": 8}, "dqn": {"learning_starts": 10, "batch_size": 8},
     "qrdqn": {"learning_starts": 10, "batch_size": 8}, "ppo": {"n_steps": 16, "batch_size": 8},
     "a2c": {"n_steps": 8}, "trpo": {"n_steps": 16, "batch_size": 8}, "ars": {"n_delta": 2},
+    "drq_sac": {"learning_starts": 10, "batch_size": 8},
 }
 
 

@@ -1,0 +1,154 @@
+"""uniros.pixel_sac: DrQ's random shift, the image encoder, and SAC whose encoder learns from the
+critic loss (``algorithm: drq_sac``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch as th
+import torch.nn.functional as F
+from gymnasium import spaces
+
+import uniros
+from uniros.errors import TrainingConfigError
+from uniros.pixel_sac import DrQSAC, ImageEncoder, random_shift
+from uniros.train_config import parse_training_config
+
+
+def test_random_shift_crops_the_edge_padded_image_at_an_offset_per_image():
+    th.manual_seed(0)
+    images = th.randint(0, 256, (6, 3, 12, 10), dtype=th.uint8)
+    shifted = random_shift(images, 2)
+    assert shifted.shape == images.shape and shifted.dtype == th.float32
+    padded = F.pad(images.float(), (2, 2, 2, 2), mode="replicate")
+    offsets = []
+    for k in range(len(images)):
+        found = [(dy, dx) for dy in range(5) for dx in range(5)
+                 if th.equal(shifted[k], padded[k, :, dy:dy + 12, dx:dx + 10])]
+        assert found, f"image {k} is no crop of its padded self"
+        offsets.append(found[0])
+    assert len(set(offsets)) > 1  # drawn per image
+    assert th.equal(random_shift(images, 0), images.float())
+    with pytest.raises(ValueError, match="pad must be >= 0"):
+        random_shift(images, -1)
+    with pytest.raises(ValueError, match=r"\(N, C, H, W\)"):
+        random_shift(images[0], 2)
+
+
+def _goal_image_space() -> spaces.Dict:
+    return spaces.Dict({"achieved_goal": spaces.Box(-1, 1, (3,)), "desired_goal": spaces.Box(-1, 1, (3,)),
+                        "observation": spaces.Box(0, 255, (3, 48, 48), np.uint8)})
+
+
+def test_image_encoder_reads_the_images_and_the_vectors_it_is_given():
+    space = _goal_image_space()
+    encoder = ImageEncoder(space, image_features=20, ignore_keys=["achieved_goal"])
+    assert encoder.features_dim == 20 + 3 and encoder.image_keys == ["observation"]
+    obs = {k: th.as_tensor(np.stack([s.sample() for _ in range(2)])).float() for k, s in space.spaces.items()}
+    out = encoder(obs)
+    assert out.shape == (2, 23) and th.all(out[:, :20].abs() <= 1)  # tanh
+    moved = dict(obs, achieved_goal=obs["achieved_goal"] + 0.5)
+    assert th.equal(encoder(moved), out)  # not read
+    assert th.equal(encoder(dict(obs, desired_goal=obs["desired_goal"] + 0.5))[:, 20:], out[:, 20:] + 0.5)
+    assert not th.equal(encoder(dict(obs, observation=255 - obs["observation"]))[:, :20], out[:, :20])
+    with pytest.raises(ValueError, match="ignore_keys \\['goal'\\] are not keys"):
+        ImageEncoder(space, ignore_keys=["goal"])
+    with pytest.raises(ValueError, match="no image among"):
+        ImageEncoder(space, ignore_keys=["observation"])
+
+
+@pytest.fixture
+def camera_env():
+    env = uniros.make("RX200ReacherGoalSim-v0", rgb_obs_only=True, image_width=48, image_height=48,
+                      ee_action_type=True, max_episode_steps=5)
+    yield env
+    env.close()
+
+
+def _model(env, **kwargs):
+    from stable_baselines3 import HerReplayBuffer
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from uniros.image_spaces import images_channel_first
+
+    venv = images_channel_first(DummyVecEnv([lambda: env]))
+    return DrQSAC("MultiInputPolicy", venv, replay_buffer_class=HerReplayBuffer, learning_starts=10, batch_size=8,
+                  buffer_size=200, seed=0, device="cpu",
+                  policy_kwargs={"net_arch": [16, 16],
+                                 "features_extractor_kwargs": {"ignore_keys": ["achieved_goal"]}}, **kwargs)
+
+
+@pytest.mark.slow
+def test_the_encoder_learns_from_the_critic_and_the_actor_reads_it_detached(camera_env, tmp_path):
+    model = _model(camera_env, image_shift=2)
+    encoder = model.critic.features_extractor
+    assert model.actor.features_extractor is encoder and isinstance(encoder, ImageEncoder)
+    in_critic = {id(p) for group in model.critic.optimizer.param_groups for p in group["params"]}
+    in_actor = {id(p) for group in model.actor.optimizer.param_groups for p in group["params"]}
+    enc = {id(p) for p in encoder.parameters()}
+    assert enc <= in_critic and not enc & in_actor
+    assert {id(p) for p in model.actor.mu.parameters()} <= in_actor
+    before = [p.detach().clone() for p in encoder.parameters()]
+    target_before = [p.detach().clone() for p in model.critic_target.features_extractor.parameters()]
+    model.learn(20)
+    assert model._n_updates > 0
+    assert any(not th.equal(a, b) for a, b in zip(before, encoder.parameters()))
+    assert any(not th.equal(a, b) for a, b in zip(target_before, model.critic_target.features_extractor.parameters()))
+
+    # Saved and loaded: the same actions, the same shift.
+    obs = model.env.reset()
+    action, _ = model.predict(obs, deterministic=True)
+    model.save(tmp_path / "drq.zip")
+    loaded = DrQSAC.load(tmp_path / "drq.zip", env=model.get_env(), device="cpu")  # HER needs the env
+    assert loaded.image_shift == 2
+    np.testing.assert_allclose(loaded.predict(obs, deterministic=True)[0], action, atol=1e-6)
+
+
+def test_drq_sac_refuses_what_it_cannot_do(camera_env):
+    with pytest.raises(ValueError, match="image_shift must be"):
+        _model(camera_env, image_shift=-1)
+    with pytest.raises(ValueError, match="gSDE"):
+        _model(camera_env, use_sde=True)
+
+
+def test_a_training_yaml_names_drq_sac_and_its_keywords():
+    config = parse_training_config({"algorithm": "drq_sac", "use_HER": True, "training_steps": 1000,
+                                    "drq_sac_params": {"image_shift": 4, "learning_rate": 1e-3, "tau": 0.01}})
+    assert config.algorithm == "drq_sac" and config.algo_params["image_shift"] == 4
+    with pytest.raises(TrainingConfigError, match="image_shfit"):
+        parse_training_config({"algorithm": "drq_sac", "training_steps": 1000, "drq_sac_params": {"image_shfit": 4}})
+
+
+@pytest.mark.slow
+def test_uniros_train_and_eval_a_drq_sac_model_on_a_camera_env(tmp_path, capsys):
+    from uniros.cli import main as cli_main
+
+    config = tmp_path / "drq.yaml"
+    config.write_text("""
+algorithm: drq_sac
+training_steps: 60
+eval_freq: 60
+eval_episodes: 1
+normalize: True
+use_HER: True
+policy_params:
+  net_arch: [16, 16]
+  features_extractor_kwargs: {ignore_keys: [achieved_goal], image_features: 16}
+drq_sac_params: {learning_starts: 30, batch_size: 8, buffer_size: 100, image_shift: 2}
+env_kwargs: {rgb_obs_only: True, image_width: 48, image_height: 48, ee_action_type: True, max_episode_steps: 10}
+""")
+    out = tmp_path / "runs"
+    assert cli_main(["train", "RX200ReacherGoalSim-v0", "--config", str(config), "--output", str(out), "--name", "r",
+                     "--eval-episodes", "1", "--no-video", "--no-progress"]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from uniros.trainer import algorithm_of
+
+    saved = out / "r" / "final_model.zip"
+    assert algorithm_of(saved) == "drq_sac"  # told from SAC by its saved image_shift
+    data, _, _ = load_from_zip_file(str(saved), device="cpu")
+    assert data["image_shift"] == 2 and data["_n_updates"] > 0
+    assert data["observation_space"]["observation"].shape == (3, 48, 48)  # channel-first below the normaliser
+    assert cli_main(["eval", str(out / "r"), "--episodes", "1"]) == 0
+    assert "RX200ReacherGoalSim-v0: success rate " in capsys.readouterr().out
