@@ -40,8 +40,9 @@ whole goal box). Camera images carry no goal marker: the goal is only ever the v
     for the observation and the next observation** (as DrQ; ``ShiftedHerReplayBuffer``). The
     evaluation and the rollouts see unshifted images.
 
-Every ``--eval-every`` env steps: success rate over ``--eval-episodes`` deterministic episodes, and
-the wall clock (training only, evaluation excluded). Prints a table per run, writes ``--json``.
+Every ``--eval-every`` env steps: success rate over ``--eval-episodes`` deterministic episodes, their
+median final distance to the goal (cm), and the wall clock (training only, evaluation excluded).
+Prints a table per run, writes ``--json``.
 
     MUJOCO_GL=egl nice .venv/bin/python benchmarks/bench_pixel_learning.py --steps 20000 --json /tmp/pixels.json
     MUJOCO_GL=egl nice .venv/bin/python benchmarks/bench_pixel_learning.py --runs pixels_strict state_ee \\
@@ -238,9 +239,11 @@ def critic_encoder_classes() -> tuple[type, type, type]:
     return ShiftedHerReplayBuffer, ImageGoalEncoder, CriticEncoderSAC
 
 
-def evaluate(model: Any, env: Any, vec_norm: Any, episodes: int, seed: int) -> float:
-    """Success rate of the deterministic policy over ``episodes`` fresh episodes."""
+def evaluate(model: Any, env: Any, vec_norm: Any, episodes: int, seed: int) -> tuple[float, float]:
+    """Success rate of the deterministic policy over ``episodes`` fresh episodes, and the median final
+    distance to the goal (m; from the env's ``achieved_goal``, which the strict runs do not see)."""
     successes = 0
+    distances = []
     for k in range(episodes):
         obs, info = env.reset(seed=seed + k)
         done = False
@@ -252,7 +255,8 @@ def evaluate(model: Any, env: Any, vec_norm: Any, episodes: int, seed: int) -> f
             obs, _, terminated, truncated, info = env.step(action[0])
             done = terminated or truncated
         successes += bool(info.get("is_success"))
-    return successes / episodes
+        distances.append(float(np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"])))
+    return successes / episodes, float(np.median(distances))
 
 
 def build_model(name: str, run: Run, vec_norm: Any, args: argparse.Namespace) -> Any:
@@ -311,7 +315,7 @@ def train(name: str, args: argparse.Namespace) -> dict[str, Any]:
     print(f"\n{name}: {ENV_ID}{image}, {actions} actions; the policy and critics see: {run.sees}")
     print(f"  lr {model.learning_rate}, batch {model.batch_size}, learning_starts {model.learning_starts}, "
           f"tau {model.tau}" + (f", shift {args.shift} px" if run.critic_encoder else ""))
-    print(f"{'steps':>7} {'success':>8} {'train s':>8} {'ms/step':>8}")
+    print(f"{'steps':>7} {'success':>8} {'dist cm':>8} {'train s':>8} {'ms/step':>8}")
     try:
         while steps < args.steps:
             chunk = min(args.eval_every, args.steps - steps)
@@ -320,10 +324,11 @@ def train(name: str, args: argparse.Namespace) -> dict[str, Any]:
             trained += time.perf_counter() - start
             steps += chunk
             vec_norm.training = False
-            rate = evaluate(model, eval_env, vec_norm, args.eval_episodes, args.seed + 20_000 + steps)
+            rate, distance = evaluate(model, eval_env, vec_norm, args.eval_episodes, args.seed + 20_000 + steps)
             vec_norm.training = True
-            curve.append({"steps": steps, "success": rate, "train_seconds": trained})
-            print(f"{steps:7d} {rate:8.2f} {trained:8.0f} {1000 * trained / steps:8.1f}", flush=True)
+            curve.append({"steps": steps, "success": rate, "train_seconds": trained, "median_distance": distance})
+            print(f"{steps:7d} {rate:8.2f} {100 * distance:8.1f} {trained:8.0f} {1000 * trained / steps:8.1f}",
+                  flush=True)
             if args.json:
                 _save(args.json, name, curve)
     finally:
