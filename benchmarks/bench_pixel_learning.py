@@ -24,29 +24,32 @@ whole goal box). Camera images carry no goal marker: the goal is only ever the v
 * ``pixels_strict``: **the policy and critics see the image and ``desired_goal``, nothing else**: no
   ``achieved_goal``, no joint or EE state; HER relabels goals with ``achieved_goal`` in the replay
   buffer, as it must. End-effector delta actions (as the shipped configs): the policy needs the goal
-  minus the EE position, the EE position read from the pixels. DrQ's recipe on top of SB3:
+  minus the EE position, the EE position read from the pixels. uniros' ``drq_sac``
+  (:class:`uniros.pixel_sac.DrQSAC`, DrQ's recipe on SB3's SAC; its docstring says why SB3's own
+  options fall short) with its ``ImageEncoder`` told to ignore ``achieved_goal``:
 
-  - one image encoder (SB3's NatureCNN to 50 features, then LayerNorm and tanh as DrQ's), shared
-    by actor and critics and **trained by the critic loss; the actor reads its features detached**
-    (SAC-AE, DrQ). SB3 cannot say this: with ``share_features_extractor=True`` its critic computes
-    the shared features under ``set_grad_enabled(False)`` and its critic optimiser leaves the
-    extractor out, so the CNN learns from the actor loss only (``ContinuousCritic.forward`` and
-    ``SACPolicy._build`` in SB3 2.x); with ``False`` actor and critics each train their own CNN
-    (twice the cost, and the actor's CNN still learns from the actor loss). ``CriticEncoderSAC``
-    below overrides ``SAC.train`` (same losses, same order of critic, actor, temperature, target
-    updates) and builds the critic optimiser over the encoder;
-  - DrQ's random shift: each sampled batch's images, observations and next observations, are
-    padded by ``--shift`` pixels (edge replicated) and cropped back at a random offset, **independent
-    for the observation and the next observation** (as DrQ; ``ShiftedHerReplayBuffer``). The
-    evaluation and the rollouts see unshifted images.
+  - one image encoder (NatureCNN to 50 features, LayerNorm, tanh), shared by actor and critics and
+    **trained by the critic loss; the actor reads its features detached** (SAC-AE, DrQ). SB3's SAC
+    with ``share_features_extractor=True`` trains a shared CNN from the actor loss only (its critic
+    computes the features with gradients off, its critic optimiser leaves the extractor out), which
+    is what ``pixels_blind`` does;
+  - DrQ's random shift: each sampled batch's images, observations and next observations, padded by
+    ``--shift`` pixels (edge replicated) and cropped back at a random offset, **independent for the
+    observation and the next observation** (as DrQ). Rollouts and evaluation see unshifted images.
+
+  The figures in docs/tasks.md were measured with this benchmark's own copy of the same code (commit
+  "bench_pixel_learning: pixels_strict ..."), since moved into ``uniros.pixel_sac``: with the same
+  seed both give bit-identical networks after 200 updates.
 
 Every ``--eval-every`` env steps: success rate over ``--eval-episodes`` deterministic episodes, their
 median final distance to the goal (cm), and the wall clock (training only, evaluation excluded).
 Prints a table per run, writes ``--json``.
 
     MUJOCO_GL=egl nice .venv/bin/python benchmarks/bench_pixel_learning.py --steps 20000 --json /tmp/pixels.json
-    MUJOCO_GL=egl nice .venv/bin/python benchmarks/bench_pixel_learning.py --runs pixels_strict state_ee \\
-        --steps 30000 --eval-every 2000 --eval-episodes 20 --json /tmp/pix_strict.json
+    MUJOCO_GL=egl nice .venv/bin/python benchmarks/bench_pixel_learning.py --runs pixels_strict \\
+        --steps 40000 --eval-every 2000 --eval-episodes 20 --json /tmp/pix_strict.json
+    MUJOCO_GL=egl nice .venv/bin/python benchmarks/bench_pixel_learning.py --runs state_ee \\
+        --steps 10000 --eval-every 1000 --eval-episodes 20
 """
 
 from __future__ import annotations
@@ -72,7 +75,7 @@ class Run:
     image: bool  # rgb_obs_only: ``observation`` is the camera image
     ee_actions: bool  # ee_action_type: end-effector deltas (else joint deltas)
     seen: tuple[str, ...] | None  # the observation keys the networks read (None: all)
-    critic_encoder: bool  # CriticEncoderSAC + ShiftedHerReplayBuffer (else SB3's SAC, shared extractor)
+    critic_encoder: bool  # uniros.pixel_sac.DrQSAC (else SB3's SAC, shared extractor)
     learning_rate: float
     batch_size: int
     learning_starts: int
@@ -89,7 +92,7 @@ RUNS = {
     "pixels_blind": Run(True, False, ("observation", "desired_goal"), False, 1e-3, 128, 1000, 0.005,
                         "image, desired_goal (SB3 shared extractor: actor-loss trained)"),
     "pixels_strict": Run(True, True, ("observation", "desired_goal"), True, 1e-3, 128, 1000, 0.01,
-                         "image, desired_goal ONLY (critic-trained encoder, random shift)"),
+                         "image, desired_goal ONLY (drq_sac: critic-trained encoder, random shift)"),
 }
 
 
@@ -100,143 +103,6 @@ def make_env(run: Run, size: int, seed: int) -> Any:
     if run.image:
         kwargs.update(rgb_obs_only=True, image_width=size, image_height=size)
     return uniros.make(ENV_ID, **kwargs)
-
-
-def random_shift(images: Any, pad: int) -> Any:
-    """DrQ's augmentation on a ``(N, C, H, W)`` batch: pad ``pad`` pixels by replicating the edges,
-    crop ``H x W`` back at an offset drawn per image (torch's generator, seeded by SB3). Float out."""
-    import torch as th
-    import torch.nn.functional as F
-
-    n, _, h, w = images.shape
-    padded = F.pad(images.float(), (pad, pad, pad, pad), mode="replicate")
-    rows = th.randint(0, 2 * pad + 1, (n, 1), device=images.device) + th.arange(h, device=images.device)
-    cols = th.randint(0, 2 * pad + 1, (n, 1), device=images.device) + th.arange(w, device=images.device)
-    batch = th.arange(n, device=images.device)[:, None, None]
-    # Advanced indices around a slice: the indexed dimensions come first, (N, H, W, C).
-    return padded[batch, :, rows[:, :, None], cols[:, None, :]].permute(0, 3, 1, 2)
-
-
-def critic_encoder_classes() -> tuple[type, type, type]:
-    """``ShiftedHerReplayBuffer``, ``ImageGoalEncoder`` and ``CriticEncoderSAC`` (built on first use:
-    torch and SB3 import late, so ``--help`` is fast)."""
-    import torch as th
-    import torch.nn.functional as F
-    from gymnasium import spaces
-    from stable_baselines3 import SAC, HerReplayBuffer
-    from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, NatureCNN
-    from stable_baselines3.common.utils import polyak_update
-    from stable_baselines3.sac.policies import LOG_STD_MAX, LOG_STD_MIN
-
-    class ShiftedHerReplayBuffer(HerReplayBuffer):
-        """HER's samples with the ``observation`` image of the observation and of the next
-        observation randomly shifted, independently (``random_shift``)."""
-
-        def __init__(self, *args: Any, shift: int = 4, **kwargs: Any) -> None:
-            super().__init__(*args, **kwargs)
-            self.shift = shift
-
-        def sample(self, batch_size: int, env: Any = None) -> Any:  # type: ignore[override]
-            data = super().sample(batch_size, env)
-            if self.shift <= 0:
-                return data
-            obs, nxt = dict(data.observations), dict(data.next_observations)
-            obs["observation"] = random_shift(obs["observation"], self.shift)
-            nxt["observation"] = random_shift(nxt["observation"], self.shift)
-            return data._replace(observations=obs, next_observations=nxt)
-
-    class ImageGoalEncoder(BaseFeaturesExtractor):
-        """The image (``observation``) through NatureCNN to ``image_features``, LayerNorm, tanh (DrQ's
-        encoder head), next to ``desired_goal``. Reads no other key: ``achieved_goal`` is ignored."""
-
-        def __init__(self, observation_space: spaces.Dict, image_features: int = 50) -> None:
-            goal_dim = int(np.prod(observation_space["desired_goal"].shape))
-            super().__init__(observation_space, image_features + goal_dim)
-            self.cnn = NatureCNN(observation_space["observation"], features_dim=image_features)
-            self.norm = th.nn.LayerNorm(image_features)
-
-        def forward(self, obs: dict[str, Any]) -> Any:
-            image = th.tanh(self.norm(self.cnn(obs["observation"])))
-            return th.cat([image, obs["desired_goal"].flatten(1)], dim=1)
-
-    class CriticEncoderSAC(SAC):
-        """SAC (SB3's losses) whose shared features extractor learns from the critic loss only; the
-        actor and the temperature read its features detached. Each gradient step encodes the batch's
-        observations once with gradients (critic) and the next observations twice without (the actor
-        on the online encoder, the target critics on their own, Polyak-averaged encoder), where SB3's
-        ``train`` runs the CNN five times. The actor and temperature update on the features computed
-        before the critic's step (DrQ re-encodes; one forward pass less here)."""
-
-        def _setup_model(self) -> None:
-            super()._setup_model()
-            encoder = {id(p) for p in self.actor.features_extractor.parameters()}
-            policy = self.policy
-            lr = self.lr_schedule(1)
-            # SB3 left the shared extractor out of the critic's optimiser; put it in, and out of the actor's.
-            self.critic.optimizer = policy.optimizer_class(self.critic.parameters(), lr=lr, **policy.optimizer_kwargs)
-            self.actor.optimizer = policy.optimizer_class(
-                [p for p in self.actor.parameters() if id(p) not in encoder], lr=lr, **policy.optimizer_kwargs)
-
-        def _actor_from(self, features: Any) -> tuple[Any, Any]:
-            actor = self.actor
-            latent = actor.latent_pi(features)
-            log_std = th.clamp(actor.log_std(latent), LOG_STD_MIN, LOG_STD_MAX)
-            actions, log_prob = actor.action_dist.log_prob_from_params(actor.mu(latent), log_std)
-            return actions, log_prob.reshape(-1, 1)
-
-        @staticmethod
-        def _q_from(critic: Any, features: Any, actions: Any) -> Any:
-            q_in = th.cat([features, actions], dim=1)
-            return th.cat([q_net(q_in) for q_net in critic.q_networks], dim=1)
-
-        def train(self, gradient_steps: int, batch_size: int = 64) -> None:
-            self.policy.set_training_mode(True)
-            optimizers = [self.actor.optimizer, self.critic.optimizer]
-            if self.ent_coef_optimizer is not None:
-                optimizers.append(self.ent_coef_optimizer)
-            self._update_learning_rate(optimizers)
-            encoder, target_encoder = self.critic.features_extractor, self.critic_target.features_extractor
-            critic_losses, actor_losses = [], []
-            for step in range(gradient_steps):
-                data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
-                if self.ent_coef_optimizer is not None:
-                    ent_coef = th.exp(self.log_ent_coef.detach())
-                else:
-                    ent_coef = self.ent_coef_tensor
-                features = self.policy.extract_features(data.observations, encoder)
-                with th.no_grad():
-                    next_actions, next_log_prob = self._actor_from(
-                        self.policy.extract_features(data.next_observations, encoder))
-                    next_q = self._q_from(self.critic_target, self.policy.extract_features(
-                        data.next_observations, target_encoder), next_actions).min(dim=1, keepdim=True).values
-                    target_q = data.rewards + (1 - data.dones) * self.gamma * (next_q - ent_coef * next_log_prob)
-                current_q = self._q_from(self.critic, features, data.actions)
-                critic_loss = 0.5 * sum(F.mse_loss(current_q[:, k:k + 1], target_q) for k in range(current_q.shape[1]))
-                self.critic.optimizer.zero_grad()
-                critic_loss.backward()  # type: ignore[union-attr]
-                self.critic.optimizer.step()
-                critic_losses.append(float(critic_loss.detach()))  # type: ignore[union-attr]
-
-                detached = features.detach()
-                actions_pi, log_prob = self._actor_from(detached)
-                q_pi = self._q_from(self.critic, detached, actions_pi).min(dim=1, keepdim=True).values
-                actor_loss = (ent_coef * log_prob - q_pi).mean()
-                self.actor.optimizer.zero_grad()
-                actor_loss.backward()
-                self.actor.optimizer.step()
-                actor_losses.append(float(actor_loss.detach()))
-                if self.ent_coef_optimizer is not None:
-                    ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
-                    self.ent_coef_optimizer.zero_grad()
-                    ent_coef_loss.backward()
-                    self.ent_coef_optimizer.step()
-                if step % self.target_update_interval == 0:
-                    polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-            self._n_updates += gradient_steps
-            self.logger.record("train/critic_loss", float(np.mean(critic_losses)))
-            self.logger.record("train/actor_loss", float(np.mean(actor_losses)))
-
-    return ShiftedHerReplayBuffer, ImageGoalEncoder, CriticEncoderSAC
 
 
 def evaluate(model: Any, env: Any, vec_norm: Any, episodes: int, seed: int) -> tuple[float, float]:
@@ -263,14 +129,16 @@ def build_model(name: str, run: Run, vec_norm: Any, args: argparse.Namespace) ->
     from stable_baselines3 import SAC, HerReplayBuffer
     from stable_baselines3.common.torch_layers import CombinedExtractor
 
-    buffer_class: type = HerReplayBuffer
     buffer_kwargs: dict[str, Any] = {"n_sampled_goal": 4, "goal_selection_strategy": "future"}
     algorithm: type = SAC
+    extra: dict[str, Any] = {}
     extractor: dict[str, Any] = {"features_extractor_kwargs": {"cnn_output_dim": 64}}
     if run.critic_encoder:
-        buffer_class, encoder, algorithm = critic_encoder_classes()
-        buffer_kwargs["shift"] = args.shift
-        extractor = {"features_extractor_class": encoder, "features_extractor_kwargs": {"image_features": 50}}
+        from uniros.pixel_sac import DrQSAC, ImageEncoder
+
+        algorithm, extra = DrQSAC, {"image_shift": args.shift}
+        extractor = {"features_extractor_class": ImageEncoder,
+                     "features_extractor_kwargs": {"image_features": 50, "ignore_keys": ["achieved_goal"]}}
     elif run.seen is not None:
         seen_keys = run.seen
 
@@ -285,13 +153,13 @@ def build_model(name: str, run: Run, vec_norm: Any, args: argparse.Namespace) ->
 
         extractor["features_extractor_class"] = SeenKeysExtractor
     return algorithm(
-        "MultiInputPolicy", vec_norm, replay_buffer_class=buffer_class, replay_buffer_kwargs=buffer_kwargs,
+        "MultiInputPolicy", vec_norm, replay_buffer_class=HerReplayBuffer, replay_buffer_kwargs=buffer_kwargs,
         learning_rate=args.lr or run.learning_rate, buffer_size=args.buffer,
         batch_size=args.batch or run.batch_size, gamma=0.95, tau=run.tau,
         learning_starts=args.learning_starts if args.learning_starts is not None else run.learning_starts,
         ent_coef="auto", train_freq=1, gradient_steps=1,
         policy_kwargs={"net_arch": [64, 64], "share_features_extractor": True, **extractor},
-        seed=args.seed, verbose=0, device="cpu")
+        seed=args.seed, verbose=0, device="cpu", **extra)
 
 
 def train(name: str, args: argparse.Namespace) -> dict[str, Any]:
