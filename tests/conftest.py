@@ -16,6 +16,7 @@ networks are small, and two threads on a loaded 2-core machine made SB3's update
 """
 
 import atexit
+import hashlib
 import os
 import shutil
 import socket
@@ -33,7 +34,18 @@ def _free_loopback_endpoint() -> str:
 for _key in [k for k in os.environ if k.startswith(("ZENOH_", "UNIROS_ZENOH_"))]:
     os.environ.pop(_key)
 os.environ["UNIROS_ZENOH_ROUTER"] = _free_loopback_endpoint()
-os.environ["ROS_DOMAIN_ID"] = str(101 + os.getpid() % 100)  # 101..200: never 0, within ROS' 0..232
+
+def _private_domain() -> int:
+    """101..200: never 0, within ROS' 0..232. Under pytest-xdist (``-n N``) the workers of one run
+    take consecutive domains from one base, so no two of them share a graph."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER", "")  # "gw0", "gw1", ...
+    run = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if worker.startswith("gw") and worker[2:].isdigit() and run:
+        return 101 + (int(hashlib.sha256(run.encode()).hexdigest(), 16) + int(worker[2:])) % 100
+    return 101 + os.getpid() % 100
+
+
+os.environ["ROS_DOMAIN_ID"] = str(_private_domain())
 os.environ["OMP_NUM_THREADS"] = "1"  # before torch is imported: its default thread count reads it
 
 _sb3_logs = tempfile.mkdtemp(prefix="uniros-tests-sb3-")

@@ -105,7 +105,7 @@ def _shifted(offset: float | None = None, value: float | None = None) -> Any:
 def test_a_second_publisher_is_refused_by_name(graph, standin: StandIn) -> None:
     forger = Forger(graph, _shifted(offset=1.0))
     try:
-        assert graph.wait_for(lambda: forger.node.count_publishers(TOPIC) >= 2, 10.0)
+        assert graph.wait_for(lambda: forger.node.count_publishers(TOPIC) >= 2, 30.0)
         with pytest.raises(RobotConnectionError, match=rf"2 publishers on {TOPIC}.*{forger.node.get_name()}"):
             _make(graph, startup_timeout=3.0)  # a second publisher that persists through start-up
     finally:
@@ -119,7 +119,7 @@ def test_a_second_publisher_is_refused_by_name(graph, standin: StandIn) -> None:
         env.step(env.unwrapped.joint_positions(env.unwrapped.arm_joints).astype(np.float32))
         sent = env.unwrapped.commands_sent
         forger = Forger(graph, _shifted(offset=1.0))  # appears mid-episode
-        assert graph.wait_for(lambda: env.unwrapped.node.count_publishers(TOPIC) >= 2, 10.0)
+        assert graph.wait_for(lambda: env.unwrapped.node.count_publishers(TOPIC) >= 2, 30.0)
         with pytest.raises(RobotConnectionError, match="2 publishers"):
             env.step(env.action_space.high)
         assert env.unwrapped.commands_sent == sent  # nothing more left the process
@@ -140,7 +140,7 @@ def test_forged_states_outside_the_graph_cannot_steer_commands(graph, standin: S
     try:
         env.reset(seed=0)
         states = env.unwrapped.link.states
-        assert graph.wait_for(lambda: forger.sent > 5 and states.malformed_count > 0, 10.0)
+        assert graph.wait_for(lambda: forger.sent > 5 and states.malformed_count > 0, 30.0)
         assert reason in (states.last_error or "")
         start = len(recorder.messages)
         sent_before = env.unwrapped.commands_sent

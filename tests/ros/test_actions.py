@@ -96,7 +96,7 @@ def setup(pair):
     return behaviour, server, client
 
 
-def _wait(predicate, timeout: float = 5.0) -> bool:
+def _wait(predicate, timeout: float = 30.0) -> bool:  # a bound, not a sleep: returns when true
     deadline = time.monotonic() + timeout
     while not predicate() and time.monotonic() < deadline:
         time.sleep(0.005)
