@@ -8,10 +8,12 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["channel_first_space", "images_channel_first", "vector_keys"]
+__all__ = ["channel_first_space", "images_channel_first", "is_image", "vector_keys"]
 
 
-def _is_image(space: Any) -> bool:
+def is_image(space: Any) -> bool:
+    """Whether ``space`` is a camera image to SB3 (uint8, 3 dimensions, either channel order). Depth
+    maps are float: SB3's extractors, and these helpers, treat them as vectors."""
     from stable_baselines3.common.preprocessing import is_image_space
 
     return is_image_space(space, check_channels=False)
@@ -27,7 +29,7 @@ def images_channel_first(venv: Any) -> Any:
     space = venv.observation_space
     parts = space.spaces.values() if isinstance(space, spaces.Dict) else [space]
     if is_vecenv_wrapped(venv, VecTransposeImage) or not any(
-            _is_image(s) and not is_image_space_channels_first(s) for s in parts):
+            is_image(s) and not is_image_space_channels_first(s) for s in parts):
         return venv
     return VecTransposeImage(venv)
 
@@ -39,7 +41,7 @@ def channel_first_space(space: Any) -> Any:
     from stable_baselines3.common.vec_env import VecTransposeImage
 
     def one(s: Any) -> Any:
-        return VecTransposeImage.transpose_space(s) if _is_image(s) and not is_image_space_channels_first(s) else s
+        return VecTransposeImage.transpose_space(s) if is_image(s) and not is_image_space_channels_first(s) else s
 
     if isinstance(space, spaces.Dict):
         return spaces.Dict({k: one(s) for k, s in space.spaces.items()})
@@ -50,6 +52,6 @@ def vector_keys(space: Any) -> list[str] | None:
     """The keys of a dict observation that normalisation may scale: all but images (``None``: all)."""
     from gymnasium import spaces
 
-    if not isinstance(space, spaces.Dict) or not any(_is_image(s) for s in space.spaces.values()):
+    if not isinstance(space, spaces.Dict) or not any(is_image(s) for s in space.spaces.values()):
         return None
-    return [k for k, s in space.spaces.items() if not _is_image(s)]
+    return [k for k, s in space.spaces.items() if not is_image(s)]

@@ -12,8 +12,9 @@ ways, the two that make a CNN learn where the arm is from camera images:
   into the critic's optimiser, out of the actor's, and overrides :meth:`DrQSAC.train`: SB3's
   losses (n-step discounts included), in DrQ's order: critic, actor, temperature (SB3 updates the
   temperature first), then the target networks. No gSDE.
-* **Random shift**: each sampled batch's images (every image key of a dict observation, or an
-  image observation), observations and next observations independently, are padded by
+* **Random shift**: each sampled batch's camera images (every image key of a dict observation, or
+  an image observation; images as :func:`uniros.image_spaces.is_image` tells them, so a float depth
+  map is a vector here as in SB3), observations and next observations independently, are padded by
   ``image_shift`` pixels (edge replicated) and cropped back at a random offset per image
   (:func:`random_shift`). Rollouts, evaluation and prediction see the images as they are.
 
@@ -40,10 +41,11 @@ import torch as th
 import torch.nn.functional as F
 from gymnasium import spaces
 from stable_baselines3 import SAC
-from stable_baselines3.common.preprocessing import is_image_space
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, NatureCNN
 from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.sac.policies import LOG_STD_MAX, LOG_STD_MIN
+
+from uniros.image_spaces import is_image
 
 __all__ = ["DrQSAC", "ImageEncoder", "random_shift"]
 
@@ -68,12 +70,6 @@ def random_shift(images: th.Tensor, pad: int) -> th.Tensor:
     return padded[batch, :, rows[:, :, None], cols[:, None, :]].permute(0, 3, 1, 2)
 
 
-def _is_image(space: spaces.Space) -> bool:
-    """An image as the policy sees it: channel-first, 3 dimensions (uint8 RGB, or float depth)."""
-    return isinstance(space, spaces.Box) and len(space.shape) == 3 and (
-        is_image_space(space, check_channels=False) or np.issubdtype(space.dtype, np.floating))
-
-
 class ImageEncoder(BaseFeaturesExtractor):
     """Every image key through NatureCNN to ``image_features``, LayerNorm and tanh; the other keys
     flattened next to them, in the observation's key order. ``ignore_keys`` are not read."""
@@ -87,15 +83,14 @@ class ImageEncoder(BaseFeaturesExtractor):
             raise ValueError(f"ImageEncoder: ignore_keys {unknown} are not keys of the observation "
                              f"{list(observation_space.spaces)}")
         keys = [k for k in observation_space.spaces if k not in set(ignore_keys)]
-        images = [k for k in keys if _is_image(observation_space[k])]
+        images = [k for k in keys if is_image(observation_space[k])]
         if not images:
             raise ValueError(f"ImageEncoder: no image among the keys it reads {keys}")
         vectors = [k for k in keys if k not in images]
         vector_dim = sum(int(np.prod(observation_space[k].shape)) for k in vectors)
         super().__init__(observation_space, image_features * len(images) + vector_dim)
         self.image_keys, self.vector_keys = images, vectors
-        self.cnns = th.nn.ModuleDict({k: NatureCNN(observation_space[k], features_dim=image_features,
-                                                   normalized_image=not is_image_space(observation_space[k]))
+        self.cnns = th.nn.ModuleDict({k: NatureCNN(observation_space[k], features_dim=image_features)
                                       for k in images})
         self.norms = th.nn.ModuleDict({k: th.nn.LayerNorm(image_features) for k in images})
 
@@ -124,7 +119,7 @@ class DrQSAC(SAC):
 
     def _setup_model(self) -> None:
         space = self.observation_space
-        if isinstance(space, spaces.Dict) and any(_is_image(s) for s in space.spaces.values()):
+        if isinstance(space, spaces.Dict) and any(is_image(s) for s in space.spaces.values()):
             self.policy_kwargs.setdefault("features_extractor_class", ImageEncoder)
         super()._setup_model()
         encoder = {id(p) for p in self.actor.features_extractor.parameters()}
@@ -134,9 +129,9 @@ class DrQSAC(SAC):
         self.actor.optimizer = policy.optimizer_class(
             [p for p in self.actor.parameters() if id(p) not in encoder], lr=lr, **policy.optimizer_kwargs)
         if isinstance(space, spaces.Dict):
-            self._image_keys: list[str] | None = [k for k, s in space.spaces.items() if _is_image(s)]
+            self._image_keys: list[str] | None = [k for k, s in space.spaces.items() if is_image(s)]
         else:
-            self._image_keys = None if _is_image(space) else []
+            self._image_keys = None if is_image(space) else []
 
     def _shifted(self, observations: Any) -> Any:
         if self.image_shift == 0 or self._image_keys == []:
