@@ -9,11 +9,9 @@ namespace (``/joint_states``, ``/controller_manager``) and a JointTrajectoryCont
 
 from __future__ import annotations
 
-from typing import Any
-
-from multiros.envs.real import RealBaseEnv, RealGoalEnv
 from rl_environments.abb_irb120.sim.robot_envs.irb120_robot_sim import IRB120Robot
 from rl_environments.abb_irb120.sim.task_envs.reacher.config import EE_HIGH, EE_LOW
+from rl_environments.arm_robot_envs import ArmRobotRealEnv, ArmRobotRealGoalEnv
 from rl_environments.real_arm_robot import RealArmRobot
 
 
@@ -29,15 +27,9 @@ class IRB120RealRobot(IRB120Robot, RealArmRobot):
     MAX_JOINT_DELTA = 0.15
 
 
-class ABBIRB120RobotRealEnv(IRB120RealRobot, RealBaseEnv):
+class ABBIRB120RobotRealEnv(IRB120RealRobot, ArmRobotRealEnv):
     """The real IRB120 robot layer for plain task envs."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
 
-
-class ABBIRB120RobotRealGoalEnv(IRB120RealRobot, RealGoalEnv):
+class ABBIRB120RobotRealGoalEnv(IRB120RealRobot, ArmRobotRealGoalEnv):
     """The real IRB120 robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))

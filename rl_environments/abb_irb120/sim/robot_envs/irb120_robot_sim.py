@@ -7,10 +7,10 @@ joint target every env step and the ``flange`` pose comes back with the step.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import ClassVar
 
-from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv
 
 
 class IRB120Robot(ArmRobot):
@@ -29,15 +29,9 @@ class IRB120Robot(ArmRobot):
     CONTROLLERS = ("joint_state_broadcaster", "arm_position_controller")
 
 
-class ABBIRB120RobotEnv(IRB120Robot, MujocoBaseEnv):
+class ABBIRB120RobotEnv(IRB120Robot, ArmRobotEnv):
     """The IRB120 robot layer for plain task envs."""
 
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
-
-class ABBIRB120RobotGoalEnv(IRB120Robot, MujocoGoalEnv):
+class ABBIRB120RobotGoalEnv(IRB120Robot, ArmRobotGoalEnv):
     """The IRB120 robot layer for goal-conditioned task envs."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
