@@ -63,13 +63,13 @@ ENV_SPECS: dict[str, str] = {
     "RX200PnPSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_sim:RX200PnPEnv",
     "RX200PnPGoalSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv",
 }
-#: The arms whose six tasks are every arm's (rl_environments.arm_reach, arm_manipulation): ID prefix -> package.
-ARMS: dict[str, str] = {"VX300S": "vx300s", "UR5e": "ur5e", "NED2": "ned2"}
-#: The six tasks of an arm: ID infix -> env class suffix (``<ARM><task>Sim-v0`` is ``<ARM><class>Env``).
+#: The arms whose IDs come from arm files (:mod:`rl_environments.arm_registry`): ID prefix -> robot name.
+#: The shipped ones (``config/arms/``) are registered below, the user's by ``register_arm`` or ``UNIROS_ARMS``.
+ARMS: dict[str, str] = {}
+#: The six tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper).
 ARM_TASKS: tuple[str, ...] = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
-for _arm, _pkg in ARMS.items():
-    for _task in ARM_TASKS:
-        ENV_SPECS[f"{_arm}{_task}Sim-v0"] = f"rl_environments.{_pkg}.sim:{_arm}{_task}Env"
+#: The shipped arm files (in ``rl_environments.config``, ``config/arms/`` of a checkout).
+SHIPPED_ARM_FILES: tuple[str, ...] = ("vx300s.yaml", "ur5e.yaml", "ned2.yaml")
 #: The RX200's tasks observed through a Zed2 stereo camera (rl_environments.rx200.sim.zed2).
 ZED2_TASKS: tuple[str, ...] = ARM_TASKS
 for _task in ZED2_TASKS:
@@ -78,16 +78,16 @@ CAMERA_ENV_IDS: tuple[str, ...] = tuple(f"RX200Zed2{task}Sim-v0" for task in ZED
 ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
 GOAL_ENV_IDS: tuple[str, ...] = (
     "RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0", "RX200PushGoalSim-v0", "RX200PnPGoalSim-v0",
-    *(f"{arm}{task}Sim-v0" for arm in ARMS for task in ARM_TASKS if task.endswith("Goal")),
     *(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS if task.endswith("Goal")),
 )
 MANIPULATION_ENV_IDS: tuple[str, ...] = (
     "RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0", "RX200PnPGoalSim-v0",
-    *(f"{arm}{task}Sim-v0" for arm in (*ARMS, "RX200Zed2") for task in ARM_TASKS if task.startswith(("Push", "PnP"))),
+    *(f"RX200Zed2{task}Sim-v0" for task in ARM_TASKS if task.startswith(("Push", "PnP"))),
 )
 MAX_EPISODE_STEPS = 100
 # Push and pick-and-place: Fetch's 50 steps of 40 ms (see rx200_manipulation's docstring).
-EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, 50)
+MANIPULATION_EPISODE_STEPS = 50
+EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, MANIPULATION_EPISODE_STEPS)
 REAL_ENV_SPECS: dict[str, str] = {
     "RX200ReacherReal-v0": "rl_environments.rx200.real.task_envs.reach.rx200_reach_real:RX200ReacherRealEnv",
     "RX200ReacherGoalReal-v0": (
@@ -100,20 +100,13 @@ REAL_ENV_SPECS: dict[str, str] = {
         "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv"
     ),
 }
-for _arm, _pkg in ARMS.items():
-    for _task in ARM_TASKS:
-        REAL_ENV_SPECS[f"{_arm}{_task}Real-v0"] = f"rl_environments.{_pkg}.real:{_arm}{_task}RealEnv"
 REAL_ENV_IDS: tuple[str, ...] = tuple(REAL_ENV_SPECS)
-REAL_GOAL_ENV_IDS: tuple[str, ...] = (
-    "RX200ReacherGoalReal-v0", "ABBIRB120ReacherGoalRealEnv-v0",
-    *(f"{arm}{task}Real-v0" for arm in ARMS for task in ARM_TASKS if task.endswith("Goal")),
-)
+REAL_GOAL_ENV_IDS: tuple[str, ...] = ("RX200ReacherGoalReal-v0", "ABBIRB120ReacherGoalRealEnv-v0")
 SIM_TO_REAL: dict[str, str] = {
     "RX200ReacherSim-v0": "RX200ReacherReal-v0",
     "RX200ReacherGoalSim-v0": "RX200ReacherGoalReal-v0",
     "ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
     "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0",
-    **{f"{arm}{task}Sim-v0": f"{arm}{task}Real-v0" for arm in ARMS for task in ARM_TASKS},
 }
 
 # A Real twin's episodes are its simulated twin's.
@@ -132,7 +125,56 @@ def register_envs() -> None:
                      max_episode_steps=EPISODE_STEPS.get(env_id, MAX_EPISODE_STEPS))
 
 
+def note_arm_ids(sim_id: str, real_id: str, *, goal: bool, manipulation: bool, steps: int) -> None:
+    """Add an arm file's simulated ID and its Real twin to the ID tables
+    (:func:`~rl_environments.arm_registry.register_arm`)."""
+    from rl_environments.arm_registry import ENV_MODULE
+
+    g = globals()
+    name = sim_id.removesuffix("Sim-v0")
+    ENV_SPECS[sim_id] = f"{ENV_MODULE}:{name}Env"
+    REAL_ENV_SPECS[real_id] = f"{ENV_MODULE}:{name}RealEnv"
+    SIM_TO_REAL[sim_id] = real_id
+    EPISODE_STEPS[sim_id] = EPISODE_STEPS[real_id] = steps
+    g["ENV_IDS"] = tuple(ENV_SPECS)
+    g["REAL_ENV_IDS"] = tuple(REAL_ENV_SPECS)
+    if goal:
+        g["GOAL_ENV_IDS"] = (*GOAL_ENV_IDS, sim_id)
+        g["REAL_GOAL_ENV_IDS"] = (*REAL_GOAL_ENV_IDS, real_id)
+    if manipulation:
+        g["MANIPULATION_ENV_IDS"] = (*MANIPULATION_ENV_IDS, sim_id)
+
+
+def forget_arm_ids(sim_id: str, real_id: str) -> None:
+    """Remove an arm file's IDs from the ID tables (:func:`~rl_environments.arm_registry.unregister_arm`)."""
+    g = globals()
+    for table in (ENV_SPECS, REAL_ENV_SPECS, SIM_TO_REAL, EPISODE_STEPS):
+        table.pop(sim_id, None)
+    REAL_ENV_SPECS.pop(real_id, None)
+    EPISODE_STEPS.pop(real_id, None)
+    for key in ("ENV_IDS", "GOAL_ENV_IDS", "MANIPULATION_ENV_IDS", "REAL_ENV_IDS", "REAL_GOAL_ENV_IDS"):
+        g[key] = tuple(i for i in g[key] if i not in (sim_id, real_id))
+
+
 register_envs()
+
+
+def _register_arm_files() -> None:
+    from importlib import resources
+
+    from rl_environments.arm_registry import register_arm, register_env_arms, registered_arms
+
+    for name in SHIPPED_ARM_FILES:
+        path = _Path(str(resources.files("rl_environments.config").joinpath("arms", name)))
+        register_arm(path, check_description=False)
+    for arm, spec in registered_arms().items():
+        ARMS[arm] = spec.robot_name
+    register_env_arms()
+    for arm, spec in registered_arms().items():
+        ARMS[arm] = spec.robot_name
+
+
+_register_arm_files()
 
 __all__ = [
     "ARMS",
@@ -148,5 +190,7 @@ __all__ = [
     "REAL_GOAL_ENV_IDS",
     "SIM_TO_REAL",
     "VECTOR_ENTRY_MODULE",
+    "forget_arm_ids",
+    "note_arm_ids",
     "register_envs",
 ]

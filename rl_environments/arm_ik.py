@@ -1,17 +1,17 @@
-"""Top-down inverse kinematics of the VX300S, UR5e and Ned2: joint targets that put the gripper's
-grasp point at a position with the gripper pointing straight down and its fingers closing along a
-chosen horizontal direction.
+"""Top-down inverse kinematics of any arm: joint targets that put the gripper's grasp point at a
+position with the gripper pointing straight down and its fingers closing along a chosen horizontal
+direction (push and pick-and-place, and their scripted policies).
 
-* :class:`VX300STopDownIK` is closed form: the ViperX 300 S is the RX200's geometry (waist, three
-  parallel pitch joints, the gripper on the pitch plane) plus a forearm roll, held at 0. The same
-  solution as :class:`rl_environments.manipulation.RX200TopDownIK`, from the VX300S's lengths, and
-  the sixth joint (wrist_rotate) turns the fingers to any yaw.
-* :class:`UR5eTopDownIK` and :class:`NED2TopDownIK` are numeric (damped least squares on the
-  description's :class:`~multiros.utils.kinematics.KinematicChain`, full 6-D pose): the UR5e's
-  shoulder-to-wrist lateral offset and the Ned2's jaws sitting 11.5 mm off the tool axis make a
-  closed form a page of special cases, and 6 joints meet the full pose. Each solve starts from the
-  caller's ``q0`` (the current joints: a few iterations along a trajectory) or from the arm's
-  top-down seed, never from random restarts, so consecutive targets stay on one elbow/wrist branch.
+* :class:`ChainTopDownIK` serves every arm file (:mod:`rl_environments.arm_file`): any serial chain
+  of 4 to 7 joints of the description's :class:`~multiros.utils.kinematics.KinematicChain`, by
+  task-priority damped least squares (position and approach first, the fingers' yaw next, the
+  home pose last: a 7-joint arm's redundancy). Joint limits hold at every iterate.
+* :class:`NumericTopDownIK` is its 6-joint case: the full 6-D pose (6 joints meet it exactly).
+  Each solve starts from the caller's ``q0`` (the current joints: a few iterations along a
+  trajectory) or from the arm's top-down seed, never from random restarts, so consecutive targets
+  stay on one elbow/wrist branch.
+
+The RX200's closed-form solution stays with its task (:class:`rl_environments.manipulation.RX200TopDownIK`).
 
 All positions are in the robot's base frame. ``yaw`` is the direction (rad, about +z) along which
 the fingers close; None closes them across the radial direction from the base, as the RX200's IK
@@ -21,17 +21,15 @@ seed) of ``yaw`` and ``yaw + pi`` is used.
 
 from __future__ import annotations
 
-import functools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import Protocol
 
 import numpy as np
 
 from multiros.utils.kinematics import KinematicChain, quat_from_matrix
 
-__all__ = ["NED2TopDownIK", "NumericTopDownIK", "TopDownIK", "UR5eTopDownIK", "VX300STopDownIK", "solve_each",
-           "top_down_ik"]
+__all__ = ["ChainTopDownIK", "NumericTopDownIK", "TopDownIK", "solve_each"]
 
 
 class TopDownIK(Protocol):
@@ -68,77 +66,6 @@ def _closing_yaw(x: float, y: float, yaw: float | None) -> float:
     if yaw is not None:
         return float(yaw)
     return float(math.atan2(y, x) + math.pi / 2) if math.hypot(x, y) > 1e-6 else math.pi / 2
-
-
-class VX300STopDownIK:
-    """Closed-form top-down IK of the ViperX 300 S (joints ``vx300s_description.ARM_JOINTS``).
-
-    The waist aims at the target, shoulder and elbow place the wrist_angle axis above it,
-    wrist_angle makes the gripper vertical, forearm_roll stays 0 and wrist_rotate sets the yaw.
-    Lengths from ``vx300s.urdf.xacro`` (Interbotix'): shoulder axis 0.12705 m above the base,
-    upper arm (0.05955, 0.3), forearm 0.2 + 0.1 to the wrist_angle axis, from there 0.176944 m
-    along the gripper to ``ee_gripper_link``. A target out of reach is pulled in to the edge.
-
-    Args:
-        lower, upper: joint limits to clip to (default the URDF's, ``vx300s_description``).
-    """
-
-    SHOULDER_Z = 0.079 + 0.04805
-    UPPER = (0.05955, 0.3)
-    FOREARM = 0.2 + 0.1
-    TIP = 0.069744 + 0.042825 + 0.025875 + 0.0385
-
-    def __init__(self, lower: Sequence[float] | None = None, upper: Sequence[float] | None = None) -> None:
-        from rl_environments.robots import vx300s_description as pkg
-
-        self.joint_names: tuple[str, ...] = tuple(pkg.ARM_JOINTS)
-        self.lower = np.asarray(pkg.JOINT_LOWER if lower is None else lower, dtype=np.float64)
-        self.upper = np.asarray(pkg.JOINT_UPPER if upper is None else upper, dtype=np.float64)
-        self._a = float(np.hypot(*self.UPPER))
-        self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
-
-    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
-                   q0: np.ndarray | None = None) -> np.ndarray:
-        """:meth:`solve` for N targets, row by row."""
-        return solve_each(self, targets, yaws, q0)
-
-    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
-              q0: Sequence[float] | None = None) -> np.ndarray:
-        x, y, z = (float(v) for v in target)
-        r = float(np.hypot(x, y))
-        waist = float(np.arctan2(y, x)) if r > 1e-6 else 0.0
-        dr, dz = r, z + self.TIP - self.SHOULDER_Z
-        a, b = self._a, self.FOREARM
-        dist = float(np.hypot(dr, dz))
-        dist_c = min(max(dist, abs(a - b) + 1e-6), a + b - 1e-6)
-        if dist_c != dist and dist > 1e-9:
-            dr, dz = dr * dist_c / dist, dz * dist_c / dist
-        cos_rel = (dist_c**2 - a * a - b * b) / (2 * a * b)
-        rel = -float(np.arccos(np.clip(cos_rel, -1.0, 1.0)))  # elbow up: the forearm folds down
-        phi1 = float(np.arctan2(dz, dr) - np.arctan2(b * np.sin(rel), a + b * np.cos(rel)))
-        shoulder = self._alpha0 - phi1
-        elbow = -(phi1 + rel) - shoulder
-        wrist = np.pi / 2 - shoulder - elbow
-        # With the gripper pointing down, wrist_rotate = 0 closes the fingers along waist + pi/2;
-        # turning it by +t turns the closing direction by -t about +z.
-        rotate = _wrap(waist + math.pi / 2 - _closing_yaw(x, y, yaw))
-        if abs(rotate) > math.pi / 2:  # the other of the two equivalent grasps turns the wrist less
-            rotate = _wrap(rotate + math.pi)
-        if q0 is not None:
-            prev = float(np.asarray(q0, dtype=np.float64)[5])
-            alt = _wrap(rotate + math.pi)
-            if abs(alt - prev) < abs(rotate - prev) and self.lower[5] <= alt <= self.upper[5]:
-                rotate = alt
-        q = np.array([waist, shoulder, elbow, 0.0, wrist, rotate])
-        return np.clip(q, self.lower, self.upper)
-
-
-@functools.lru_cache(maxsize=8)
-def _chain(package: str, base: str, tip: str) -> KinematicChain:
-    from importlib import import_module
-
-    pkg = import_module(f"rl_environments.robots.{package}")
-    return KinematicChain.from_urdf(pkg.URDF_XACRO, base, tip)
 
 
 class NumericTopDownIK:
@@ -213,36 +140,106 @@ class NumericTopDownIK:
         return np.clip(best.q, self.lower, self.upper)
 
 
-class UR5eTopDownIK(NumericTopDownIK):
-    """Top-down IK of the UR5e to ``grasp_link`` (joints ``ur5e_description.ARM_JOINTS``): elbow up,
-    wrist 2 at -pi/2 from its seed ``ur5e_description.HOME_POSE``."""
-
-    def __init__(self, lower: Sequence[float] | None = None, upper: Sequence[float] | None = None) -> None:
-        from rl_environments.robots import ur5e_description as pkg
-
-        super().__init__(_chain("ur5e_description", pkg.BASE_LINK, pkg.EE_LINK), "z", "x", pkg.HOME_POSE,
-                         lower=lower, upper=upper)
+def _dls(jac: np.ndarray, damping: float) -> np.ndarray:
+    """The damped least-squares inverse ``J^T (J J^T + lambda^2 I)^-1``."""
+    return jac.T.dot(np.linalg.inv(jac.dot(jac.T) + (damping * damping) * np.eye(jac.shape[0])))
 
 
-class NED2TopDownIK(NumericTopDownIK):
-    """Top-down IK of the Ned2 to ``grasp_link`` (joints ``ned2_description.ARM_JOINTS``), from a
-    seed with the wrist bent down (joint_5 -1.5)."""
+class ChainTopDownIK:
+    """Top-down IK for any serial chain of 4 to 7 joints (an arm file's arm), by task-priority
+    damped least squares on the description's :class:`~multiros.utils.kinematics.KinematicChain`.
 
-    SEED = (0.0, 0.1, -0.3, 0.0, -1.4, 0.0)
+    Priorities, each in the null space of the ones before: (1) the grasp point at the target and the
+    approach axis pointing down; (2) the fingers closing along the yaw; (3) the joints toward
+    ``home`` (a 7-joint arm's redundancy; a 4- or 5-joint arm may not meet (2) exactly, and then comes
+    as close as (1) allows). Every iterate is clamped to the joint limits. A 6-joint chain is solved
+    as :class:`NumericTopDownIK` does (the full pose), so the shipped 6-joint arms keep their solutions.
 
-    def __init__(self, lower: Sequence[float] | None = None, upper: Sequence[float] | None = None) -> None:
-        from rl_environments.robots import ned2_description as pkg
+    Args:
+        chain: base -> grasp-frame chain.
+        approach_axis, closing_axis: the grasp frame's axes out of the gripper and along the fingers.
+        seed: a top-down configuration to start from when the caller gives no ``q0``.
+        home: the pose the redundancy is resolved toward (default ``seed``).
+        lower, upper: joint limits (default the chain's).
+        tol: position tolerance (m); the approach tolerance is ``tol * 10`` rad.
+    """
 
-        super().__init__(_chain("ned2_description", pkg.BASE_LINK, pkg.EE_LINK), "x", "y", self.SEED,
-                         lower=lower, upper=upper)
+    _AXES = {"x": 0, "y": 1, "z": 2}
 
+    def __init__(self, chain: KinematicChain, approach_axis: str, closing_axis: str, seed: Sequence[float], *,
+                 home: Sequence[float] | None = None, lower: Sequence[float] | None = None,
+                 upper: Sequence[float] | None = None, tol: float = 1e-4) -> None:
+        if not 4 <= chain.n_joints <= 7:
+            raise ValueError(f"top-down IK serves chains of 4 to 7 joints, got {chain.n_joints}: {chain.joint_names}")
+        self.chain = chain
+        self.joint_names = chain.joint_names
+        self.lower = np.asarray(chain.lower if lower is None else lower, dtype=np.float64)
+        self.upper = np.asarray(chain.upper if upper is None else upper, dtype=np.float64)
+        self.seed = np.clip(np.asarray(seed, dtype=np.float64), self.lower, self.upper)
+        self.home = self.seed if home is None else np.clip(np.asarray(home, dtype=np.float64), self.lower, self.upper)
+        self.tol = float(tol)
+        self._six = (NumericTopDownIK(chain, approach_axis, closing_axis, self.seed, lower=self.lower,
+                                      upper=self.upper, tol=tol) if chain.n_joints == 6 else None)
+        self._approach, self._closing = self._AXES[approach_axis], self._AXES[closing_axis]
 
-_IK: dict[str, Callable[[], TopDownIK]] = {"vx300s": VX300STopDownIK, "ur5e": UR5eTopDownIK, "ned2": NED2TopDownIK}
+    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
+                   q0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`solve` for N targets, row by row."""
+        return solve_each(self, targets, yaws, q0)
 
+    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
+              q0: Sequence[float] | None = None) -> np.ndarray:
+        if self._six is not None:
+            return self._six.solve(target, yaw, q0)
+        target = np.asarray(target, dtype=np.float64)
+        yaw = _closing_yaw(float(target[0]), float(target[1]), yaw)
+        start = self.seed if q0 is None else np.clip(np.asarray(q0, dtype=np.float64), self.lower, self.upper)
+        current = self.chain.fk_matrix(start)[:3, self._closing]
+        if current[0] * math.cos(yaw) + current[1] * math.sin(yaw) < 0:
+            yaw += math.pi  # the same grasp, closer to where the fingers are
+        best_q, best_err = start, math.inf
+        for q_start in ((start, self.seed) if q0 is not None else (start,)):
+            q, err = self._iterate(q_start, target, yaw)
+            if err < best_err:
+                best_q, best_err = q, err
+            if err < self.tol:
+                break
+        return np.clip(best_q, self.lower, self.upper)
 
-def top_down_ik(arm: str) -> TopDownIK:
-    """The top-down IK of ``arm`` (``"vx300s"``, ``"ur5e"`` or ``"ned2"``)."""
-    try:
-        return _IK[arm]()
-    except KeyError:
-        raise ValueError(f"no top-down IK for arm {arm!r}; arms: {sorted(_IK)}") from None
+    def _iterate(self, q: np.ndarray, target: np.ndarray, yaw: float, iters: int = 150) -> tuple[np.ndarray, float]:
+        down = np.array([0.0, 0.0, -1.0])
+        along = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        n = q.shape[0]
+        eye = np.eye(n)
+        q = np.clip(q, self.lower, self.upper)
+        err = math.inf
+        for _ in range(iters):
+            tf = self.chain.fk_matrix(q)
+            approach, closing = tf[:3, self._approach], tf[:3, self._closing]
+            e_pos = target - tf[:3, 3]
+            e_app = np.cross(approach, down)  # rotation taking the approach axis down
+            err = float(np.linalg.norm(e_pos)) + 0.1 * float(np.linalg.norm(e_app))
+            if np.linalg.norm(e_pos) < self.tol and np.linalg.norm(e_app) < 10 * self.tol:
+                break
+            jac = self.chain.jacobian(q)
+            jv, jw = jac[:3], jac[3:]
+            # (1) position and approach: the angular rows across the approach axis only
+            across = np.eye(3) - np.outer(approach, approach)
+            j1 = np.vstack([jv, across.dot(jw)])
+            e1 = np.concatenate([e_pos, e_app])
+            p1 = _dls(j1, 0.02)
+            dq = p1.dot(e1)
+            null1 = eye - np.linalg.pinv(j1, rcond=1e-4).dot(j1)  # exact: a damped one leaks into (1)
+            # (2) the yaw: the rotation about the approach axis that turns the fingers along the yaw
+            e_yaw = float(np.dot(np.cross(closing, along), approach))
+            j2 = approach.dot(jw)[None, :].dot(null1)
+            p2 = _dls(j2, 0.05)
+            dq = dq + null1.dot(p2.dot(np.array([e_yaw]) - approach.dot(jw).dot(dq)[None]))
+            # (3) toward home, in what is left
+            null2 = null1.dot(eye - np.linalg.pinv(j2, rcond=1e-4).dot(j2))
+            dq = dq + null2.dot(0.1 * (self.home - q))
+            step = float(np.max(np.abs(dq)))
+            if step > 0.3:
+                dq *= 0.3 / step
+            q = np.clip(q + dq, self.lower, self.upper)
+        return q, err

@@ -60,7 +60,7 @@ from rl_environments.manipulation import is_success, object_reward
 from rl_environments.manipulation_task import ManipulationTask, TaskKind
 from rl_environments.reach import RewardType, goal_distance, parse_reward_type, reward_from_distance
 from rl_environments.reach_task import stack_rows
-from rl_environments.task_config import load_task_config, vector
+from rl_environments.task_config import SCENE_KEYS, load_task_config, manipulation_schema
 
 if TYPE_CHECKING:
     from rl_environments.arm_interface import ArmInterface
@@ -68,52 +68,14 @@ if TYPE_CHECKING:
 __all__ = ["ArmGoalManipulationTask", "ArmManipulationTask", "EPISODE_STEPS", "load_manipulation_config",
            "manipulation_schema"]
 
-#: The scene's keys: an arm's ``SCENE`` gives them (a task config may override them, with its own
-#: table and cube files to match).
-SCENE_KEYS = ("robot_height", "table_center", "table_top", "object_half_size", "init_ee_position",
-              "position_ee_min", "position_ee_max", "object_xy_min", "object_xy_max", "goal_xy_min", "goal_xy_max",
-              "target_height_max", "max_object_distance")
-
-
-def manipulation_schema(n_joints: int) -> dict[str, Any]:
-    """The keys of a push / pick-and-place config (scene included) for an arm of ``n_joints`` joints."""
-    return {
-        "arm_joints": list,
-        "min_joint_pos": vector(n_joints),
-        "max_joint_pos": vector(n_joints),
-        "robot_height": float,
-        "table_center": vector(3),
-        "table_top": float,
-        "object_half_size": float,
-        "init_ee_position": vector(3),
-        "delta_coeff": float,
-        "ee_delta_coeff": float,
-        "position_ee_min": vector(3),
-        "position_ee_max": vector(3),
-        "gripper_min": float,
-        "gripper_max": float,
-        "object_xy_min": vector(2),
-        "object_xy_max": vector(2),
-        "object_yaw_range": float,
-        "goal_xy_min": vector(2),
-        "goal_xy_max": vector(2),
-        "target_in_the_air": float,
-        "target_height_max": float,
-        "min_object_goal_distance": float,
-        "distance_threshold": float,
-        "fall_margin": float,
-        "max_object_distance": float,
-        "max_linear_velocity": float,
-        "max_angular_velocity": float,
-        "max_joint_vel": float,
-    }
-
-
 def load_manipulation_config(robot: type[ArmInterface], name: str | Path | None = None) -> dict[str, Any]:
     """Load and check a push / pick-and-place config for ``robot`` (an arm's robot layer class): by
     default ``<ROBOT_NAME>_manipulation_task_config.yaml``, keys under ``<ROBOT_NAME>:``, the scene's
     keys from ``robot.SCENE`` unless the file gives them."""
     arm = robot.ROBOT_NAME
+    from_file = getattr(robot, "task_config", None)
+    if name is None and from_file is not None:  # an arm file's manipulation: section, checked when loaded
+        return dict(from_file("manipulation"))
     name = name if name is not None else f"{arm}_manipulation_task_config.yaml"
     scene = {k: v for k, v in robot.SCENE.items() if k in SCENE_KEYS}
     cfg = load_task_config(name, manipulation_schema(len(robot.ARM_JOINTS)), section=arm,

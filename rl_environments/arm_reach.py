@@ -48,7 +48,7 @@ from multiros.robot_state import RobotStates
 from rl_environments.camera_obs import CameraObservations
 from rl_environments.reach import goal_reward, parse_reward_type
 from rl_environments.reach_task import GoalReachTask, ReachTask, stack_rows
-from rl_environments.task_config import TaskConfigError, load_task_config, vector
+from rl_environments.task_config import TaskConfigError, load_task_config, reach_schema
 
 if TYPE_CHECKING:
     from rl_environments.arm_interface import ArmInterface
@@ -64,28 +64,6 @@ __all__ = ["ArmGoalReachTask", "ArmReachTask", "REACH_NUM_SIM_STEPS", "load_reac
 REACH_NUM_SIM_STEPS = 25
 
 
-def reach_schema(n_joints: int) -> dict[str, Any]:
-    """The keys of a reach config for an arm of ``n_joints`` joints."""
-    return {
-        "arm_joints": list,
-        "min_joint_pos": vector(n_joints),
-        "max_joint_pos": vector(n_joints),
-        "init_joint_pos": vector(n_joints),
-        "delta_coeff": float,
-        "ee_delta_coeff": float,
-        "position_ee_min": vector(3),
-        "position_ee_max": vector(3),
-        "position_goal_min": vector(3),
-        "position_goal_max": vector(3),
-        "reach_tolerance": float,
-        "step_reward": float,
-        "multiplier_dist_reward": float,
-        "reached_goal_reward": float,
-        "joint_limits_reward": float,
-        "max_joint_vel": float,
-    }
-
-
 def check_arm_joints(cfg: dict[str, Any], robot: type[ArmInterface], source: str | Path) -> None:
     """A config's ``arm_joints`` must be the robot's ``ARM_JOINTS``, in order."""
     joints = tuple(cfg["arm_joints"])
@@ -98,6 +76,9 @@ def load_reach_config(robot: type[ArmInterface], name: str | Path | None = None)
     """Load and check a reach config for ``robot`` (an arm's robot layer class): by default
     ``<ROBOT_NAME>_reach_task_config.yaml``, keys under ``<ROBOT_NAME>:``."""
     arm = robot.ROBOT_NAME
+    from_file = getattr(robot, "task_config", None)
+    if name is None and from_file is not None:  # an arm file's reach: section, checked when it was loaded
+        return dict(from_file("reach"))
     name = name if name is not None else f"{arm}_reach_task_config.yaml"
     cfg = load_task_config(name, reach_schema(len(robot.ARM_JOINTS)), section=arm)
     check_arm_joints(cfg, robot, name)

@@ -123,11 +123,12 @@ class ArmRobot(ArmInterface):
     @classmethod
     def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
         """Base-env constructor arguments for this robot; ``overrides`` (user kwargs) win."""
+        model, xacro_args, controllers = cls.description_files()
         kwargs: dict[str, Any] = {
             "robot_name": cls.ROBOT_NAME,
-            "robot_model_xml": f"package://{cls.DESCRIPTION_PACKAGE}/urdf/{cls.XACRO_FILE}",
-            "urdf_xacro_args": dict(cls.XACRO_ARGS),
-            "controllers_file": f"package://{cls.DESCRIPTION_PACKAGE}/config/{cls.CONTROLLERS_FILE}",
+            "robot_model_xml": model,
+            "urdf_xacro_args": xacro_args,
+            "controllers_file": controllers,
             "controllers_list": list(cls.CONTROLLERS),
             "frames": [cls.EE_LINK],
             "num_sim_steps": cls.NUM_SIM_STEPS,
@@ -137,6 +138,12 @@ class ArmRobot(ArmInterface):
         if cls.RENDER_CAMERA and "render_camera" not in overrides and kwargs.get("spawn_robot", True):
             kwargs["render_camera"] = f"{kwargs['robot_name']}/{cls.RENDER_CAMERA}"
         return kwargs
+
+    @classmethod
+    def description_files(cls) -> tuple[str, dict[str, str], str]:
+        """The description URI, its xacro arguments and the controllers file the robot is spawned from."""
+        return (f"package://{cls.DESCRIPTION_PACKAGE}/urdf/{cls.XACRO_FILE}", dict(cls.XACRO_ARGS),
+                f"package://{cls.DESCRIPTION_PACKAGE}/config/{cls.CONTROLLERS_FILE}")
 
     @classmethod
     def kinematic_chain(cls) -> KinematicChain:

@@ -32,7 +32,7 @@ def config_path(name: str | Path) -> Path:
     )
 
 
-def _check_value(value: Any, expected: Any, key: str, source: Path) -> Any:
+def _check_value(value: Any, expected: Any, key: str, source: str | Path) -> Any:
     if isinstance(expected, tuple) and expected and expected[0] == "vector":
         length = expected[1]
         if (
@@ -84,10 +84,80 @@ def load_task_config(name: str | Path, schema: Mapping[str, Any], section: str |
         data = data[section]
     if not isinstance(data, dict):
         raise TaskConfigError(f"{path}: expected a mapping of keys, got {type(data).__name__}")
+    return check_task_config(data, schema, source=path, defaults=defaults)
+
+
+def check_task_config(data: Mapping[str, Any], schema: Mapping[str, Any], *, source: str | Path,
+                      defaults: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """Check a task config's mapping against ``schema`` (as :func:`load_task_config`, for a config that
+    is not a file of its own: an arm file's ``reach:`` section); ``source`` names it in errors."""
     data = {**{k: list(v) if isinstance(v, tuple) else v for k, v in (defaults or {}).items()}, **data}
     out = dict(data)
     for key, expected in schema.items():
         if key not in data:
-            raise TaskConfigError(f"{path}: missing key {key!r}")
-        out[key] = _check_value(data[key], expected, key, path)
+            raise TaskConfigError(f"{source}: missing key {key!r}")
+        out[key] = _check_value(data[key], expected, key, source)
     return out
+
+
+def reach_schema(n_joints: int) -> dict[str, Any]:
+    """The keys of a reach config for an arm of ``n_joints`` joints."""
+    return {
+        "arm_joints": list,
+        "min_joint_pos": vector(n_joints),
+        "max_joint_pos": vector(n_joints),
+        "init_joint_pos": vector(n_joints),
+        "delta_coeff": float,
+        "ee_delta_coeff": float,
+        "position_ee_min": vector(3),
+        "position_ee_max": vector(3),
+        "position_goal_min": vector(3),
+        "position_goal_max": vector(3),
+        "reach_tolerance": float,
+        "step_reward": float,
+        "multiplier_dist_reward": float,
+        "reached_goal_reward": float,
+        "joint_limits_reward": float,
+        "max_joint_vel": float,
+    }
+
+
+#: The scene's keys: an arm's ``SCENE`` gives them (a task config may override them, with its own
+#: table and cube files to match).
+SCENE_KEYS = ("robot_height", "table_center", "table_top", "object_half_size", "init_ee_position",
+              "position_ee_min", "position_ee_max", "object_xy_min", "object_xy_max", "goal_xy_min", "goal_xy_max",
+              "target_height_max", "max_object_distance")
+
+
+def manipulation_schema(n_joints: int) -> dict[str, Any]:
+    """The keys of a push / pick-and-place config (scene included) for an arm of ``n_joints`` joints."""
+    return {
+        "arm_joints": list,
+        "min_joint_pos": vector(n_joints),
+        "max_joint_pos": vector(n_joints),
+        "robot_height": float,
+        "table_center": vector(3),
+        "table_top": float,
+        "object_half_size": float,
+        "init_ee_position": vector(3),
+        "delta_coeff": float,
+        "ee_delta_coeff": float,
+        "position_ee_min": vector(3),
+        "position_ee_max": vector(3),
+        "gripper_min": float,
+        "gripper_max": float,
+        "object_xy_min": vector(2),
+        "object_xy_max": vector(2),
+        "object_yaw_range": float,
+        "goal_xy_min": vector(2),
+        "goal_xy_max": vector(2),
+        "target_in_the_air": float,
+        "target_height_max": float,
+        "min_object_goal_distance": float,
+        "distance_threshold": float,
+        "fall_margin": float,
+        "max_object_distance": float,
+        "max_linear_velocity": float,
+        "max_angular_velocity": float,
+        "max_joint_vel": float,
+    }

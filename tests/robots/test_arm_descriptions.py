@@ -17,7 +17,7 @@ from _urdf_tables import floats, joints, total_mass
 from xacro_text import process
 
 from multiros.utils.kinematics import KinematicChain
-from rl_environments.arm_ik import top_down_ik
+from rl_environments.arm_registry import arm_of, top_down_ik_of
 from rl_environments.robots import ned2_description as ned2
 from rl_environments.robots import ur5e_description as ur5e
 from rl_environments.robots import vx300s_description as vx300s
@@ -303,10 +303,17 @@ def test_scene_matches_the_mjcf_files(arm):
 
 
 # ------------------------------------------------------------------ top-down IK
+ARM_NAMES = {"vx300s": "VX300S", "ur5e": "UR5e", "ned2": "NED2"}
+
+
+def top_down_ik(name):
+    return top_down_ik_of(arm_of(ARM_NAMES.get(name, name)))
+
+
 @pytest.mark.parametrize("name", sorted(PACKAGES))
 def test_top_down_ik_reaches_the_scene(name):
     pkg = PACKAGES[name]
-    ik = top_down_ik(name)
+    ik = top_down_ik(name)  # from the shipped arm file
     chain = _chain(pkg, pkg.EE_LINK)
     approach = {"x": 0, "z": 2}[pkg.EE_APPROACH_AXIS]
     closing = {"vx300s": 1, "ur5e": 0, "ned2": 1}[name]
@@ -334,5 +341,5 @@ def test_top_down_ik_out_of_reach_is_clipped_not_raised(name):
     ik = top_down_ik(name)
     q = ik.solve((5.0, 0.0, 0.1))
     assert np.all(np.isfinite(q)) and np.all(ik.lower <= q) and np.all(q <= ik.upper)
-    with pytest.raises(ValueError, match="no top-down IK for arm 'rx201'"):
+    with pytest.raises(ValueError, match="no arm 'rx201' is registered"):
         top_down_ik("rx201")

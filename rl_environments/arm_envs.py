@@ -1,0 +1,139 @@
+"""The env classes of registered arm files, built on first use (``rl_environments.arm_envs:<Class>``).
+
+For an arm ``NAME`` (:mod:`rl_environments.arm_registry`): ``NAME<task>Env`` on the simulation node
+and ``NAME<task>RealEnv`` on the robot's driver, for each ``<task>`` of ``Reacher``, ``ReacherGoal``,
+``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``. Each is three parts: the task every arm shares
+(:mod:`rl_environments.arm_reach`, :mod:`rl_environments.arm_manipulation`), the arm's constants
+from its file (:class:`~rl_environments.arm_registry.ArmFileRobot`), and the robot env of its side
+(:mod:`rl_environments.arm_robot_envs`). A class is made once per name and kept, so gymnasium's
+string entry points and pickle find the same class every time.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any, ClassVar
+
+from multiros.envs import EnvError
+from multiros.utils.kinematics import KinematicChain
+from rl_environments.arm_file import ArmFile
+from rl_environments.arm_ik import TopDownIK
+from rl_environments.arm_manipulation import ArmGoalManipulationTask, ArmManipulationTask
+from rl_environments.arm_reach import REACH_NUM_SIM_STEPS, ArmGoalReachTask, ArmReachTask
+from rl_environments.arm_registry import chain_of, top_down_ik_of
+from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv, ArmRobotRealEnv, ArmRobotRealGoalEnv
+from rl_environments.real_arm_robot import RealArmRobot, TaskJointLimits
+
+
+class ArmFileRobot(ArmRobot):
+    """The robot layer of an arm file: :class:`~rl_environments.arm_robot.ArmRobot` whose constants
+    come from ``ARM_FILE``, its chain from the file's description URI and its task settings from
+    the file's ``reach:`` and ``manipulation:`` sections."""
+
+    ARM_FILE: ClassVar[ArmFile]
+
+    @classmethod
+    def description_files(cls) -> tuple[str, dict[str, str], str]:
+        spec = cls.ARM_FILE
+        return spec.description_uri, dict(spec.xacro_args), spec.controllers_file
+
+    @classmethod
+    def kinematic_chain(cls) -> KinematicChain:
+        return chain_of(cls.ARM_FILE)
+
+    @classmethod
+    def top_down_ik(cls, lower: Sequence[float], upper: Sequence[float]) -> TopDownIK:
+        return top_down_ik_of(cls.ARM_FILE, lower, upper)
+
+    @classmethod
+    def scene_uri(cls, item: str) -> str:
+        return cls.ARM_FILE.scene_files["object" if item == "cube" else item]
+
+    @classmethod
+    def task_config(cls, task: str) -> Mapping[str, Any]:
+        """The file's ``reach`` or ``manipulation`` settings (checked when the file was loaded)."""
+        section = cls.ARM_FILE.reach if task == "reach" else cls.ARM_FILE.manipulation
+        if section is None:
+            raise EnvError(f"{cls.ARM_FILE.path}: the arm has no gripper, so no {task} task")
+        return section
+
+
+_CLASSES: dict[str, type] = {}
+_ROBOTS: dict[tuple[str, bool], type] = {}
+
+
+def _robot(name: str, real: bool) -> type:
+    """The arm's constants class (``NAMERobot``) or its real one (``NAMERealRobot``)."""
+    from rl_environments.arm_registry import arm_of, real_constants, robot_constants
+
+    key = (name, real)
+    cls = _ROBOTS.get(key)
+    if cls is None:
+        spec = arm_of(name)
+        sim = _ROBOTS.get((name, False))
+        if sim is None:
+            sim = _ROBOTS[(name, False)] = type(f"{name}Robot", (ArmFileRobot,), {
+                **robot_constants(spec), "__module__": __name__,
+                "__doc__": f"The {name} arm's constants, from {spec.path.name}."})
+        cls = sim
+        if real:
+            cls = _ROBOTS[key] = type(f"{name}RealRobot", (sim, RealArmRobot), {
+                **real_constants(spec), "__module__": __name__,
+                "__doc__": f"The {name} arm's real-robot constants, from {spec.path.name}.",
+                "real_robot_kwargs": classmethod(_real_robot_kwargs)})
+    return cls
+
+
+def _real_robot_kwargs(cls: Any, overrides: Any) -> dict[str, Any]:
+    opts = dict(overrides)
+    topic = getattr(cls, "REAL_JOINT_STATES_TOPIC", None)
+    if topic:
+        opts.setdefault("joint_states_topic", topic)
+    return RealArmRobot.real_robot_kwargs.__func__(cls, opts)  # type: ignore[attr-defined]
+
+
+def _build(class_name: str) -> type | None:
+    from rl_environments.arm_registry import ARM_TASKS, registered_arms
+
+    for name in registered_arms():
+        for task, (goal, kind) in ARM_TASKS.items():
+            real = class_name == f"{name}{task}RealEnv"
+            if not real and class_name != f"{name}{task}Env":
+                continue
+            robot = _robot(name, real)
+            side = (ArmRobotRealGoalEnv if goal else ArmRobotRealEnv) if real else (
+                ArmRobotGoalEnv if goal else ArmRobotEnv)
+            task_cls = ((ArmGoalManipulationTask if goal else ArmManipulationTask) if kind
+                        else (ArmGoalReachTask if goal else ArmReachTask))
+            bases: tuple[type, ...] = (task_cls, robot, side)
+            if real:
+                bases = (TaskJointLimits, *bases)
+            attrs: dict[str, Any] = {"__module__": __name__, "__qualname__": class_name,
+                                     "__doc__": f"``{name}{task}{'Real' if real else 'Sim'}-v0`` "
+                                                f"(arguments: :class:`~{task_cls.__module__}.{task_cls.__name__}`)."}
+            if kind:
+                attrs["TASK"] = kind
+            elif not real:
+                attrs["NUM_SIM_STEPS"] = REACH_NUM_SIM_STEPS
+            return type(class_name, bases, attrs)
+    return None
+
+
+def forget(*class_names: str) -> None:
+    """Drop built classes (their arm was unregistered)."""
+    for class_name in class_names:
+        _CLASSES.pop(class_name, None)
+    for key in [k for k in _ROBOTS if any(n.startswith(k[0]) for n in class_names)]:
+        _ROBOTS.pop(key, None)
+
+
+def __getattr__(class_name: str) -> type:
+    cls = _CLASSES.get(class_name)
+    if cls is None:
+        built = _build(class_name)
+        if built is None:
+            raise AttributeError(f"module {__name__!r} has no env class {class_name!r}: no registered arm file "
+                                 "gives it (uniros.register_arm(path) or UNIROS_ARMS)")
+        cls = _CLASSES[class_name] = built
+    return cls

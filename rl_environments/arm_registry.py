@@ -1,0 +1,243 @@
+"""Arms as data: gymnasium IDs from arm files (:mod:`rl_environments.arm_file`).
+
+``register_arm(path)`` checks an arm file, builds its robot layers and task envs from the tasks
+every arm shares (:mod:`rl_environments.arm_reach`, :mod:`rl_environments.arm_manipulation`) and
+registers its IDs: ``<NAME>ReacherSim-v0``, ``<NAME>ReacherGoalSim-v0`` and, for an arm with a
+gripper, ``<NAME>PushSim-v0``, ``<NAME>PushGoalSim-v0``, ``<NAME>PnPSim-v0``, ``<NAME>PnPGoalSim-v0``,
+each with its ``...Real-v0`` twin. The env classes live in :mod:`rl_environments.arm_envs` (built on
+first use, one class per name, so entry points are plain ``module:Class`` strings and instances
+pickle). The arm files named by ``UNIROS_ARMS`` (paths separated by ``os.pathsep``) are registered
+when ``rl_environments`` is imported, so ``uniros train``/``eval``, rl-zoo3 and worker processes see
+them; ``register_arm`` adds its file to that variable for the processes this one starts.
+
+Nothing is registered half-way: a file is checked whole (keys, the description's links and joints)
+before any ID is.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from multiros.utils.kinematics import KinematicChain
+from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
+from rl_environments.arm_ik import ChainTopDownIK
+
+__all__ = ["ARM_TASKS", "arm_env_ids", "chain_of", "top_down_ik_of", "arm_of", "registered_arms", "register_arm",
+           "register_env_arms", "unregister_arm"]
+
+#: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
+ARM_TASKS: dict[str, tuple[bool, str | None]] = {
+    "Reacher": (False, None), "ReacherGoal": (True, None), "Push": (False, "push"), "PushGoal": (True, "push"),
+    "PnP": (False, "pnp"), "PnPGoal": (True, "pnp"),
+}
+ENV_MODULE = "rl_environments.arm_envs"
+_ARMS: dict[str, ArmFile] = {}
+
+
+def chain_of(spec: ArmFile) -> KinematicChain:
+    """The arm's chain from ``arm.base_link`` to ``arm.ee_link`` of its description (built once per process)."""
+    return _chain(spec.description_uri, tuple(sorted(spec.xacro_args.items())), spec.base_link, spec.ee_link)
+
+
+def top_down_ik_of(spec: ArmFile, lower: Sequence[float] | None = None,
+                   upper: Sequence[float] | None = None) -> ChainTopDownIK:
+    """The arm's top-down IK (its file's axes, seed and home) within joint limits (default the chain's)."""
+    return ChainTopDownIK(chain_of(spec), spec.approach_axis, spec.closing_axis, spec.ik_seed, home=spec.home,
+                          lower=lower, upper=upper)
+
+
+@functools.lru_cache(maxsize=32)
+def _chain(uri: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> KinematicChain:
+    # A chain is immutable once built, so envs share it; xacro costs ~0.1 s.
+    from multiros.sim.description import xacro_to_urdf
+    from multiros.sim.packages import default_index
+
+    index = default_index()
+    path = index.resolve_uri(uri)
+    if not path.is_file():
+        raise ArmFileError(f"description {uri!r}: file {str(path)!r} not found")
+    text = xacro_to_urdf(path, dict(args), index=index) if path.name.endswith(".xacro") else path.read_text()
+    return KinematicChain.from_urdf(text, base, tip)
+
+
+def robot_constants(spec: ArmFile) -> dict[str, Any]:
+    """The :class:`~rl_environments.arm_robot.ArmRobot` class attributes an arm file gives."""
+    gripper = spec.gripper
+    scene = {k: tuple(v) if isinstance(v, list) else v for k, v in (spec.manipulation or {}).items()
+             if k != "arm_joints"}
+    return {
+        "ARM_FILE": spec,
+        "ROBOT_NAME": spec.robot_name,
+        "DESCRIPTION_PACKAGE": "",
+        "ARM_JOINTS": spec.joints,
+        "BASE_LINK": spec.base_link,
+        "EE_LINK": spec.ee_link,
+        "ARM_CONTROLLER": spec.arm_controller,
+        "CONTROLLERS": spec.sim_controllers,
+        "GRIPPER_CONTROLLER": gripper.controller if gripper else "",
+        "FINGER_JOINTS": gripper.joints if gripper else (),
+        "FINGER_MIMIC": gripper.mimic if gripper else 1.0,
+        "SCENE": scene,
+        "RENDER_CAMERA": spec.render_camera,
+        "CAMERA_VIEW": spec.camera_view,
+        "CAMERA_TOPICS": dict(spec.camera_topics),
+    }
+
+
+def real_constants(spec: ArmFile) -> dict[str, Any]:
+    """The :class:`~rl_environments.real_arm_robot.RealArmRobot` class attributes an arm file gives."""
+    real = spec.real
+    attrs: dict[str, Any] = {
+        "REAL_NAMESPACE": real.namespace,
+        "REAL_ARM_CONTROLLER": real.arm_controller,
+        "REAL_CONTROLLERS": real.controllers,
+        "REAL_COMMAND_INTERFACE": real.command_interface,
+        "REAL_CHECK_CONTROLLERS": real.check_controllers,
+        "REAL_GRIPPER_CONTROLLER": real.gripper_controller,
+        "REAL_GRIPPER_INTERFACE": real.gripper_interface,
+        "REAL_GRIPPER_JOINT": real.gripper_joint,
+        "REAL_GRIPPER_RANGE": real.gripper_range,
+        "WORKSPACE_MIN": real.workspace_min,
+        "WORKSPACE_MAX": real.workspace_max,
+        "FLOOR_Z": real.floor_z,
+        "MAX_JOINT_DELTA": real.max_joint_delta,
+    }
+    if real.joint_states_topic:
+        attrs["REAL_JOINT_STATES_TOPIC"] = real.joint_states_topic
+    return attrs
+
+
+def arm_env_ids(spec: ArmFile) -> dict[str, tuple[str, str, str]]:
+    """``{sim ID: (task, sim class name, real ID)}`` of an arm file (manipulation only with a gripper)."""
+    out = {}
+    for task, (_, kind) in ARM_TASKS.items():
+        if kind is not None and spec.gripper is None:
+            continue
+        out[f"{spec.name}{task}Sim-v0"] = (task, f"{spec.name}{task}Env", f"{spec.name}{task}Real-v0")
+    return out
+
+
+def _check_description(spec: ArmFile) -> None:
+    """The file's joints and links against its description: the chain exists and is the arm's joints."""
+    try:
+        chain = chain_of(spec)
+    except ArmFileError:
+        raise
+    except ValueError as exc:  # a link that is not there, or no chain between them
+        msg = str(exc).strip().splitlines()[0]
+        key = "arm.ee_link" if "tip_link" in msg else "arm.base_link" if "base_link" in msg else "arm.joints"
+        raise ArmFileError(f"{spec.path}: key {key!r}: {msg}") from None
+    except Exception as exc:  # xacro, a missing package, a broken URDF: one line naming the file and key
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ArmFileError(f"{spec.path}: key 'description.uri' ({spec.description_uri}): {first}") from None
+    if tuple(chain.joint_names) != spec.joints:
+        raise ArmFileError(
+            f"{spec.path}: key 'arm.joints' {list(spec.joints)} are not the moving joints from "
+            f"{spec.base_link!r} to {spec.ee_link!r} in the description, which are {list(chain.joint_names)}")
+
+
+def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_description: bool = True) -> list[str]:
+    """Register an arm file's IDs with gymnasium and return them (simulated, then the Real twins).
+
+    Args:
+        path: the arm file.
+        replace: re-register an arm of the same name from the same file (after editing it).
+        check_description: load the description and check the chain now (the shipped arms skip it at
+            import: their files are checked by the tests).
+
+    Raises:
+        ArmFileError: the file does not check, its description does not hold its chain, or another
+            file already registered an arm of that name (or a shipped ID has it).
+    """
+    from gymnasium.envs.registration import register, registry
+
+    import rl_environments as pkg
+
+    spec = load_arm_file(path)
+    ids = arm_env_ids(spec)
+    previous = _ARMS.get(spec.name)
+    if previous is not None and not (replace or previous.path == spec.path):
+        raise ArmFileError(f"{spec.path}: key 'name' {spec.name!r} is already registered by {previous.path}: "
+                           "give one of the arms another name")
+    if previous is None:
+        clash = [i for i in ids if i in registry or ids[i][2] in registry]
+        if clash:
+            raise ArmFileError(f"{spec.path}: key 'name' {spec.name!r} gives ID {clash[0]!r}, which is already "
+                               "registered: give the arm another name")
+    if check_description:
+        _check_description(spec)
+    if previous is not None:
+        unregister_arm(spec.name)
+    _ARMS[spec.name] = spec
+    out: list[str] = []
+    for sim_id, (task, cls_name, real_id) in ids.items():
+        kind = ARM_TASKS[task][1]
+        steps = pkg.MANIPULATION_EPISODE_STEPS if kind else pkg.MAX_EPISODE_STEPS
+        register(id=sim_id, entry_point=f"{ENV_MODULE}:{cls_name}",
+                 vector_entry_point=f"{pkg.VECTOR_ENTRY_MODULE}:{sim_id}", max_episode_steps=steps)
+        register(id=real_id, entry_point=f"{ENV_MODULE}:{spec.name}{task}RealEnv", max_episode_steps=steps)
+        pkg.note_arm_ids(sim_id, real_id, goal=ARM_TASKS[task][0], manipulation=kind is not None, steps=steps)
+        out.append(sim_id)
+    out += [ids[i][2] for i in ids]
+    _remember_in_environment(spec.path)
+    return out
+
+
+def unregister_arm(name: str) -> None:
+    """Remove an arm's IDs (its env classes are rebuilt if it is registered again)."""
+    from gymnasium.envs.registration import registry
+
+    import rl_environments as pkg
+    from rl_environments import arm_envs
+
+    spec = _ARMS.pop(name, None)
+    if spec is None:
+        return
+    for sim_id, (task, cls_name, real_id) in arm_env_ids(spec).items():
+        registry.pop(sim_id, None)
+        registry.pop(real_id, None)
+        pkg.forget_arm_ids(sim_id, real_id)
+        arm_envs.forget(cls_name, f"{spec.name}{task}RealEnv")
+
+
+def _remember_in_environment(path: Path) -> None:
+    """Add the file to ``UNIROS_ARMS`` so processes started from here (workers, child nodes) have it."""
+    current = [p for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p]
+    if str(path) not in current:
+        os.environ["UNIROS_ARMS"] = os.pathsep.join([*current, str(path)])
+
+
+def registered_arms() -> dict[str, ArmFile]:
+    """The registered arm files by name (shipped and the user's)."""
+    return dict(_ARMS)
+
+
+def arm_of(name: str) -> ArmFile:
+    """A registered arm file by name."""
+    try:
+        return _ARMS[name]
+    except KeyError:
+        raise ArmFileError(f"no arm {name!r} is registered; arms: {sorted(_ARMS)}") from None
+
+
+def register_env_arms(paths: str | None = None) -> list[str]:
+    """Register the arm files of ``UNIROS_ARMS`` (or ``paths``, separated by ``os.pathsep``); the IDs."""
+    text = os.environ.get("UNIROS_ARMS", "") if paths is None else paths
+    out: list[str] = []
+    for item in text.split(os.pathsep):
+        if item.strip():
+            path = Path(item.strip()).expanduser()
+            spec_name = None
+            for name, spec in _ARMS.items():
+                if spec.path == path.resolve():
+                    spec_name = name
+            if spec_name is None:
+                try:
+                    out += register_arm(path)
+                except ArmFileError as exc:
+                    raise ArmFileError(f"UNIROS_ARMS: {exc}") from None
+    return out
