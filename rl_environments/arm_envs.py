@@ -2,11 +2,10 @@
 
 For an arm ``NAME`` (:mod:`rl_environments.arm_registry`): ``NAME<task>Env`` on the simulation node
 and ``NAME<task>RealEnv`` on the robot's driver, for each ``<task>`` of ``Reacher``, ``ReacherGoal``,
-``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``. Each is three parts: the task every arm shares
-(:mod:`rl_environments.arm_reach`, :mod:`rl_environments.arm_manipulation`), the arm's constants
-from its file (:class:`~rl_environments.arm_registry.ArmFileRobot`), and the robot env of its side
-(:mod:`rl_environments.arm_robot_envs`). A class is made once per name and kept, so gymnasium's
-string entry points and pickle find the same class every time.
+``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``. Each is three parts: the task every arm shares (named
+in the class's docstring), the arm's constants from its file (:class:`ArmFileRobot`), and the robot
+env of its side (:mod:`rl_environments.arm_robot_envs`). A class is made once per name and kept, so
+gymnasium's string entry points and pickle find the same class every time.
 """
 
 from __future__ import annotations
@@ -59,6 +58,32 @@ class ArmFileRobot(ArmRobot):
         return section
 
 
+#: What each task does, for the env classes' docstrings (the ID pages show them).
+_TASK_WORDS = {
+    "Reacher": ("the {arm} reaches a random point", "arm_reach", "ArmReachTask"),
+    "ReacherGoal": ("the goal-conditioned {arm} reach, for HER", "arm_reach", "ArmGoalReachTask"),
+    "Push": ("the {arm} pushes a cube to a goal on the table", "arm_manipulation", "ArmManipulationTask"),
+    "PushGoal": ("the goal-conditioned {arm} push, for HER", "arm_manipulation", "ArmGoalManipulationTask"),
+    "PnP": ("the {arm} picks a cube and places it at a goal, on the table or in the air", "arm_manipulation",
+            "ArmManipulationTask"),
+    "PnPGoal": ("the goal-conditioned {arm} pick-and-place, for HER", "arm_manipulation", "ArmGoalManipulationTask"),
+}
+
+
+def _docstring(name: str, task: str, real: bool, source: str) -> str:
+    words, module, cls = _TASK_WORDS[task]
+    what = words.format(arm=name)
+    ref = f"the task: :mod:`rl_environments.{module}`; arguments: :class:`~rl_environments.{module}.{cls}`"
+    if not real:
+        return f"``{name}{task}Sim-v0``: {what} ({ref}). The arm: ``{source}``."
+    extra = (" The object's pose comes from a tracker (``geometry_msgs/PoseStamped``) and the gripper is "
+             "commanded through its driver (:mod:`rl_environments.real_arm_robot`)." if module == "arm_manipulation"
+             else "")
+    return (f"``{name}{task}Real-v0``: ``{name}{task}Sim-v0``'s task on a real {name}: {what} ({ref}; robot and "
+            f"loop knobs: :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`).{extra} "
+            f"The arm: ``{source}``.")
+
+
 _CLASSES: dict[str, type] = {}
 _ROBOTS: dict[tuple[str, bool], type] = {}
 
@@ -109,9 +134,9 @@ def _build(class_name: str) -> type | None:
             bases: tuple[type, ...] = (task_cls, robot, side)
             if real:
                 bases = (TaskJointLimits, *bases)
+            source = registered_arms()[name].path.name
             attrs: dict[str, Any] = {"__module__": __name__, "__qualname__": class_name,
-                                     "__doc__": f"``{name}{task}{'Real' if real else 'Sim'}-v0`` "
-                                                f"(arguments: :class:`~{task_cls.__module__}.{task_cls.__name__}`)."}
+                                     "__doc__": _docstring(name, task, real, source)}
             if kind:
                 attrs["TASK"] = kind
             elif not real:

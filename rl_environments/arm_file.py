@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -416,7 +417,7 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
     )
 
 
-def load_arm_file(path: str | Path) -> ArmFile:
+def load_arm_file(path: str | os.PathLike[str]) -> ArmFile:
     """Read and check an arm file.
 
     Raises:

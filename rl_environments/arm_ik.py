@@ -83,9 +83,9 @@ class NumericTopDownIK:
 
     _AXES = {"x": 0, "y": 1, "z": 2}
 
-    def __init__(self, chain: KinematicChain, approach_axis: str, closing_axis: str, seed: Sequence[float], *,
-                 lower: Sequence[float] | None = None, upper: Sequence[float] | None = None,
-                 tol: float = 1e-4) -> None:
+    def __init__(self, chain: KinematicChain, approach_axis: str, closing_axis: str,
+                 seed: Sequence[float] | np.ndarray, *, lower: Sequence[float] | np.ndarray | None = None,
+                 upper: Sequence[float] | np.ndarray | None = None, tol: float = 1e-4) -> None:
         if chain.n_joints != 6:
             raise ValueError(f"NumericTopDownIK needs a 6-joint chain, got {chain.n_joints}: {chain.joint_names}")
         if approach_axis == closing_axis or {approach_axis, closing_axis} - set(self._AXES):

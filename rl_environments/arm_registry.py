@@ -1,8 +1,8 @@
 """Arms as data: gymnasium IDs from arm files (:mod:`rl_environments.arm_file`).
 
-``register_arm(path)`` checks an arm file, builds its robot layers and task envs from the tasks
-every arm shares (:mod:`rl_environments.arm_reach`, :mod:`rl_environments.arm_manipulation`) and
-registers its IDs: ``<NAME>ReacherSim-v0``, ``<NAME>ReacherGoalSim-v0`` and, for an arm with a
+``register_arm(path)`` checks an arm file, builds its robot layers and task envs from the reach,
+push and pick-and-place tasks every arm shares, and registers its IDs: ``<NAME>ReacherSim-v0``,
+``<NAME>ReacherGoalSim-v0`` and, for an arm with a
 gripper, ``<NAME>PushSim-v0``, ``<NAME>PushGoalSim-v0``, ``<NAME>PnPSim-v0``, ``<NAME>PnPGoalSim-v0``,
 each with its ``...Real-v0`` twin. The env classes live in :mod:`rl_environments.arm_envs` (built on
 first use, one class per name, so entry points are plain ``module:Class`` strings and instances
@@ -129,7 +129,9 @@ def _check_description(spec: ArmFile) -> None:
         raise
     except ValueError as exc:  # a link that is not there, or no chain between them
         msg = str(exc).strip().splitlines()[0]
-        key = "arm.ee_link" if "tip_link" in msg else "arm.base_link" if "base_link" in msg else "arm.joints"
+        key = ("arm.ee_link" if "tip_link" in msg or "no kinematic chain" in msg else
+               "arm.base_link" if msg.startswith("base_link") else
+               "arm.joints" if "joint" in msg else "description.uri")
         raise ArmFileError(f"{spec.path}: key {key!r}: {msg}") from None
     except Exception as exc:  # xacro, a missing package, a broken URDF: one line naming the file and key
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from multiros.sim.launch import SimulationConnection, robot_resource
-from rl_environments.arm_ik import TopDownIK, top_down_ik
+from rl_environments.arm_ik import TopDownIK
 
 __all__ = ["ARMS", "ArmScene", "ArmSpec", "EpisodeResult", "run_pick_and_place", "run_push"]
 
@@ -63,6 +63,11 @@ class ArmSpec:
     pad_half_width: float
     grasp_depth: float = 0.0
     mimic: float = -1.0
+
+    @property
+    def arm_file_name(self) -> str:
+        """The name of the arm's shipped arm file (its IK comes from there)."""
+        return {"vx300s": "VX300S", "ur5e": "UR5e", "ned2": "NED2"}[self.name]
 
     @property
     def package(self) -> ModuleType:
@@ -115,7 +120,9 @@ class ArmScene:
         self.control_steps = int(control_steps)
         self.max_speed = float(max_speed)
         self.scene: dict[str, Any] = dict(self.pkg.SCENE)
-        self.ik: TopDownIK = top_down_ik(arm)
+        from rl_environments.arm_registry import arm_of, top_down_ik_of
+
+        self.ik: TopDownIK = top_down_ik_of(arm_of(self.spec.arm_file_name))
         self.entity = self.pkg.ROBOT_NAME
         self.base = np.array([0.0, 0.0, float(self.scene["robot_height"])])
         self.half = float(self.scene["object_half_size"])

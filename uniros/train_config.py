@@ -415,9 +415,38 @@ def load_training_config(path: str | Path, *, algorithm: str | None = None) -> T
 
 
 def shipped_config_ids() -> list[str]:
-    """Env IDs with a training config shipped in ``rl_environments.config.training``."""
+    """Env IDs with a training config: shipped in ``rl_environments.config.training``, or derived from
+    their task for an arm file's IDs (:func:`arm_task_config`)."""
+    from rl_environments.arm_registry import arm_env_ids, registered_arms
+
     root = resources.files("rl_environments.config").joinpath("training")
-    return sorted(p.name[: -len(".yaml")] for p in root.iterdir() if p.name.endswith(".yaml"))
+    ids = {p.name[: -len(".yaml")] for p in root.iterdir() if p.name.endswith(".yaml")}
+    return sorted(ids.union(*(arm_env_ids(spec) for spec in registered_arms().values())))
+
+
+def _merge(base: dict[str, Any], over: Mapping[str, Any]) -> dict[str, Any]:
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = _merge(out[key], value) if isinstance(value, Mapping) and isinstance(out.get(key), dict) else value
+    return out
+
+
+def arm_task_config(env_id: str) -> TrainingConfig | None:
+    """An arm file's ID's training config: its task's (``config/training/tasks/<task>.yaml``) with the
+    arm file's ``training: {<task>: {...}}`` merged over ``model_params``; None for other IDs."""
+    from rl_environments.arm_registry import arm_env_ids, registered_arms
+
+    for spec in registered_arms().values():
+        found = arm_env_ids(spec).get(env_id)
+        if found is None:
+            continue
+        task = found[0]
+        path = Path(str(resources.files("rl_environments.config").joinpath("training", "tasks", f"{task}.yaml")))
+        data = yaml.safe_load(path.read_text())
+        data["model_params"] = _merge(data["model_params"], spec.training.get(task, {}))
+        source = f"{path} with {spec.path}'s training.{task}" if task in spec.training else str(path)
+        return parse_training_config(data, source)
+    return None
 
 
 def _simulated_twin(env_id: str) -> str | None:
@@ -431,6 +460,9 @@ def default_config_for(env_id: str) -> TrainingConfig:
     """The training config uniros ships for ``env_id`` (``config/training/<env_id>.yaml``)."""
     bare = env_id.rpartition(":")[2]
     candidate = resources.files("rl_environments.config").joinpath("training", f"{bare}.yaml")
+    derived = None if candidate.is_file() else arm_task_config(bare)
+    if derived is not None:
+        return derived
     if not candidate.is_file():
         twin = _simulated_twin(bare)
         if twin is not None:
@@ -456,6 +488,7 @@ __all__ = [
     "TrainingError",
     "algo_keywords",
     "check_save_prefix",
+    "arm_task_config",
     "default_config_for",
     "load_training_config",
     "parse_training_config",

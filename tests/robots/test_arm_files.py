@@ -1,0 +1,185 @@
+"""Arm files (rl_environments.arm_file, arm_registry): the shipped ones check out against their
+descriptions, a copy under another name registers the six tasks and their Real twins, UNIROS_ARMS
+reaches another process, training configs derive from the task, and every bad input is one line
+naming the file and the key, with nothing registered."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+import rl_environments
+from rl_environments.arm_file import ARM_FILE_FORMAT, ArmFileError, load_arm_file
+from rl_environments.arm_registry import arm_env_ids, chain_of, register_arm, registered_arms, unregister_arm
+
+SHIPPED = Path(rl_environments.__file__).resolve().parent.parent / "config" / "arms"
+if not SHIPPED.is_dir():  # an installed package: config is rl_environments.config
+    from importlib import resources
+
+    SHIPPED = Path(str(resources.files("rl_environments.config").joinpath("arms")))
+
+
+@pytest.fixture
+def ur5e_data() -> dict:
+    return yaml.safe_load((SHIPPED / "ur5e.yaml").read_text())
+
+
+@pytest.fixture
+def write(tmp_path):
+    made: list[str] = []
+
+    def _write(data: dict, name: str = "arm.yaml") -> Path:
+        path = tmp_path / name
+        path.write_text(yaml.safe_dump(data, sort_keys=False))
+        made.append(str(data.get("name")))
+        return path
+
+    yield _write
+    for name in made:
+        if name not in ("VX300S", "UR5e", "NED2"):
+            unregister_arm(name)
+
+
+@pytest.mark.parametrize("name", ["vx300s", "ur5e", "ned2"])
+def test_shipped_arm_files_match_their_descriptions(name):
+    spec = load_arm_file(SHIPPED / f"{name}.yaml")
+    chain = chain_of(spec)
+    assert chain.joint_names == spec.joints
+    assert registered_arms()[spec.name].path == spec.path
+    ids = arm_env_ids(spec)
+    assert len(ids) == 6 and all(i in gym.registry and real in gym.registry for i, (_, _, real) in ids.items())
+    # the home pose and the reach's start pose lie within the joint limits
+    for pose in (spec.home, spec.reach["init_joint_pos"]):
+        assert np.all(chain.lower - 1e-9 <= pose) and np.all(np.asarray(pose) <= chain.upper + 1e-9)
+
+
+def test_an_arm_file_under_another_name_registers_its_ids(ur5e_data, write):
+    ur5e_data["name"], ur5e_data["robot_name"] = "MyUR", "myur"
+    ids = register_arm(write(ur5e_data))
+    tasks = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
+    assert ids == [f"MyUR{t}Sim-v0" for t in tasks] + [f"MyUR{t}Real-v0" for t in tasks]
+    assert "MyURPnPGoalSim-v0" in rl_environments.GOAL_ENV_IDS
+    assert rl_environments.SIM_TO_REAL["MyURPushSim-v0"] == "MyURPushReal-v0"
+    env = gym.make("MyURReacherGoalSim-v0")
+    try:
+        obs, _ = env.reset(seed=0)
+        assert env.observation_space.contains(obs)
+        assert env.unwrapped.ROBOT_NAME == "myur" and env.spec.max_episode_steps == 100
+        obs, *_ = env.step(env.action_space.sample())
+        assert env.observation_space.contains(obs)
+    finally:
+        env.close()
+    # the same file again is a no-op re-registration; another file of that name is refused
+    assert register_arm(write(ur5e_data)) == ids
+
+
+def test_a_gripperless_arm_gets_the_reach_only(ur5e_data, write):
+    ur5e_data["name"] = "ArmNoGrip"
+    ur5e_data["gripper"] = None
+    del ur5e_data["manipulation"], ur5e_data["scene"]
+    ids = register_arm(write(ur5e_data))
+    assert ids == ["ArmNoGripReacherSim-v0", "ArmNoGripReacherGoalSim-v0", "ArmNoGripReacherReal-v0",
+                   "ArmNoGripReacherGoalReal-v0"]
+
+
+def test_uniros_arms_registers_in_another_process(ur5e_data, tmp_path):
+    ur5e_data["name"] = "EnvArm"
+    path = tmp_path / "envarm.yaml"
+    path.write_text(yaml.safe_dump(ur5e_data))
+    code = "import rl_environments, gymnasium as gym; print('EnvArmPnPSim-v0' in gym.registry)"
+    env = {**os.environ, "UNIROS_ARMS": os.pathsep.join([str(path), ""])}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "True"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("format: 1\nname: X\n")
+    out = subprocess.run([sys.executable, "-c", code], env={**env, "UNIROS_ARMS": str(bad)}, capture_output=True,
+                         text=True, timeout=120)
+    assert out.returncode != 0 and "UNIROS_ARMS:" in out.stderr and "bad.yaml" in out.stderr
+
+
+def test_training_configs_derive_from_the_task_with_the_arm_files_overrides(ur5e_data, write):
+    from uniros.train_config import default_config_for
+
+    ur5e_data["name"] = "TrainArm"
+    ur5e_data["training"] = {"ReacherGoal": {"training_steps": 4321, "sac_params": {"batch_size": 64}}}
+    register_arm(write(ur5e_data))
+    cfg = default_config_for("TrainArmReacherGoalSim-v0")
+    assert cfg.training_steps == 4321
+    assert cfg.algo_params["batch_size"] == 64 and cfg.algo_params["gamma"] == 0.95
+    assert "training.ReacherGoal" in cfg.source
+    assert default_config_for("UR5eReacherGoalSim-v0").training_steps == 10000
+
+
+def _mutate(data: dict, path: str, value) -> dict:
+    *parents, last = path.split(".")
+    node = data
+    for key in parents:
+        node = node.setdefault(key, {})
+    if value is KeyError:
+        del node[last]
+    else:
+        node[last] = value
+    return data
+
+
+BAD = [
+    ("arm.ee_lnk", "grasp_link", "'arm.ee_lnk' is not a key of arm; did you mean 'ee_link'?"),
+    ("format", ARM_FILE_FORMAT + 1, "newer than this uniros reads (1): upgrade uniros"),
+    ("arm.base_link", KeyError, "key 'arm.base_link' is missing"),
+    ("arm.home", [0.0, 1.0], "key 'arm.home' must be a list of 6 finite numbers"),
+    ("arm.joints", ["a", "b", "c"], "the tasks serve serial arms of 4 to 7 joints"),
+    ("arm.approach_axis", "w", "must be one of x, y, z"),
+    ("gripper.joints", ["left_finger_joint", "elbow_joint"], "names arm joints ['elbow_joint']"),
+    ("reach.reach_tolerence", 0.02, "did you mean 'reach_tolerance'?"),
+    ("reach.delta_coeff", "big", "key 'delta_coeff' must be a number"),
+    ("real.gripper_interface", "magic", "real.gripper_interface' must be one of"),
+    ("training.Reach", {}, "did you mean 'Reacher'?"),
+]
+
+
+@pytest.mark.parametrize(("key", "value", "message"), BAD, ids=[b[0] for b in BAD])
+def test_bad_keys_are_one_line_errors_and_register_nothing(ur5e_data, write, key, value, message):
+    ur5e_data["name"] = "BadArm"
+    path = write(_mutate(ur5e_data, key, value))
+    before = set(gym.registry)
+    with pytest.raises(ArmFileError) as err:
+        register_arm(path)
+    assert message in str(err.value) and str(path) in str(err.value) and "\n" not in str(err.value)
+    assert set(gym.registry) == before and "BadArm" not in registered_arms()
+
+
+@pytest.mark.parametrize(("key", "value", "message"), [
+    ("arm.ee_link", "no_such_link", "key 'arm.ee_link'"),
+    ("arm.joints", ["shoulder_lift_joint", "shoulder_pan_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+                    "wrist_3_joint"], "are not the moving joints"),
+    ("description.uri", "package://no_such_description/urdf/x.urdf", "key 'description.uri'"),
+])
+def test_a_description_that_does_not_hold_the_chain_is_refused(ur5e_data, write, key, value, message):
+    ur5e_data["name"] = "BadChain"
+    path = write(_mutate(ur5e_data, key, value))
+    before = set(gym.registry)
+    with pytest.raises(ArmFileError, match=message):
+        register_arm(path)
+    assert set(gym.registry) == before
+
+
+def test_an_unparsable_description_and_a_clashing_name(ur5e_data, write, tmp_path):
+    (tmp_path / "broken.urdf").write_text("<robot name='x'><link name='a'>")
+    ur5e_data["name"] = "Broken"
+    ur5e_data["description"]["uri"] = "broken.urdf"
+    with pytest.raises(ArmFileError, match="key 'description.uri'"):
+        register_arm(write(ur5e_data, "broken.yaml"))
+    ur5e_data = yaml.safe_load((SHIPPED / "ur5e.yaml").read_text())  # a second file named like a shipped arm
+    with pytest.raises(ArmFileError, match="'UR5e' is already registered by .*ur5e.yaml"):
+        register_arm(write(ur5e_data, "ur5e_copy.yaml"))
+    (tmp_path / "notyaml.yaml").write_text("format: [1\n")
+    with pytest.raises(ArmFileError, match="not valid YAML"):
+        load_arm_file(tmp_path / "notyaml.yaml")
