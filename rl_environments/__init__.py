@@ -1,43 +1,24 @@
 """Robots and tasks for uniros, registered as gymnasium IDs on import.
 
-Task envs (two layers each: a robot env and a task env):
+Arms are data: one arm file each (:mod:`rl_environments.arm_file`; the shipped ones in
+``config/arms/``: the RX200, VX300S, UR5e and NED2; yours through ``uniros.register_arm`` or
+``UNIROS_ARMS``). Each gives ``<ARM><task>Sim-v0`` for each ``<task>`` of ``ARM_TASKS``
+(``Reacher``, ``ReacherGoal``, ``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``; push and pick-and-place
+only for an arm with a gripper) and each one's ``<ARM><task>Real-v0`` twin, entry points
+``rl_environments.arm_envs:<ARM><task>Env`` and ``...RealEnv`` (:mod:`rl_environments.arm_registry`).
 
-==============================  ========================================================================
-ID                              entry point
-==============================  ========================================================================
-``RX200ReacherSim-v0``          ``rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim:RX200ReacherEnv``
-``RX200ReacherGoalSim-v0``      ``...reach.rx200_reach_goal_sim:RX200ReacherGoalEnv``
-``RX200PushSim-v0``             ``rl_environments.rx200.sim.task_envs.manipulation.rx200_push_sim:RX200PushEnv``
-``RX200PushGoalSim-v0``         ``...manipulation.rx200_push_goal_sim:RX200PushGoalEnv``
-``RX200PnPSim-v0``              ``...manipulation.rx200_pnp_sim:RX200PnPEnv``
-``RX200PnPGoalSim-v0``          ``...manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv``
-``ABBIRB120ReacherEnv-v0``      ``rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv``
-``ABBIRB120ReacherGoalEnv-v0``  ``...reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv``
-==============================  ========================================================================
-
-Every arm's tasks (``rl_environments.arm_reach``, ``rl_environments.arm_manipulation``) on the
-VX300S, UR5e and NED2 (``ARMS``): ``<ARM><task>Sim-v0`` for each ``<task>`` of ``ARM_TASKS``
-(``Reacher``, ``ReacherGoal``, ``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``), entry point
-``rl_environments.<arm>.sim:<ARM><task>Env``; the RX200's six observed through a Zed2 camera,
-``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``, ``rl_environments.rx200.sim.zed2``).
-
-Real-robot twins (same task, same spaces; they need a robot or a stand-in, see ``docs/real_robots.md``):
-
-====================================  ==================================================================
-``RX200ReacherReal-v0``               ``rl_environments.rx200.real.task_envs.reach.rx200_reach_real:...``
-``RX200ReacherGoalReal-v0``           ``...reach.rx200_reach_goal_real:RX200ReacherGoalRealEnv``
-``ABBIRB120ReacherRealEnv-v0``        ``rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_real:...``
-``ABBIRB120ReacherGoalRealEnv-v0``    ``...reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv``
-====================================  ==================================================================
-
-and the arms' twins ``<ARM><task>Real-v0`` (``rl_environments.<arm>.real:<ARM><task>RealEnv``).
+Besides: FRobs_RL's ABB IRB120 reacher, ``ABBIRB120ReacherEnv-v0`` and ``ABBIRB120ReacherGoalEnv-v0``
+(``rl_environments.abb_irb120.sim.task_envs.reacher``) with their Real twins
+``ABBIRB120ReacherRealEnv-v0`` and ``ABBIRB120ReacherGoalRealEnv-v0``; and the RX200's six tasks
+observed through a Zed2 camera, ``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``,
+``rl_environments.rx200.sim.zed2``).
 
 ``ENV_IDS``/``GOAL_ENV_IDS`` are the simulated envs (they run anywhere); ``REAL_ENV_IDS``/
-``REAL_GOAL_ENV_IDS`` the real ones, and ``SIM_TO_REAL`` maps each simulated ID to its real twin.
-The reach IDs have ``max_episode_steps=100``, push and pick-and-place (``MANIPULATION_ENV_IDS``) 50
-(``EPISODE_STEPS``), their Real twins alike. Robot description packages (``rx200_description``,
-``abb_irb120_description``, ``vx300s_description``, ``ur5e_description``, ``ned2_description``)
-live in ``rl_environments.robots``.
+``REAL_GOAL_ENV_IDS`` the real ones (they need a robot or a stand-in, see ``docs/real_robots.md``),
+and ``SIM_TO_REAL`` maps each simulated ID to its real twin. The reach IDs have
+``max_episode_steps=100``, push and pick-and-place (``MANIPULATION_ENV_IDS``) 50 (``EPISODE_STEPS``),
+their Real twins alike. Robot description packages (``rx200_description``, ``abb_irb120_description``,
+``vx300s_description``, ``ur5e_description``, ``ned2_description``) live in ``rl_environments.robots``.
 """
 
 from __future__ import annotations
@@ -51,48 +32,36 @@ from rl_environments._checkout import map_checkout_package as _map_checkout_pack
 # From a source checkout, config/ is not inside this package (an install maps it): map it.
 _map_checkout_package("rl_environments.config", _Path(__file__).resolve().parent.parent / "config")
 
-ENV_SPECS: dict[str, str] = {
-    "RX200ReacherSim-v0": "rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim:RX200ReacherEnv",
-    "RX200ReacherGoalSim-v0": "rl_environments.rx200.sim.task_envs.reach.rx200_reach_goal_sim:RX200ReacherGoalEnv",
-    "ABBIRB120ReacherEnv-v0": "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv",
-    "ABBIRB120ReacherGoalEnv-v0": (
-        "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv"
-    ),
-    "RX200PushSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_push_sim:RX200PushEnv",
-    "RX200PushGoalSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_push_goal_sim:RX200PushGoalEnv",
-    "RX200PnPSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_sim:RX200PnPEnv",
-    "RX200PnPGoalSim-v0": "rl_environments.rx200.sim.task_envs.manipulation.rx200_pnp_goal_sim:RX200PnPGoalEnv",
-}
+#: Simulated IDs -> entry points (the arm files' are added as they are registered, first).
+ENV_SPECS: dict[str, str] = {}
 #: The arms whose IDs come from arm files (:mod:`rl_environments.arm_registry`): ID prefix -> robot name.
-#: The shipped ones (``config/arms/``) are registered below, the user's by ``register_arm`` or ``UNIROS_ARMS``.
 ARMS: dict[str, str] = {}
 #: The six tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper).
 ARM_TASKS: tuple[str, ...] = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
 #: The shipped arm files (in ``rl_environments.config``, ``config/arms/`` of a checkout).
-SHIPPED_ARM_FILES: tuple[str, ...] = ("vx300s.yaml", "ur5e.yaml", "ned2.yaml")
+SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml")
 #: The RX200's tasks observed through a Zed2 stereo camera (rl_environments.rx200.sim.zed2).
 ZED2_TASKS: tuple[str, ...] = ARM_TASKS
-for _task in ZED2_TASKS:
-    ENV_SPECS[f"RX200Zed2{_task}Sim-v0"] = f"rl_environments.rx200.sim.zed2:RX200Zed2{_task}Env"
 CAMERA_ENV_IDS: tuple[str, ...] = tuple(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS)
-ENV_IDS: tuple[str, ...] = tuple(ENV_SPECS)
+_STATIC_SPECS: dict[str, str] = {
+    "ABBIRB120ReacherEnv-v0": "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv",
+    "ABBIRB120ReacherGoalEnv-v0": (
+        "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv"
+    ),
+    **{f"RX200Zed2{task}Sim-v0": f"rl_environments.rx200.sim.zed2:RX200Zed2{task}Env" for task in ZED2_TASKS},
+}
+ENV_IDS: tuple[str, ...] = ()
 GOAL_ENV_IDS: tuple[str, ...] = (
-    "RX200ReacherGoalSim-v0", "ABBIRB120ReacherGoalEnv-v0", "RX200PushGoalSim-v0", "RX200PnPGoalSim-v0",
-    *(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS if task.endswith("Goal")),
+    "ABBIRB120ReacherGoalEnv-v0", *(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS if task.endswith("Goal")),
 )
-MANIPULATION_ENV_IDS: tuple[str, ...] = (
-    "RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0", "RX200PnPGoalSim-v0",
-    *(f"RX200Zed2{task}Sim-v0" for task in ARM_TASKS if task.startswith(("Push", "PnP"))),
-)
+MANIPULATION_ENV_IDS: tuple[str, ...] = tuple(
+    f"RX200Zed2{task}Sim-v0" for task in ARM_TASKS if task.startswith(("Push", "PnP")))
 MAX_EPISODE_STEPS = 100
-# Push and pick-and-place: Fetch's 50 steps of 40 ms (see rx200_manipulation's docstring).
+# Push and pick-and-place: Fetch's 50 steps of 40 ms (see rl_environments.arm_manipulation).
 MANIPULATION_EPISODE_STEPS = 50
 EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, MANIPULATION_EPISODE_STEPS)
-REAL_ENV_SPECS: dict[str, str] = {
-    "RX200ReacherReal-v0": "rl_environments.rx200.real.task_envs.reach.rx200_reach_real:RX200ReacherRealEnv",
-    "RX200ReacherGoalReal-v0": (
-        "rl_environments.rx200.real.task_envs.reach.rx200_reach_goal_real:RX200ReacherGoalRealEnv"
-    ),
+REAL_ENV_SPECS: dict[str, str] = {}
+_STATIC_REAL_SPECS: dict[str, str] = {
     "ABBIRB120ReacherRealEnv-v0": (
         "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_real:ABBIRB120ReacherRealEnv"
     ),
@@ -100,17 +69,13 @@ REAL_ENV_SPECS: dict[str, str] = {
         "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv"
     ),
 }
-REAL_ENV_IDS: tuple[str, ...] = tuple(REAL_ENV_SPECS)
-REAL_GOAL_ENV_IDS: tuple[str, ...] = ("RX200ReacherGoalReal-v0", "ABBIRB120ReacherGoalRealEnv-v0")
+REAL_ENV_IDS: tuple[str, ...] = ()
+REAL_GOAL_ENV_IDS: tuple[str, ...] = ("ABBIRB120ReacherGoalRealEnv-v0",)
 SIM_TO_REAL: dict[str, str] = {
-    "RX200ReacherSim-v0": "RX200ReacherReal-v0",
-    "RX200ReacherGoalSim-v0": "RX200ReacherGoalReal-v0",
     "ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
     "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0",
 }
 
-# A Real twin's episodes are its simulated twin's.
-EPISODE_STEPS.update({SIM_TO_REAL[i]: n for i, n in list(EPISODE_STEPS.items()) if i in SIM_TO_REAL})
 
 # Gymnasium loads "<module>:<ID>" entry points by name (JSON-able specs); the module makes each ID's.
 VECTOR_ENTRY_MODULE = "rl_environments.vector_entry"
@@ -156,9 +121,6 @@ def forget_arm_ids(sim_id: str, real_id: str) -> None:
         g[key] = tuple(i for i in g[key] if i not in (sim_id, real_id))
 
 
-register_envs()
-
-
 def _register_arm_files() -> None:
     from importlib import resources
 
@@ -175,6 +137,11 @@ def _register_arm_files() -> None:
 
 
 _register_arm_files()
+ENV_SPECS.update(_STATIC_SPECS)
+REAL_ENV_SPECS.update(_STATIC_REAL_SPECS)
+ENV_IDS = tuple(ENV_SPECS)
+REAL_ENV_IDS = tuple(REAL_ENV_SPECS)
+register_envs()
 
 __all__ = [
     "ARMS",

@@ -34,8 +34,8 @@ class ArmFileRobot(ArmRobot):
 
     @classmethod
     def description_files(cls) -> tuple[str, dict[str, str], str]:
-        spec = cls.ARM_FILE
-        return spec.description_uri, dict(spec.xacro_args), spec.controllers_file
+        spec = cls.ARM_FILE  # XACRO_ARGS: the file's, unless a variant of the arm sets others (the RX200's Zed2)
+        return spec.description_uri, dict(cls.XACRO_ARGS), spec.controllers_file
 
     @classmethod
     def kinematic_chain(cls) -> KinematicChain:
@@ -122,6 +122,12 @@ def _build(class_name: str) -> type | None:
     from rl_environments.arm_registry import ARM_TASKS, registered_arms
 
     for name in registered_arms():
+        if class_name in (f"{name}Robot", f"{name}RealRobot"):
+            return _robot(name, class_name.endswith("RealRobot"))
+        for real in (False, True):
+            for goal in (False, True):
+                if class_name == f"{name}Robot{'Real' if real else ''}{'Goal' if goal else ''}Env":
+                    return robot_env_class(name, goal=goal, real=real)
         for task, (goal, kind) in ARM_TASKS.items():
             real = class_name == f"{name}{task}RealEnv"
             if not real and class_name != f"{name}{task}Env":
@@ -143,6 +149,21 @@ def _build(class_name: str) -> type | None:
                 attrs["NUM_SIM_STEPS"] = REACH_NUM_SIM_STEPS
             return type(class_name, bases, attrs)
     return None
+
+
+def robot_env_class(name: str, *, goal: bool = False, real: bool = False) -> type:
+    """An arm's robot env without a task (``NAMERobotEnv``, ``NAMERobotGoalEnv``, ``NAMERobotRealEnv``,
+    ``NAMERobotRealGoalEnv``): the base of a task env of your own on that arm (docs/create_env.md)."""
+    class_name = f"{name}Robot{'Real' if real else ''}{'Goal' if goal else ''}Env"
+    cls = _CLASSES.get(class_name)
+    if cls is None:
+        side = ((ArmRobotRealGoalEnv if goal else ArmRobotRealEnv) if real
+                else (ArmRobotGoalEnv if goal else ArmRobotEnv))
+        cls = _CLASSES[class_name] = type(class_name, (_robot(name, real), side), {
+            "__module__": __name__, "__qualname__": class_name,
+            "__doc__": f"The {name}'s robot layer for {'goal-conditioned' if goal else 'plain'} task envs "
+                       f"{'on its real driver' if real else 'on the simulation node'}."})
+    return cls
 
 
 def forget(*class_names: str) -> None:

@@ -26,6 +26,7 @@ The layout (``docs/add_your_arm.md`` explains every key)::
       approach_axis: z          # the EE frame's axis out of the gripper
       closing_axis: x           # the EE frame's axis the fingers close along
       ik_seed: [...]            # a top-down pose to start the top-down IK from (default: home)
+      top_down_ik: {solver: numeric}   # or planar_wrist with its lengths (the RX200)
     gripper:                    # or null: reach only
       joints: [left_finger_joint, right_finger_joint]
       mimic: -1.0
@@ -79,6 +80,7 @@ class GripperSpec:
     closed: float
     open: float
     controller: str
+    reset_mimic: bool = True
 
 
 @dataclass(frozen=True)
@@ -120,6 +122,7 @@ class ArmFile:
     approach_axis: str
     closing_axis: str
     ik_seed: tuple[float, ...]
+    top_down_ik: Mapping[str, Any]
     gripper: GripperSpec | None
     render_camera: str
     camera_view: tuple[tuple[float, float, float], float, float, float]
@@ -241,8 +244,9 @@ _TOP = ("format", "name", "robot_name", "description", "arm", "gripper", "camera
         "real", "training")
 _DESCRIPTION = ("uri", "xacro_args", "controllers")
 _ARM = ("joints", "base_link", "ee_link", "home", "controller", "controllers", "approach_axis", "closing_axis",
-        "ik_seed")
-_GRIPPER = ("joints", "mimic", "closed", "open", "controller")
+        "ik_seed", "top_down_ik")
+_IK = ("solver", "shoulder_height", "upper_arm", "forearm", "tip")
+_GRIPPER = ("joints", "mimic", "closed", "open", "controller", "reset_mimic")
 _CAMERA = ("render_camera", "view", "topics")
 _VIEW = ("lookat", "distance", "azimuth", "elevation")
 _SCENE_FILES = ("table", "object")
@@ -306,6 +310,17 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
     approach, closing = arm.axis("approach_axis"), arm.axis("closing_axis")
     if approach == closing:
         arm.fail("arm.closing_axis", f"must differ from approach_axis ({approach})")
+    ik_sec = arm.sub("top_down_ik", _IK, {})
+    assert ik_sec is not None
+    solver = ik_sec.string("solver", "numeric")
+    top_down: dict[str, Any] = {"solver": solver}
+    if solver == "planar_wrist":
+        if n != 5:
+            ik_sec.fail("arm.top_down_ik.solver", f"planar_wrist serves 5 joints, the arm has {n}")
+        top_down.update(shoulder_height=ik_sec.number("shoulder_height"), upper_arm=ik_sec.numbers("upper_arm", 2),
+                        forearm=ik_sec.number("forearm"), tip=ik_sec.number("tip"))
+    elif solver != "numeric":
+        ik_sec.fail("arm.top_down_ik.solver", f"must be 'numeric' (any chain) or 'planar_wrist', got {solver!r}")
     sim_controllers = arm.strings("controllers")
     arm_controller = arm.string("controller")
     if arm_controller not in sim_controllers:
@@ -322,7 +337,7 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         if overlap:
             gsec.fail("gripper.joints", f"names arm joints {overlap}")
         gripper = GripperSpec(gjoints, gsec.number("mimic", 1.0), gsec.number("closed"), gsec.number("open"),
-                              gsec.string("controller"))
+                              gsec.string("controller"), gsec.boolean("reset_mimic", True))
         if gripper.controller not in sim_controllers:
             gsec.fail("gripper.controller", f"{gripper.controller!r} is not among arm.controllers "
                                             f"{list(sim_controllers)}")
@@ -409,7 +424,8 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         path=source.resolve(), name=name, robot_name=robot_name, description_uri=uri, xacro_args=xacro,
         controllers_file=controllers_file, joints=joints, base_link=arm.string("base_link"),
         ee_link=arm.string("ee_link"), home=home, arm_controller=arm_controller, sim_controllers=sim_controllers,
-        approach_axis=approach, closing_axis=closing, ik_seed=arm.numbers("ik_seed", n, home), gripper=gripper,
+        approach_axis=approach, closing_axis=closing, ik_seed=arm.numbers("ik_seed", n, home), top_down_ik=top_down,
+        gripper=gripper,
         render_camera=render_camera, camera_view=camera_view,
         camera_topics={k: (v[0], v[1]) for k, v in topics.items()},
         reach=reach, manipulation=manipulation, scene_files=scene_files, real=real,

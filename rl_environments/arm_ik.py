@@ -11,7 +11,8 @@ direction (push and pick-and-place, and their scripted policies).
   trajectory) or from the arm's top-down seed, never from random restarts, so consecutive targets
   stay on one elbow/wrist branch.
 
-The RX200's closed-form solution stays with its task (:class:`rl_environments.manipulation.RX200TopDownIK`).
+* :class:`PlanarWristTopDownIK` is closed form for arms whose pitch joints are parallel (the RX200),
+  from lengths the arm file gives (``arm.top_down_ik``).
 
 All positions are in the robot's base frame. ``yaw`` is the direction (rad, about +z) along which
 the fingers close; None closes them across the radial direction from the base, as the RX200's IK
@@ -29,7 +30,7 @@ import numpy as np
 
 from multiros.utils.kinematics import KinematicChain, quat_from_matrix
 
-__all__ = ["ChainTopDownIK", "NumericTopDownIK", "TopDownIK", "solve_each"]
+__all__ = ["ChainTopDownIK", "NumericTopDownIK", "PlanarWristTopDownIK", "TopDownIK", "solve_each"]
 
 
 class TopDownIK(Protocol):
@@ -138,6 +139,73 @@ class NumericTopDownIK:
                 break
         assert best is not None  # attempts is never empty
         return np.clip(best.q, self.lower, self.upper)
+
+
+class PlanarWristTopDownIK:
+    """Closed-form top-down IK of an arm whose pitch joints are parallel: a waist, a shoulder, an
+    elbow and a wrist pitch in one vertical plane, then a wrist rotate (the Interbotix ReactorX /
+    WidowX family: the RX200). The waist aims at the target, shoulder and elbow place the wrist
+    pitch axis above it (elbow up), the wrist pitch makes the gripper vertical and the wrist rotate
+    sets the yaw. An unreachable target is pulled in to the reachable edge. An arm file chooses it
+    with ``arm.top_down_ik: {solver: planar_wrist, ...}`` and the lengths below.
+
+    Args:
+        shoulder_height: the shoulder axis above the base (m).
+        upper_arm: the shoulder-to-elbow offset (along the arm at zero, up), m.
+        forearm: the elbow-to-wrist-pitch distance (m).
+        tip: the wrist pitch axis to the end-effector frame, along the gripper (m).
+        joint_names: the five joints, in command order.
+        lower, upper: joint limits.
+    """
+
+    def __init__(self, shoulder_height: float, upper_arm: Sequence[float], forearm: float, tip: float,
+                 joint_names: Sequence[str], lower: Sequence[float] | np.ndarray,
+                 upper: Sequence[float] | np.ndarray) -> None:
+        if len(joint_names) != 5:
+            raise ValueError(f"the planar-wrist IK serves 5 joints (waist, shoulder, elbow, wrist pitch, wrist "
+                             f"rotate), got {list(joint_names)}")
+        self.joint_names = tuple(joint_names)
+        self.lower = np.asarray(lower, dtype=np.float64)
+        self.upper = np.asarray(upper, dtype=np.float64)
+        self.shoulder_height, self.forearm, self.tip = float(shoulder_height), float(forearm), float(tip)
+        self.upper_arm = (float(upper_arm[0]), float(upper_arm[1]))
+        self._a = float(np.hypot(*self.upper_arm))
+        self._alpha0 = float(np.arctan2(self.upper_arm[1], self.upper_arm[0]))
+
+    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
+              q0: Sequence[float] | None = None) -> np.ndarray:
+        """Joint targets (clipped into the limits) for the end-effector frame at ``target`` (base
+        frame), gripper vertical. ``yaw``: the direction the fingers close along; None closes them
+        across the radial direction (wrist rotate 0). ``q0`` is not needed (closed form)."""
+        return self.solve_rows(np.asarray(target, dtype=np.float64)[None], None if yaw is None else [yaw])[0]
+
+    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
+                   q0: np.ndarray | None = None) -> np.ndarray:
+        """:meth:`solve` for N targets (N x 3) at once, in one numpy pass (N x 5)."""
+        t = np.asarray(targets, dtype=np.float64)
+        x, y, z = t[:, 0], t[:, 1], t[:, 2]
+        r = np.hypot(x, y)
+        waist = np.where(r > 1e-6, np.arctan2(y, x), 0.0)
+        dr, dz = r, z + self.tip - self.shoulder_height
+        a, b = self._a, self.forearm
+        dist = np.hypot(dr, dz)
+        dist_c = np.minimum(np.maximum(dist, abs(a - b) + 1e-6), a + b - 1e-6)
+        scale = (dist_c != dist) & (dist > 1e-9)
+        ratio = np.divide(dist_c, dist, out=np.ones_like(dist), where=scale)
+        dr, dz = np.where(scale, dr * ratio, dr), np.where(scale, dz * ratio, dz)
+        cos_rel = (dist_c**2 - a * a - b * b) / (2 * a * b)
+        rel = -np.arccos(np.clip(cos_rel, -1.0, 1.0))  # elbow up: the forearm folds down
+        phi1 = np.arctan2(dz, dr) - np.arctan2(b * np.sin(rel), a + b * np.cos(rel))
+        phi2 = phi1 + rel
+        shoulder = self._alpha0 - phi1
+        elbow = -phi2 - shoulder
+        wrist = np.pi / 2 - shoulder - elbow
+        rotate = np.zeros_like(waist)
+        if yaws is not None:  # wrist rotate 0 closes along waist + pi/2; +t turns that by -t about +z
+            rotate = (waist + np.pi / 2 - np.asarray(yaws, dtype=np.float64) + np.pi) % (2 * np.pi) - np.pi
+            # the same grasp half a turn round turns the wrist less
+            rotate = np.where(np.abs(rotate) > np.pi / 2, (rotate + 2 * np.pi) % (2 * np.pi) - np.pi, rotate)
+        return np.clip(np.stack([waist, shoulder, elbow, wrist, rotate], axis=1), self.lower, self.upper)
 
 
 def _dls(jac: np.ndarray, damping: float) -> np.ndarray:

@@ -24,7 +24,7 @@ from typing import Any
 
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
-from rl_environments.arm_ik import ChainTopDownIK
+from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
 __all__ = ["ARM_TASKS", "arm_env_ids", "chain_of", "top_down_ik_of", "arm_of", "registered_arms", "register_arm",
            "register_env_arms", "unregister_arm"]
@@ -44,15 +44,21 @@ def chain_of(spec: ArmFile) -> KinematicChain:
 
 
 def top_down_ik_of(spec: ArmFile, lower: Sequence[float] | None = None,
-                   upper: Sequence[float] | None = None) -> ChainTopDownIK:
-    """The arm's top-down IK (its file's axes, seed and home) within joint limits (default the chain's)."""
+                   upper: Sequence[float] | None = None) -> TopDownIK:
+    """The arm's top-down IK (its file's ``arm.top_down_ik`` solver, axes, seed and home) within joint
+    limits (default the chain's)."""
+    ik = spec.top_down_ik
+    if ik.get("solver") == "planar_wrist":
+        chain = chain_of(spec)
+        return PlanarWristTopDownIK(ik["shoulder_height"], ik["upper_arm"], ik["forearm"], ik["tip"], spec.joints,
+                                    chain.lower if lower is None else lower, chain.upper if upper is None else upper)
     return ChainTopDownIK(chain_of(spec), spec.approach_axis, spec.closing_axis, spec.ik_seed, home=spec.home,
                           lower=lower, upper=upper)
 
 
 @functools.lru_cache(maxsize=32)
-def _chain(uri: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> KinematicChain:
-    # A chain is immutable once built, so envs share it; xacro costs ~0.1 s.
+def _urdf_text(uri: str, args: tuple[tuple[str, str], ...]) -> str:
+    # xacro costs ~0.1 s; the text is immutable, so envs share it.
     from multiros.sim.description import xacro_to_urdf
     from multiros.sim.packages import default_index
 
@@ -60,8 +66,12 @@ def _chain(uri: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> 
     path = index.resolve_uri(uri)
     if not path.is_file():
         raise ArmFileError(f"description {uri!r}: file {str(path)!r} not found")
-    text = xacro_to_urdf(path, dict(args), index=index) if path.name.endswith(".xacro") else path.read_text()
-    return KinematicChain.from_urdf(text, base, tip)
+    return xacro_to_urdf(path, dict(args), index=index) if path.name.endswith(".xacro") else path.read_text()
+
+
+@functools.lru_cache(maxsize=32)
+def _chain(uri: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> KinematicChain:
+    return KinematicChain.from_urdf(_urdf_text(uri, args), base, tip)
 
 
 def robot_constants(spec: ArmFile) -> dict[str, Any]:
@@ -73,6 +83,7 @@ def robot_constants(spec: ArmFile) -> dict[str, Any]:
         "ARM_FILE": spec,
         "ROBOT_NAME": spec.robot_name,
         "DESCRIPTION_PACKAGE": "",
+        "XACRO_ARGS": dict(spec.xacro_args),
         "ARM_JOINTS": spec.joints,
         "BASE_LINK": spec.base_link,
         "EE_LINK": spec.ee_link,
@@ -81,6 +92,7 @@ def robot_constants(spec: ArmFile) -> dict[str, Any]:
         "GRIPPER_CONTROLLER": gripper.controller if gripper else "",
         "FINGER_JOINTS": gripper.joints if gripper else (),
         "FINGER_MIMIC": gripper.mimic if gripper else 1.0,
+        "RESET_MIMIC": gripper.reset_mimic if gripper else True,
         "SCENE": scene,
         "RENDER_CAMERA": spec.render_camera,
         "CAMERA_VIEW": spec.camera_view,
@@ -140,6 +152,27 @@ def _check_description(spec: ArmFile) -> None:
         raise ArmFileError(
             f"{spec.path}: key 'arm.joints' {list(spec.joints)} are not the moving joints from "
             f"{spec.base_link!r} to {spec.ee_link!r} in the description, which are {list(chain.joint_names)}")
+    if spec.gripper is not None:
+        _check_gripper(spec)
+
+
+def _check_gripper(spec: ArmFile) -> None:
+    """The gripper's joints are movable joints of the description; the commanded one mimics nothing."""
+    import xml.etree.ElementTree as ET
+
+    assert spec.gripper is not None
+    root = ET.fromstring(_urdf_text(spec.description_uri, tuple(sorted(spec.xacro_args.items()))))
+    joints = {j.get("name"): j for j in root.iter("joint")}
+    for i, name in enumerate(spec.gripper.joints):
+        joint = joints.get(name)
+        if joint is None:
+            raise ArmFileError(f"{spec.path}: key 'gripper.joints': {name!r} is not a joint of the description")
+        if joint.get("type") not in ("revolute", "prismatic", "continuous"):
+            raise ArmFileError(f"{spec.path}: key 'gripper.joints': {name!r} is a {joint.get('type')} joint, not "
+                               "an actuated one: name the finger joints (prismatic or revolute)")
+        if i == 0 and joint.find("mimic") is not None:
+            raise ArmFileError(f"{spec.path}: key 'gripper.joints': {name!r} mimics another joint; the first "
+                               "finger joint is the commanded one (put the mimicking one second)")
 
 
 def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_description: bool = True) -> list[str]:

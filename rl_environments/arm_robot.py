@@ -64,6 +64,8 @@ class ArmRobot(ArmInterface):
             ``FINGER_JOINTS`` (a position).
         FINGER_JOINTS: the commanded finger joint and the one mimicking it.
         FINGER_MIMIC: the second finger's position per unit of the first (its URDF ``<mimic>``).
+        RESET_MIMIC: whether a reset also teleports the second finger to its mimic position (the
+            RX200's episodes have only ever set the commanded one; its mimic then follows).
         SCENE: the push / pick-and-place scene, positions relative to the robot base (the description
             package's ``SCENE``: ``robot_height``, ``table_center``, ``table_top``,
             ``object_half_size``, ``init_ee_position``, the object, goal and end-effector boxes,
@@ -97,6 +99,7 @@ class ArmRobot(ArmInterface):
     GRIPPER_CONTROLLER: ClassVar[str] = ""
     FINGER_JOINTS: ClassVar[tuple[str, ...]] = ()
     FINGER_MIMIC: ClassVar[float] = -1.0
+    RESET_MIMIC: ClassVar[bool] = True
     SCENE: ClassVar[Mapping[str, Any]] = {}
     CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
                                                                                       -25.0)
@@ -242,7 +245,10 @@ class ArmRobot(ArmInterface):
 
     def open_fingers_at_reset(self, opening: float) -> None:
         """Put the fingers at ``opening`` for the episode start (a teleport, held; the second finger
-        at its mimic position)."""
+        at its mimic position, or left to follow through the mimic when ``RESET_MIMIC`` is false)."""
+        if not self.RESET_MIMIC or len(self.FINGER_JOINTS) < 2:
+            self.connection.set_joint_positions(self.FINGER_JOINTS[:1], [opening])
+            return
         self.connection.set_joint_positions(self.FINGER_JOINTS, [opening, self.FINGER_MIMIC * opening])
 
     @classmethod

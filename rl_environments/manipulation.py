@@ -1,5 +1,5 @@
 """Push and pick-and-place, the parts every arm shares: object and goal sampling, vectorised
-rewards and success, object velocities from consecutive poses, and the RX200's top-down IK.
+rewards and success, and object velocities from consecutive poses.
 
 Pure functions (no ROS call, no side effect), so HER can call the reward on batches (``axis=-1``).
 Fetch's conventions (Gymnasium-Robotics ``FetchPush``/``FetchPickAndPlace``): the achieved goal is
@@ -10,7 +10,6 @@ pick-and-place.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +18,6 @@ from rl_environments.reach import RewardType, goal_distance, goal_reward, is_suc
 
 __all__ = [
     "ObjectGoalSampler",
-    "RX200TopDownIK",
     "goal_distance",
     "goal_reward",
     "is_success",
@@ -116,67 +114,6 @@ def rotation_velocities(q0: np.ndarray, q1: np.ndarray, dt: np.ndarray) -> np.nd
         angle = 2.0 * np.arctan2(s[ok], w[ok])
         out[ok] = v[ok] / s[ok, None] * (angle / np.asarray(dt, dtype=np.float64)[ok])[:, None]
     return out
-
-
-class RX200TopDownIK:
-    """Closed-form IK of the RX200 with the gripper pointing straight down (5-DOF: the waist aims
-    at the target, shoulder and elbow place the wrist above it, wrist_angle makes the pitch 90°,
-    wrist_rotate stays 0 so the fingers close across the radial direction).
-
-    Lengths from ``rx200.urdf.xacro``: shoulder axis 0.10457 m above the base, upper arm
-    (0.05, 0.2), forearm 0.2, wrist_angle axis to ``ee_gripper_link`` 0.158575 along the gripper.
-    """
-
-    SHOULDER_Z = 0.06566 + 0.03891
-    UPPER = (0.05, 0.2)
-    FOREARM = 0.2
-    TIP = 0.065 + 0.043 + 0.023 + 0.027575
-
-    def __init__(self, lower: Sequence[float], upper: Sequence[float]) -> None:
-        self.lower = np.asarray(lower, dtype=np.float64)
-        self.upper = np.asarray(upper, dtype=np.float64)
-        self._a = float(np.hypot(*self.UPPER))
-        self._alpha0 = float(np.arctan2(self.UPPER[1], self.UPPER[0]))
-
-    joint_names: tuple[str, ...] = ("waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate")
-
-    def solve(self, target: Sequence[float] | np.ndarray, yaw: float | None = None,
-              q0: Sequence[float] | None = None) -> np.ndarray:
-        """Joint targets (clipped into the limits) putting ``ee_gripper_link`` at ``target``
-        (base frame), gripper vertical; an unreachable target is pulled in to the reachable edge.
-
-        ``yaw``: the direction (rad about +z) the fingers close along; None closes them across the
-        radial direction (wrist_rotate 0). ``q0`` is not needed (closed form) and accepted as every
-        arm's top-down IK takes it (:class:`rl_environments.arm_ik.TopDownIK`)."""
-        return self.solve_rows(np.asarray(target, dtype=np.float64)[None], None if yaw is None else [yaw])[0]
-
-    def solve_rows(self, targets: np.ndarray, yaws: Sequence[float] | None = None,
-                   q0: np.ndarray | None = None) -> np.ndarray:
-        """:meth:`solve` for N targets (N x 3) at once, in one numpy pass (N x 5)."""
-        t = np.asarray(targets, dtype=np.float64)
-        x, y, z = t[:, 0], t[:, 1], t[:, 2]
-        r = np.hypot(x, y)
-        waist = np.where(r > 1e-6, np.arctan2(y, x), 0.0)
-        dr, dz = r, z + self.TIP - self.SHOULDER_Z
-        a, b = self._a, self.FOREARM
-        dist = np.hypot(dr, dz)
-        dist_c = np.minimum(np.maximum(dist, abs(a - b) + 1e-6), a + b - 1e-6)
-        scale = (dist_c != dist) & (dist > 1e-9)
-        ratio = np.divide(dist_c, dist, out=np.ones_like(dist), where=scale)
-        dr, dz = np.where(scale, dr * ratio, dr), np.where(scale, dz * ratio, dz)
-        cos_rel = (dist_c**2 - a * a - b * b) / (2 * a * b)
-        rel = -np.arccos(np.clip(cos_rel, -1.0, 1.0))  # elbow up: the forearm folds down
-        phi1 = np.arctan2(dz, dr) - np.arctan2(b * np.sin(rel), a + b * np.cos(rel))
-        phi2 = phi1 + rel
-        shoulder = self._alpha0 - phi1
-        elbow = -phi2 - shoulder
-        wrist = np.pi / 2 - shoulder - elbow
-        rotate = np.zeros_like(waist)
-        if yaws is not None:  # wrist_rotate = 0 closes along waist + pi/2; +t turns that by -t about +z
-            rotate = (waist + np.pi / 2 - np.asarray(yaws, dtype=np.float64) + np.pi) % (2 * np.pi) - np.pi
-            # the same grasp half a turn round turns the wrist less
-            rotate = np.where(np.abs(rotate) > np.pi / 2, (rotate + 2 * np.pi) % (2 * np.pi) - np.pi, rotate)
-        return np.clip(np.stack([waist, shoulder, elbow, wrist, rotate], axis=1), self.lower, self.upper)
 
 
 def object_reward(achieved_goal: np.ndarray, desired_goal: np.ndarray, threshold: float,

@@ -29,9 +29,11 @@ def test_every_package_directory_is_listed_in_pyproject():
 
 def test_task_configs_and_templates_are_installed():
     configs = {p.name for p in resources.files("rl_environments.config").iterdir()}
-    assert {"rx200_reach_task_config.yaml", "irb120_reacher_task_config.yaml"} <= configs
-    training = {p.name for p in resources.files("rl_environments.config").joinpath("training").iterdir()}
-    assert "RX200ReacherGoalSim-v0.yaml" in training
+    assert "irb120_reacher_task_config.yaml" in configs
+    arms = {p.name for p in resources.files("rl_environments.config").joinpath("arms").iterdir()}
+    assert {"rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml"} <= arms
+    tasks = {p.name for p in resources.files("rl_environments.config").joinpath("training", "tasks").iterdir()}
+    assert {"Reacher.yaml", "ReacherGoal.yaml", "Push.yaml", "PushGoal.yaml", "PnP.yaml", "PnPGoal.yaml"} <= tasks
     templates = {p.name for p in resources.files("uniros.templates").iterdir()}
     assert {"MyRobotEnv.py", "MyTaskEnv.py", "CustomRobotEnv.py", "CustomTaskEnv.py"} <= templates
 

@@ -7,7 +7,8 @@
     obs, info = env.reset(seed=0)
 
 ``make`` is gymnasium's, with errors that list the uniros IDs and the accepted keyword arguments;
-``register``, ``spec``, ``spaces``, ``Env`` and ``Wrapper`` are gymnasium's own.
+``register_arm(path)`` registers an arm file's IDs (docs/add_your_arm.md); ``register``, ``spec``,
+``spaces``, ``Env`` and ``Wrapper`` are gymnasium's own.
 """
 
 from pathlib import Path as _Path
@@ -17,6 +18,7 @@ from gymnasium import Env, Wrapper, register, spaces, spec
 import rl_environments
 from multiros.envs.real import RealBaseEnv, RealGoalEnv
 from rl_environments._checkout import map_checkout_package as _map_checkout_package
+from rl_environments.arm_registry import register_arm
 from uniros.factory import make, make_vec
 from uniros.multitask import MultiTaskEnv, MultiTaskGoalEnv
 
@@ -28,5 +30,5 @@ ENV_IDS = rl_environments.ENV_IDS
 
 __all__ = [
     "ENV_IDS", "Env", "MultiTaskEnv", "MultiTaskGoalEnv", "RealBaseEnv", "RealGoalEnv", "Wrapper", "make", "make_vec",
-    "register", "spaces", "spec",
+    "register", "register_arm", "spaces", "spec",
 ]

@@ -29,7 +29,7 @@ from multiros.envs.real.robot_link import JointState, JointTrajectory
 from multiros.ros import Client, Node
 from multiros.ros.controller_manager import ControllerManagerClient
 from multiros.sim.launch import private_context
-from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
+from rl_environments.arm_registry import arm_of
 
 from .conftest import StandIn, TopicRecorder
 
@@ -215,7 +215,7 @@ class _Publisher:
     def __init__(self, ctx, topic: str) -> None:
         self.node = Node(f"js_pub_{os.getpid()}_{time.monotonic_ns()}", context=ctx)
         self.pub = self.node.create_publisher(JointState, topic, 10)
-        home = [float(v) for v in load_rx200_reach_config()["init_joint_pos"]]  # the reset finds it there
+        home = [float(v) for v in arm_of("RX200").reach["init_joint_pos"]]  # the reset finds it there
         self.make = lambda: JointState(name=["waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate"],
                                        position=list(home), velocity=[0.0] * 5)
         self.running = True

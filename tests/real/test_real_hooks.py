@@ -18,9 +18,8 @@ from multiros.envs.RealBaseEnv import RealBaseEnv
 from multiros.envs.RealGoalEnv import RealGoalEnv
 from multiros.ros import Context, Node
 from rl_environments.abb_irb120.real.robot_envs.irb120_robot_real import ABBIRB120RobotRealEnv
+from rl_environments.arm_envs import RX200ReacherGoalEnv, RX200ReacherGoalRealEnv
 from rl_environments.arm_interface import ARM_INTERFACE_MEMBERS
-from rl_environments.rx200.real.task_envs.reach.rx200_reach_goal_real import RX200ReacherGoalRealEnv
-from rl_environments.rx200.sim.task_envs.reach.rx200_reach_goal_sim import RX200ReacherGoalEnv
 
 
 @pytest.fixture
@@ -105,4 +104,6 @@ def test_both_robot_layers_provide_the_arm_interface() -> None:
         missing = [m for m in ARM_INTERFACE_MEMBERS if m not in ("node", "info", "np_random") and not hasattr(cls, m)]
         assert not missing, (cls, missing)
     # The task logic is one class, shared.
-    assert RX200ReacherGoalRealEnv.__mro__[1] is RX200ReacherGoalEnv.__mro__[1]
+    from rl_environments.arm_reach import ArmGoalReachTask
+
+    assert RX200ReacherGoalEnv.__mro__[1] is ArmGoalReachTask and ArmGoalReachTask in RX200ReacherGoalRealEnv.__mro__

@@ -15,8 +15,8 @@ from multiros.envs.real.safety import (
     WORKSPACE,
     description_joint_limits,
 )
+from rl_environments.arm_envs import RX200RealRobot
 from rl_environments.robots.rx200_description import ARM_JOINTS, URDF_XACRO
-from rl_environments.rx200.real.robot_envs.rx200_robot_real import RX200RealRobot
 
 CHAIN = RX200RealRobot.kinematic_chain()
 HOME = np.zeros(5)

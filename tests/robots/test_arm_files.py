@@ -161,6 +161,9 @@ def test_bad_keys_are_one_line_errors_and_register_nothing(ur5e_data, write, key
     ("arm.joints", ["shoulder_lift_joint", "shoulder_pan_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
                     "wrist_3_joint"], "are not the moving joints"),
     ("description.uri", "package://no_such_description/urdf/x.urdf", "key 'description.uri'"),
+    ("gripper.joints", ["no_finger", "right_finger_joint"], "'no_finger' is not a joint of the description"),
+    ("gripper.joints", ["right_finger_joint", "left_finger_joint"], "mimics another joint"),
+    ("gripper.joints", ["wrist_3_link-ft_frame"], "is a fixed joint, not an actuated one"),
 ])
 def test_a_description_that_does_not_hold_the_chain_is_refused(ur5e_data, write, key, value, message):
     ur5e_data["name"] = "BadChain"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import rl_environments
-from rl_environments.manipulation import RX200TopDownIK, rotation_velocity
+from rl_environments.manipulation import rotation_velocity
 from rl_environments.manipulation_scripted import run_episode, scripted_policy
 
 # The RX200's (the other arms': tests/tasks/test_arm_envs.py).
@@ -210,10 +210,10 @@ def test_joint_delta_option(make):
 
 def test_top_down_ik_and_rotation_velocity():
     from multiros.utils.kinematics import matrix_from_quat
-    from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200Robot
+    from rl_environments.arm_registry import arm_of, chain_of, top_down_ik_of
 
-    chain = RX200Robot.kinematic_chain()
-    ik = RX200TopDownIK(chain.lower, chain.upper)
+    chain = chain_of(arm_of("RX200"))
+    ik = top_down_ik_of(arm_of("RX200"), chain.lower, chain.upper)  # closed form (planar_wrist)
     for target in ([0.2, 0.0, 0.1], [0.15, -0.14, 0.014], [0.31, 0.14, 0.164]):
         pos, quat = chain.fk(ik.solve(np.array(target)))
         np.testing.assert_allclose(pos, target, atol=1e-6)

@@ -459,7 +459,7 @@ def test_a_shipped_rx200_config_on_a_template_env_is_a_short_error(tmp_path, cap
     pkg, _ = make_filled(tmp_path, "multiros_goal")
     from importlib import resources
 
-    shipped = resources.files("rl_environments.config").joinpath("training", "RX200ReacherGoalSim-v0.yaml")
+    shipped = resources.files("rl_environments.config").joinpath("training", "tasks", "ReacherGoal.yaml")
     try:
         code = main(["train", pkg.ENV_ID, "--config", str(shipped), "--output", str(tmp_path / "runs")])
         err = capsys.readouterr().err

@@ -156,7 +156,7 @@ def test_module_colon_id_env_from_the_cli(tmp_path, capsys, monkeypatch):
         "from gymnasium.envs.registration import register, registry\n"
         "if 'MyUnirosTestEnv-v0' not in registry:\n"
         "    register(id='MyUnirosTestEnv-v0', entry_point="
-        "'rl_environments.rx200.sim.task_envs.reach.rx200_reach_goal_sim:RX200ReacherGoalEnv', max_episode_steps=20)\n"
+        "'rl_environments.arm_envs:RX200ReacherGoalEnv', max_episode_steps=20)\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
     cfg = tmp_path / "c.yaml"

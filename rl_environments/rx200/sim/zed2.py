@@ -2,7 +2,8 @@
 ``RX200Zed2ReacherGoalSim-v0``, ``RX200Zed2PushSim-v0``, ``RX200Zed2PushGoalSim-v0``,
 ``RX200Zed2PnPSim-v0`` and ``RX200Zed2PnPGoalSim-v0``.
 
-The RX200's tasks, unchanged, with the description's ``use_zed2`` option: a Zed2-like stereo pair
+The RX200's tasks (its arm file's, :mod:`rl_environments.arm_envs`), unchanged, with the description's
+``use_zed2`` option: a Zed2-like stereo pair
 in front of the table, 0.6 m from (0.2, 0, 0.05) of the base, looking back at the robot 35 degrees
 down, publishing on Stereolabs' ``zed_wrapper`` topics (``/rx200/zed2/zed_node/rgb/image_rect_color``,
 ``.../depth/depth_registered`` in metres, ``.../rgb/camera_info``, ``.../right/image_rect_color``).
@@ -18,14 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-from rl_environments.rx200.sim.robot_envs.rx200_robot_sim import RX200RobotEnv, RX200RobotGoalEnv
-from rl_environments.rx200.sim.task_envs.manipulation.rx200_manipulation import (
-    RX200GoalManipulationTask,
-    RX200ManipulationTask,
-)
-from rl_environments.rx200.sim.task_envs.reach.config import REACH_NUM_SIM_STEPS
-from rl_environments.rx200.sim.task_envs.reach.rx200_reach_goal_sim import RX200GoalReachTask
-from rl_environments.rx200.sim.task_envs.reach.rx200_reach_sim import RX200ReachTask
+from rl_environments import arm_envs
 
 #: The Zed2 variants' camera keywords (each one can be given otherwise).
 ZED2_CAMERA: dict[str, Any] = {"camera_name": "zed2_left", "rgb_plus_depth_plus_normal_obs": True}
@@ -36,43 +30,37 @@ class _Zed2:
     CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = ZED2_CAMERA
 
 
-class RX200Zed2ReacherEnv(_Zed2, RX200ReachTask, RX200RobotEnv):
+class RX200Zed2ReacherEnv(_Zed2, arm_envs.RX200ReacherEnv):  # type: ignore[name-defined,misc]
     """``RX200Zed2ReacherSim-v0``: the RX200 reach observed through the Zed2 (arguments:
     :class:`~rl_environments.arm_reach.ArmReachTask` and the camera keywords)."""
 
-    NUM_SIM_STEPS = REACH_NUM_SIM_STEPS
 
 
-class RX200Zed2ReacherGoalEnv(_Zed2, RX200GoalReachTask, RX200RobotGoalEnv):
+class RX200Zed2ReacherGoalEnv(_Zed2, arm_envs.RX200ReacherGoalEnv):  # type: ignore[name-defined,misc]
     """``RX200Zed2ReacherGoalSim-v0``: the goal-conditioned RX200 reach observed through the Zed2
     (arguments: :class:`~rl_environments.arm_reach.ArmGoalReachTask`)."""
 
-    NUM_SIM_STEPS = REACH_NUM_SIM_STEPS
 
 
-class RX200Zed2PushEnv(_Zed2, RX200ManipulationTask, RX200RobotEnv):
+class RX200Zed2PushEnv(_Zed2, arm_envs.RX200PushEnv):  # type: ignore[name-defined,misc]
     """``RX200Zed2PushSim-v0``: the RX200 push observed through the Zed2 (arguments:
     :class:`~rl_environments.arm_manipulation.ArmManipulationTask`)."""
 
-    TASK = "push"
 
 
-class RX200Zed2PushGoalEnv(_Zed2, RX200GoalManipulationTask, RX200RobotGoalEnv):
+class RX200Zed2PushGoalEnv(_Zed2, arm_envs.RX200PushGoalEnv):  # type: ignore[name-defined,misc]
     """``RX200Zed2PushGoalSim-v0``: the goal-conditioned RX200 push observed through the Zed2
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 
-    TASK = "push"
 
 
-class RX200Zed2PnPEnv(_Zed2, RX200ManipulationTask, RX200RobotEnv):
+class RX200Zed2PnPEnv(_Zed2, arm_envs.RX200PnPEnv):  # type: ignore[name-defined,misc]
     """``RX200Zed2PnPSim-v0``: the RX200 pick-and-place observed through the Zed2 (arguments:
     :class:`~rl_environments.arm_manipulation.ArmManipulationTask`)."""
 
-    TASK = "pnp"
 
 
-class RX200Zed2PnPGoalEnv(_Zed2, RX200GoalManipulationTask, RX200RobotGoalEnv):
+class RX200Zed2PnPGoalEnv(_Zed2, arm_envs.RX200PnPGoalEnv):  # type: ignore[name-defined,misc]
     """``RX200Zed2PnPGoalSim-v0``: the goal-conditioned RX200 pick-and-place observed through the Zed2
     (arguments: :class:`~rl_environments.arm_manipulation.ArmGoalManipulationTask`)."""
 
-    TASK = "pnp"

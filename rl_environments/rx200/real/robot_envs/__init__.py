@@ -1,1 +1,0 @@
-"""RX200 real robot envs (the robot layer)."""

@@ -1,1 +1,0 @@
-"""RX200 robot envs (the robot layer)."""
