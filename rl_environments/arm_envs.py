@@ -1,11 +1,13 @@
 """The env classes of registered arm files, built on first use (``rl_environments.arm_envs:<Class>``).
 
-For an arm ``NAME`` (:mod:`rl_environments.arm_registry`): ``NAME<task>Env`` on the simulation node
+For an arm ``NAME`` (``rl_environments.arm_registry``): ``NAME<task>Env`` on the simulation node
 and ``NAME<task>RealEnv`` on the robot's driver, for each ``<task>`` of ``Reacher``, ``ReacherGoal``,
-``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``. Each is three parts: the task every arm shares (named
-in the class's docstring), the arm's constants from its file (:class:`ArmFileRobot`), and the robot
-env of its side (:mod:`rl_environments.arm_robot_envs`). A class is made once per name and kept, so
-gymnasium's string entry points and pickle find the same class every time.
+``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``; ``NAMERobotEnv``, ``NAMERobotGoalEnv``,
+``NAMERobotRealEnv`` and ``NAMERobotRealGoalEnv`` without a task. Each is three parts: the task
+every arm shares (named in the class's docstring), the arm's constants from its file
+(``ArmFileRobot``), and the robot env of its side (``rl_environments.arm_robot_envs``). A class is
+made once per name and kept, so gymnasium's string entry points and pickle find the same class
+every time.
 """
 
 from __future__ import annotations

@@ -36,6 +36,7 @@ ARM_TASKS: dict[str, tuple[bool, str | None]] = {
 }
 ENV_MODULE = "rl_environments.arm_envs"
 _ARMS: dict[str, ArmFile] = {}
+_ADDED_TO_ENVIRONMENT: set[str] = set()  # the UNIROS_ARMS entries register_arm added (unregister takes them out)
 
 
 def chain_of(spec: ArmFile) -> KinematicChain:
@@ -162,7 +163,7 @@ def _check_gripper(spec: ArmFile) -> None:
 
     assert spec.gripper is not None
     root = ET.fromstring(_urdf_text(spec.description_uri, tuple(sorted(spec.xacro_args.items()))))
-    joints = {j.get("name"): j for j in root.iter("joint")}
+    joints = {j.get("name"): j for j in root.findall("joint")}  # not the <ros2_control> ones
     for i, name in enumerate(spec.gripper.joints):
         joint = joints.get(name)
         if joint is None:
@@ -237,6 +238,10 @@ def unregister_arm(name: str) -> None:
         registry.pop(real_id, None)
         pkg.forget_arm_ids(sim_id, real_id)
         arm_envs.forget(cls_name, f"{spec.name}{task}RealEnv")
+    if str(spec.path) in _ADDED_TO_ENVIRONMENT:
+        _ADDED_TO_ENVIRONMENT.discard(str(spec.path))
+        kept = [p for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p and p != str(spec.path)]
+        os.environ["UNIROS_ARMS"] = os.pathsep.join(kept)
 
 
 def _remember_in_environment(path: Path) -> None:
@@ -244,6 +249,7 @@ def _remember_in_environment(path: Path) -> None:
     current = [p for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p]
     if str(path) not in current:
         os.environ["UNIROS_ARMS"] = os.pathsep.join([*current, str(path)])
+        _ADDED_TO_ENVIRONMENT.add(str(path))
 
 
 def registered_arms() -> dict[str, ArmFile]:

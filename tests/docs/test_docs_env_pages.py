@@ -50,10 +50,11 @@ def test_pages_say_what_the_code_does(env_pages, infos, tmp_path):
         env.close()
     page = env_pages.render_page(by_id["RX200ReacherSim-v0"], known, tmp_path)
     assert "`Box` of shape `(22,)`" in page and "| episode length | 100 steps" in page
-    assert "| `reward_type` | `'dense'` |" in page and "\n## Rewards" not in page and "\n### Rewards" in page
+    assert "| `reward_type` | `'dense'` |" in page and "\n## Rewards" not in page and "\n#### Rewards" in page
+    assert "From {py:mod}`rl_environments.arm_reach`" in page and "arm_manipulation`" not in page
     assert "[`RX200ReacherReal-v0`](RX200ReacherReal-v0.md)" in page
     push = env_pages.render_page(by_id["RX200PushGoalSim-v0"], known, tmp_path)
-    assert "50 steps" in push and "rx200_manipulation" in push and "#### Rewards" in push
+    assert "50 steps" in push and "rl_environments.arm_manipulation" in push and "#### Rewards" in push
     real = by_id["ABBIRB120ReacherGoalRealEnv-v0"]
     assert real.observation_space == by_id["ABBIRB120ReacherGoalEnv-v0"].observation_space
     assert "Equal to [`ABBIRB120ReacherGoalEnv-v0`]" in env_pages.render_page(real, known, tmp_path)

@@ -32,7 +32,9 @@ def ur5e_data() -> dict:
 
 
 @pytest.fixture
-def write(tmp_path):
+def write(tmp_path, monkeypatch):
+    # register_arm adds its file to UNIROS_ARMS for child processes: put the variable back afterwards
+    monkeypatch.setenv("UNIROS_ARMS", os.environ.get("UNIROS_ARMS", ""))
     made: list[str] = []
 
     def _write(data: dict, name: str = "arm.yaml") -> Path:
@@ -76,8 +78,12 @@ def test_an_arm_file_under_another_name_registers_its_ids(ur5e_data, write):
         assert env.observation_space.contains(obs)
     finally:
         env.close()
-    # the same file again is a no-op re-registration; another file of that name is refused
+    # the same file again is a no-op re-registration; child processes are told of the file
     assert register_arm(write(ur5e_data)) == ids
+    assert str(registered_arms()["MyUR"].path) in os.environ["UNIROS_ARMS"].split(os.pathsep)
+    unregister_arm("MyUR")
+    assert "MyURReacherGoalSim-v0" not in gym.registry and str(ur5e_data) not in os.environ["UNIROS_ARMS"]
+    assert not [p for p in os.environ["UNIROS_ARMS"].split(os.pathsep) if p.endswith("arm.yaml")]
 
 
 def test_a_gripperless_arm_gets_the_reach_only(ur5e_data, write):

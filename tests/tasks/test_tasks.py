@@ -188,8 +188,8 @@ def test_unknown_kwarg_lists_accepted_ones():
 
 
 def test_bad_task_config_names_key_and_file(tmp_path):
-    good = load_task_config("irb120_reacher_task_config.yaml", {"reach_tolerance": float}, section="irb120")
-    assert good["reach_tolerance"] > 0
+    good = load_task_config("irb120_reacher_task_config.yaml", {"tolerance_goal_pos": float}, section="irb120")
+    assert good["tolerance_goal_pos"] == 0.05
     bad = tmp_path / "cfg.yaml"
     bad.write_text("rx200:\n  reach_tolerance: close\n")
     with pytest.raises(TaskConfigError, match=r"cfg\.yaml.*'reach_tolerance'.*number"):
