@@ -116,6 +116,26 @@ def test_cli_list(capsys):
     assert "RX200ReacherGoalReal-v0" in out and "ABBIRB120ReacherGoalRealEnv-v0" in out
 
 
+def test_cli_list_and_a_simulated_env_work_with_a_sourced_humble(tmp_path):
+    """A sourced Humble (ROS_DISTRO=humble) is no reason to refuse simulated envs, which need no ROS;
+    only a transport that reaches Humble peers is refused, when it is opened (tests/interfaces)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "ROS_DISTRO": "humble"}
+    out = subprocess.run([sys.executable, "-m", "uniros.cli", "list"], env=env, capture_output=True, text=True,
+                         timeout=120, stdin=subprocess.DEVNULL)
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
+    assert "RX200ReacherGoalSim-v0" in out.stdout
+    probe = ("import uniros; e = uniros.make('RX200ReacherGoalSim-v0'); e.reset(seed=0); "
+             "print(e.step(e.action_space.sample())[1]); e.close()")
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=180,
+                         stdin=subprocess.DEVNULL)
+    assert out.returncode == 0, out.stderr
+    assert float(out.stdout.strip().splitlines()[-1]) in (-1.0, 0.0)  # the sparse reward of one step
+
+
 def _error(capsys, *argv: str) -> str:
     assert cli_main(list(argv)) == 2
     err = capsys.readouterr().err
