@@ -45,21 +45,33 @@ def _note(text: str) -> None:
 
 def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None:
     """Which ROS 2 graph a run joins when it leaves the process (an existing node, Zenoh, a robot),
-    with a pointer to per-user domains and routers when it is the machine's default one."""
+    through the transport it will use, with a pointer to per-user domains and routers when it is
+    the machine's default one."""
     import os
 
     import rl_environments
+    from multiros.ros.transport import wire_transport
+    from multiros.ros.transport.rclpy.loader import RMW_ENV
     from multiros.ros.transport.zenoh.config import DEFAULT_ROUTER_ENDPOINT, ROUTER_ENV
 
     real = env_id.rpartition(":")[2] in rl_environments.REAL_ENV_IDS
-    shared = real or env_kwargs.get("sim_mode") == "existing" or (
-        env_kwargs.get("transport") == "zenoh" and env_kwargs.get("sim_mode", "composed") == "composed")
+    mode = env_kwargs.get("sim_mode", "composed")
+    shared = real or mode == "existing" or (env_kwargs.get("transport") == "zenoh" and mode == "composed")
     if not shared:
         return None
+    explicit = env_kwargs.get("transport")
+    transport = wire_transport(explicit if isinstance(explicit, str) else None, prefer_rclpy=real or mode == "existing")
     domain = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    where = f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'}"
+    if transport == "rclpy":
+        rmw = os.environ.get(RMW_ENV, "").strip()
+        text = f"{where} through rclpy on {rmw or 'its default middleware'} ({RMW_ENV})"
+        if domain in ("", "0"):
+            text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID per user "
+                     "(docs/pitfalls.md, Shared machines)")
+        return text
     router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
-    text = (f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'} through the Zenoh "
-            f"router {router}")
+    text = f"{where} through the Zenoh router {router}"
     if domain in ("", "0") and router == DEFAULT_ROUTER_ENDPOINT:
         text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID and "
                  f"{ROUTER_ENV} per user (docs/pitfalls.md, Shared machines)")
