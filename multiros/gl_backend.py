@@ -16,7 +16,6 @@ With a display, MuJoCo's own default (GLFW) is left alone: the viewer needs it.
 
 from __future__ import annotations
 
-import ctypes.util
 import json
 import logging
 import os
@@ -109,6 +108,12 @@ def choose(env: Mapping[str, str], *, platform: str = sys.platform, vendors: Ite
                     "installed (libegl1 and libegl-mesa0, or libosmesa6)", found)
 
 
+def _osmesa_found() -> bool:
+    import ctypes.util
+
+    return ctypes.util.find_library("OSMesa") is not None
+
+
 _CHOICE: list[GLChoice] = []
 _LOGGED: list[bool] = []
 
@@ -121,8 +126,9 @@ def apply(env: MutableMapping[str, str] | None = None) -> GLChoice:
             or target.get("WAYLAND_DISPLAY"):
         choice = choose(target)  # nothing to look up: the user's choice or a display
     else:
-        choice = choose(target, vendors=egl_vendors(target), osmesa=ctypes.util.find_library("OSMesa") is not None,
-                        gpu=nvidia_gpu_present())
+        vendors = egl_vendors(target)
+        osmesa = not vendors and _osmesa_found()  # find_library runs ldconfig: only when it matters
+        choice = choose(target, vendors=vendors, osmesa=osmesa, gpu=nvidia_gpu_present())
     if choice.backend is not None and choice.kind != "user" and "mujoco" not in sys.modules:
         target["MUJOCO_GL"] = choice.backend
     if env is None:

@@ -64,6 +64,13 @@ def test_apply_sets_mujoco_gl_only_when_unset(monkeypatch):
     monkeypatch.setattr(sys, "platform", "linux")
     env = {}
     assert gl_backend.apply(env).kind == "gpu" and env == {"MUJOCO_GL": "egl"}
+    monkeypatch.setattr(gl_backend, "egl_vendors", lambda env=None, dirs=None: [])
+    monkeypatch.setattr(gl_backend, "_osmesa_found", lambda: True)
+    env = {}
+    assert gl_backend.apply(env).kind == "software" and env == {"MUJOCO_GL": "osmesa"}
+    monkeypatch.setitem(sys.modules, "mujoco", object())  # MuJoCo already imported: its choice is made
+    env = {}
+    assert gl_backend.apply(env).backend == "osmesa" and env == {}
 
 
 def test_a_fresh_process_picks_egl_from_a_mocked_nvidia_vendor_and_says_so_once(tmp_path):

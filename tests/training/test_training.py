@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import os
 
 import numpy as np
 import pytest
@@ -119,7 +120,6 @@ def test_cli_list(capsys):
 def test_cli_list_and_a_simulated_env_work_with_a_sourced_humble(tmp_path):
     """A sourced Humble (ROS_DISTRO=humble) is no reason to refuse simulated envs, which need no ROS;
     only a transport that reaches Humble peers is refused, when it is opened (tests/interfaces)."""
-    import os
     import subprocess
     import sys
 
@@ -170,6 +170,14 @@ def test_a_real_env_without_a_robot_is_a_short_error(capsys, tmp_path):
     err = _error(capsys, "train", "RX200ReacherGoalReal-v0", "--config", str(cfg), "--output", str(out))
     assert "RobotConnectionError: no usable joint states from /rx200/joint_states" in err
     assert "uniros-fake-robot" in err
+    from multiros.ros.transport.rclpy.loader import rclpy_available
+
+    domain = os.environ["ROS_DOMAIN_ID"]
+    if rclpy_available():  # the Real env's default transport: rclpy, on its middleware
+        assert f"same ROS_DOMAIN_ID ({domain}) and ROS 2 middleware" in err and "Zenoh" not in err
+    else:
+        router = os.environ["UNIROS_ZENOH_ROUTER"]
+        assert f"same ROS_DOMAIN_ID ({domain}) and Zenoh router {router} (UNIROS_ZENOH_ROUTER)" in err
     assert not out.exists() or not list(out.iterdir())
 
 
