@@ -177,3 +177,16 @@ def test_steps_stand_in_for_a_missing_training_steps():
         parse_training_config({"algorithm": "sac"}, "cfg.yaml")
     assert parse_training_config({"algorithm": "sac"}, "cfg.yaml", steps=500).training_steps == 500
     assert parse_training_config({"training_steps": 9}, "cfg.yaml", steps=500).training_steps == 9
+
+
+def test_a_resumed_run_may_move_to_another_device():
+    """The device is where the model computes, not what it is: an edit of config.yaml's device is
+    taken on resume (the model loads onto the new one), unlike edits that would need another model."""
+    from uniros.resume import resume_overrides
+
+    started = parse_training_config({"training_steps": 10, "sac_params": {"device": "cuda", "gamma": 0.9}}, "r.yaml")
+    moved = parse_training_config({"training_steps": 10, "sac_params": {"device": "cpu", "gamma": 0.9}}, "r.yaml")
+    assert resume_overrides(started, moved) == {}
+    other = parse_training_config({"training_steps": 10, "sac_params": {"device": "cpu", "buffer_size": 7}}, "r.yaml")
+    with pytest.raises(TrainingConfigError, match="buffer_size"):
+        resume_overrides(started, other)
