@@ -1,4 +1,4 @@
-"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``sim`` and ``new``.
+"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim`` and ``new``.
 
 Each subcommand is a small function taking parsed arguments and returning an exit code.
 """
@@ -45,21 +45,33 @@ def _note(text: str) -> None:
 
 def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None:
     """Which ROS 2 graph a run joins when it leaves the process (an existing node, Zenoh, a robot),
-    with a pointer to per-user domains and routers when it is the machine's default one."""
+    through the transport it will use, with a pointer to per-user domains and routers when it is
+    the machine's default one."""
     import os
 
     import rl_environments
+    from multiros.ros.transport import wire_transport
+    from multiros.ros.transport.rclpy.loader import RMW_ENV
     from multiros.ros.transport.zenoh.config import DEFAULT_ROUTER_ENDPOINT, ROUTER_ENV
 
     real = env_id.rpartition(":")[2] in rl_environments.REAL_ENV_IDS
-    shared = real or env_kwargs.get("sim_mode") == "existing" or (
-        env_kwargs.get("transport") == "zenoh" and env_kwargs.get("sim_mode", "composed") == "composed")
+    mode = env_kwargs.get("sim_mode", "composed")
+    shared = real or mode == "existing" or (env_kwargs.get("transport") == "zenoh" and mode == "composed")
     if not shared:
         return None
+    explicit = env_kwargs.get("transport")
+    transport = wire_transport(explicit if isinstance(explicit, str) else None, prefer_rclpy=real or mode == "existing")
     domain = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    where = f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'}"
+    if transport == "rclpy":
+        rmw = os.environ.get(RMW_ENV, "").strip()
+        text = f"{where} through rclpy on {rmw or 'its default middleware'} ({RMW_ENV})"
+        if domain in ("", "0"):
+            text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID per user "
+                     "(docs/pitfalls.md, Shared machines)")
+        return text
     router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
-    text = (f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'} through the Zenoh "
-            f"router {router}")
+    text = f"{where} through the Zenoh router {router}"
     if domain in ("", "0") and router == DEFAULT_ROUTER_ENDPOINT:
         text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID and "
                  f"{ROUTER_ENV} per user (docs/pitfalls.md, Shared machines)")
@@ -84,7 +96,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     check_env_id(args.env_id)  # a user's module:ID is imported (and checked) before anything is written
     if args.name is not None:
         check_run_name(args.name)
-    config = load_training_config(args.config) if args.config else default_config_for(args.env_id)
+    config = load_training_config(args.config, steps=args.steps) if args.config else default_config_for(args.env_id)
     return _train(args, None, args.env_id, config)
 
 
@@ -109,6 +121,7 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
         raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
     if args.steps is not None:
         config.training_steps = args.steps
+    _choose_device(args, config)
     if args.seed is not None:
         config.seed = args.seed
     if args.n_envs is not None:
@@ -144,7 +157,7 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
         print(f"\n{exc}", file=sys.stderr)
         print(f"resume with: uniros train --resume {run.root}", file=sys.stderr)
         return exc.exit_code
-    print(f"trained {result.total_steps} steps in {result.train_seconds:.1f} s")
+    print(f"trained {result.total_steps} steps in {result.train_seconds:.1f} s on {result.model.device}")
     if result.steps_to_success is not None:
         print(f"first eval success >= {args.target}: {result.steps_to_success} steps, "
               f"{result.seconds_to_success:.1f} s of training")
@@ -154,7 +167,7 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
     if args.eval_episodes > 0:
         env = make_env(env_id, **config.env_kwargs)
         try:
-            model, normalizer = load_for_eval(model_path, env)
+            model, normalizer = load_for_eval(model_path, env, device=config.device)
             stats = evaluate(model, env, args.eval_episodes, seed=EVAL_SEED, normalizer=normalizer)
         finally:
             env.close()
@@ -172,6 +185,19 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
     for label, path in result.files.items():
         print(f"  {label:12s} {path}")
     return 0
+
+
+def _choose_device(args: argparse.Namespace, config: Any) -> None:
+    """Put ``--device`` into the config (a new run's config.yaml records it; a resumed run keeps its
+    own unless ``--device`` is given), and refuse a GPU that is not there before anything is written."""
+    from uniros.devices import check_device, resolve_device
+
+    if args.device is not None:
+        config.algo_params["device"] = check_device(args.device, "--device")
+    elif not args.resume:
+        config.algo_params.setdefault("device", "auto")
+    where = "--device" if args.device is not None else f"{config.source}: {config.algorithm}_params.device"
+    resolve_device(config.device, None, where)
 
 
 def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
@@ -224,7 +250,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         except SpaceMismatchError as exc:
             print(exc, file=sys.stderr)
             return 2
-        model, normalizer = load_for_eval(model_path, env, algorithm=args.algo)
+        model, normalizer = load_for_eval(model_path, env, algorithm=args.algo, device=args.device)
         stats = evaluate(model, env, args.episodes, seed=args.seed, normalizer=normalizer)
     finally:
         env.close()
@@ -233,6 +259,12 @@ def _cmd_eval(args: argparse.Namespace) -> int:
           f"mean return {stats['mean_return']:.2f}, mean length {stats['mean_length']:.1f}"
           + ("" if normalizer is None else " (observations normalised with the saved statistics)"))
     return 0
+
+
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    from uniros.doctor import main as doctor_main
+
+    return doctor_main(args)
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
@@ -269,6 +301,11 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--transport", choices=["inproc", "zenoh", "rclpy"],
                        help="ROS transport (rclpy: your ROS 2 install and its middleware)")
 
+    def device_option(p: argparse.ArgumentParser, what: str) -> None:
+        p.add_argument("--device", metavar="{auto,cpu,cuda,cuda:N}",
+                       help=f"torch device to {what} (default: the config's, else auto: the GPU for policies that "
+                       "see camera images when CUDA is present, the CPU for MLPs; docs/training.md)")
+
     p = sub.add_parser("train", help="train an agent and evaluate it")
     p.add_argument("env_id", nargs="?",
                    help="a registered env ID (RX200ReacherGoalSim-v0) or module:ID (my_pkg.my_module:MyEnv-v0)")
@@ -285,6 +322,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="continue a run from its newest usable checkpoint (from step 0 when it has none)")
     p.add_argument("--no-video", action="store_true", help="do not record best_model.mp4 (real-time speed)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    device_option(p, "train on")
     env_options(p)
     p.set_defaults(func=_cmd_train)
 
@@ -298,8 +336,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=EVAL_SEED,
                    help="episode i is reset with seed + i (default: %(default)s, the episodes every uniros "
                    "evaluation plays)")
+    device_option(p, "run the model on")
     env_options(p)
     p.set_defaults(func=_cmd_eval)
+
+    p = sub.add_parser("doctor", help="what this machine offers: GL backend, GPU, torch device, rclpy, RMW")
+    p.set_defaults(func=_cmd_doctor)
 
     p = sub.add_parser("sim", help="run the simulation node (same options as uniros-sim)", add_help=False)
     p.add_argument("sim_args", nargs=argparse.REMAINDER)

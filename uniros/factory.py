@@ -21,20 +21,63 @@ class UnknownEnvError(gym_error.Error, LookupError):
     """The env ID is not registered."""
 
 
+class EnvKeywordError(TypeError):
+    """A keyword argument the env does not take; the message lists the accepted ones and the nearest.
+
+    Attributes:
+        unknown: the keywords not taken.
+        accepted: every keyword the env takes.
+        suggestions: the nearest accepted keyword per unknown one (where one is close).
+    """
+
+    def __init__(self, message: str, unknown: list[str], accepted: list[str], suggestions: dict[str, str]) -> None:
+        super().__init__(message)
+        self.unknown, self.accepted, self.suggestions = unknown, accepted, suggestions
+
+
+#: Keywords ``gymnasium.make`` itself takes (the env never sees them).
+_MAKE_KEYWORDS = ("max_episode_steps", "disable_env_checker", "render_mode")
+
+
 def _accepted_kwargs(env_id: str) -> list[str]:
+    """Every keyword ``make(env_id, ...)`` takes: the env classes' own, the core's knobs, the camera
+    options of an env with camera observations, and ``gymnasium.make``'s."""
     from multiros.envs.core import MujocoEnvCore
 
     spec = gym.spec(env_id)
     cls = spec.entry_point if not isinstance(spec.entry_point, str) else gym.envs.registration.load_env_creator(
         spec.entry_point
     )
-    names: set[str] = set()
+    names: set[str] = set(_MAKE_KEYWORDS)
+    positional_or_named = (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)
     for klass in getattr(cls, "__mro__", [cls]):
         init = vars(klass).get("__init__")
         if init is not None:
-            names |= {p for p in inspect.signature(init).parameters if p not in ("self", "kwargs")}
-    names |= {p for p in inspect.signature(MujocoEnvCore._init_core).parameters if p not in ("self", "legacy")}
+            names |= {n for n, p in inspect.signature(init).parameters.items()
+                      if n != "self" and p.kind in positional_or_named}
+    names |= {n for n, p in inspect.signature(MujocoEnvCore._init_core).parameters.items()
+              if n not in ("self", "legacy") and p.kind in positional_or_named}
+    if hasattr(cls, "take_camera_options"):
+        from rl_environments.camera_obs import CAMERA_KEYWORDS
+
+        names |= set(CAMERA_KEYWORDS)
     return sorted(names)
+
+
+def _unknown_keywords(exc: TypeError, given: dict[str, Any]) -> list[str]:
+    """The keywords of ``given`` that ``exc`` (an env constructor's TypeError) names."""
+    text = str(exc)
+    return [k for k in given if f"'{k}'" in text]
+
+
+def did_you_mean(suggestions: dict[str, str]) -> str:
+    """`` (did you mean 'x'?)`` for one suggestion, `` (did you mean 'x' for 'a', 'y' for 'b'?)`` for
+    several; empty for none."""
+    if not suggestions:
+        return ""
+    if len(suggestions) == 1:
+        return f" (did you mean {next(iter(suggestions.values()))!r}?)"
+    return " (did you mean " + ", ".join(f"{v!r} for {k!r}" for k, v in suggestions.items()) + "?)"
 
 
 def make(env_id: str, **kwargs: Any) -> gym.Env:
@@ -42,7 +85,8 @@ def make(env_id: str, **kwargs: Any) -> gym.Env:
 
     Raises:
         UnknownEnvError: ``env_id`` is not registered (the message lists the uniros IDs and close matches).
-        TypeError: an unknown keyword argument (the message lists the accepted ones).
+        EnvKeywordError: an unknown keyword argument (a ``TypeError``; the message names the nearest
+            accepted keyword and lists them all).
     """
     if isinstance(env_id, str) and env_id not in gym.registry:
         close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
@@ -52,7 +96,15 @@ def make(env_id: str, **kwargs: Any) -> gym.Env:
         return gym.make(env_id, **kwargs)
     except TypeError as exc:
         if isinstance(env_id, str) and env_id in rl_environments.ENV_IDS and "keyword argument" in str(exc):
-            raise TypeError(f"{exc}. {env_id} accepts: {_accepted_kwargs(env_id)}") from exc
+            accepted = _accepted_kwargs(env_id)
+            unknown = _unknown_keywords(exc, kwargs) or [k for k in kwargs if k not in accepted]
+            suggestions = {}
+            for key in unknown:
+                close = difflib.get_close_matches(key, accepted, n=1, cutoff=0.6)
+                if close:
+                    suggestions[key] = close[0]
+            raise EnvKeywordError(f"{env_id} got unexpected keyword argument(s) {unknown}{did_you_mean(suggestions)}; "
+                                  f"{env_id} accepts: {accepted}", unknown, accepted, suggestions) from exc
         raise
 
 

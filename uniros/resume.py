@@ -14,7 +14,9 @@ config it can honour.
 * **Which edits.** The run's ``config.yaml`` may be edited between runs. Keys that schedule the run
   (``training_steps``, ``eval_freq``, ``save_freq``, ``keep_*``, ``video``, ...) take effect, and
   so do hyperparameters SB3 sets on a loaded model (``learning_rate``, ``batch_size``, ``gamma``,
-  ``tau``, ``gradient_steps``, ``train_freq``, ``learning_starts``, ``target_update_interval``).
+  ``tau``, ``gradient_steps``, ``train_freq``, ``learning_starts``, ``target_update_interval``), and
+  the ``device`` (``uniros train --resume RUN --device cpu`` moves a run; without it the run keeps
+  the device choice its ``config.yaml`` records).
   Anything that would need another model, env or replay buffer (``algorithm``, ``env_kwargs``,
   ``n_envs``, ``normalize``, ``use_HER``/``her_params``, ``policy_params``, ``buffer_size``, the
   action noise, ...) is refused with a message naming the key: it would otherwise be ignored, or
@@ -77,7 +79,8 @@ NODE_KWARGS = frozenset({"sim_mode", "transport", "gui", "sim_node_name", "timeo
 
 def _flat(config: TrainingConfig) -> dict[str, Any]:
     data = dict(config.to_dict()["model_params"])
-    params = data.pop(f"{config.algorithm}_params", {}) or {}
+    params = dict(data.pop(f"{config.algorithm}_params", {}) or {})
+    params.pop("device", None)  # where the model computes, not what it is: --device may move a resumed run
     data["env_kwargs"] = {k: v for k, v in (data.get("env_kwargs") or {}).items() if k not in NODE_KWARGS}
     flat = {k: v for k, v in data.items()}
     flat.update({f"algo_params.{k}": v for k, v in params.items()})

@@ -29,6 +29,7 @@ from uniros.algorithms import (
     takes_action_noise,
     takes_sde,
 )
+from uniros.devices import check_device
 from uniros.errors import TrainingConfigError, TrainingError
 
 # A checkpoint prefix is part of file names inside the run folder: one plain name component.
@@ -87,7 +88,7 @@ _NESTED: dict[str, set[str]] = {
 }
 # Keyword arguments of the SB3 classes that the YAML must not set itself (uniros sets them).
 _MANAGED = {"self", "policy", "env", "replay_buffer_class", "replay_buffer_kwargs", "action_noise", "policy_kwargs",
-            "tensorboard_log", "verbose", "device", "_init_setup_model", "use_sde", "sde_sample_freq",
+            "tensorboard_log", "verbose", "_init_setup_model", "use_sde", "sde_sample_freq",
             "use_sde_at_warmup"}
 
 
@@ -98,7 +99,9 @@ class TrainingConfig:
     Attributes:
         algorithm: a name of :data:`uniros.algorithms.ALGOS` (``sac``, ``td3``, ``tqc``, ``ppo``, ...).
         training_steps: env steps to train for (in total: a resumed run trains the rest).
-        algo_params: keyword arguments of the SB3 algorithm (``<algo>_params``).
+        algo_params: keyword arguments of the SB3 algorithm (``<algo>_params``); its ``device``
+            (``auto``, ``cpu``, ``cuda``, ``cuda:N``; :mod:`uniros.devices`) is resolved when the
+            model is built or loaded.
         use_her, her_params: HER replay (goal envs, off-policy algorithms).
         policy_params: ``net_arch``, ``activation_fn`` (by name), ... when ``use_custom_policy``.
         action_noise: ``{"mean", "sigma"}`` action noise when ``use_action_noise``
@@ -165,6 +168,11 @@ class TrainingConfig:
     progress_bar: bool = True
     source: str = "<defaults>"
 
+    @property
+    def device(self) -> str:
+        """The device choice (``<algo>_params.device``; ``auto`` when the YAML sets none)."""
+        return str(self.algo_params.get("device", "auto"))
+
     def to_dict(self) -> dict[str, Any]:
         """The resolved config as a YAML mapping that :func:`parse_training_config` reads back."""
         params = copy.deepcopy(self.algo_params)
@@ -202,11 +210,14 @@ def _check_keys(mapping: Mapping[str, Any], valid: Any, where: str) -> None:
             raise TrainingConfigError(f"{where}: unknown key {key!r}{_nearest(str(key), valid)}")
 
 
-def _typed(mapping: Mapping[str, Any], key: str, source: str) -> Any:
+def _typed(mapping: Mapping[str, Any], key: str, source: str, stand_in: Any = None) -> Any:
     kind, default = _TOP[key]
+    if key not in mapping and stand_in is not None:
+        return stand_in
     if key not in mapping:
         if default is ...:
-            raise TrainingConfigError(f"{source}: missing key {key!r}")
+            hint = " (or pass --steps)" if key == "training_steps" else ""
+            raise TrainingConfigError(f"{source}: missing key {key!r}{hint}")
         return copy.deepcopy(default)
     value = mapping[key]
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
@@ -263,12 +274,13 @@ def check_save_prefix(prefix: str, where: str = "save_prefix") -> str:
 
 
 def parse_training_config(
-    data: Mapping[str, Any], source: str = "<mapping>", *, algorithm: str | None = None
+    data: Mapping[str, Any], source: str = "<mapping>", *, algorithm: str | None = None, steps: int | None = None
 ) -> TrainingConfig:
     """Check and convert a training YAML mapping.
 
     Args:
         algorithm: the algorithm the caller trains (a trainer class's); the YAML must agree.
+        steps: stands in for a missing ``training_steps`` (``uniros train --steps``).
 
     Raises:
         TrainingConfigError: an unknown, misspelt, missing or mistyped key, an unknown algorithm, or
@@ -309,6 +321,8 @@ def parse_training_config(
     params = dict(params)
     _check_keys(params, algo_keywords(algo), f"{source}: {algo}_params")
     _check_param_types(params, f"{source}: {algo}_params")
+    if "device" in params:
+        params["device"] = check_device(params["device"], f"{source}: {algo}_params.device")
     if isinstance(params.get("train_freq"), Mapping):
         tf = params["train_freq"]
         _check_keys(tf, {"freq", "unit"}, f"{source}: {algo}_params.train_freq")
@@ -356,7 +370,8 @@ def parse_training_config(
             raise TrainingConfigError(f"{source}: {key} must be 0 (keep all) or positive, got {value}")
     save_prefix = check_save_prefix(_typed(data, "save_prefix", source), f"{source}: save_prefix")
     stop = _typed(data, "stop_at_success", source)
-    positive = {k: _typed(data, k, source) for k in ("training_steps", "eval_episodes", "log_interval", "n_envs")}
+    positive = {k: _typed(data, k, source, steps if k == "training_steps" else None)
+                for k in ("training_steps", "eval_episodes", "log_interval", "n_envs")}
     for key, value in positive.items():
         if value is None or value < 1:
             raise TrainingConfigError(f"{source}: {key} must be at least 1, got {value}")
@@ -402,8 +417,9 @@ def parse_training_config(
     )
 
 
-def load_training_config(path: str | Path, *, algorithm: str | None = None) -> TrainingConfig:
-    """Load a training YAML file (see :func:`parse_training_config`)."""
+def load_training_config(path: str | Path, *, algorithm: str | None = None, steps: int | None = None) -> TrainingConfig:
+    """Load a training YAML file (see :func:`parse_training_config`; ``steps`` stands in for a
+    missing ``training_steps``)."""
     path = Path(path)
     if not path.is_file():
         raise TrainingConfigError(f"training config {str(path)!r} not found")
@@ -411,7 +427,7 @@ def load_training_config(path: str | Path, *, algorithm: str | None = None) -> T
         data = yaml.safe_load(path.read_text())
     except yaml.YAMLError as exc:
         raise TrainingConfigError(f"{path}: not valid YAML: {exc}") from exc
-    return parse_training_config(data, str(path), algorithm=algorithm)
+    return parse_training_config(data, str(path), algorithm=algorithm, steps=steps)
 
 
 def shipped_config_ids() -> list[str]:

@@ -36,6 +36,7 @@ from uniros.checkpoints import (
     save_checkpoint,
     save_model_with_stats,
 )
+from uniros.devices import resolve_device
 from uniros.evaluation import EVAL_SEED, evaluate
 from uniros.image_spaces import channel_first_space, images_channel_first, vector_keys
 from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
@@ -99,7 +100,8 @@ def _policy_kwargs(config: TrainingConfig) -> dict[str, Any] | None:
 
 def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
     """The model for ``config`` on ``env`` (a gymnasium env or a VecEnv), of the class
-    :data:`uniros.algorithms.ALGOS` names."""
+    :data:`uniros.algorithms.ALGOS` names, on the device ``<algo>_params.device`` resolves to
+    (:func:`uniros.devices.resolve_device`: ``auto`` puts image policies on a present GPU)."""
     from gymnasium import spaces
     from stable_baselines3 import HerReplayBuffer
     from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
@@ -108,8 +110,9 @@ def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
     cls = algorithm_class(config.algorithm)
     kwargs: dict[str, Any] = dict(config.algo_params)
     kwargs.setdefault("seed", config.seed)
-    kwargs.setdefault("device", "cpu")
     obs_space = env.observation_space
+    kwargs["device"] = resolve_device(kwargs.get("device"), obs_space,
+                                      f"{config.source}: {config.algorithm}_params.device")
     policy = "MultiInputPolicy" if isinstance(obs_space, spaces.Dict) else "MlpPolicy"
     if policy not in policy_names(config.algorithm):
         raise TrainingConfigError(f"{config.source}: {config.algorithm} has no {policy} (it has "
@@ -374,7 +377,8 @@ class Session:
             self.model = build_model(self.config, venv, verbose=self.verbose)
             self._add_demonstrations()
         else:
-            self.model = load_model(Path(source), venv, algorithm=self.config.algorithm, **(load_kwargs or {}))
+            self.model = load_model(Path(source), venv, algorithm=self.config.algorithm, device=self.config.device,
+                                    **(load_kwargs or {}))
             if buffer is not None:
                 put_replay_buffer(self.model, buffer)
             elif resume is not None and is_off_policy(self.config.algorithm):
@@ -530,13 +534,17 @@ def _eval_key(row: dict[str, float]) -> tuple[float, float]:
     return (-1.0 if rate != rate else rate, row["mean_return"])
 
 
-def load_model(path: Path, env: Any, *, algorithm: str | None = None, **kwargs: Any) -> Any:
+def load_model(path: Path, env: Any, *, algorithm: str | None = None, device: str | None = None,
+               **kwargs: Any) -> Any:
     """Load a saved model for ``env``, with clear errors for a missing, corrupt or mismatched file.
 
+    ``device``: ``auto`` (default), ``cpu``, ``cuda`` or ``cuda:N`` (:func:`uniros.devices.resolve_device`
+    on ``env``'s observation space); the model's tensors, optimisers included, load onto it.
     ``kwargs`` replace saved hyperparameters (SB3's ``load(**kwargs)``).
 
     Raises:
         ModelFileError: the file is missing, not an SB3 model, for another algorithm or another env.
+        TrainingConfigError: ``device`` names a GPU that is not there.
     """
     import zipfile
 
@@ -552,8 +560,9 @@ def load_model(path: Path, env: Any, *, algorithm: str | None = None, **kwargs: 
         raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
     if problem:
         raise ModelFileError(problem)
+    target = resolve_device(device, env.observation_space)
     try:
-        return algorithm_class(algo).load(str(path), env=env, device="cpu", **kwargs)
+        return algorithm_class(algo).load(str(path), env=env, device=target, **kwargs)
     except (zipfile.BadZipFile, ValueError, KeyError, EOFError, RuntimeError, TypeError) as exc:
         raise ModelFileError(
             f"{path} cannot be loaded as a {algo.upper()} model ({type(exc).__name__}: {exc})"

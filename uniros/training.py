@@ -110,6 +110,7 @@ def make_env(env_id: str, **kwargs: Any) -> Any:
     import re
 
     import uniros
+    from uniros.factory import EnvKeywordError, did_you_mean
 
     try:
         return uniros.make(resolve_env_id(env_id), **kwargs)
@@ -118,8 +119,10 @@ def make_env(env_id: str, **kwargs: Any) -> Any:
         if match is None or match[1] not in kwargs:
             raise
         accepted = str(exc).partition(" accepts: ")[2]
-        raise TrainingError(f"{env_id} does not take the env kwarg {match[1]!r} (env_kwargs of the config, e.g. a "
-                            "shipped RX200 config's ee_action_type on another env): remove it"
+        hint = did_you_mean({match[1]: exc.suggestions[match[1]]}) if isinstance(exc, EnvKeywordError) \
+            and match[1] in exc.suggestions else ""
+        raise TrainingError(f"{env_id} does not take the env kwarg {match[1]!r}{hint} (env_kwargs of the config, e.g. "
+                            "a shipped RX200 config's ee_action_type on another env): remove it"
                             + (f"; it accepts: {accepted}" if accepted else "")) from None
 
 
@@ -464,7 +467,7 @@ def run_training(
                 _resume_session(session, run, note)
             else:
                 session.build()
-            run.update_meta(status="running")
+            run.update_meta(status="running", device=str(session.model.device))
             learning = True
             session.learn()
             save_model_with_stats(session.model, session.normalizer, run.final_model)
@@ -556,7 +559,7 @@ def record_run_video(run: RunDir, env_id: str, config: TrainingConfig, *, episod
     model_path = run.best_model if run.best_model.is_file() else run.final_model
     env = make_env(env_id, **config.env_kwargs)
     try:
-        model, normalizer = load_for_eval(model_path, env)
+        model, normalizer = load_for_eval(model_path, env, device=config.device)
     finally:
         env.close()
     target = run.video if model_path == run.best_model else run.root / "final_model.mp4"
@@ -661,8 +664,11 @@ def _zoo_yaml(path: Path) -> Any:
     return dict(data) if isinstance(data, dict) else (dict(data) if isinstance(data, list) else {})
 
 
-def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None) -> tuple[Any, Any]:
-    """Load a model and its normalisation statistics for ``env`` (uniros' or rl-zoo3's layout).
+def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None,
+                  device: str | None = None) -> tuple[Any, Any]:
+    """Load a model and its normalisation statistics for ``env`` (uniros' or rl-zoo3's layout);
+    the model onto ``device`` (``auto`` by default, :mod:`uniros.devices`), the statistics (numpy,
+    applied to observations before they reach the device) as they are.
 
     Returns:
         ``(model, normalizer)``; ``normalizer`` is a frozen ``VecNormalize`` or ``None``.
@@ -685,7 +691,7 @@ def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None) -
         normalizer.training = False
         normalizer.norm_reward = False
     # HER models need an env to rebuild their replay buffer, even for prediction.
-    model = load_model(model_path, normalizer if normalizer is not None else venv, algorithm=algorithm)
+    model = load_model(model_path, normalizer if normalizer is not None else venv, algorithm=algorithm, device=device)
     return model, normalizer
 
 

@@ -108,6 +108,11 @@ class Context:
             raise NotInitializedException("the context")
         return self._transport
 
+    def reach(self) -> str:
+        """How this context reaches other programs, for messages (``Zenoh router tcp/...``, ``ROS 2
+        middleware rmw_fastrtps_cpp``): its transport's own words."""
+        return self._transport.reach() if self._transport is not None else f"the {self.transport_name} transport"
+
     def shutdown(self) -> None:
         """Destroy all nodes, close the transport (session, router, threads) and wake waiters.
 

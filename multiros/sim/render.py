@@ -1,12 +1,14 @@
 """Offscreen RGB/depth images of a :class:`~multiros.sim.world.World`, goal markers, the viewer.
 
-Headless rendering uses MuJoCo's EGL backend (``multiros.sim`` sets ``MUJOCO_GL=egl`` when no
-display exists and the user chose nothing). Markers are scene decorations added to each rendered
+Headless rendering uses the backend ``import multiros`` chose when the user set no ``MUJOCO_GL``
+(:mod:`multiros.gl_backend`: EGL on an NVIDIA GPU when its EGL vendor is installed, else software
+EGL or OSMesa, said once at the first renderer). Markers are scene decorations added to each rendered
 scene with ``mjv_initGeom``: they never take part in physics.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 from collections.abc import Sequence
@@ -15,7 +17,10 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from multiros import gl_backend
 from multiros.sim.errors import RenderError
+
+_logger = logging.getLogger(__name__)
 
 __all__ = ["FreeCamera", "Marker", "Renderer", "camera_pose", "project_points", "open_viewer", "display_available"]
 
@@ -200,6 +205,7 @@ class Renderer:
             model.vis.quality.shadowsize = 0 if fast else min(shadow, max(512, 2 * max(key[:2])))
             if fast:
                 model.vis.quality.offsamples = 0
+            gl_backend.log_choice_once(_logger)
             try:
                 r = mujoco.Renderer(model, height=key[1], width=key[0], max_geom=self.max_geom)
             except Exception as exc:  # GL context creation fails with assorted errors

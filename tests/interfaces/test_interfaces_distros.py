@@ -220,6 +220,19 @@ def test_default_distro_follows_ros_distro(monkeypatch: pytest.MonkeyPatch) -> N
         registry_for("iron")
 
 
+def test_humble_is_refused_only_by_the_transports_that_reach_peers(monkeypatch: pytest.MonkeyPatch) -> None:
+    from multiros.ros.interfaces.registry import _in_process_distro
+    from multiros.ros.transport import make_transport
+
+    monkeypatch.setenv("ROS_DISTRO", "humble")
+    assert _in_process_distro() == DEFAULT_DISTRO  # in-process messages: Jazzy's definitions
+    for name in ("zenoh", "rclpy"):
+        with pytest.raises(UnsupportedDistroError, match=f"^the {name} transport reaches other ROS 2 programs .*"
+                                                         "no type hashes.*inproc transport need no ROS"):
+            make_transport(name, None)  # type: ignore[arg-type]
+    assert make_transport("inproc", object()).name == "inproc"  # type: ignore[arg-type]
+
+
 _PROBE = """
 from multiros.ros.interfaces import default_registry, get_service, type_hash
 cls = get_service("simulation_interfaces/srv/SpawnEntity")

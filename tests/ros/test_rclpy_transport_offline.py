@@ -125,3 +125,36 @@ def test_the_wheels_exported_python_paths_are_rewritten(tmp_path) -> None:
                     '/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include"')
     assert fix_exported_paths(tmp_path) == 1
     assert "/opt/python" not in path.read_text()
+
+
+def test_each_transport_names_how_it_reaches_peers(monkeypatch) -> None:
+    """Error messages (a Real env without its robot) name the transport in use, not always Zenoh."""
+    from multiros.ros.transport import make_transport
+
+    ctx = Context(transport="inproc")
+    assert ctx.reach() == "the inproc transport"  # not opened yet
+    assert make_transport("inproc", ctx).reach() == "the inproc transport (this process only)"
+    zenoh = make_transport("zenoh", Context(transport="zenoh", env={"UNIROS_ZENOH_ROUTER": "tcp/127.0.0.1:17447"}))
+    assert zenoh.reach() == "Zenoh router tcp/127.0.0.1:17447 (UNIROS_ZENOH_ROUTER)"
+    monkeypatch.setenv("RMW_IMPLEMENTATION", "rmw_cyclonedds_cpp")
+    rclpy_transport = make_transport("rclpy", Context(transport="rclpy"))
+    assert rclpy_transport.reach() == "ROS 2 middleware rmw_cyclonedds_cpp (RMW_IMPLEMENTATION)"
+    monkeypatch.delenv("RMW_IMPLEMENTATION")
+    assert "Zenoh" not in rclpy_transport.reach() and "RMW_IMPLEMENTATION" in rclpy_transport.reach()
+
+
+def test_uniros_train_notes_the_graph_through_the_transport_it_uses(monkeypatch) -> None:
+    from uniros.cli import _shared_graph_note
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", "0")
+    monkeypatch.delenv("RMW_IMPLEMENTATION", raising=False)
+    monkeypatch.delenv("UNIROS_TRANSPORT", raising=False)
+    note = _shared_graph_note("RX200ReacherGoalReal-v0", {"transport": "rclpy"})
+    assert note is not None and "through rclpy on its default middleware (RMW_IMPLEMENTATION)" in note
+    assert "Zenoh" not in note and "set ROS_DOMAIN_ID per user" in note
+    monkeypatch.setattr(loader, "rclpy_available", lambda: True)
+    assert "through rclpy" in (_shared_graph_note("RX200ReacherGoalReal-v0", {}) or "")  # a Real env's default
+    monkeypatch.setattr(loader, "rclpy_available", lambda: False)
+    assert "through the Zenoh router" in (_shared_graph_note("RX200ReacherGoalReal-v0", {}) or "")
+    assert "through the Zenoh router" in (_shared_graph_note("RX200ReacherGoalSim-v0", {"transport": "zenoh"}) or "")
+    assert _shared_graph_note("RX200ReacherGoalSim-v0", {}) is None  # in-process: no graph

@@ -185,6 +185,20 @@ def test_unknown_kwarg_lists_accepted_ones():
         uniros.make("RX200ReacherGoalSim-v0", rewrd_type="sparse")
     message = str(err.value)
     assert "rewrd_type" in message and "reward_type" in message and "sim_mode" in message
+    assert "(did you mean 'reward_type'?)" in message
+
+
+@pytest.mark.parametrize(("typo", "meant"), [("image_widht", "image_width"), ("max_episode_step", "max_episode_steps"),
+                                             ("rgb_plus_normal_ob", "rgb_plus_normal_obs")])
+def test_a_kwarg_typo_names_the_nearest_of_every_accepted_one(typo, meant):
+    """The accepted list holds the camera options and gymnasium.make's own keywords too."""
+    with pytest.raises(uniros.factory.EnvKeywordError) as err:
+        uniros.make("RX200ReacherGoalSim-v0", **{typo: 1})
+    assert err.value.unknown == [typo] and err.value.suggestions == {typo: meant}
+    assert f"unexpected keyword argument(s) ['{typo}'] (did you mean '{meant}'?)" in str(err.value)
+    for name in ("image_width", "rgb_obs_only", "camera_position", "max_episode_steps", "render_mode"):
+        assert name in err.value.accepted
+    assert "args" not in err.value.accepted  # *args is no keyword
 
 
 def test_bad_task_config_names_key_and_file(tmp_path):

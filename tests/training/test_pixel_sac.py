@@ -152,3 +152,57 @@ env_kwargs: {rgb_obs_only: True, image_width: 48, image_height: 48, ee_action_ty
     assert data["observation_space"]["observation"].shape == (3, 48, 48)  # channel-first below the normaliser
     assert cli_main(["eval", str(out / "r"), "--episodes", "1"]) == 0
     assert "RX200ReacherGoalSim-v0: success rate " in capsys.readouterr().out
+
+
+def _doc_block(start: str, end: str) -> str:
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "training.md").read_text()
+    head = text.index(start) + len(start)
+    return text[head:text.index(end, head)]
+
+
+def test_the_documented_drq_sac_yaml_loads_and_builds(monkeypatch):
+    """docs/training.md's drq_sac YAML is complete (training_steps, the policy options in use) and
+    builds a DrQSAC model on a goal env with a camera image (on the CPU here: auto without CUDA)."""
+    import gymnasium as gym
+    import yaml
+    from gymnasium_robotics.core import GoalEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    import uniros.devices as devices
+    from uniros.trainer import build_model
+
+    data = yaml.safe_load(_doc_block(":caption: my_drq.yaml\n", "```"))
+    config = parse_training_config(data, "docs/training.md")
+    assert config.algorithm == "drq_sac" and config.training_steps == 40000 and config.device == "auto"
+    assert config.policy_params["features_extractor_kwargs"] == {"ignore_keys": ["achieved_goal"]}
+    del data["training_steps"]
+    assert parse_training_config(data, "docs/training.md", steps=1234).training_steps == 1234  # --steps
+
+    space = _goal_image_space()
+
+    class CameraGoal(GoalEnv):
+        observation_space, action_space = space, spaces.Box(-1, 1, (3,), np.float32)
+
+        def compute_reward(self, achieved_goal, desired_goal, info):
+            return -np.ones(np.shape(achieved_goal)[:-1], np.float32)
+
+        def reset(self, *, seed=None, options=None):
+            gym.Env.reset(self, seed=seed)
+            return space.sample(), {}
+
+        def step(self, action):
+            return space.sample(), -1.0, False, False, {"is_success": False}
+
+    config.algo_params["buffer_size"] = 50
+    monkeypatch.setattr(devices, "_cuda_count", lambda: 0)
+    model = build_model(config, DummyVecEnv([CameraGoal]))
+    assert type(model) is DrQSAC and str(model.device) == "cpu"
+    assert model.policy.actor.features_extractor.image_keys == ["observation"]
+
+
+def test_the_documented_rl_zoo3_record_video_command_is_valid_python():
+    code = _doc_block("python - <<'EOF'\n", "EOF\n")
+    compile(code, "docs/training.md (record_video)", "exec")
+    assert "rl_zoo3.record_video" in code and "import uniros" in code

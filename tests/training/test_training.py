@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import os
 
 import numpy as np
 import pytest
@@ -116,6 +117,25 @@ def test_cli_list(capsys):
     assert "RX200ReacherGoalReal-v0" in out and "ABBIRB120ReacherGoalRealEnv-v0" in out
 
 
+def test_cli_list_and_a_simulated_env_work_with_a_sourced_humble(tmp_path):
+    """A sourced Humble (ROS_DISTRO=humble) is no reason to refuse simulated envs, which need no ROS;
+    only a transport that reaches Humble peers is refused, when it is opened (tests/interfaces)."""
+    import subprocess
+    import sys
+
+    env = {**os.environ, "ROS_DISTRO": "humble"}
+    out = subprocess.run([sys.executable, "-m", "uniros.cli", "list"], env=env, capture_output=True, text=True,
+                         timeout=120, stdin=subprocess.DEVNULL)
+    assert out.returncode == 0 and "Traceback" not in out.stderr, out.stderr
+    assert "RX200ReacherGoalSim-v0" in out.stdout
+    probe = ("import uniros; e = uniros.make('RX200ReacherGoalSim-v0'); e.reset(seed=0); "
+             "print(e.step(e.action_space.sample())[1]); e.close()")
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=180,
+                         stdin=subprocess.DEVNULL)
+    assert out.returncode == 0, out.stderr
+    assert float(out.stdout.strip().splitlines()[-1]) in (-1.0, 0.0)  # the sparse reward of one step
+
+
 def _error(capsys, *argv: str) -> str:
     assert cli_main(list(argv)) == 2
     err = capsys.readouterr().err
@@ -150,6 +170,14 @@ def test_a_real_env_without_a_robot_is_a_short_error(capsys, tmp_path):
     err = _error(capsys, "train", "RX200ReacherGoalReal-v0", "--config", str(cfg), "--output", str(out))
     assert "RobotConnectionError: no usable joint states from /rx200/joint_states" in err
     assert "uniros-fake-robot" in err
+    from multiros.ros.transport.rclpy.loader import rclpy_available
+
+    domain = os.environ["ROS_DOMAIN_ID"]
+    if rclpy_available():  # the Real env's default transport: rclpy, on its middleware
+        assert f"same ROS_DOMAIN_ID ({domain}) and ROS 2 middleware" in err and "Zenoh" not in err
+    else:
+        router = os.environ["UNIROS_ZENOH_ROUTER"]
+        assert f"same ROS_DOMAIN_ID ({domain}) and Zenoh router {router} (UNIROS_ZENOH_ROUTER)" in err
     assert not out.exists() or not list(out.iterdir())
 
 

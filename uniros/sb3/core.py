@@ -17,6 +17,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+from uniros.devices import check_device, resolve_device
 from uniros.run_dir import load_replay_buffer, normalizer_path, save_model_with_stats, save_replay_buffer
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError, load_training_config
 from uniros.trainer import Paths, Session, load_model
@@ -89,6 +90,9 @@ class BasicModel:
         seed: overrides the YAML's seed.
         eval_env: an env to evaluate on every ``eval_freq`` steps (``best_model.zip`` in
             ``save_model_path``); none by default.
+        device: ``auto``, ``cpu``, ``cuda`` or ``cuda:N``; replaces the YAML's ``<algo>_params.device``
+            (default ``auto``: the GPU for policies that see camera images when CUDA is present, else
+            the CPU; :mod:`uniros.devices`). A loaded model loads onto it too.
     """
 
     algorithm = "sac"
@@ -98,7 +102,8 @@ class BasicModel:
                  load_trained: bool = False, load_model_path: str | Path | None = None,
                  config_file_pkg: str | None = None, config_filename: str | None = None,
                  abs_config_path: str | None = None, use_her: bool = False, seed: int | None = None,
-                 eval_env: Any = None, ns: str = "/", verbose: int = 1, **legacy: Any) -> None:
+                 eval_env: Any = None, ns: str = "/", verbose: int = 1, device: str | None = None,
+                 **legacy: Any) -> None:
         for key in ("load_il_policy",):
             if legacy.pop(key, False):
                 raise TrainingError("imitation-learning initialisation (load_il_policy) is not supported")
@@ -115,6 +120,8 @@ class BasicModel:
         self.config_path = config_path
         if seed is not None:
             self.config.seed = seed
+        if device is not None:
+            self.config.algo_params["device"] = check_device(device, f"{type(self).__name__}(device=...)")
         self.config.use_her = bool(self.goal and (use_her or self.config.use_her))
         self.config.progress_bar = False
         self.config.n_envs = _n_envs_of(env, self.config)
@@ -214,8 +221,9 @@ class BasicModel:
     @classmethod
     def load_trained_model(cls, model_path: str | Path, model_pkg: str | None = None, env: Any = None,
                            config_file_pkg: str | None = None, config_filename: str | None = None,
-                           abs_config_path: str | None = None) -> Any:
-        """Load a trained model for prediction (SB3's ``load``; the config is not needed)."""
+                           abs_config_path: str | None = None, device: str = "auto") -> Any:
+        """Load a trained model for prediction (SB3's ``load``; the config is not needed), onto
+        ``device`` (``auto``: the GPU for a policy that sees camera images when CUDA is present)."""
         from uniros.trainer import algorithm_class
 
         path = _under(_package_dir(model_pkg) if model_pkg else None, model_path)
@@ -223,10 +231,14 @@ class BasicModel:
             target = path if path.is_file() else path.with_name(path.name + ".zip")
             if not target.is_file():
                 raise TrainingError(f"model file {str(path)!r} not found")
-            return algorithm_class(cls.algorithm).load(str(target), device="cpu")
+            from stable_baselines3.common.save_util import load_from_zip_file
+
+            data, _, _ = load_from_zip_file(str(target), load_data=True, device="cpu")
+            space = (data or {}).get("observation_space")
+            return algorithm_class(cls.algorithm).load(str(target), device=resolve_device(device, space))
         from stable_baselines3.common.vec_env import DummyVecEnv
 
-        return load_model(path, DummyVecEnv([lambda: env]), algorithm=cls.algorithm)
+        return load_model(path, DummyVecEnv([lambda: env]), algorithm=cls.algorithm, device=device)
 
     load_trained = load_trained_model  # FRobs_RL's name
 

@@ -130,8 +130,8 @@ class RealConnection(RobotConnection):
             raise RobotConnectionError(
                 f"no usable joint states from {link.joint_states_topic} within {self.startup_timeout:g} s "
                 f"({link.states.describe_problem(needed)}): is the robot's driver running in namespace "
-                f"{self.namespace!r}, with the same ROS_DOMAIN_ID and Zenoh router (UNIROS_ZENOH_ROUTER) as this "
-                "process?"
+                f"{self.namespace!r}, with the same ROS_DOMAIN_ID ({link.node.context.domain_id}) and "
+                f"{link.node.context.reach()} as this process?"
             )
         self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
         # A driver that just died may stay in the graph a moment (until its session is seen to end):

@@ -241,7 +241,8 @@ class RobotLink:
             raise RobotConnectionError(
                 f"the robot's controller manager ({self.ns}/controller_manager/list_controllers) did not answer "
                 f"within {self.timeout_sec:g} s: is the robot's ros2_control driver running in namespace "
-                f"{self.ns or '/'!r}, on this ROS_DOMAIN_ID and Zenoh router?"
+                f"{self.ns or '/'!r}, on this ROS_DOMAIN_ID ({self.node.context.domain_id}) and "
+                f"{self.node.context.reach()}?"
             ) from exc
 
     def require_active(self, controllers: Sequence[str]) -> None:

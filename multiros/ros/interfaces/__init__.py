@@ -39,6 +39,7 @@ from .registry import (
     default_registry,
     normalize_name,
     registry_for,
+    require_peer_distro,
 )
 from .typehash import type_description, type_hash
 
@@ -65,6 +66,7 @@ __all__ = [
     "list_types",
     "normalize_name",
     "registry_for",
+    "require_peer_distro",
     "serialize_message",
     "type_description",
     "type_hash",

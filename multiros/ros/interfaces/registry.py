@@ -39,6 +39,7 @@ __all__ = [
     "distro_roots",
     "normalize_name",
     "registry_for",
+    "require_peer_distro",
 ]
 
 DEFINITIONS_ROOT = Path(__file__).resolve().parent.parent / "definitions"
@@ -400,10 +401,37 @@ def default_distro() -> str:
     return _check_distro(value, SUPPORTED_DISTROS, "ROS_DISTRO")
 
 
+def _in_process_distro() -> str:
+    """:func:`default_distro`, or :data:`DEFAULT_DISTRO` when ``ROS_DISTRO`` names one uniros does not
+    speak (a sourced Humble): messages that never leave the process (a simulated env on the inproc
+    transport) need no peer's definitions, and the transports that reach peers refuse it when opened
+    (:func:`require_peer_distro`)."""
+    try:
+        return default_distro()
+    except UnsupportedDistroError:
+        return DEFAULT_DISTRO
+
+
+def require_peer_distro(what: str) -> str:
+    """:func:`default_distro`, for ``what`` (a transport that reaches other ROS 2 programs).
+
+    Raises:
+        UnsupportedDistroError: ``ROS_DISTRO`` names a distribution whose peers uniros cannot reach;
+            the message says that simulated envs on the inproc transport still work.
+    """
+    try:
+        return default_distro()
+    except UnsupportedDistroError as exc:
+        raise UnsupportedDistroError(f"{what}: {exc}. Simulated envs on the default inproc transport need no ROS "
+                                     "and work with any ROS_DISTRO") from None
+
+
 def default_registry() -> TypeRegistry:
-    """The registry of :func:`default_distro`, chosen on the first call and kept for the process."""
+    """The registry of :func:`default_distro`, chosen on the first call and kept for the process
+    (Jazzy's when ``ROS_DISTRO`` names a distribution uniros does not speak: see
+    :func:`require_peer_distro`)."""
     if not _DEFAULT:
-        reg = registry_for(default_distro())
+        reg = registry_for(_in_process_distro())
         with _DEFAULT_LOCK:
             if not _DEFAULT:
                 _DEFAULT.append(reg)

@@ -44,11 +44,17 @@ def make_transport(name: str, context: Context) -> Transport:
 
     Raises:
         TransportError: unknown name.
+        UnsupportedDistroError: a transport that reaches peers (zenoh, rclpy) while ``ROS_DISTRO``
+            names a distribution uniros cannot speak to (Humble).
     """
     if name == "inproc":
         from multiros.ros.transport.inproc import InprocTransport
 
         return InprocTransport(context)
+    if name in WIRE_TRANSPORTS:
+        from multiros.ros.interfaces import require_peer_distro
+
+        require_peer_distro(f"the {name} transport reaches other ROS 2 programs with ROS_DISTRO's interfaces")
     if name == "zenoh":
         from multiros.ros.transport.zenoh import ZenohTransport
 

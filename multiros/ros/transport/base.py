@@ -79,6 +79,10 @@ class Transport(ABC):
     def add_client(self, cli: Client) -> ClientHandle | None:
         return None
 
+    def reach(self) -> str:
+        """How this transport reaches other programs, for messages (``the Zenoh router ...``)."""
+        return f"the {self.name or type(self).__name__} transport (this process only)"
+
     def graph_version(self) -> int | None:
         """A number that changes whenever :meth:`count` may answer differently; ``None`` when the
         transport keeps none (callers then ask :meth:`count` every time)."""

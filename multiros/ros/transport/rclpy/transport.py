@@ -119,6 +119,17 @@ class RclpyTransport(Transport):
             self.close()
             raise
 
+    def reach(self) -> str:
+        rmw = os.environ.get("RMW_IMPLEMENTATION", "").strip()
+        if not rmw and self._rclpy is not None:
+            try:
+                from rclpy.utilities import get_rmw_implementation_identifier
+
+                rmw = str(get_rmw_implementation_identifier())
+            except Exception:  # noqa: BLE001 - a description only
+                rmw = ""
+        return f"ROS 2 middleware {rmw or 'of rclpy (its default)'} (RMW_IMPLEMENTATION)"
+
     def node_options(self) -> dict[str, Any]:
         """rclpy node options: nothing of rclpy's own that would need spinning (no parameter or
         type description services, no rosout); command-line arguments are never read."""

@@ -85,6 +85,11 @@ class ZenohTransport(Transport):
             self._codec = InterfacesCodec()
         return self._codec
 
+    def reach(self) -> str:
+        from multiros.ros.transport.zenoh.config import ROUTER_ENV
+
+        return f"Zenoh router {self.settings.router_endpoint} ({ROUTER_ENV})"
+
     def open(self) -> None:
         _close_before_thread_join(self)
         s = self.settings
