@@ -21,6 +21,7 @@ import errno
 import inspect
 import os
 import shutil
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -203,10 +204,11 @@ def check_disk_for_run(run_root: Path, config: Any, model: Any, *, free: int | N
     return needed
 
 
-def disk_full_error(exc: BaseException, where: Path, then: str) -> DiskFullError | None:
+def disk_full_error(exc: BaseException, where: Path, then: str | Callable[[], str]) -> DiskFullError | None:
     """A :class:`DiskFullError` for ``exc`` when it (or an exception it came from: torch reports a
     failed write as a ``RuntimeError``) is a full disk or quota, else ``None``. The message says
-    what failed, what is free on ``where``'s disk, then ``then`` (the state of the run, what to do)."""
+    what failed, what is free on ``where``'s disk, then ``then`` (the state of the run and what to
+    do; a callable is called only for a full disk)."""
     seen: set[int] = set()
     cause: BaseException | None = exc
     while cause is not None and id(cause) not in seen:
@@ -217,7 +219,8 @@ def disk_full_error(exc: BaseException, where: Path, then: str) -> DiskFullError
                 free = f" ({_gb(shutil.disk_usage(where).free)} free now)"
             except OSError:
                 free = ""
-            error = DiskFullError(f"disk full{what}: {os.strerror(cause.errno)}{free}; {then}")
+            error = DiskFullError(f"disk full{what}: {os.strerror(cause.errno)}{free}; "
+                                  f"{then() if callable(then) else then}")
             error.errno = cause.errno
             return error
         cause = cause.__cause__ or cause.__context__

@@ -498,7 +498,7 @@ def run_training(
             session = None
         discard = not learning and not resume and getattr(run, "created_here", False)
         full = disk_full_error(exc, run.root, "nothing was kept: free space, then start the run again" if discard
-                               else run_state_after_disk_full(run.root, _last_checkpoint_steps(run)))
+                               else lambda: run_state_after_disk_full(run.root, _last_checkpoint_steps(run)))
         if discard:
             run.discard()  # nothing learnt: a refused run leaves nothing
         elif learning and not isinstance(exc, KeyboardInterrupt):
