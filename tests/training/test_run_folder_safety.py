@@ -228,6 +228,21 @@ def test_a_camera_replay_buffer_larger_than_memory_is_refused_in_one_line():
                                       her=True, available=23 * 10**9) is not None
 
 
+@pytest.mark.parametrize("observation", [_camera_space(84, 84), spaces.Box(-1.0, 1.0, (17,), np.float64)])
+def test_the_estimate_is_what_sb3_allocates(observation):
+    from stable_baselines3.common.buffers import DictReplayBuffer, ReplayBuffer
+
+    from uniros.resources import transition_bytes
+
+    action = spaces.Box(-1.0, 1.0, (4,), np.float64)  # SB3 keeps float64 actions as float32
+    cls = DictReplayBuffer if isinstance(observation, spaces.Dict) else ReplayBuffer
+    buffer = cls(100, observation, action, device="cpu")
+    arrays = [buffer.actions, buffer.rewards, buffer.dones, buffer.timeouts]
+    for part in (buffer.observations, buffer.next_observations):
+        arrays += list(part.values()) if isinstance(part, dict) else [part]
+    assert sum(a.nbytes for a in arrays) == 100 * transition_bytes(observation, action)
+
+
 def test_a_run_whose_buffer_does_not_fit_leaves_nothing(tmp_path, capsys, monkeypatch):
     from uniros import resources
 
