@@ -35,15 +35,38 @@ TMP_PREFIX = ".tmp"
 
 
 def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)`` then rename ``tmp`` to ``path`` (a reader never sees a half-written file)."""
+    """Call ``write(tmp)`` then rename ``tmp`` to ``path`` (a reader never sees a half-written file).
+
+    The temporary file is created afresh (``O_EXCL``, not through a link left under its name), and
+    the rename replaces ``path`` itself, never a file a link at ``path`` points to. A failed write
+    (a full disk) leaves ``path`` as it was and no temporary file.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f"{TMP_PREFIX}{os.getpid()}_{path.name}")  # same suffix: writers that go by it still work
     try:
+        if os.path.lexists(tmp):
+            tmp.unlink()
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0), 0o644))
         write(tmp)
         os.replace(tmp, path)
     finally:
-        if tmp.exists():
+        if os.path.lexists(tmp):
             tmp.unlink()
+
+
+def own_folder(folder: Path) -> Path:
+    """``folder``, if it is a folder of its own and not a symbolic link to another's (a run folder's
+    ``checkpoints/`` and ``unusable/``; the trainer classes save where their user says).
+
+    Raises:
+        RunDirError: a link (files saved, pruned or moved there would be another folder's).
+    """
+    if folder.is_symlink():
+        from uniros.errors import RunDirError
+
+        raise RunDirError(f"{folder} is a symbolic link (to {os.readlink(folder)}): a run saves, prunes and moves "
+                          "files in its own folders only; replace the link by a folder")
+    return folder
 
 
 def write_json(path: Path, data: Any) -> None:
@@ -399,6 +422,7 @@ __all__ = [
     "list_checkpoints",
     "load_replay_buffer",
     "normalizer_path",
+    "own_folder",
     "prune_checkpoints",
     "put_replay_buffer",
     "read_replay_buffer",

@@ -14,4 +14,12 @@ class TrainingConfigError(TrainingError, ValueError):
     """A training YAML is missing, malformed, or has an unknown, misspelt or mistyped key."""
 
 
-__all__ = ["TrainingConfigError", "TrainingError"]
+class RunDirError(TrainingError, ValueError):
+    """A run directory is missing, incomplete, in use, unsafe to write, or would be overwritten."""
+
+
+class DiskFullError(TrainingError, OSError):
+    """A run could not write a file: the disk (or the user's quota) is full."""
+
+
+__all__ = ["DiskFullError", "RunDirError", "TrainingConfigError", "TrainingError"]

@@ -13,6 +13,7 @@ from typing import Any
 
 import gymnasium as gym
 from gymnasium import error as gym_error
+from gymnasium.wrappers import PassiveEnvChecker
 
 import rl_environments
 
@@ -80,6 +81,35 @@ def did_you_mean(suggestions: dict[str, str]) -> str:
     return " (did you mean " + ", ".join(f"{v!r} for {k!r}" for k, v in suggestions.items()) + "?)"
 
 
+class _RetrySafeEnvChecker(PassiveEnvChecker):  # type: ignore[type-arg]
+    """gymnasium's env checker, but a first reset that raises is checked again when retried.
+
+    gymnasium's (1.4) marks its one-time reset check done before the reset runs, so after a first
+    reset that raised (a robot not at its pose, a bad seed), the reset that succeeds records no
+    data, and the first step then fails inside the checker (``TypeError: cannot unpack
+    non-iterable NoneType object``) instead of stepping.
+    """
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> Any:
+        first = not self.checked_reset
+        try:
+            return super().reset(seed=seed, options=options)
+        except BaseException:
+            if first:
+                self.checked_reset = False
+            raise
+
+
+def _retry_safe_checker(env: gym.Env) -> gym.Env:
+    """``env`` with its gymnasium env checker (if ``gym.make`` added one) made a :class:`_RetrySafeEnvChecker`."""
+    layer: Any = env
+    while isinstance(layer, gym.Wrapper):
+        if type(layer) is PassiveEnvChecker:
+            layer.__class__ = _RetrySafeEnvChecker  # the same object, one method more careful
+        layer = layer.env
+    return env
+
+
 def make(env_id: str, **kwargs: Any) -> gym.Env:
     """Create a registered env, like ``gymnasium.make``.
 
@@ -93,7 +123,7 @@ def make(env_id: str, **kwargs: Any) -> gym.Env:
         hint = f" Did you mean {close}?" if close else ""
         raise UnknownEnvError(f"no env {env_id!r}.{hint} uniros envs: {list(rl_environments.ENV_IDS)}")
     try:
-        return gym.make(env_id, **kwargs)
+        return _retry_safe_checker(gym.make(env_id, **kwargs))
     except TypeError as exc:
         if isinstance(env_id, str) and env_id in rl_environments.ENV_IDS and "keyword argument" in str(exc):
             accepted = _accepted_kwargs(env_id)

@@ -13,12 +13,24 @@ import numpy as np
 EVAL_FIELDS = ("steps", "train_seconds", "success_rate", "episodes", "mean_return", "std_return", "mean_length")
 
 
+_COUNT_FIELDS = frozenset({"steps", "episodes"})  # whole numbers: written as 150, never 150.0
+
+
 def read_evaluations(path: Path) -> list[dict[str, float]]:
-    """Rows of ``evaluations.csv`` (empty when the file does not exist)."""
+    """Rows of ``evaluations.csv`` (empty when the file does not exist); counts as ``int``."""
     if not path.is_file():
         return []
     with open(path, newline="") as f:
-        return [{k: float(v) for k, v in row.items() if v not in ("", None)} for row in csv.DictReader(f)]
+        return [{k: int(float(v)) if k in _COUNT_FIELDS else float(v) for k, v in row.items() if v not in ("", None)}
+                for row in csv.DictReader(f)]
+
+
+def _cell(key: str, value: Any) -> str:
+    """One number of ``evaluations.csv``, in one format whether it was just measured or read back
+    (a resumed run rewrites the file): counts as integers, the rest as Python's shortest float."""
+    if value is None or value == "":
+        return ""
+    return str(int(value)) if key in _COUNT_FIELDS else repr(float(value))
 
 
 def write_evaluations(path: Path, rows: Sequence[dict[str, float]]) -> None:
@@ -29,7 +41,7 @@ def write_evaluations(path: Path, rows: Sequence[dict[str, float]]) -> None:
         with open(tmp, "w", newline="") as f:
             writer = csv.DictWriter(f, fieldnames=EVAL_FIELDS, extrasaction="ignore")
             writer.writeheader()
-            writer.writerows(rows)
+            writer.writerows({k: _cell(k, v) for k, v in row.items() if k in EVAL_FIELDS} for row in rows)
 
     atomic_write(path, write)
 

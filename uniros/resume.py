@@ -9,8 +9,9 @@ config it can honour.
   empty replay buffer, which fills for ``learning_starts`` steps (and takes the demonstrations
   again) before updates go on (older checkpoints keep no buffer by default: ``keep_replay_buffers``).
   Checkpoints found unusable are moved to ``checkpoints/unusable/`` so that retention never keeps
-  them in place of good ones. When no model loads at all, the run starts again from step 0 under
-  its name.
+  them in place of good ones. The checkpoint used is named. When no model loads at all, the run
+  starts again from step 0 under its name, and what the earlier attempt wrote (best model,
+  evaluations, logs) is moved to ``earlier/<n>/`` in the run folder, never deleted.
 * **Which edits.** The run's ``config.yaml`` may be edited between runs. Keys that schedule the run
   (``training_steps``, ``eval_freq``, ``save_freq``, ``keep_*``, ``video``, ...) take effect, and
   so do hyperparameters SB3 sets on a loaded model (``learning_rate``, ``batch_size``, ``gamma``,
@@ -26,12 +27,12 @@ config it can honour.
 from __future__ import annotations
 
 import logging
-import shutil
+import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from uniros.checkpoints import CheckedCheckpoint, check_checkpoint, latest_checkpoint
-from uniros.errors import TrainingConfigError
+from uniros.checkpoints import CheckedCheckpoint, check_checkpoint, latest_checkpoint, own_folder
+from uniros.errors import RunDirError, TrainingConfigError
 from uniros.train_config import TrainingConfig, parse_training_config
 
 _logger = logging.getLogger(__name__)
@@ -115,6 +116,13 @@ class CheckpointChoice:
             lines.append(f"resuming from {self.chosen.checkpoint.model.name} without a replay buffer "
                          f"({'; '.join(self.chosen.problems)}): it fills again for learning_starts steps before "
                          "updates go on")
+        elif self.chosen is not None:
+            ckpt = self.chosen.checkpoint
+            with_files = [name for name, path in (("replay buffer", ckpt.replay_buffer),
+                                                   ("normalisation statistics", ckpt.vecnormalize)) if path]
+            lines.append(f"resuming from checkpoint {ckpt.model.name} ({ckpt.steps} steps"
+                         + (f", with its {' and '.join(with_files)}" if with_files else "")
+                         + f") in {ckpt.model.parent}")
         return lines
 
 
@@ -142,12 +150,20 @@ def choose_checkpoint(folder: Any, prefix: str, config: TrainingConfig, *, obser
 
 
 def _set_aside(checked: CheckedCheckpoint) -> None:
+    """Move an unusable checkpoint's files to ``unusable/`` next to them: renames within the run
+    (a file that is a link moves as the link), never onto an earlier file of that name."""
     ckpt = checked.checkpoint
-    folder = ckpt.model.parent / "unusable"
+    folder = own_folder(ckpt.model.parent / "unusable")
+    if os.path.lexists(folder) and not folder.is_dir():
+        raise RunDirError(f"{folder} is not a folder: a resumed run moves unusable checkpoints there; remove it")
     folder.mkdir(exist_ok=True)
     for path in (ckpt.model, ckpt.replay_buffer, ckpt.vecnormalize):
-        if path is not None and path.exists():
-            shutil.move(str(path), str(folder / path.name))
+        if path is not None and os.path.lexists(path):
+            dest, n = folder / path.name, 1
+            while os.path.lexists(dest):
+                n += 1
+                dest = folder / f"{path.name}.{n}"
+            os.rename(path, dest)
 
 
 __all__ = [

@@ -14,19 +14,31 @@ Layout (``uniros train``; never overwritten, one directory per run)::
       final_model.zip             the model at the end (+ .vecnormalize.pkl)
       learning_curve.png          success rate and return against env steps
       best_model.mp4              the best model, a few evaluation episodes at real-time speed
+      checkpoints/unusable/       checkpoints a resume found unusable (:mod:`uniros.resume`)
+      earlier/<n>/                what an attempt wrote before a resume restarted the run from step 0
 
 One process at a time writes a run: :meth:`RunDir.lock` takes an exclusive ``flock`` on
 ``<run>/.lock`` (released by the kernel when the process ends, however it ends), and a second
 ``uniros train --resume`` of the same run is refused. Names stay inside the output folder: a run
 name is one plain path component.
+
+A run writes, moves and deletes files in its own folder only. A run folder comes from anywhere (a
+colleague's copy, an archive), so a symbolic link in it could point those writes elsewhere: the
+lock file is opened without following links (a ``.lock`` link to someone's file would get a PID
+written into it), and a run holding any symbolic link (a ``checkpoints/`` linked to another run's,
+whose files retention would delete) is refused before anything is written
+(:func:`symbolic_links`). When a resumed run has no checkpoint to continue from, what its earlier
+attempt wrote is moved to ``earlier/<n>/``, never deleted (:meth:`RunDir.set_aside_for_restart`).
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import re
 import shutil
+import stat
 import time
 from pathlib import Path
 from typing import Any
@@ -43,16 +55,14 @@ from uniros.checkpoints import (
     save_replay_buffer,
     write_json,
 )
-from uniros.errors import TrainingError
+from uniros.errors import RunDirError
 
 MAX_NAME_LENGTH = 128
 _PLAIN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
 # What a run directory holds before its run.json is written: a start killed then left only these.
 _SKELETON = {"monitor", "checkpoints", "tensorboard", "config.yaml", ".lock"}
-
-
-class RunDirError(TrainingError, ValueError):
-    """A run directory is missing, incomplete, in use, or would be overwritten."""
+# Where a restarted run keeps what its earlier attempts wrote (earlier/1, earlier/2, ...).
+EARLIER = "earlier"
 
 
 def check_run_name(name: str) -> str:
@@ -103,6 +113,9 @@ class RunDir:
                 name = f"{base}_{n}"
         check_run_name(name)
         root = parent / name
+        if root.is_symlink():
+            raise RunDirError(f"{str(root)!r} is a symbolic link (to {os.readlink(root)}): a new run gets a folder "
+                              "of its own; pick another --name")
         if root.exists() and not _abandoned_start(root):
             raise RunDirError(_taken_message(root))
         root.mkdir(parents=True, exist_ok=True)
@@ -159,7 +172,8 @@ class RunDir:
         """Take the run's lock for this process (kept until :meth:`release` or the process ends).
 
         Raises:
-            RunDirError: another process holds it.
+            RunDirError: another process holds it, its ``.lock`` is a link or not a plain file, or
+                the run holds a symbolic link (:func:`symbolic_links`).
         """
         if self._lock_fd is not None:
             return
@@ -167,7 +181,7 @@ class RunDir:
             import fcntl
         except ImportError:  # no flock (Windows): one writer is the user's to ensure
             return
-        fd = os.open(self.root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
+        fd = _open_lock_file(self.root / ".lock")
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -175,6 +189,15 @@ class RunDir:
             os.close(fd)
             raise RunDirError(f"run {str(self.root)!r} is in use by another uniros process (pid {holder}): wait "
                               "for it to end, or stop it; two processes writing one run would mix its files") from None
+        links = symbolic_links(self.root)
+        if links:
+            os.close(fd)
+            shown = ", ".join(f"{p.relative_to(self.root)} -> {os.readlink(p)}" for p in links[:3])
+            more = ", ..." if len(links) > 3 else ""
+            raise RunDirError(f"run {str(self.root)!r} holds symbolic links ({shown}{more}): a run writes, moves and "
+                              "deletes files in its own folder only, and through a link it "
+                              "would change files elsewhere; replace each link by a copy of what it points to, or "
+                              "remove it")
         os.ftruncate(fd, 0)
         os.write(fd, str(os.getpid()).encode())
         self._lock_fd = fd
@@ -197,16 +220,67 @@ class RunDir:
         self.release()
         shutil.rmtree(self.root, ignore_errors=True)
 
-    def clean_for_restart(self) -> None:
-        """Remove what an earlier attempt wrote (checkpoints, logs, evaluations, models), keeping
-        ``config.yaml`` and ``run.json``: the run starts again from step 0 under its name."""
-        assert self.locked, "clean_for_restart needs the run's lock"
+    def set_aside_for_restart(self) -> Path | None:
+        """Move what an earlier attempt wrote (checkpoints, logs, evaluations, models) to
+        ``earlier/<n>/``, keeping ``config.yaml``, ``run.json`` and ``checkpoints/unusable/`` in
+        place: the run starts again from step 0 under its name, and nothing is deleted.
+
+        Returns:
+            the folder it went to, or ``None`` when the attempt wrote nothing.
+        """
+        assert self.locked, "set_aside_for_restart needs the run's lock"
+        keep = {"config.yaml", "run.json", ".lock", EARLIER, "checkpoints"}
+        moves = [p for p in sorted(self.root.iterdir()) if p.name not in keep and _holds_something(p)]
+        if self.checkpoints.is_dir():
+            moves += [p for p in sorted(self.checkpoints.iterdir()) if p.name != "unusable" and _holds_something(p)]
+        target = None
+        if moves:
+            earlier = self.root / EARLIER
+            earlier.mkdir(exist_ok=True)
+            n = 1 + max((int(p.name) for p in earlier.iterdir() if p.name.isdigit()), default=0)
+            target = earlier / str(n)
+            for path in moves:
+                dest = target / path.relative_to(self.root)
+                dest.parent.mkdir(parents=True, exist_ok=True)
+                os.rename(path, dest)  # a rename within the run: a link would move as a link
         for sub in ("monitor", "checkpoints", "tensorboard"):
-            shutil.rmtree(self.root / sub, ignore_errors=True)
-            (self.root / sub).mkdir()
-        for path in self.root.iterdir():
-            if path.is_file() and path.name not in ("config.yaml", "run.json", ".lock"):
-                path.unlink()
+            (self.root / sub).mkdir(exist_ok=True)
+        return target
+
+
+def _holds_something(path: Path) -> bool:
+    """A file, or a folder with a file somewhere in it (empty layout folders are not worth keeping)."""
+    if path.is_symlink() or not path.is_dir():
+        return True
+    return any(p.is_file() or p.is_symlink() for p in path.rglob("*"))
+
+
+def symbolic_links(root: Path) -> list[Path]:
+    """Every symbolic link inside ``root`` (folders and files, not followed), sorted."""
+    found = []
+    for folder, dirs, files in os.walk(root, followlinks=False):
+        found += [Path(folder) / name for name in (*dirs, *files) if os.path.islink(os.path.join(folder, name))]
+    return sorted(found)
+
+
+def _open_lock_file(path: Path) -> int:
+    """Open (create) a run's lock file without following a link, and only if it is a plain file of
+    its own (not another file's hard link, not a FIFO that would block)."""
+    flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0) | getattr(
+        os, "O_CLOEXEC", 0)
+    try:
+        fd = os.open(path, flags, 0o644)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP or path.is_symlink():
+            raise RunDirError(f"{path} is a symbolic link (to {os.readlink(path)}), not the run's lock file: a run "
+                              "writes its PID there; remove the link") from None
+        raise RunDirError(f"{path}: cannot open the run's lock file ({exc.strerror})") from None
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_nlink != 1:
+        os.close(fd)
+        what = "not a plain file" if not stat.S_ISREG(info.st_mode) else f"a file with {info.st_nlink} hard links"
+        raise RunDirError(f"{path} is {what}, not the run's lock file: a run writes its PID there; remove it")
+    return fd
 
 
 def _abandoned_start(root: Path) -> bool:
@@ -239,6 +313,7 @@ def _taken_message(root: Path) -> str:
 
 
 __all__ = [
+    "EARLIER",
     "Checkpoint",
     "RunDir",
     "RunDirError",
@@ -249,5 +324,6 @@ __all__ = [
     "save_checkpoint",
     "save_model_with_stats",
     "save_replay_buffer",
+    "symbolic_links",
     "write_json",
 ]

@@ -32,6 +32,7 @@ from uniros.checkpoints import (
     Checkpoint,
     latest_checkpoint,
     normalizer_path,
+    own_folder,
     put_replay_buffer,
     save_checkpoint,
     save_model_with_stats,
@@ -140,10 +141,16 @@ def build_model(config: TrainingConfig, env: Any, *, verbose: int = 0) -> Any:
             kwargs["action_noise"] = OrnsteinUhlenbeckActionNoise(mean=mean, sigma=sigma, **extra)
         else:
             kwargs["action_noise"] = NormalActionNoise(mean=mean, sigma=sigma)
+    from uniros.resources import check_replay_buffer_memory
+
+    check_replay_buffer_memory(config, cls, kwargs, obs_space, env.action_space, her=config.use_her)
     try:
         return cls(policy, env, verbose=verbose, **kwargs)
     except (TypeError, AssertionError, ValueError) as exc:
         raise TrainingConfigError(f"{config.source}: {config.algorithm}_params: {exc}") from exc
+    except MemoryError as exc:  # NumPy's "Unable to allocate ..." for the replay buffer
+        raise TrainingConfigError(f"{config.source}: the model does not fit in memory ({exc}): lower "
+                                  f"{config.algorithm}_params.buffer_size or the camera image size") from None
 
 
 def spaces_mismatch(model_path: Path, env: Any) -> str | None:
@@ -427,6 +434,8 @@ class Session:
         """Save a checkpoint now (model, replay buffer, normalisation); ``None`` without a folder."""
         if self.paths.checkpoints is None or self.model is None:
             return None
+        if self.paths.meta is not None:  # a run folder: saved and pruned in the run's own checkpoints/ only
+            own_folder(self.paths.checkpoints)
         started = time.perf_counter()
         ckpt = save_checkpoint(self.model, self.normalizer, self.paths.checkpoints, self.paths.prefix,
                                keep_checkpoints=self.config.keep_checkpoints,

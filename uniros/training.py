@@ -28,6 +28,7 @@ from rl_environments import SIM_TO_REAL
 from uniros.checkpoints import normalizer_path, remove_stale_temporaries, save_model_with_stats
 from uniros.evaluation import EVAL_SEED, evaluate, format_success, wilson_interval
 from uniros.interrupts import TrainingInterrupted, sigterm_as_interrupt
+from uniros.resources import check_disk_for_run, disk_full_error, run_state_after_disk_full
 from uniros.run_dir import RunDir, RunDirError, check_run_name
 from uniros.train_config import (
     ALGORITHMS,
@@ -386,10 +387,17 @@ def start_run(env_id: str, config: TrainingConfig, *, output: str | Path = "runs
         _logger.warning("%s", changed)
     run = RunDir.create(output, name, env_id, config.algorithm)
     run.created_here = True
-    save_training_config(config, run.config)
-    run.update_meta(env_id=env_id, algorithm=config.algorithm, env_kwargs=config.env_kwargs, status="created",
-                    steps=0, train_seconds=0.0, command=command or [],
-                    started_with=config.to_dict()["model_params"])
+    try:
+        save_training_config(config, run.config)
+        run.update_meta(env_id=env_id, algorithm=config.algorithm, env_kwargs=config.env_kwargs, status="created",
+                        steps=0, train_seconds=0.0, command=command or [],
+                        started_with=config.to_dict()["model_params"])
+    except OSError as exc:
+        run.discard()
+        full = disk_full_error(exc, Path(output), "nothing was kept: free space, then start the run again")
+        if full is not None:
+            raise full from None
+        raise
     return run
 
 
@@ -467,6 +475,7 @@ def run_training(
                 _resume_session(session, run, note)
             else:
                 session.build()
+            check_disk_for_run(run.root, config, session.model)
             run.update_meta(status="running", device=str(session.model.device))
             learning = True
             session.learn()
@@ -490,15 +499,31 @@ def run_training(
         if session is not None:
             session.close()
             session = None
-        if not learning and not resume and getattr(run, "created_here", False):
+        discard = not learning and not resume and getattr(run, "created_here", False)
+        full = disk_full_error(exc, run.root, "nothing was kept: free space, then start the run again" if discard
+                               else lambda: run_state_after_disk_full(run.root, _last_checkpoint_steps(run)))
+        if discard:
             run.discard()  # nothing learnt: a refused run leaves nothing
         elif learning and not isinstance(exc, KeyboardInterrupt):
-            run.update_meta(status="failed", error=f"{type(exc).__name__}: {exc}"[:500])
+            try:
+                run.update_meta(status="failed", error=f"{type(exc).__name__}: {exc}"[:500])
+            except OSError:  # the disk is full: run.json stays as it was (written atomically)
+                if full is None:
+                    raise
+        if full is not None:
+            raise full from None
         raise
     finally:
         if session is not None:
             session.close()
         run.release()  # the run is written no more: another process (or call) may resume it
+
+
+def _last_checkpoint_steps(run: RunDir) -> int | None:
+    from uniros.checkpoints import latest_checkpoint
+
+    found = latest_checkpoint(run.checkpoints)
+    return found[0].steps if found else None
 
 
 def _eval_factory(env_id: str, config: TrainingConfig) -> Callable[[], Any]:
@@ -531,8 +556,12 @@ def _resume_session(session: Session, run: RunDir, note: Callable[[str], None]) 
     for line in choice.report():
         note(line)
     if choice.chosen is None:
-        note(f"no usable checkpoint in {run.checkpoints}: starting the run again from step 0")
-        run.clean_for_restart()
+        kept = run.set_aside_for_restart()
+        unusable = run.checkpoints / "unusable"
+        note(f"no usable checkpoint in {run.checkpoints}"
+             + (f" (the unusable ones are in {unusable})" if unusable.is_dir() and any(unusable.iterdir()) else "")
+             + ": starting the run again from step 0"
+             + (f"; what the earlier attempt wrote (models, evaluations, logs) is kept in {kept}" if kept else ""))
         run.update_meta(steps=0, train_seconds=0.0, resumed_from=None, resumed_without_buffer=False)
         session.build()
         return

@@ -12,6 +12,7 @@ from multiros.envs import _third_party  # noqa: F401  (gymnasium_robotics withou
 from multiros.envs.base_env import MujocoBaseEnv, MujocoGoalEnv
 from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.core import EnvError, ResetError
+from multiros.envs.errors import StepAfterFailedReset
 from multiros.envs.real import RealBaseEnv, RealGoalEnv, SafetyRules
 
 __all__ = [
@@ -23,5 +24,6 @@ __all__ = [
     "ResetError",
     "SafetyRules",
     "SpawnPose",
+    "StepAfterFailedReset",
     "StepConfig",
 ]

@@ -19,6 +19,7 @@ from gymnasium_robotics.core import GoalEnv
 
 from multiros.envs.batch_task import StepResults, batch_route, uses_own_hooks
 from multiros.envs.core import EnvCore, EnvError, call_hook
+from multiros.envs.errors import StepAfterFailedReset
 from multiros.envs.sim_env import MujocoEnvCore
 
 __all__ = ["MujocoBaseEnv", "MujocoGoalEnv", "PlainStepTemplate", "GoalStepTemplate", "StepTemplate"]
@@ -28,11 +29,21 @@ StepResult = tuple[Any, float, bool, bool, dict]
 
 
 class StepTemplate(EnvCore):
-    """``step`` and ``reset`` of every env (the plain and goal templates add their halves)."""
+    """``step`` and ``reset`` of every env (the plain and goal templates add their halves).
+
+    A ``reset`` that raises leaves the env without an episode: the next ``step`` raises
+    :class:`StepAfterFailedReset` naming the reset's error, before anything is sent (else a
+    wrapper's bookkeeping, such as gymnasium's env checker, fails first with an unrelated error, or
+    a real robot would be stepped from an unknown state).
+    """
 
     _template: ClassVar[type]
+    _failed_reset: str | None = None  # the error of the last reset, while no reset has succeeded since
 
     def step(self, action: Any) -> StepResult:
+        if self._failed_reset is not None:
+            raise StepAfterFailedReset(f"{type(self).__name__}.step() after a reset that failed "
+                                       f"({self._failed_reset}); call reset() again and step once it returns")
         cls: Any = type(self)
         if batch_route(cls) is not None and not uses_own_hooks(self):  # the task's batch functions, as a batch of one
             actions = self.check_actions(np.asarray(action, dtype=np.float64)[None], single=True)
@@ -46,11 +57,16 @@ class StepTemplate(EnvCore):
         return self.step_result()
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        self._reset_gym(self._take_seed(seed))
-        self._reset_episode(options)
-        obs = self._observe()
-        info = self.info
-        info.setdefault("is_success", self._reset_success(obs, info))
+        try:
+            self._reset_gym(self._take_seed(seed))
+            self._reset_episode(options)
+            obs = self._observe()
+            info = self.info
+            info.setdefault("is_success", self._reset_success(obs, info))
+        except BaseException as exc:
+            self._failed_reset = f"{type(exc).__name__}: {exc}"[:300]
+            raise
+        self._failed_reset = None
         return obs, info
 
     # -- the halves the templates fill in ---------------------------------------------------------

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-__all__ = ["EnvError", "ResetError"]
+from gymnasium.error import ResetNeeded
+
+__all__ = ["EnvError", "ResetError", "StepAfterFailedReset"]
 
 
 class EnvError(RuntimeError):
@@ -11,3 +13,10 @@ class EnvError(RuntimeError):
 
 class ResetError(EnvError):
     """A reset could not bring the robot to its initial pose within the allowed attempts."""
+
+
+class StepAfterFailedReset(EnvError, ResetNeeded):
+    """``step()`` after a ``reset()`` that raised: the episode has no start state (call reset again).
+
+    Also a ``gymnasium.error.ResetNeeded``, the error gymnasium raises for a step before any reset.
+    """

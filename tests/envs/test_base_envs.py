@@ -375,6 +375,28 @@ def test_unreachable_initial_pose_raises_reset_error(make):
         env.reset()
 
 
+def test_a_step_after_a_failed_reset_raises_the_env_s_error(make):
+    """Through gym.make's wrappers (the env checker, order enforcing, time limit): the step after a
+    reset that raised names that reset's error (it used to be the env checker's TypeError), and
+    nothing is stepped (tests/tasks/test_tasks.py: the retry through uniros.make)."""
+    from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
+
+    from multiros.envs.errors import StepAfterFailedReset
+
+    class BadPose(CanonicalGoalEnv):
+        def _set_init_pose(self):
+            self.move_to_initial_pose(JOINTS, [0.0, 0.3, 0.0], tolerance=-1.0)
+
+    raw = make(BadPose, max_reset_attempts=1)
+    env = TimeLimit(OrderEnforcing(PassiveEnvChecker(raw)), max_episode_steps=5)
+    with pytest.raises(ResetError):
+        env.reset(seed=0)
+    before = raw.sim_time
+    with pytest.raises(StepAfterFailedReset, match=r"BadPose.step\(\) after a reset that failed \(ResetError: "):
+        env.step(raw.action_space.sample())
+    assert raw.sim_time == before  # refused before the simulation stepped
+
+
 def test_unknown_frame_and_joint_errors(make):
     env = make(CanonicalGoalEnv)
     env.reset()

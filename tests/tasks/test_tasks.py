@@ -75,6 +75,25 @@ def test_time_limit_truncates_after_100_steps(make):
     assert steps == 100
 
 
+def test_a_failed_first_reset_then_step_then_a_retry(make):
+    """The step after a reset that raised raises the env's error (gymnasium's env checker used to
+    fail first with a TypeError), gymnasium's ResetNeeded too; a reset that then succeeds steps."""
+    from gymnasium.error import ResetNeeded
+
+    from multiros.envs.errors import StepAfterFailedReset
+
+    env = make("RX200ReacherGoalSim-v0")
+    with pytest.raises(gym.error.Error, match="Seed must be"):
+        env.reset(seed=-1)
+    with pytest.raises(StepAfterFailedReset, match=r"after a reset that failed \(Error: Seed must be"):
+        env.step(env.action_space.sample())
+    with pytest.raises(ResetNeeded):
+        env.step(env.action_space.sample())
+    obs, _ = env.reset(seed=0)
+    obs, *_ = env.step(np.zeros(env.action_space.shape, np.float32))
+    assert env.observation_space.contains(obs)
+
+
 @pytest.mark.parametrize("env_id", GOAL_IDS)
 def test_goals_are_reachable_and_in_the_goal_box(make, env_id):
     env = make(env_id).unwrapped

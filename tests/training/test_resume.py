@@ -86,6 +86,22 @@ def test_the_base_run_keeps_every_checkpoint_complete(base_run):
     assert _meta(base_run)["status"] == "finished"
 
 
+def test_a_resume_names_its_checkpoint_and_keeps_the_evaluations_format(run, capsys):
+    """The checkpoint used is printed, and evaluations.csv keeps one number format (steps as
+    integers, not 150.0 once a resume rewrote the file)."""
+    before = (run / "evaluations.csv").read_text().splitlines()
+    (run / "checkpoints" / "model_150_steps.zip").write_bytes(b"not a zip")  # the resume rewrites the file
+    code, text = _resume(run, capsys)
+    assert code == 0, text
+    assert "resuming from checkpoint model_125_steps.zip (125 steps, with its replay buffer and " \
+           "normalisation statistics)" in text
+    after = (run / "evaluations.csv").read_text().splitlines()
+    assert after[0] == before[0] and after[1:3] == before[1:3]  # the rows before 125 steps, byte for byte
+    for line in after[1:]:
+        steps, _, _, episodes, *_ = line.split(",")
+        assert steps.isdigit() and episodes.isdigit(), line
+
+
 @pytest.mark.parametrize("cut", ["start", "middle", "end"])
 def test_a_truncated_newest_model_falls_back_to_the_previous_checkpoint(run, capsys, cut):
     path = _ckpt(run, 150)
@@ -141,15 +157,31 @@ def test_no_replay_buffer_anywhere_resumes_the_newest_model_and_refills(run, cap
     assert meta["status"] == "finished" and meta["steps"] == 200
 
 
-def test_all_models_truncated_starts_the_run_again(run, capsys):
+def test_all_models_truncated_starts_the_run_again_and_keeps_what_the_earlier_attempt_wrote(run, capsys):
+    """No checkpoint loads: the run starts from step 0, and its intact best model, evaluations, logs
+    and the unusable checkpoints are moved aside (earlier/1, checkpoints/unusable), never deleted."""
     for path in (run / "checkpoints").glob("model_*_steps.zip"):
         path.write_bytes(path.read_bytes()[:-30])
+    (run / "checkpoints" / "unusable").mkdir()
+    (run / "checkpoints" / "unusable" / "model_5_steps.zip").write_bytes(b"set aside by an earlier resume")
+    best, evaluations = (run / "best_model.zip").read_bytes(), (run / "evaluations.csv").read_text()
+    monitor = (run / "monitor" / "train.monitor.csv").read_text()
     code, text = _resume(run, capsys)
     assert code == 0, text
     assert "no usable checkpoint" in text and "starting the run again from step 0" in text
+    assert f"kept in {run / 'earlier' / '1'}" in text
     meta = _meta(run)
     assert meta["status"] == "finished" and meta["steps"] == 200 and meta["resumed_from"] is None
     assert _eval_steps(run) == [50, 100, 150, 200]
+    earlier = run / "earlier" / "1"
+    assert (earlier / "best_model.zip").read_bytes() == best
+    assert (earlier / "evaluations.csv").read_text() == evaluations
+    assert (earlier / "monitor" / "train.monitor.csv").read_text() == monitor
+    assert (earlier / "final_model.zip").is_file() and (earlier / "checkpoints" / "latest.json").is_file()
+    unusable = sorted(p.name for p in (run / "checkpoints" / "unusable").iterdir())
+    assert unusable[0] == "model_100_steps.zip" and "model_5_steps.zip" in unusable
+    assert len([n for n in unusable if n.endswith("_steps.zip")]) == 7  # the six truncated ones and the older one
+    assert (run / "checkpoints" / "unusable" / "model_5_steps.zip").read_bytes() == b"set aside by an earlier resume"
 
 
 def test_stale_temporaries_of_killed_writes_are_removed(run, capsys):
@@ -258,23 +290,40 @@ def test_a_run_name_outside_the_output_folder_is_refused(tmp_path, capsys, name)
     assert not (tmp_path / "runs").exists() and not (tmp_path / "escape").exists()
 
 
-def test_a_failed_run_says_so_and_resumes(run, capsys, monkeypatch):
-    from uniros import trainer
+def test_a_full_disk_is_one_line_and_the_run_resumes(run, capsys, monkeypatch):
+    """ENOSPC while the second checkpoint's replay buffer is written (half of it on disk): one line,
+    exit code 2, run.json says failed, latest.json still names the last complete checkpoint, no
+    temporary file is left, and the run resumes from that checkpoint."""
+    import errno
 
-    original, calls = trainer.Session.checkpoint, []
+    from uniros import checkpoints
 
-    def failing(self):
-        calls.append(1)
-        if len(calls) == 2:
-            raise OSError(28, "No space left on device")
-        return original(self)
+    real_save, calls = checkpoints.save_replay_buffer, []
 
-    monkeypatch.setattr(trainer.Session, "checkpoint", failing)
-    with pytest.raises(OSError, match="No space left"):
-        cli_main(["train", "--resume", str(run), "--steps", "250", "--eval-episodes", "0"])
+    def save_replay_buffer(model, path):
+        calls.append(path)
+        if len(calls) < 2:
+            return real_save(model, path)
+
+        def write(tmp):
+            with open(tmp, "wb") as f:
+                f.write(b"half a replay buffer")
+                raise OSError(errno.ENOSPC, "No space left on device")
+
+        checkpoints.atomic_write(path, write)
+
+    monkeypatch.setattr(checkpoints, "save_replay_buffer", save_replay_buffer)
+    code, text = _resume(run, capsys, "--steps", "250")
+    assert code == 2, text
+    errors = [line for line in text.splitlines() if line.startswith("uniros train: error:")]
+    assert len(errors) == 1 and "disk full" in errors[0] and "No space left on device" in errors[0]
+    assert "last complete checkpoint (175 steps)" in errors[0] and f"uniros train --resume {run}" in errors[0]
+    assert "Traceback" not in text
     meta = _meta(run)
     assert meta["status"] == "failed" and "No space left on device" in meta["error"]
-    monkeypatch.setattr(trainer.Session, "checkpoint", original)
+    assert json.loads((run / "checkpoints" / "latest.json").read_text())["steps"] == 175
+    assert not [p for p in run.rglob(".tmp*")]
+    monkeypatch.setattr(checkpoints, "save_replay_buffer", real_save)
     code, text = _resume(run, capsys, "--steps", "250")
     assert code == 0, text
     assert _meta(run)["resumed_from"] == "model_175_steps.zip" and _meta(run)["status"] == "finished"
