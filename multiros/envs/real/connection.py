@@ -105,6 +105,7 @@ class RealConnection(RobotConnection):
         self._state: RobotState | None = None
         self._states: RobotStates | None = None
         self._observed: tuple[str, ...] = ()
+        self._driver_endpoint: Any = None  # the graph's record of the driver the states were pinned to
         self._closed = False
         self.link = RobotLink(node, namespace, joint_states_topic=joint_states_topic, use_sim_time=use_sim_time,
                               timeout_sec=self.timeout_sec)
@@ -136,6 +137,9 @@ class RealConnection(RobotConnection):
         if self.safety is not None:
             link.states.guard(self.safety, fresh_for=self.joint_state_timeout / 2)
         self._adopt_driver(deadline)
+        if not link.states.pinned:
+            raise RobotConnectionError(f"joint_states on {link.joint_states_topic} stopped arriving during start-up "
+                                       f"({link.states.describe_problem(needed)}): is the robot's driver running?")
         # The joints observed: the driver's own (values heard before it was pinned are gone).
         if not link.node.context.wait_for(lambda: bool(names := link.states.names) and all(j in names for j in needed),
                                           max(0.0, deadline - time.monotonic())):
@@ -220,19 +224,24 @@ class RealConnection(RobotConnection):
                 "ROS_DOMAIN_ID or Zenoh router (docs/real_robots.md)")
             self.fault = err
             raise err
+        heard = link.states.sources(window)
+        if infos[0] == self._driver_endpoint and link.states.driver in heard:
+            return  # the same driver, still heard: nothing to decide again (no wait at a reset)
         expected: bytes | None = getattr(infos[0], "gid", b"") or None
         if expected is not None:
             # Its own identity, when its messages carry it: wait a little for one.
             node.context.wait_for(lambda: expected in link.states.sources(window), min(remaining(), 2 * window))
         heard = link.states.sources(window)
+        if not heard:
+            return  # a silent driver: the wait for fresh states says so
         if expected is not None and expected in heard:
             source: bytes | None = expected
         elif heard == [None]:
             source = None  # the transport gives no identities: the publisher count is the check
-        elif len(heard) == 1:
+        elif len(heard) == 1 and heard[0] is not None:
             source = heard[0]
             _logger.info("%s: the messages of %s carry identity %s, not the one of its graph token (an rmw_zenoh "
-                         "driver): only it is heard, it is pinned", self.owner, topic, heard[0])
+                         "driver): only it is heard, it is pinned", self.owner, topic, source.hex()[:12])
         else:
             err = RobotConnectionError(
                 f"joint_states on {topic} come from {len(heard)} publisher identities while the graph has one "
@@ -240,6 +249,7 @@ class RealConnection(RobotConnection):
                 "give this robot its own namespace, ROS_DOMAIN_ID or Zenoh router (docs/real_robots.md)")
             self.fault = err
             raise err
+        self._driver_endpoint = infos[0]
         if link.states.driver != source:
             _logger.info("%s takes joint_states only from %s (identity %s)", self.owner, self.driver(),
                          "none given" if source is None else source.hex()[:12])

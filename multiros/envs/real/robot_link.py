@@ -134,6 +134,11 @@ class JointStateCache:
             self._cond.notify_all()
 
     @property
+    def pinned(self) -> bool:
+        """Whether :meth:`pin` chose whose messages count."""
+        return self._pinned
+
+    @property
     def driver(self) -> bytes | None:
         """The pinned publisher identity (``None``: not pinned, or a transport without identities)."""
         return self._driver
