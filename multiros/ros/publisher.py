@@ -65,8 +65,11 @@ class Publisher:
             )
         if self._destroyed:
             raise RuntimeError(f"publisher on '{self.topic_name}' was destroyed")
-        for sub in self._local_subs:
-            sub._enqueue(msg, self.gid)
+        subs = self._local_subs
+        if subs:
+            gid = self.gid
+            for sub in subs:
+                sub._enqueue(msg, gid)
         if self._tl_cache is not None:
             self._tl_cache.append(msg)
         wire = self._wire
