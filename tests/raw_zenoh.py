@@ -13,7 +13,7 @@ import zenoh
 
 
 def open_peer_session(endpoint: str, *, credentials: Mapping[str, str] | None = None,
-                      connect_timeout_ms: int | None = None) -> zenoh.Session:
+                      connect_timeout_ms: int | None = None, mode: str = "peer") -> zenoh.Session:
     """A Zenoh session in peer mode, as rmw_zenoh opens one: connected to the router at ``endpoint``,
     listening on a free loopback port, multicast scouting off (so it meets nothing else).
 
@@ -22,9 +22,11 @@ def open_peer_session(endpoint: str, *, credentials: Mapping[str, str] | None = 
             ``transport/auth/usrpwd``), to join a graph that requires them.
         connect_timeout_ms: fail to open (``zenoh.ZError``) unless connected within this time,
             instead of retrying in the background.
+        mode: ``"client"`` routes everything through the router (no direct link to other peers,
+            whose set-up a loaded machine can delay).
     """
     config = zenoh.Config()
-    config.insert_json5("mode", '"peer"')
+    config.insert_json5("mode", json.dumps(mode))
     config.insert_json5("connect/endpoints", json.dumps([endpoint]))
     config.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
     config.insert_json5("scouting/multicast/enabled", "false")

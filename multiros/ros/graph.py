@@ -24,6 +24,9 @@ class Endpoint(NamedTuple):
     type_name: str = ""
     qos: object = None
     origin: str = ""  # session id for wire entities, "" for this context's own
+    #: The entity's identity as its messages carry it (:attr:`Publisher.gid`: rmw_zenoh's attachment
+    #: GID over Zenoh); ``b""`` where the transport gives none (rclpy).
+    gid: bytes = b""
 
 
 class GraphQueries:

@@ -171,12 +171,14 @@ class Node:
         return pub
 
     def create_subscription(
-        self, msg_type: type, topic: str, callback: Callable[[Any], None],
-        qos_profile: QoSProfile | int, **_kwargs: Any,
+        self, msg_type: type, topic: str, callback: Callable[..., None],
+        qos_profile: QoSProfile | int, *, with_source: bool = False, **_kwargs: Any,
     ) -> Subscription:
-        """Create a subscription; ``callback(msg)`` runs when an executor spins this node."""
+        """Create a subscription; ``callback(msg)`` runs when an executor spins this node
+        (``with_source``: ``callback(msg, source)``, the publisher's identity, see :class:`Subscription`)."""
         self._check_alive()
-        sub = Subscription(self, msg_type, self.resolve_topic_name(topic), callback, as_qos_profile(qos_profile))
+        sub = Subscription(self, msg_type, self.resolve_topic_name(topic), callback, as_qos_profile(qos_profile),
+                           with_source)
         self.subscriptions.append(sub)
         self.context.registry.add_subscription(sub)
         sub._wire = self.context.transport.add_subscription(sub)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections import deque
 from typing import TYPE_CHECKING, Any
 
@@ -35,6 +36,7 @@ class Publisher:
             if qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL else None
         )
         self._wire: Any = None  # transport handle with .publish(msg) and .close()
+        self._local_gid = os.urandom(16)
         self._destroyed = False
         self._listened_at: int | None = -1  # graph version of the cached has_subscribers answer
         self._listened = False
@@ -42,6 +44,13 @@ class Publisher:
     @property
     def topic(self) -> str:
         return self.topic_name
+
+    @property
+    def gid(self) -> bytes:
+        """This publisher's identity, as its messages carry it to a subscription that asks
+        (``with_source``) and as the graph lists it (:attr:`Endpoint.gid`): its rmw_zenoh GID over
+        Zenoh, a random one of this process otherwise."""
+        return getattr(self._wire, "gid", None) or self._local_gid
 
     def publish(self, msg: Any) -> None:
         """Publish ``msg`` (an instance of the publisher's message type).
@@ -56,8 +65,11 @@ class Publisher:
             )
         if self._destroyed:
             raise RuntimeError(f"publisher on '{self.topic_name}' was destroyed")
-        for sub in self._local_subs:
-            sub._enqueue(msg)
+        subs = self._local_subs
+        if subs:
+            gid = self.gid
+            for sub in subs:
+                sub._enqueue(msg, gid)
         if self._tl_cache is not None:
             self._tl_cache.append(msg)
         wire = self._wire

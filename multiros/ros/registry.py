@@ -109,7 +109,7 @@ class LocalRegistry:
         if sub.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
             for pub in late:
                 for msg in list(pub._tl_cache or ()):
-                    sub._enqueue(msg)
+                    sub._enqueue(msg, pub.gid)
 
     def remove_subscription(self, sub: Subscription) -> None:
         with self._lock:
@@ -197,5 +197,6 @@ class LocalRegistry:
                     for ent in entities:
                         node = ent.node
                         out.append(Endpoint(kind, node.get_name(), node.get_namespace(), name,
-                                            ent.type_name, getattr(ent, "qos_profile", None)))
+                                            ent.type_name, getattr(ent, "qos_profile", None),
+                                            gid=getattr(ent, "gid", b"") if kind == PUBLISHER else b""))
         return out

@@ -20,17 +20,23 @@ class Subscription:
 
     The callback runs when an executor spinning the node takes the message, under the node's
     callback lock. Users should not construct this class; call ``Node.create_subscription``.
+
+    ``with_source``: the callback is ``callback(msg, source)``, ``source`` the publisher's
+    identity (:attr:`Publisher.gid <multiros.ros.publisher.Publisher.gid>`, the GID of an rmw_zenoh
+    attachment; ``None`` where the transport gives none: rclpy).
     """
 
     def __init__(
-        self, node: Node, msg_type: type, topic_name: str, callback: Callable[[Any], None],
-        qos_profile: QoSProfile,
+        self, node: Node, msg_type: type, topic_name: str, callback: Callable[..., None],
+        qos_profile: QoSProfile, with_source: bool = False,
     ) -> None:
         self.node = node
         self.msg_type = msg_type
         self.type_name = type_name_of(msg_type)
         self.topic_name = topic_name
-        self.callback = callback
+        self.with_source = bool(with_source)
+        # The queue holds (msg, source) pairs then, and the callback takes them apart.
+        self.callback: Callable[[Any], None] = (lambda item: callback(*item)) if with_source else callback
         self.qos_profile = qos_profile
         self._queue: deque[Any] = deque(maxlen=qos_profile.queue_size)
         self._notify = node.context.notify
@@ -41,11 +47,11 @@ class Subscription:
     def topic(self) -> str:
         return self.topic_name
 
-    def _enqueue(self, msg: Any) -> None:
+    def _enqueue(self, msg: Any, source: bytes | None = None) -> None:
         # Called by publishers in this process and by transport threads.
         if self._destroyed:
             return
-        self._queue.append(msg)
+        self._queue.append((msg, source) if self.with_source else msg)
         self._notify()
 
     def _deliver_directly(self, wire_inline: bool = False) -> None:
@@ -61,16 +67,19 @@ class Subscription:
         if wire_inline and self._wire is not None and hasattr(self._wire, "deliver_inline"):
             self._wire.deliver_inline()
         while True:
-            ok, msg = self._take()
+            ok, item = self._take()
             if not ok:
                 break
-            self._run_now(msg)
+            if self.with_source:
+                self._run_now(*item)
+            else:
+                self._run_now(item)
 
-    def _run_now(self, msg: Any) -> None:
+    def _run_now(self, msg: Any, source: bytes | None = None) -> None:
         if self._destroyed:
             return
         try:
-            self.callback(msg)
+            self.callback((msg, source) if self.with_source else msg)
         except Exception:  # noqa: BLE001 - a transport thread must survive a failing callback
             self.node.get_logger().exception("subscription callback on '%s' raised", self.topic_name)
 

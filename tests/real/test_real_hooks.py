@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -107,3 +108,56 @@ def test_both_robot_layers_provide_the_arm_interface() -> None:
     from rl_environments.arm_reach import ArmGoalReachTask
 
     assert RX200ReacherGoalEnv.__mro__[1] is ArmGoalReachTask and ArmGoalReachTask in RX200ReacherGoalRealEnv.__mro__
+
+
+def test_the_env_hears_only_the_publisher_it_checked(joint_states: Context) -> None:
+    """Issue 38: joint_states count only from the identity of the one publisher in the graph; a
+    message of another identity (a process outside the graph) is dropped and named."""
+    env = ToyRealEnv(context=joint_states)
+    try:
+        states = env.link.states
+        [driver] = env.node.get_publishers_info_by_topic("/toy/joint_states")
+        assert driver.gid and states.driver == driver.gid
+        env.link._sub._enqueue(JointState(name=["a", "b"], position=[5.0, 5.0]), bytes(16))  # as the wire would
+        assert joint_states.wait_for(lambda: states.foreign_count == 1, 5.0)
+        assert "other than the driver (identity 000000000000" in states.describe_problem(["a", "b"])
+        env.reset(seed=0)  # the same driver: nothing to decide again
+        np.testing.assert_allclose(env.joint_positions(["a", "b"]), [0.1, 0.2])
+    finally:
+        env.close()
+
+
+def test_several_identities_behind_one_publisher_are_refused(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One publisher in the graph, two identities heard, neither the graph's: a process outside the
+    graph publishes too, and the env cannot tell which is the robot. With one identity heard (an
+    rmw_zenoh driver, whose GIDs are another hash of its token) that one is pinned."""
+    real = Node.get_publishers_info_by_topic
+    monkeypatch.setattr(Node, "get_publishers_info_by_topic",
+                        lambda self, topic: [e._replace(gid=b"\xff" * 16) for e in real(self, topic)])
+    for identities, refused in ((2, True), (1, False)):
+        with Context(transport="inproc", env={}) as ctx:
+            node = Node("toy_robot", context=ctx)
+            pub = node.create_publisher(JointState, "/toy/joint_states", 10)
+            gids = [bytes([k + 1]) * 16 for k in range(identities)]
+            stop = threading.Event()
+
+            def run(pub: Any, gids: list[bytes], stop: threading.Event) -> None:
+                k = 0
+                while not stop.wait(0.005):
+                    pub._local_gid = gids[k % len(gids)]  # the identity its messages carry
+                    pub.publish(JointState(name=["a", "b"], position=[0.1, 0.2], velocity=[0.0, 0.0]))
+                    k += 1
+
+            thread = threading.Thread(target=run, args=(pub, gids, stop), daemon=True)
+            thread.start()
+            try:
+                if refused:
+                    with pytest.raises(RobotConnectionError, match="2 publisher identities while the graph has one"):
+                        ToyRealEnv(context=ctx, startup_timeout=3.0)
+                else:
+                    env = ToyRealEnv(context=ctx, startup_timeout=3.0)
+                    assert env.link.states.driver == gids[0]
+                    env.close()
+            finally:
+                stop.set()
+                thread.join(timeout=2.0)

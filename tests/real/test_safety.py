@@ -84,6 +84,61 @@ def test_measured_states_the_robot_cannot_be_in_are_implausible() -> None:
         rules(max_velocity=[0.0] * 5)
 
 
+def test_every_joint_of_a_partial_message_is_checked() -> None:
+    """Issue 38: ``{name: [waist], position: [1e5]}`` was not checked (it lacks the other arm joints),
+    was cached, and every true message after it was dropped as a jump for ~6 h."""
+    cache = JointStateCache()
+    cache.guard(rules(max_velocity=[1.0] * 5), fresh_for=0.25)
+    assert cache.update(JointState(name=list(ARM_JOINTS), position=[0.0] * 5), now=10.0)
+    assert not cache.update(JointState(name=["waist"], position=[1e5]), now=10.01)
+    assert "waist at 1e+05 is outside its limits" in cache.last_error
+    assert not cache.update(JointState(name=["elbow", "gripper"], position=[1.0, 0.0]), now=10.02)
+    assert "elbow jumped 1 rad" in cache.last_error  # a partial message's jump, checked per joint
+    assert cache.update(JointState(name=list(ARM_JOINTS), position=[0.01, 0, 0, 0, 0]), now=10.03)
+    assert cache.sample(ARM_JOINTS).position.tolist() == [0.01, 0, 0, 0, 0]
+
+
+def test_a_bad_value_that_got_in_is_replaced_within_fresh_for() -> None:
+    """A value within the limits but not the robot's (the very first message, with no value to bound
+    it) holds the driver's true messages off for ``fresh_for`` seconds at most, then they replace it."""
+    cache = JointStateCache()
+    cache.guard(rules(max_velocity=[1.0] * 5), fresh_for=0.25)
+    assert cache.update(JointState(name=["waist"], position=[2.0]), now=10.0)  # nothing to bound it yet
+    true = JointState(name=list(ARM_JOINTS), position=[0.0] * 5)
+    t = 10.0
+    while not cache.update(true, now=t):
+        assert t < 10.25 + 1e-9 and "waist jumped" in cache.last_error
+        t += 0.01
+    assert t <= 10.26 and cache.sample(ARM_JOINTS).position[0] == 0.0
+    assert cache.sample(ARM_JOINTS).received == pytest.approx(t)  # the whole arm is fresh again
+
+
+def test_a_pinned_cache_takes_only_its_driver_s_messages() -> None:
+    cache = JointStateCache()
+    driver, other = bytes(range(16)), bytes(16)
+    msg = JointState(name=list(ARM_JOINTS), position=[0.0] * 5)
+    assert cache.update(msg, now=1.0, source=other)  # not pinned yet: heard, counted as a source
+    assert cache.update(msg, now=1.1, source=driver)
+    assert cache.sources(within=0.5, now=1.2) == [driver, other]
+    cache.pin(driver)
+    assert cache.names == ()  # a new identity drops what was cached before it was pinned
+    forged = JointState(name=list(ARM_JOINTS), position=[0.3] * 5)
+    assert not cache.update(forged, now=1.3, source=other)
+    assert cache.sample(ARM_JOINTS) is None and cache.foreign_count == 1
+    assert "from a publisher other than the driver (identity 000000000000" in cache.describe_problem(ARM_JOINTS)
+    assert cache.update(msg, now=1.4, source=driver) and cache.sample(ARM_JOINTS).position[0] == 0.0
+    cache.pin(driver)
+    assert cache.names == tuple(ARM_JOINTS)  # the same identity again keeps the values
+
+
+def test_the_first_move_is_timed_from_anywhere_the_arm_can_be() -> None:
+    lo, hi = description_joint_limits(str(URDF_XACRO), ARM_JOINTS, {"robot_name": "rx200"})
+    r = SafetyRules(ARM_JOINTS, lower=[-1.0] * 5, upper=[1.0] * 5, description_lower=lo, description_upper=hi)
+    worst = r.worst_case_distance(HOME)  # from the description's range, not the task's tighter one
+    np.testing.assert_allclose(worst, np.maximum(-lo, hi) + 0.05)
+    assert np.isinf(SafetyRules(["j"], lower=[-np.inf], upper=[np.inf]).worst_case_distance([0.0])[0])
+
+
 @pytest.mark.parametrize("bad", [[np.nan, 0, 0, 0, 0], [np.inf, 0, 0, 0, 0], [0, 0, 0, 0]])
 def test_nan_infinite_or_wrong_length_targets_raise(bad: list[float]) -> None:
     with pytest.raises(UnsafeCommandError, match="nothing was sent"):

@@ -105,6 +105,7 @@ class RealConnection(RobotConnection):
         self._state: RobotState | None = None
         self._states: RobotStates | None = None
         self._observed: tuple[str, ...] = ()
+        self._driver_endpoint: Any = None  # the graph's record of the driver the states were pinned to
         self._closed = False
         self.link = RobotLink(node, namespace, joint_states_topic=joint_states_topic, use_sim_time=use_sim_time,
                               timeout_sec=self.timeout_sec)
@@ -133,14 +134,19 @@ class RealConnection(RobotConnection):
                 f"{self.namespace!r}, with the same ROS_DOMAIN_ID ({link.node.context.domain_id}) and "
                 f"{link.node.context.reach()} as this process?"
             )
-        self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
-        # A driver that just died may stay in the graph a moment (until its session is seen to end):
-        # at start-up a second publisher must persist to be refused.
-        link.node.context.wait_for(lambda: self.node.count_publishers(link.joint_states_topic) <= 1,
-                                   max(0.0, deadline - time.monotonic()))
-        self.check_single_publisher()
         if self.safety is not None:
-            link.states.guard(self.safety)
+            link.states.guard(self.safety, fresh_for=self.joint_state_timeout / 2)
+        self._adopt_driver(deadline)
+        if not link.states.pinned:
+            raise RobotConnectionError(f"joint_states on {link.joint_states_topic} stopped arriving during start-up "
+                                       f"({link.states.describe_problem(needed)}): is the robot's driver running?")
+        # The joints observed: the driver's own (values heard before it was pinned are gone).
+        if not link.node.context.wait_for(lambda: bool(names := link.states.names) and all(j in names for j in needed),
+                                          max(0.0, deadline - time.monotonic())):
+            raise RobotConnectionError(
+                f"the driver of {link.joint_states_topic} ({self.driver()}) sent no usable state of {list(needed)} "
+                f"within {self.startup_timeout:g} s ({link.states.describe_problem(needed)})")
+        self._observed = tuple(dict.fromkeys((*needed, *link.states.names)))
         controllers = self._controllers
         if controllers:
             if load_controllers:
@@ -185,6 +191,69 @@ class RealConnection(RobotConnection):
                 "namespace, ROS_DOMAIN_ID or Zenoh router (docs/real_robots.md, docs/pitfalls.md)")
             self.fault = err
             raise err
+
+    def _adopt_driver(self, deadline: float) -> None:
+        """The one-driver rule, then take ``joint_states`` only from that driver's identity.
+
+        A driver that just died may stay in the graph a moment (until its session is seen to end): a
+        second publisher must persist until ``deadline`` to be refused. The identity is the one the
+        graph lists for the publisher (its GID) when its messages carry it; a driver whose messages
+        carry another (an rmw_zenoh driver: its GIDs are another hash of the same token) is pinned by
+        the one identity heard; several identities heard with one publisher in the graph mean a
+        process outside the graph publishes too, and are refused. A transport that gives no message
+        identity (rclpy) leaves the publisher count as the only check.
+
+        Raises:
+            RobotConnectionError: several publishers, none in the graph, or several identities heard.
+        """
+        link, node = self.link, self.node
+        topic = link.joint_states_topic
+        remaining = lambda: max(0.0, deadline - time.monotonic())  # noqa: E731
+        window = max(self.joint_state_timeout, 0.5)
+        # One publisher; or none and nothing heard (a driver that is gone: the states' wait says so).
+        node.context.wait_for(lambda: node.count_publishers(topic) == 1 or not link.states.sources(window),
+                              remaining())
+        self.check_single_publisher()
+        infos = node.get_publishers_info_by_topic(topic)
+        if not infos:
+            if not link.states.sources(window):
+                return
+            err = RobotConnectionError(
+                f"joint_states arrive on {topic} but no publisher of them is in the ROS graph: a process outside "
+                "ROS puts them (a robot driver is a ROS node). Stop it, or give this robot its own namespace, "
+                "ROS_DOMAIN_ID or Zenoh router (docs/real_robots.md)")
+            self.fault = err
+            raise err
+        heard = link.states.sources(window)
+        if infos[0] == self._driver_endpoint and link.states.driver in heard:
+            return  # the same driver, still heard: nothing to decide again (no wait at a reset)
+        expected: bytes | None = getattr(infos[0], "gid", b"") or None
+        if expected is not None:
+            # Its own identity, when its messages carry it: wait a little for one.
+            node.context.wait_for(lambda: expected in link.states.sources(window), min(remaining(), 2 * window))
+        heard = link.states.sources(window)
+        if not heard:
+            return  # a silent driver: the wait for fresh states says so
+        if expected is not None and expected in heard:
+            source: bytes | None = expected
+        elif heard == [None]:
+            source = None  # the transport gives no identities: the publisher count is the check
+        elif len(heard) == 1 and heard[0] is not None:
+            source = heard[0]
+            _logger.info("%s: the messages of %s carry identity %s, not the one of its graph token (an rmw_zenoh "
+                         "driver): only it is heard, it is pinned", self.owner, topic, source.hex()[:12])
+        else:
+            err = RobotConnectionError(
+                f"joint_states on {topic} come from {len(heard)} publisher identities while the graph has one "
+                f"publisher ({self.driver()}): a process outside the graph publishes on the topic too. Stop it, or "
+                "give this robot its own namespace, ROS_DOMAIN_ID or Zenoh router (docs/real_robots.md)")
+            self.fault = err
+            raise err
+        self._driver_endpoint = infos[0]
+        if link.states.driver != source:
+            _logger.info("%s takes joint_states only from %s (identity %s)", self.owner, self.driver(),
+                         "none given" if source is None else source.hex()[:12])
+        link.states.pin(source)
 
     def driver(self) -> str:
         """The one publisher of the robot's ``joint_states`` this env listens to (``namespace/node``)."""
@@ -332,8 +401,10 @@ class RealConnection(RobotConnection):
             raise EnvError(f"{self.owner} is closed")
         if self.reset_env_prompt:
             self.prompt("Reset the robot's surroundings, then press Enter to start the episode: ")
-        # A fault (stale state) ends once fresh states arrive again.
+        # The one-driver rule, as in every step; the driver may have been restarted (a new identity).
         link = self.link
+        self._adopt_driver(time.monotonic() + self.startup_timeout)
+        # A fault (stale state) ends once fresh states arrive again.
         ok = self.node.context.wait_for(
             lambda: (s := link.states.sample(self._observed)) is not None and s.received is not None
             and time.monotonic() - s.received <= self.joint_state_timeout, self.startup_timeout)
@@ -377,9 +448,16 @@ class RealConnection(RobotConnection):
         start = current.position[idx]
         # The move's length: from the measured state, and from the last command (where the robot was
         # sent: a measured state that claims the robot is already there cannot shorten the move).
+        # Before the first command, from the furthest the arm can be (a forged state cannot shorten
+        # the first move either); a joint without finite limits falls back to the measured state.
         distance = float(np.max(np.abs(goal - start)))
         if self.last_command is not None:
             distance = max(distance, float(np.max(np.abs(goal - self.last_command))))
+        else:
+            worst = self.safety.worst_case_distance(goal)
+            finite = np.isfinite(worst)
+            if np.any(finite):
+                distance = max(distance, float(np.max(worst[finite])))
         duration = max(self.loop.cycle, distance / max(self.reset_joint_speed, 1e-6))
         tol = max(float(tolerance), self.reset_tolerance)
         began = time.monotonic()

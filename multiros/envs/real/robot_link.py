@@ -1,8 +1,11 @@
 """The link to a robot over the standard ROS 2 interfaces a ros2_control robot offers, nothing else.
 
 * ``<ns>/joint_states`` (``sensor_msgs/JointState``): every message is checked (names unique,
-  lengths consistent, values finite and bounded) before it updates :class:`JointStateCache`;
-  malformed ones are dropped and counted, and the last reason is kept for the error message;
+  lengths consistent, values finite and bounded; with the arm's rules, every arm joint it holds,
+  whole or partial message, within the limits and the velocity limits) before it updates
+  :class:`JointStateCache`; malformed ones are dropped and counted, and the last reason is kept
+  for the error message. Once the connection has pinned the driver (:meth:`JointStateCache.pin`),
+  messages of any other publisher identity are dropped too;
 * ``<ns>/controller_manager/list_controllers`` / ``switch_controller`` (the controller manager);
 * ``<ns>/<controller>/joint_trajectory`` (``trajectory_msgs/JointTrajectory``) and
   ``<ns>/<controller>/follow_joint_trajectory`` (``control_msgs/action/FollowJointTrajectory``) of a
@@ -75,13 +78,27 @@ def check_joint_state(msg: Any) -> str | None:
     return None
 
 
+#: How many publisher identities a cache remembers having heard (the oldest is forgotten first).
+MAX_SOURCES = 64
+
+
+def _source_name(source: bytes | None) -> str:
+    return "unknown" if source is None else source.hex()[:12]
+
+
 class JointStateCache:
     """The latest valid value of every joint, merged over ``joint_states`` messages (thread-safe).
 
     With a guard (:meth:`guard`: the arm's safety rules), a message whose guarded joints cannot be
-    the robot's (outside their limits, or moved faster than their velocity limits since the last
-    accepted value) is dropped as malformed, with the reason: a well-formed state from another
-    process cannot teleport the arm in the env's eyes.
+    the robot's (outside their limits, or moved faster than their velocity limits since the joint's
+    last accepted value) is dropped as malformed, with the reason: a well-formed state from another
+    process cannot teleport the arm in the env's eyes. Every guarded joint a message holds is
+    checked, whether the message holds the whole arm or part of it. A value older than
+    ``fresh_for`` no longer bounds the next one (only the limits do): one bad value that got in
+    (the first message, say) is replaced by the driver's after ``fresh_for`` seconds at most.
+
+    Once pinned (:meth:`pin`), only messages from that publisher identity count: the others are
+    dropped and counted in :attr:`foreign_count`.
     """
 
     def __init__(self) -> None:
@@ -89,33 +106,86 @@ class JointStateCache:
         self._values: dict[str, tuple[float, float, float, float, float]] = {}  # pos, vel, eff, recv, stamp
         self.received_count = 0
         self.malformed_count = 0
+        self.foreign_count = 0
         self.last_error: str | None = None
         self.last_received: float | None = None
+        self.last_foreign: bytes | None = None
         self._rules: Any = None
+        self._fresh_for = math.inf
+        self._pinned = False
+        self._driver: bytes | None = None
+        self._sources: dict[bytes | None, float] = {}  # last receipt per publisher identity
 
-    def guard(self, rules: Any) -> None:
-        """Check every later message's joints of ``rules.joint_names`` with ``rules.plausible``."""
+    def guard(self, rules: Any, fresh_for: float = math.inf) -> None:
+        """Check every later message's joints of ``rules.joint_names`` with ``rules.plausible``; a
+        joint's value bounds its next one (velocity limits) for ``fresh_for`` seconds."""
         with self._cond:
             self._rules = rules
+            self._fresh_for = float(fresh_for)
+
+    def pin(self, source: bytes | None) -> None:
+        """Take messages only from the publisher identity ``source`` (``None``: a transport that
+        gives none, every message counts). A new identity drops the values cached so far."""
+        with self._cond:
+            if not self._pinned or source != self._driver:
+                self._values.clear()
+            self._pinned = True
+            self._driver = source
+            self._cond.notify_all()
+
+    @property
+    def pinned(self) -> bool:
+        """Whether :meth:`pin` chose whose messages count."""
+        return self._pinned
+
+    @property
+    def driver(self) -> bytes | None:
+        """The pinned publisher identity (``None``: not pinned, or a transport without identities)."""
+        return self._driver
+
+    def sources(self, within: float, now: float | None = None) -> list[bytes | None]:
+        """The publisher identities heard in the last ``within`` seconds, most recent first."""
+        now = time.monotonic() if now is None else now
+        with self._cond:
+            heard = sorted(self._sources.items(), key=lambda kv: -kv[1])
+        return [src for src, t in heard if now - t <= within]
 
     def _implausible(self, msg: Any, now: float) -> str | None:
         rules = self._rules
-        where = {name: i for i, name in enumerate(msg.name)}
-        if rules is None or any(j not in where for j in rules.joint_names):
+        if rules is None:
             return None
-        q = np.array([float(msg.position[where[j]]) for j in rules.joint_names])
-        prev = [self._values.get(j) for j in rules.joint_names]
-        if any(p is None for p in prev):
-            return rules.plausible(q)
-        last = np.array([p[0] for p in prev])  # type: ignore[index]
-        oldest = min(p[3] for p in prev)  # type: ignore[index]
-        return rules.plausible(q, last, now - oldest)
+        where = {name: i for i, name in enumerate(msg.name)}
+        index = [k for k, j in enumerate(rules.joint_names) if j in where]
+        if not index:
+            return None
+        q = np.array([float(msg.position[where[rules.joint_names[k]]]) for k in index])
+        last = np.full(len(index), np.nan)  # NaN: no fresh value to bound this joint's move
+        ages = np.zeros(len(index))
+        for n, k in enumerate(index):
+            prev = self._values.get(rules.joint_names[k])
+            if prev is not None and now - prev[3] <= self._fresh_for:
+                last[n], ages[n] = prev[0], now - prev[3]
+        return rules.plausible(q, last, ages, index=index)
 
-    def update(self, msg: Any, now: float | None = None) -> bool:
-        """Take one message; ``False`` (and counted) when it is malformed or implausible."""
+    def receive(self, msg: Any, source: bytes | None) -> bool:
+        """A subscription's callback (``with_source``): :meth:`update` with the publisher's identity."""
+        return self.update(msg, source=source)
+
+    def update(self, msg: Any, now: float | None = None, source: bytes | None = None) -> bool:
+        """Take one message from the publisher identity ``source``; ``False`` (and counted) when it
+        is malformed, implausible, or (pinned) from another publisher."""
         reason = check_joint_state(msg)
         now = time.monotonic() if now is None else now
         with self._cond:
+            self._sources.pop(source, None)
+            self._sources[source] = now
+            if len(self._sources) > MAX_SOURCES:
+                self._sources.pop(next(iter(self._sources)))
+            if self._pinned and source != self._driver:
+                self.foreign_count += 1
+                self.last_foreign = source
+                self._cond.notify_all()
+                return False
             if reason is None:
                 reason = self._implausible(msg, now)
             if reason is not None:
@@ -177,6 +247,10 @@ class JointStateCache:
             if self.malformed_count:
                 parts.append(f"{self.malformed_count} malformed joint_states message(s) dropped, the last because "
                              f"{self.last_error}")
+            if self.foreign_count:
+                parts.append(f"{self.foreign_count} joint_states message(s) from a publisher other than the driver "
+                             f"(identity {_source_name(self.last_foreign)}, the driver's "
+                             f"{_source_name(self._driver)}) dropped")
             return "; ".join(parts) or "joint_states stopped arriving"
 
 
@@ -206,7 +280,8 @@ class RobotLink:
         self.timeout_sec = float(timeout_sec)
         self.states = JointStateCache()
         self.joint_states_topic = self.resolve(joint_states_topic)
-        self._sub = node.create_subscription(JointState, self.joint_states_topic, self.states.update, 10)
+        self._sub = node.create_subscription(JointState, self.joint_states_topic, self.states.receive, 10,
+                                             with_source=True)
         self._clock_sub = None
         self.robot_time: float | None = None
         if use_sim_time:

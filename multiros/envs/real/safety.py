@@ -169,6 +169,12 @@ class SafetyRules:
             raise ValueError(f"joint limits of {list(self.joint_names)} are empty or NaN: lower {lo.tolist()}, "
                              f"upper {hi.tolist()}")
         self.lower, self.upper = lo, hi
+        # Where the joints can physically be: the description's range when given (a task's tighter
+        # limits bound commands, not the arm), else the limits. The first move's duration uses it.
+        self.travel_lower = lo if description_lower is None else np.minimum(
+            lo, _vector(description_lower, n, "description_lower"))
+        self.travel_upper = hi if description_upper is None else np.maximum(
+            hi, _vector(description_upper, n, "description_upper"))
         self.max_joint_delta = None if max_joint_delta is None else _vector(max_joint_delta, n, "max_joint_delta")
         if self.max_joint_delta is not None and not np.all(self.max_joint_delta > 0):
             raise ValueError(f"max_joint_delta must be > 0, got {self.max_joint_delta.tolist()}")
@@ -249,25 +255,44 @@ class SafetyRules:
             raise UnsafeCommandError(f"previous command {prev.tolist()} is unusable for {list(self.joint_names)}")
         return replace(self._decide(req, cur, prev), measured=cur.copy())
 
-    def plausible(self, positions: np.ndarray, previous: np.ndarray | None = None,
-                  seconds: float | None = None) -> str | None:
+    def plausible(self, positions: npt.ArrayLike, previous: npt.ArrayLike | None = None,
+                  seconds: float | npt.ArrayLike | None = None, *, index: Sequence[int] | None = None) -> str | None:
         """Why measured joint positions cannot be the robot's (outside the joint limits by more than
         ``STATE_MARGIN``; or, ``seconds`` after ``previous``, further than the velocity limits allow),
-        or ``None`` when they can be."""
-        q = np.asarray(positions, dtype=np.float64)
-        out = (q < self.lower - STATE_MARGIN) | (q > self.upper + STATE_MARGIN)
+        or ``None`` when they can be.
+
+        ``index``: ``positions`` are those of the joints ``joint_names[i] for i in index`` (part of
+        the arm); ``seconds`` may give one age per joint; a NaN in ``previous`` skips that joint's
+        velocity check (no recent value to bound it)."""
+        sel = np.arange(len(self.joint_names)) if index is None else np.asarray(index, dtype=np.intp)
+        q = np.asarray(positions, dtype=np.float64).reshape(-1)
+        if q.shape != sel.shape:
+            return f"{q.size} positions for {sel.size} joints"
+        names = [self.joint_names[i] for i in sel]
+        lo, hi = self.lower[sel], self.upper[sel]
+        out = (q < lo - STATE_MARGIN) | (q > hi + STATE_MARGIN)
         if np.any(out):
             j = int(np.flatnonzero(out)[0])
-            return (f"{self.joint_names[j]} at {q[j]:.4g} is outside its limits [{self.lower[j]:.4g}, "
-                    f"{self.upper[j]:.4g}]")
+            return f"{names[j]} at {q[j]:.4g} is outside its limits [{lo[j]:.4g}, {hi[j]:.4g}]"
         if previous is not None and seconds is not None and self.max_velocity is not None:
-            reach = self.max_velocity * max(0.0, seconds) * 1.5 + STATE_MARGIN
-            jump = np.abs(q - previous) > reach
+            prev = np.asarray(previous, dtype=np.float64).reshape(-1)
+            secs = np.broadcast_to(np.maximum(np.asarray(seconds, dtype=np.float64), 0.0), q.shape)
+            vmax = self.max_velocity[sel]
+            reach = vmax * secs * 1.5 + STATE_MARGIN
+            jump = np.abs(q - prev) > reach  # False where prev is NaN
             if np.any(jump):
                 j = int(np.flatnonzero(jump)[0])
-                return (f"{self.joint_names[j]} jumped {abs(q[j] - previous[j]):.4g} rad in {seconds:.4g} s (its "
-                        f"velocity limit is {self.max_velocity[j]:.4g} rad/s)")
+                return (f"{names[j]} jumped {abs(q[j] - prev[j]):.4g} rad in {secs[j]:.4g} s (its "
+                        f"velocity limit is {vmax[j]:.4g} rad/s)")
         return None
+
+    def worst_case_distance(self, target: npt.ArrayLike) -> np.ndarray:
+        """Per joint, the furthest ``target`` can be from anywhere the joint can be (its travel
+        range, ``STATE_MARGIN`` beyond): how far a move to ``target`` may have to go whatever a
+        measured state says. Infinite for a joint without finite limits (a continuous joint)."""
+        t = np.asarray(target, dtype=np.float64)
+        lo, hi = self.travel_lower - STATE_MARGIN, self.travel_upper + STATE_MARGIN
+        return np.maximum(np.abs(t - lo), np.abs(hi - t))
 
     def _decide(self, req: np.ndarray, cur: np.ndarray, prev: np.ndarray | None = None) -> SafetyDecision:
         events: list[str] = []

@@ -434,13 +434,13 @@ class _SubscriptionHandle(_Token):
                             self.key)
             return
         try:
-            wire.decode_attachment(att.to_bytes())
+            source = wire.decode_attachment(att.to_bytes()).source_gid
             msg = self._codec.deserialize(sample.payload.to_bytes(), self._msg_type)
         except Exception as exc:  # noqa: BLE001 - anything from the wire may be garbage
             self._drops.log(_log, logging.WARNING, "dropped a malformed sample on '%s': %s: %s", self.key,
                             type(exc).__name__, str(exc))
             return
-        self._sub_entity._enqueue(msg)
+        self._sub_entity._enqueue(msg, source)
 
     def _undeclare(self) -> None:
         self._sub.undeclare()

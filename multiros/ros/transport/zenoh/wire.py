@@ -136,7 +136,7 @@ def parse_token(key: str) -> Endpoint | None:
         return None
     return Endpoint(
         kind, parts[8], namespace, unmangle(parts[9]), ros_type_from_dds(parts[10]),
-        qos_from_str(parts[12]), parts[2],
+        qos_from_str(parts[12]), parts[2], gid_for(key),
     )
 
 
