@@ -70,7 +70,7 @@ def test_cameras_publish_under_the_real_drivers_topics(conn):
     left = specs["rx200/zed2_left"]
     assert (left.rgb_topic, left.rgb_info_topic) == (f"{ZED}/rgb/image_rect_color", f"{ZED}/rgb/camera_info")
     assert (left.depth_topic, left.depth_info_topic) == (f"{ZED}/depth/depth_registered", f"{ZED}/depth/camera_info")
-    assert (left.width, left.height, left.frame_id) == (640, 360, "zed2_left_camera_optical_frame")
+    assert (left.width, left.height, left.frame_id) == (640, 360, "rx200/zed2_left_camera_optical_frame")
     right = specs["rx200/zed2_right"]
     assert right.rgb_topic == f"{ZED}/right/image_rect_color" and not right.depth
     # A plugin-less camera: gazebo_ros_camera's defaults under the entity's namespace; an MJCF camera too.
@@ -91,7 +91,7 @@ def test_image_topics_carry_the_pixels_a_composed_client_reads(conn):
     np.testing.assert_array_equal(np.frombuffer(bytes(depth.data), "<f4").reshape(360, 640), frame.depth)
     info = received[f"{ZED}/rgb/camera_info"][-1]
     np.testing.assert_allclose(np.asarray(info.k).reshape(3, 3), frame.intrinsics.k)
-    assert info.header.frame_id == rgb.header.frame_id == "zed2_left_camera_optical_frame"
+    assert info.header.frame_id == rgb.header.frame_id == "rx200/zed2_left_camera_optical_frame"
     assert rgb.header.stamp == info.header.stamp
 
 
@@ -119,6 +119,7 @@ def test_images_follow_the_arm_and_render_once_per_state(conn):
 
 def test_renders_only_for_subscribers_or_reads(conn, monkeypatch):
     renderer = conn.sim_node._get_renderer()
+    stream = conn.sim_node.camera_stream
     calls = []
     real = renderer.render
 
@@ -127,10 +128,13 @@ def test_renders_only_for_subscribers_or_reads(conn, monkeypatch):
         return real(camera, **kwargs)
 
     monkeypatch.setattr(renderer, "render", counting)
+    before = stream.renders
     conn.client.step_simulation(3)
-    assert calls == [], "nobody subscribed: nothing rendered"
+    assert calls == [] and stream.renders == before, "nobody subscribed: nothing rendered"
     _receive(conn, {"/overhead/down/image_raw": Image}, steps=1)
-    assert calls == ["overhead/down"], "one render for the subscribed camera, one step"
+    # The topic's image is rendered beside the physics (multiros.sim.camera_stream), once for the new state;
+    # the observations' renderer is not used.
+    assert stream.renders == before + 1 and calls == []
 
 
 def test_errors_name_the_camera_and_the_fix(conn, monkeypatch):
@@ -153,15 +157,22 @@ def test_errors_name_the_camera_and_the_fix(conn, monkeypatch):
     with pytest.raises(RenderError, match="MUJOCO_GL=egl"):
         conn.read_camera("overhead/down", width=16, height=12)
     errors = []
-    monkeypatch.setattr(conn.sim_node.cameras, "_log_error", errors.append)
+    conn.sim_node.camera_stream.drop_renderers()
+    monkeypatch.setattr(conn.sim_node.camera_stream, "_error", errors.append)
     sub = conn.node.create_subscription(Image, "/overhead/down/image_raw", lambda msg: None, 1)
     try:
         conn.client.step_simulation(2)
+        deadline = time.monotonic() + 10.0  # the camera thread renders beside the step
+        while not errors and time.monotonic() < deadline:
+            time.sleep(0.01)
     finally:
         conn.node.destroy_subscription(sub)
     assert len(errors) == 1 and "MUJOCO_GL=egl" in errors[0]
+    (entry,) = [e for e in conn.sim_node.cameras.entries() if e.spec.camera == "overhead/down"]
+    assert entry.failed, "the camera stops publishing (its error is logged once), the node goes on"
     monkeypatch.undo()
-    conn.sim_node.cameras.attach(conn.sim_node.world.entity("overhead"))  # publishing again
+    with conn.sim_node.lock:
+        conn.sim_node._attach_robot("overhead")  # publishing again
 
 
 def test_camera_specs_read_plugin_names_without_gl():
