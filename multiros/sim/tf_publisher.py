@@ -142,7 +142,7 @@ class TFPublisher:
         if not self._entities or not self._tf.has_subscribers():
             return False
         stamp = convert.time_msg(self._world.time)
-        transforms = []
+        transforms: list[Any] = []
         for frames in self._entities.values():
             edges, translation, rotation = frames.transforms(self._world, static=False)
             transforms.extend(_fill(TransformStamped(), e.parent, e.child, stamp, t, q)

@@ -193,3 +193,39 @@ def test_camera_specs_read_plugin_names_without_gl():
     (spec,) = camera_specs("robot", "/robot", urdf, Model())
     assert spec.rgb_topic == "/robot/head/eye/color" and spec.rgb_info_topic == "/robot/head/eye/camera_info"
     assert spec.depth_topic == "/robot/head/eye/depth/image_raw" and (spec.width, spec.height) == (32, 24)
+
+
+# A camera 1 m above the floor looking straight up: it sees nothing at all.
+UP_CAMERA = DOWN_CAMERA.replace('name="overhead"', 'name="skyward"').replace('"mount"', '"sky_mount"').replace(
+    'name="down"', 'name="up"').replace(f"0 {np.pi / 2} 0</pose>", f"0 {-np.pi / 2} 0</pose>")
+
+
+def test_depth_with_no_return_is_infinity_as_rep_118_has_it(conn):
+    assert UP_CAMERA != DOWN_CAMERA and f"{-np.pi / 2}" in UP_CAMERA
+    conn.client.spawn_entity("skyward", resource_string=UP_CAMERA)
+    try:
+        frame = conn.read_camera("skyward/up", rgb=False, depth=True)
+        assert np.isposinf(frame.depth).all(), "no return reads +inf, not the far clipping plane"
+        received = _receive(conn, {"/skyward/up/depth/image_raw": Image})
+        depth = received["/skyward/up/depth/image_raw"][-1]
+        assert np.isposinf(np.frombuffer(bytes(depth.data), "<f4")).all()
+        assert np.isfinite(conn.read_camera("overhead/down", rgb=False, depth=True).depth).all()
+    finally:
+        conn.client.delete_entity("skyward")
+
+
+def test_camera_topics_are_rendered_beside_the_steps_at_most_at_their_rate(conn):
+    stream = conn.sim_node.camera_stream
+    stream.set_rate("overhead/down", 4.0)
+    sub = conn.node.create_subscription(Image, "/overhead/down/image_raw", lambda msg: None, 1)
+    try:
+        before, start = stream.renders, time.monotonic()
+        # Lockstep as fast as the node steps: every step a new state, far more than 4 per second.
+        while (elapsed := time.monotonic() - start) < 1.0 or stream.renders == before:
+            assert elapsed < 30.0, "no image rendered for a subscriber"
+            conn.client.step_simulation(1)
+        rendered = stream.renders - before
+    finally:
+        conn.node.destroy_subscription(sub)
+        stream.set_rate("overhead/down", None)
+    assert 1 <= rendered <= 4.0 * elapsed + 1, (rendered, elapsed)
