@@ -7,7 +7,7 @@ Each camera sensor of a URDF (``<gazebo reference="link"><sensor type="camera|de
 * ``sensor_msgs/Image`` (``rgb8``) and ``sensor_msgs/CameraInfo``;
 * for depth sensors (``type`` ``depth``, ``depth_camera`` or ``rgbd_camera``) also a depth image,
   ``sensor_msgs/Image`` ``32FC1`` in metres (distance along the optical axis, as ROS depth images;
-  pixels that see nothing hold the far clipping distance) and its ``CameraInfo``.
+  pixels that see nothing hold ``+inf``, "no return" as REP 118 has it) and its ``CameraInfo``.
 
 Topic names follow the ``gazebo_ros_camera`` plugin, so a description written for Gazebo publishes
 where its real twin's driver does. With a ``<plugin>`` in the sensor: ``<ros><namespace>``
@@ -22,14 +22,17 @@ MJCF cameras: ``<entity namespace>/<camera>/image_raw`` and ``camera_info``, at 
 (default 640 x 480).
 
 Images are rendered offscreen (headless: ``MUJOCO_GL=egl`` or ``osmesa``) only when someone
-subscribes or reads, at most once per camera, image kind and size for one state of the world (the
-node publishes after each step; a read of the same state is served from that render). A camera
-sensor renders fast (:attr:`CameraHub.fast`: no shadows, no reflections, no multisampling; in
-software GL about a tenth of a full-quality frame), topics and reads alike; the node's
-``RenderCamera`` service and an env's ``render()`` keep the full quality. The frame id
-is ``<frame_name>`` or ``<entity>/<sensor>``; no TF is published for it. The intrinsics are a
-pinhole's (no distortion): ``fy = fx = height / (2 tan(fovy / 2))``, the principal point at the image
-centre.
+subscribes or reads. Reads (an env's observations) render under the node's lock, at most once per
+camera, image kind and size for one state of the world; topics are rendered beside the physics at
+each camera's capped rate by :mod:`multiros.sim.camera_stream`, which publishes a read's image of
+the same state as is. A camera sensor renders fast (:attr:`CameraHub.fast`: no shadows, no
+reflections, no multisampling; in software GL about a tenth of a full-quality frame), topics and
+reads alike; the node's ``RenderCamera`` service and an env's ``render()`` keep the full quality.
+The frame id is the camera's optical frame in the node's TF tree (:mod:`multiros.sim.tf_tree`:
+``<entity>/<frame_name>``, default ``<entity>/<sensor>_optical_frame``). A ``<hack_baseline>`` in
+the plugin (a stereo pair's right camera) gives its ``CameraInfo`` ``P[3] = -fx * baseline``. The
+intrinsics are a pinhole's (no distortion): ``fy = fx = height / (2 tan(fovy / 2))``, the principal
+point at the image centre.
 """
 
 from __future__ import annotations

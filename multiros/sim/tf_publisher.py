@@ -35,6 +35,7 @@ TransformStamped = get_message("geometry_msgs/msg/TransformStamped")
 
 STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 HEARTBEAT_SEC = 0.25
+_STATIC_CHECK_BEATS = 8
 _PREFIX = re.compile(r"^[A-Za-z0-9_/]*$")
 
 
@@ -84,6 +85,7 @@ class TFPublisher:
         self._sent: tuple[tuple[str, ...], np.ndarray] | None = None  # the last /tf_static: children, values
         self._wake, self._stop = threading.Event(), threading.Event()
         self._thread: threading.Thread | None = None
+        self._fell_back = False
 
     # -- entities -------------------------------------------------------------------------------
     def attach(self, name: str, cameras: Iterable[tuple[str, str]] = ()) -> EntityFrames:
@@ -97,10 +99,13 @@ class TFPublisher:
         if clash and not prefix:
             fallback = EntityFrames(self._world, name, f"{name}/", cameras)
             if not self._clashes(fallback):
-                self._warn(f"entity {name!r}: its TF frames {clash[:3]} are already published by entity "
-                           f"{self._owners[clash[0]]!r}; its frames are published as '{name}/<link>' instead. "
-                           f"Give it a robot_name (xacro argument) of its own, or start the node with a frame "
-                           f"prefix (uniros-sim --frame-prefix '{{entity}}/') to choose")
+                if not self._fell_back:  # once: a vector env's robots would say it a hundred times
+                    self._warn(f"entity {name!r}: its TF frames {clash[:3]} are already published by entity "
+                               f"{self._owners[clash[0]]!r}; its frames (and those of later entities like it) "
+                               f"are published as '{name}/<link>' instead. Give it a robot_name (xacro "
+                               f"argument) of its own, or start the node with a frame prefix (uniros-sim "
+                               f"--frame-prefix '{{entity}}/') to choose")
+                self._fell_back = True
                 frames, clash = fallback, []
         if clash:
             self._warn(f"entity {name!r}: TF frames {clash[:3]} are already published by entity "
@@ -178,16 +183,21 @@ class TFPublisher:
             self._thread.start()
 
     def _run(self) -> None:
+        beats = 0
         while not self._stop.is_set():
-            self._wake.wait(HEARTBEAT_SEC)
+            woken = self._wake.wait(HEARTBEAT_SEC)
             self._wake.clear()
+            beats += 1
             if self._stop.is_set():
                 return
             with self._lock:
                 if self._stop.is_set():
                     return
                 try:
-                    self.publish_static()
+                    # Static transforms change only when an entity comes, goes or is moved (each wakes
+                    # this thread); checked every 2 s besides, in case a reset moved one quietly.
+                    if woken or beats % _STATIC_CHECK_BEATS == 0:
+                        self.publish_static()
                     self.publish()
                     problem = ""
                 except Exception as exc:  # noqa: BLE001 - report it (once), keep the node up
