@@ -75,7 +75,7 @@ def render_inline(node: SimulationNode) -> None:
 
 
 def measure(node: SimulationNode, user: Node, topics: list[tuple[type, str]], seconds: float) -> tuple[float, float]:
-    """(real-time factor, images received per second) over ``seconds`` after a 1 s warm-up."""
+    """(real-time factor, images received per second) over ``seconds`` after a warm-up."""
     received = [0]
 
     def count(msg) -> None:
@@ -83,7 +83,12 @@ def measure(node: SimulationNode, user: Node, topics: list[tuple[type, str]], se
 
     subs = [user.create_subscription(kind, topic, count, 2) for kind, topic in topics]
     try:
-        time.sleep(1.0)  # warm-up: subscriptions matched, renderers made (a benchmark, not a test)
+        # Warm-up: subscriptions matched, renderers made (GL contexts take seconds in software GL),
+        # until every image topic has delivered one image (at most 60 s), and 1 s at least.
+        images = sum(kind is Image for kind, _ in topics)
+        start = time.monotonic()
+        while time.monotonic() - start < 1.0 or (received[0] < images and time.monotonic() - start < 60.0):
+            time.sleep(0.05)
         sim0, wall0, got0 = node.world.time, time.monotonic(), received[0]
         time.sleep(seconds)
         sim1, wall1, got1 = node.world.time, time.monotonic(), received[0]

@@ -19,6 +19,7 @@ An image an observation already rendered for the same state is published as is.
 
 from __future__ import annotations
 
+import copy
 import threading
 import time
 from collections.abc import Callable
@@ -82,6 +83,7 @@ class CameraStream:
         self._thread: threading.Thread | None = None
         self._window = time.monotonic()
         self.warned = False
+        self._built = False  # a renderer was made in the current window (its stall is not the cameras' pace)
         self.renders = 0  # frames rendered by this thread (the rest came from the observations' cache)
 
     # -- settings -------------------------------------------------------------------------------
@@ -151,7 +153,9 @@ class CameraStream:
             state.due = start + min(period, _IDLE_POLL_SEC)
             return
         images: dict[bool, np.ndarray] = {}
+        built = False
         try:
+            built = self._ensure_renderer(spec)
             with self.lock:
                 key = self.hub.state_key()
                 if key == state.key:  # nothing new to see (paused)
@@ -174,6 +178,10 @@ class CameraStream:
                     except BaseException:
                         self._renderers_lock.release()
                         raise
+                    if renderer is None:  # a recompile since the renderer was made: next time
+                        self._renderers_lock.release()
+                        state.due = start
+                        return
             if render:
                 try:
                     for depth in render:
@@ -194,36 +202,54 @@ class CameraStream:
                                                   0.0 if depth else spec.baseline))
         cost = time.monotonic() - start
         state.key = key
-        state.cost = cost if state.frames == 0 else 0.8 * state.cost + 0.2 * cost
-        state.frames += 1
-        state.busy += cost
+        self._built = self._built or built
+        if not built:  # a frame that made a GL context is no measure of the next ones
+            state.cost = cost if state.frames == 0 else 0.8 * state.cost + 0.2 * cost
+            state.frames += 1
+            state.busy += cost
         state.due = start + max(period, cost / _MAX_BUSY)
 
-    def _scene(self, spec: Any) -> mujoco.Renderer:
-        """The thread's renderer of this image size with the camera's view of the world now
-        (caller holds the node's lock and the renderers' lock)."""
-        model = self.world.model
-        if model is not self._model:  # a recompile: contexts of the old model go
-            for r in self._renderers.values():
-                r.close()
-            self._renderers.clear()
-            self._model = model
+    def _ensure_renderer(self, spec: Any) -> bool:
+        """Make the renderer of the camera's image size if there is none for the world's model;
+        whether it made one. The GL context (seconds in software GL) is made on a copy of the model
+        with the node's lock released: the physics goes on meanwhile."""
         key = (spec.width, spec.height)
-        r = self._renderers.get(key)
-        if r is None:
+        with self.lock:
+            model = self.world.model
+            with self._renderers_lock:
+                if model is self._model and key in self._renderers:
+                    return False
             if spec.width > model.vis.global_.offwidth or spec.height > model.vis.global_.offheight:
                 raise RenderError(f"image size {spec.width}x{spec.height} exceeds the offscreen buffer "
                                   f"{model.vis.global_.offwidth}x{model.vis.global_.offheight}")
-            shadow, samples = int(model.vis.quality.shadowsize), int(model.vis.quality.offsamples)
-            model.vis.quality.shadowsize, model.vis.quality.offsamples = 0, 0  # no shadows, no multisampling
-            try:
-                r = mujoco.Renderer(model, height=spec.height, width=spec.width, max_geom=10000)
-            except Exception as exc:  # GL context creation fails with assorted errors
-                raise RenderError(f"offscreen rendering is unavailable ({exc}); on a headless machine set "
-                                  f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
-            finally:
-                model.vis.quality.shadowsize, model.vis.quality.offsamples = shadow, samples
+            private = copy.copy(model)  # milliseconds; the same model, its settings ours to change
+        private.vis.quality.shadowsize, private.vis.quality.offsamples = 0, 0  # no shadows, no multisampling
+        try:
+            r = mujoco.Renderer(private, height=spec.height, width=spec.width, max_geom=10000)
+        except Exception as exc:  # GL context creation fails with assorted errors
+            raise RenderError(f"offscreen rendering is unavailable ({exc}); on a headless machine set "
+                              f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
+        release_gl(r)
+        with self._renderers_lock:
+            if model is not self._model:  # a recompile: contexts of the old model go
+                for old in self._renderers.values():
+                    old.close()
+                self._renderers.clear()
+                self._model = model
+            previous = self._renderers.pop(key, None)
+            if previous is not None:
+                previous.close()
             self._renderers[key] = r
+        return True
+
+    def _scene(self, spec: Any) -> mujoco.Renderer | None:
+        """The thread's renderer of this image size with the camera's view of the world now, or
+        None when the world recompiled since it was made (caller holds the node's lock and the
+        renderers' lock)."""
+        model = self.world.model
+        r = self._renderers.get((spec.width, spec.height))
+        if model is not self._model or r is None:
+            return None
         cid = mujoco.mj_name2id(model, int(mujoco.mjtObj.mjOBJ_CAMERA), spec.camera)
         if cid < 0:
             raise RenderError(f"camera {spec.camera!r} not found")
@@ -252,7 +278,8 @@ class CameraStream:
         costs = {name: s.cost for name, s in self._cameras.items() if s.busy > 0}
         for s in self._cameras.values():
             s.busy = 0.0
-        if self.warned or not busy:
+        built, self._built = self._built, False
+        if self.warned or not busy or built:
             return
         playing, target, measured = self._pacing()
         if not playing or target <= 0 or measured is None or measured >= 0.9 * target:
