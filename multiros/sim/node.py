@@ -666,6 +666,9 @@ class SimulationNode(Node):
             except (RenderError, EntityError, ValueError) as exc:
                 fail(response.result, FAILED, str(exc))
                 return response
+            spec = self.cameras.spec(request.camera)
+            if spec is not None:  # a camera sensor's image is in its optical frame, as its topics' are
+                response.image.header.frame_id = spec.frame_id
         ok(response.result)
         return response
 

@@ -179,7 +179,9 @@ def test_camera_specs_read_plugin_names_without_gl():
     urdf = """<robot name="r"><link name="l"/>
       <gazebo reference="l"><sensor type="rgbd_camera" name="cam">
         <camera><image><width>32</width><height>24</height></image></camera>
-        <plugin name="p" filename="libgazebo_ros_camera.so"><ros><namespace>head</namespace>
+        <update_rate>30</update_rate>
+        <plugin name="p" filename="libgazebo_ros_camera.so"><hack_baseline>0.07</hack_baseline>
+          <ros><namespace>head</namespace>
           <remapping>~/eye/image_raw:=eye/color</remapping></ros><camera_name>eye</camera_name></plugin>
       </sensor><sensor type="camera" name="bad name!"/></gazebo></robot>"""
 
@@ -193,6 +195,7 @@ def test_camera_specs_read_plugin_names_without_gl():
     (spec,) = camera_specs("robot", "/robot", urdf, Model())
     assert spec.rgb_topic == "/robot/head/eye/color" and spec.rgb_info_topic == "/robot/head/eye/camera_info"
     assert spec.depth_topic == "/robot/head/eye/depth/image_raw" and (spec.width, spec.height) == (32, 24)
+    assert (spec.rate, spec.baseline, spec.frame_name) == (30.0, 0.07, "")
 
 
 # A camera 1 m above the floor looking straight up: it sees nothing at all.
