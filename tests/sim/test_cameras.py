@@ -231,4 +231,6 @@ def test_camera_topics_are_rendered_beside_the_steps_at_most_at_their_rate(conn)
     finally:
         conn.node.destroy_subscription(sub)
         stream.set_rate("overhead/down", None)
-    assert 1 <= rendered <= 4.0 * elapsed + 1, (rendered, elapsed)
+    # Frames start at least 1/4 s apart: at most one per period in the time measured, one more that
+    # started just before it.
+    assert 1 <= rendered <= 4.0 * elapsed + 2, (rendered, elapsed)
