@@ -5,7 +5,13 @@ Static transforms go out together on ``/tf_static`` (reliable, transient local, 
 static broadcaster: one message holds every static transform of every entity, so a late joiner
 gets them all), again whenever one of them changes (an entity moved or spawned). Dynamic ones go on
 ``/tf`` with every published joint state (after each step, if anyone subscribes) and, so that a
-paused simulation is in the tree too, on a slow heartbeat thread (4 Hz) while anyone subscribes.
+paused simulation is in the tree too, from a heartbeat thread (4 Hz): when a listener comes or
+something moved without a step (joints or poses set, a reset).
+
+Stamps: tf2 ignores a transform whose stamp it already holds for that frame (``TF_REPEATED_DATA``, a
+warning each time), and a paused simulation's time stands still. So ``/tf`` never repeats a stamp:
+a message sent while the time has not moved carries the last stamp plus one nanosecond, and the
+heartbeat sends nothing unless a listener came or something moved.
 
 Frame names: the description's link names (``frame_prefix=""``, the default), or under a prefix the
 node was given (a template: ``"{entity}/"`` puts each entity's name first). Two entities would
@@ -32,9 +38,11 @@ __all__ = ["TFPublisher", "check_frame_prefix"]
 
 TFMessage = get_message("tf2_msgs/msg/TFMessage")
 TransformStamped = get_message("geometry_msgs/msg/TransformStamped")
+Time = get_message("builtin_interfaces/msg/Time")
 
 STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 HEARTBEAT_SEC = 0.25
+_SAME_TIME_NS = 1000  # a stamp this close behind the last one is the same time, bumped (not a reset)
 _STATIC_CHECK_BEATS = 8
 _PREFIX = re.compile(r"^[A-Za-z0-9_/]*$")
 
@@ -86,6 +94,9 @@ class TFPublisher:
         self._wake, self._stop = threading.Event(), threading.Event()
         self._thread: threading.Thread | None = None
         self._fell_back = False
+        self._dirty = False  # something moved since the last /tf message
+        self._listeners: tuple[int, int | None] = (0, None)  # /tf subscriptions and graph version, last seen
+        self._last_ns = -1  # the stamp of the last /tf message
 
     # -- entities -------------------------------------------------------------------------------
     def attach(self, name: str, cameras: Iterable[tuple[str, str]] = ()) -> EntityFrames:
@@ -114,6 +125,7 @@ class TFPublisher:
         for child in frames.children:
             self._owners[child] = name
         self._entities[name] = frames
+        self._dirty = True
         self._start()
         self._wake.set()
         return frames
@@ -138,6 +150,7 @@ class TFPublisher:
     def changed(self) -> None:
         """Something moved outside a step (a pose set, a reset): send the trees again soon."""
         if self._entities:
+            self._dirty = True
             self._wake.set()
 
     # -- publishing -----------------------------------------------------------------------------
@@ -146,7 +159,12 @@ class TFPublisher:
         lock); whether anyone does."""
         if not self._entities or not self._tf.has_subscribers():
             return False
-        stamp = convert.time_msg(self._world.time)
+        ns = int(round(self._world.time * 1e9))
+        if 0 <= self._last_ns - ns < _SAME_TIME_NS:  # the time stood still: a stamp tf2 has not seen
+            ns = self._last_ns + 1
+        self._last_ns = ns
+        stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+        self._dirty = False
         transforms: list[Any] = []
         for frames in self._entities.values():
             edges, translation, rotation = frames.transforms(self._world, static=False)
@@ -198,7 +216,12 @@ class TFPublisher:
                     # this thread); checked every 2 s besides, in case a reset moved one quietly.
                     if woken or beats % _STATIC_CHECK_BEATS == 0:
                         self.publish_static()
-                    self.publish()
+                    # A listener that came since the last message (any change of the graph, or of the
+                    # number of /tf subscriptions where the transport keeps no graph version).
+                    listeners = (self._tf.get_subscription_count(), self._node.context.transport.graph_version())
+                    if self._dirty or listeners != self._listeners:
+                        self._listeners = listeners
+                        self.publish()
                     problem = ""
                 except Exception as exc:  # noqa: BLE001 - report it (once), keep the node up
                     problem = f"TF not published: {exc}"
