@@ -5,9 +5,10 @@ the whole frame: the playing node's real-time factor fell from 0.70 to 0.58 with
 subscribed and to 0.14 with the Zed2 (its RGB, depth and right images). Here one thread of the node
 serves every subscribed camera at most ``rate`` times per second of wall clock (the sensor's
 ``<update_rate>``, else the node's ``camera_rate``, 15 Hz by default), and only when the world
-changed since its last image (a paused world sends nothing new). Under the node's lock it only
-copies what the camera sees into a MuJoCo scene (``mjv_updateScene``, tens of microseconds); the
-rendering and the message encoding run after the lock is released, while the physics goes on. A
+changed since its last image or a subscriber came (a paused world sends its image to a new
+subscriber, then nothing new). Under the node's lock it only copies what the camera sees into a
+MuJoCo scene (``mjv_updateScene``, tens of microseconds); the rendering and the message encoding
+run after the lock is released, while the physics goes on. A
 frame slower than the camera's period stretches it: the thread renders at most half of the time,
 so a slow software renderer cannot take every core. When the playing node falls behind its
 real-time factor while cameras render, one warning gives the measured cost and the fix.
@@ -43,11 +44,12 @@ _WINDOW_SEC = 2.0  # cost accounting window of the slowdown warning
 class _Camera:
     """A subscribed camera's schedule and cost."""
 
-    __slots__ = ("due", "key", "cost", "frames", "busy")
+    __slots__ = ("due", "key", "listeners", "cost", "frames", "busy")
 
     def __init__(self) -> None:
         self.due = 0.0
         self.key: tuple = ()
+        self.listeners = 0  # subscriptions to its topics at its last frame
         self.cost = 0.0  # seconds per frame, a running mean
         self.frames = 0
         self.busy = 0.0  # seconds spent in the current window
@@ -151,15 +153,18 @@ class CameraStream:
         period = 1.0 / self.rate_of(spec)
         if not wanted:
             state.due = start + min(period, _IDLE_POLL_SEC)
+            state.listeners = 0
             return
+        listeners = sum(pub.get_subscription_count() for w in wanted for pub in w[1:3])
         images: dict[bool, np.ndarray] = {}
         built = False
         try:
             built = self._ensure_renderer(spec)
             with self.lock:
                 key = self.hub.state_key()
-                if key == state.key:  # nothing new to see (paused)
+                if key == state.key and listeners <= state.listeners:  # nothing new to see, nobody new
                     state.due = start + period
+                    state.listeners = listeners
                     return
                 stamp = float(self.world.time)
                 intrinsics = self.hub.intrinsics(spec.camera, spec.width, spec.height)
@@ -201,7 +206,7 @@ class CameraStream:
                 info_pub.publish(fill_camera_info(self.hub.info_type(), intrinsics, stamp, spec.frame_id,
                                                   0.0 if depth else spec.baseline))
         cost = time.monotonic() - start
-        state.key = key
+        state.key, state.listeners = key, listeners
         self._built = self._built or built
         if not built:  # a frame that made a GL context is no measure of the next ones
             state.cost = cost if state.frames == 0 else 0.8 * state.cost + 0.2 * cost

@@ -212,6 +212,11 @@ def test_camera_frames_are_optical_frames_and_the_zed2_has_its_baseline(graph):
     assert fx > 0 and left_info.p[3] == 0.0
     assert right_info.p[3] == pytest.approx(-fx * 0.12), "P[3] = -fx * baseline, as ROS stereo drivers write it"
     assert right_info.header.frame_id == "rx200/zed2_right_camera_optical_frame"
+    # Still paused, a subscriber that comes later gets the camera's message too (the rviz2 Camera display).
+    later: list = []
+    user.create_subscription(CameraInfo, f"{ZED}/right/camera_info", later.append, 2)
+    listener.spin_until(lambda: later, "camera_info for a later subscriber, paused")
+    assert later[-1].header.stamp == right_info.header.stamp
 
 
 def test_frame_prefix_is_applied_once_and_clashing_robots_fall_back_to_their_name():
