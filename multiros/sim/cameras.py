@@ -7,7 +7,7 @@ Each camera sensor of a URDF (``<gazebo reference="link"><sensor type="camera|de
 * ``sensor_msgs/Image`` (``rgb8``) and ``sensor_msgs/CameraInfo``;
 * for depth sensors (``type`` ``depth``, ``depth_camera`` or ``rgbd_camera``) also a depth image,
   ``sensor_msgs/Image`` ``32FC1`` in metres (distance along the optical axis, as ROS depth images;
-  pixels that see nothing hold the far clipping distance) and its ``CameraInfo``.
+  pixels that see nothing hold ``+inf``, "no return" as REP 118 has it) and its ``CameraInfo``.
 
 Topic names follow the ``gazebo_ros_camera`` plugin, so a description written for Gazebo publishes
 where its real twin's driver does. With a ``<plugin>`` in the sensor: ``<ros><namespace>``
@@ -22,23 +22,27 @@ MJCF cameras: ``<entity namespace>/<camera>/image_raw`` and ``camera_info``, at 
 (default 640 x 480).
 
 Images are rendered offscreen (headless: ``MUJOCO_GL=egl`` or ``osmesa``) only when someone
-subscribes or reads, at most once per camera, image kind and size for one state of the world (the
-node publishes after each step; a read of the same state is served from that render). A camera
-sensor renders fast (:attr:`CameraHub.fast`: no shadows, no reflections, no multisampling; in
-software GL about a tenth of a full-quality frame), topics and reads alike; the node's
-``RenderCamera`` service and an env's ``render()`` keep the full quality. The frame id
-is ``<frame_name>`` or ``<entity>/<sensor>``; no TF is published for it. The intrinsics are a
-pinhole's (no distortion): ``fy = fx = height / (2 tan(fovy / 2))``, the principal point at the image
-centre.
+subscribes or reads. Reads (an env's observations) render under the node's lock, at most once per
+camera, image kind and size for one state of the world; topics are rendered beside the physics at
+each camera's capped rate by :mod:`multiros.sim.camera_stream`, which publishes a read's image of
+the same state as is. A camera sensor renders fast (:attr:`CameraHub.fast`: no shadows, no
+reflections, no multisampling; in software GL about a tenth of a full-quality frame), topics and
+reads alike; the node's ``RenderCamera`` service and an env's ``render()`` keep the full quality.
+The frame id is the camera's optical frame in the node's TF tree (:mod:`multiros.sim.tf_tree`:
+``<entity>/<frame_name>``, default ``<entity>/<sensor>_optical_frame``). A ``<hack_baseline>`` in
+the plugin (a stereo pair's right camera) gives its ``CameraInfo`` ``P[3] = -fx * baseline``. The
+intrinsics are a pinhole's (no distortion): ``fy = fx = height / (2 tan(fovy / 2))``, the principal
+point at the image centre.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 import threading
 import xml.etree.ElementTree as ET
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -83,7 +87,13 @@ class CameraIntrinsics:
 @dataclass(frozen=True)
 class CameraSpec:
     """One camera of the node: its MuJoCo name, image size, whether it has depth, and its topics
-    (empty strings for the depth ones of an RGB camera)."""
+    (empty strings for the depth ones of an RGB camera).
+
+    ``frame_id`` is the TF frame its headers carry (set by the node's TF tree,
+    :mod:`multiros.sim.tf_tree`); ``frame_name`` the sensor's ``<frame_name>`` as written (``""``
+    when none); ``baseline`` the plugin's ``<hack_baseline>`` in metres (the right camera of a stereo
+    pair: its ``CameraInfo`` has ``P[3] = -fx * baseline``, as gazebo_ros_camera writes it);
+    ``rate`` the sensor's ``<update_rate>`` in Hz (0: the node's default camera rate)."""
 
     camera: str
     entity: str
@@ -95,6 +105,9 @@ class CameraSpec:
     rgb_info_topic: str
     depth_topic: str = ""
     depth_info_topic: str = ""
+    frame_name: str = ""
+    baseline: float = 0.0
+    rate: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +139,15 @@ def _join(namespace: str, name: str) -> str:
 def _text(element: ET.Element | None, path: str, default: str = "") -> str:
     found = element.find(path) if element is not None else None
     return (found.text or "").strip() if found is not None and found.text else default
+
+
+def _number(element: ET.Element | None, path: str, default: float, low: float, high: float) -> float:
+    """A number of the description, ``default`` when absent, not a number or outside ``[low, high]``."""
+    try:
+        value = float(_text(element, path, str(default)))
+    except ValueError:
+        return default
+    return value if math.isfinite(value) and low <= value <= high else default
 
 
 def _image_size(sensor: ET.Element) -> tuple[int, int]:
@@ -170,9 +192,11 @@ def _urdf_specs(entity: str, namespace: str, text: str) -> list[CameraSpec]:
             frame = _text(plugin, "frame_name") if plugin is not None else ""
             specs.append(CameraSpec(
                 camera=f"{entity}/{name}", entity=entity, width=width, height=height, depth=depth,
-                frame_id=frame or f"{entity}/{name}", rgb_topic=topic("image_raw"), rgb_info_topic=topic("camera_info"),
-                depth_topic=topic("depth/image_raw") if depth else "",
-                depth_info_topic=topic("depth/camera_info") if depth else ""))
+                frame_id=frame or f"{entity}/{name}_optical_frame", rgb_topic=topic("image_raw"),
+                rgb_info_topic=topic("camera_info"), depth_topic=topic("depth/image_raw") if depth else "",
+                depth_info_topic=topic("depth/camera_info") if depth else "", frame_name=frame,
+                baseline=_number(plugin, "hack_baseline", 0.0, 0.0, 100.0),
+                rate=_number(sensor, "update_rate", 0.0, 0.0, 1000.0)))
     return specs
 
 
@@ -192,8 +216,9 @@ def camera_specs(entity: str, namespace: str, description: str, model: mujoco.Mj
             short = full[len(entity) + 1:]
             res = model.cam_resolution[cid]  # MJCF resolution="w h" (1 1 when not given)
             width, height = (int(res[0]), int(res[1])) if res[0] > 1 else _DEFAULT_SIZE
-            specs.append(CameraSpec(full, entity, min(width, _MAX_SIDE), min(height, _MAX_SIDE), False, full,
-                                    _join(ns, f"{short}/image_raw"), _join(ns, f"{short}/camera_info")))
+            specs.append(CameraSpec(full, entity, min(width, _MAX_SIDE), min(height, _MAX_SIDE), False,
+                                    f"{full}_optical_frame", _join(ns, f"{short}/image_raw"),
+                                    _join(ns, f"{short}/camera_info")))
     known = {model.camera(i).name for i in range(model.ncam)}
     return [s for s in specs if s.camera in known
             and all(_NAME.match(t) for t in (s.rgb_topic, s.rgb_info_topic, s.depth_topic or "/x",
@@ -217,8 +242,11 @@ def fill_image(msg: Any, image: np.ndarray, stamp: float, frame_id: str) -> Any:
     return msg
 
 
-def fill_camera_info(msg: Any, intrinsics: CameraIntrinsics, stamp: float, frame_id: str) -> Any:
-    """Write a pinhole ``sensor_msgs/CameraInfo`` (``plumb_bob`` without distortion)."""
+def fill_camera_info(msg: Any, intrinsics: CameraIntrinsics, stamp: float, frame_id: str,
+                     baseline: float = 0.0) -> Any:
+    """Write a pinhole ``sensor_msgs/CameraInfo`` (``plumb_bob`` without distortion); ``baseline``
+    (metres, the right camera of a stereo pair) sets ``P[3] = -fx * baseline`` (the ``Tx`` of
+    ``sensor_msgs/CameraInfo``'s projection matrix)."""
     msg.header.stamp = convert.time_msg(stamp)
     msg.header.frame_id = frame_id
     msg.width, msg.height = intrinsics.width, intrinsics.height
@@ -228,6 +256,7 @@ def fill_camera_info(msg: Any, intrinsics: CameraIntrinsics, stamp: float, frame
     msg.r = np.eye(3).ravel()
     p = np.zeros((3, 4))
     p[:, :3] = intrinsics.k
+    p[0, 3] = -intrinsics.fx * float(baseline)
     msg.p = p.ravel()
     return msg
 
@@ -280,12 +309,15 @@ class CameraHub:
         """Entities with cameras."""
         return tuple(self._entities)
 
-    def attach(self, info: Any) -> None:
-        """Create the publishers of an entity's cameras (``info``: its :class:`EntityInfo`)."""
+    def attach(self, info: Any, frame_of: Callable[[CameraSpec], str] | None = None) -> None:
+        """Create the publishers of an entity's cameras (``info``: its :class:`EntityInfo`);
+        ``frame_of`` names each camera's TF frame (the node's TF tree)."""
         self.detach(info.name)
         world = self._node.world
         pubs = []
         for spec in camera_specs(info.name, info.namespace, info.description, world.model):
+            if frame_of is not None:
+                spec = dataclasses.replace(spec, frame_id=frame_of(spec))
             qos = 2  # the newest images only; reliable, as camera drivers' default publishers
             entry = _Publishers(spec, self._node.create_publisher(self._image_type, spec.rgb_topic, qos),
                                 self._node.create_publisher(self._info_type, spec.rgb_info_topic, qos))
@@ -307,6 +339,16 @@ class CameraHub:
         """Every published camera."""
         return [entry.spec for entries in self._entities.values() for entry in entries]
 
+    def entries(self) -> list[_Publishers]:
+        """Every camera's spec and publishers (a copy of the list: the camera thread walks it)."""
+        return [entry for entries in list(self._entities.values()) for entry in entries]
+
+    def image_type(self) -> Any:
+        return self._image_type()
+
+    def info_type(self) -> Any:
+        return self._info_type()
+
     def spec(self, camera: str) -> CameraSpec | None:
         for entries in self._entities.values():
             for entry in entries:
@@ -315,6 +357,15 @@ class CameraHub:
         return None
 
     # -- images -------------------------------------------------------------------------------
+    def state_key(self) -> tuple:
+        """What identifies the world's visible state (caller holds the node's lock)."""
+        return self._state_key()
+
+    def cached(self, camera: str, width: int, height: int, depth: bool, key: tuple) -> np.ndarray | None:
+        """The image an observation rendered of state ``key``, if any."""
+        with self._cache_lock:
+            return self._cache.images.get((camera, width, height, depth)) if self._cache.key == key else None
+
     def _state_key(self) -> tuple:
         data = self._node.world.data
         return (self._node.world.time, data.qpos.tobytes(), data.mocap_pos.tobytes(), data.mocap_quat.tobytes(),
@@ -362,42 +413,6 @@ class CameraHub:
         intrinsics = self.intrinsics(camera, w, h)
         return CameraFrame(camera, float(self._node.world.time), self._image(camera, w, h, False) if rgb else None,
                            self._image(camera, w, h, True) if depth else None, intrinsics)
-
-    def publish(self) -> bool:
-        """Publish every camera someone subscribes to (caller holds the node's lock); whether anyone does."""
-        if not self._entities:
-            return False
-        stamp = float(self._node.world.time)
-        listened = False
-        for entries in self._entities.values():
-            for entry in entries:
-                if not entry.failed:
-                    listened = self._publish(entry, stamp) or listened
-        return listened
-
-    def _publish(self, entry: _Publishers, stamp: float) -> bool:
-        spec = entry.spec
-        kinds: Iterable[tuple[bool, Any, Any]] = [(False, entry.rgb, entry.rgb_info)]
-        if spec.depth:
-            kinds = [*kinds, (True, entry.depth, entry.depth_info)]
-        listened = False
-        for depth, image_pub, info_pub in kinds:
-            want_image, want_info = image_pub.has_subscribers(), info_pub.has_subscribers()
-            if not (want_image or want_info):
-                continue
-            listened = True
-            try:
-                intrinsics = self.intrinsics(spec.camera, spec.width, spec.height)
-                if want_image:
-                    image = self._image(spec.camera, spec.width, spec.height, depth)
-                    image_pub.publish(fill_image(self._image_type(), image, stamp, spec.frame_id))
-            except RenderError as exc:
-                entry.failed = True
-                self._log_error(f"camera {spec.camera!r} stopped publishing: {exc}")
-                return listened
-            if want_info:
-                info_pub.publish(fill_camera_info(self._info_type(), intrinsics, stamp, spec.frame_id))
-        return listened
 
     def destroy(self) -> None:
         for name in list(self._entities):

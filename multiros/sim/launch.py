@@ -432,6 +432,12 @@ def _parser() -> argparse.ArgumentParser:
                              "(default 100000); larger requests are refused")
     parser.add_argument("--max-robots", type=int, default=None, metavar="N",
                         help="most robots this node holds (default 256); SpawnEntity refuses more")
+    parser.add_argument("--frame-prefix", default=None, metavar="PREFIX",
+                        help="TF frame prefix of every entity's links: '' (default) the URDF's link names as "
+                             "robot_state_publisher publishes them, '{entity}/' each entity's name first")
+    parser.add_argument("--camera-rate", type=float, default=None, metavar="HZ",
+                        help="images per second of each subscribed camera topic whose sensor sets no "
+                             "<update_rate> (default 15), rendered beside the physics")
     add_child_options(parser)
     return parser
 
@@ -467,6 +473,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         if opts.max_robots < 1:
             parser.error("--max-robots must be a positive integer")
         node_options["max_robots"] = opts.max_robots
+    if opts.frame_prefix is not None:
+        from multiros.sim.tf_publisher import check_frame_prefix
+
+        try:
+            node_options["frame_prefix"] = check_frame_prefix(opts.frame_prefix)
+        except ValueError as exc:
+            parser.error(str(exc))
+    if opts.camera_rate is not None:
+        if not opts.camera_rate > 0 or opts.camera_rate == float("inf"):
+            parser.error("--camera-rate must be a positive number of images per second")
+        node_options["camera_rate"] = opts.camera_rate
     node = None
     try:
         node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,

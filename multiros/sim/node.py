@@ -15,7 +15,9 @@ Services (``~`` = this node, default ``/mujoco_sim``):
 ``~/get_node_load`` (robots, limits, physics rate, memory), ``~/set_robot_joint_state``,
 ``~/get_physics_properties``, ``~/set_physics_properties``, ``~/render_camera``.
 Topics: ``/clock`` while time advances; per robot ``joint_states``, ``robot_description``,
-controller command topics; ``/tf``.
+controller command topics; ``/tf`` and ``/tf_static`` (every link by its URDF name,
+:mod:`multiros.sim.tf_publisher`); the cameras' images at their own rate, beside the physics
+(:mod:`multiros.sim.camera_stream`).
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ from multiros.ros.logging import LogThrottle
 from multiros.ros.qos import qos_profile_clock
 from multiros.sim import convert
 from multiros.sim.actions import SimulateStepsAction
-from multiros.sim.cameras import CameraFrame, CameraHub, CameraSpec
+from multiros.sim.camera_stream import DEFAULT_CAMERA_RATE, CameraStream
+from multiros.sim.cameras import CameraFrame, CameraHub, CameraSpec, camera_specs
 from multiros.sim.description import SourcePolicy
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError, UnstableSimulationError
@@ -51,6 +54,7 @@ from multiros.sim.node_stepping import FrameSetCache, step_robot, step_robots, s
 from multiros.sim.robot_io import RobotInterfaces
 from multiros.sim.services import SIM_SERVICES
 from multiros.sim.state_gather import StateGather
+from multiros.sim.tf_publisher import TFPublisher, check_frame_prefix
 from multiros.sim.world import EntityCategory, RealTimeRunner, ResetScope, World, WorldOptions
 
 SimulationState = get_message("simulation_interfaces/msg/SimulationState")
@@ -114,6 +118,12 @@ class SimulationNode(Node):
             :class:`~multiros.sim.limits.DescriptionLimits`).
         max_robots: most robots the node holds (default :data:`multiros.sim.limits.MAX_ROBOTS`;
             also the read-only ROS parameter ``max_robots``); SpawnEntity refuses more.
+        frame_prefix: TF frame prefix of every entity's links (read-only ROS parameter
+            ``frame_prefix``): ``""`` (default) publishes the description's link names as they are,
+            as robot_state_publisher does; ``"{entity}/"`` puts each entity's name first (never twice).
+        camera_rate: images per second of each subscribed camera topic whose sensor has no
+            ``<update_rate>`` (read-only ROS parameter ``camera_rate``, default 15), rendered beside
+            the physics (:mod:`multiros.sim.camera_stream`).
         **node_kwargs: passed to :class:`multiros.ros.Node` (``context``, ``namespace``, ...).
     """
 
@@ -132,6 +142,8 @@ class SimulationNode(Node):
         max_steps_per_call: int = MAX_STEPS_PER_CALL,
         description_limits: DescriptionLimits | None = None,
         max_robots: int = MAX_ROBOTS,
+        frame_prefix: str = "",
+        camera_rate: float = DEFAULT_CAMERA_RATE,
         **node_kwargs: Any,
     ) -> None:
         super().__init__(node_name, **node_kwargs)
@@ -152,6 +164,16 @@ class SimulationNode(Node):
         if not isinstance(robots, int) or robots < 1:
             raise ValueError(f"max_robots must be an integer >= 1, got {robots!r}")
         self.max_robots = robots
+        prefix = check_frame_prefix(self.declare_parameter(
+            "frame_prefix", str(frame_prefix),
+            ParameterDescriptor(read_only=True, description="TF frame prefix of the entities' links ('{entity}/' "
+                                                            "for each entity's name; '' for the URDF's names)"),
+        ).value)
+        rate = self.declare_parameter(
+            "camera_rate", float(camera_rate),
+            ParameterDescriptor(read_only=True, description="images per second of a subscribed camera topic "
+                                                            "(sensors' <update_rate> first)"),
+        ).value
         self.load = LoadMeter()  # ~/get_node_load
         self._executor: Any = None
         self._spin_thread: threading.Thread | None = None
@@ -186,6 +208,12 @@ class SimulationNode(Node):
             sub._deliver_directly(wire_inline=True)
         # Camera topics (sensor_msgs/Image, CameraInfo) of the entities' cameras (multiros.sim.cameras).
         self.cameras = CameraHub(self, self._get_renderer, lambda text: self.get_logger().error("%s", text))
+        self.camera_stream = CameraStream(
+            self.cameras, self.world, self.lock, rate=rate, pacing=self._pacing,
+            warn=lambda text: self.get_logger().warning("%s", text),
+            error=lambda text: self.get_logger().error("%s", text))
+        self.tf = TFPublisher(self, self.world, self.lock, prefix,
+                              warn=lambda text: self.get_logger().warning("%s", text))
         self._services: list[Any] = []
         if serve:
             self.start_serving()
@@ -237,13 +265,18 @@ class SimulationNode(Node):
         listened = self._publish_clock()
         for robot in self._robots.values():
             listened = robot.publish_state() or listened
-        listened = self.cameras.publish() or listened
+        listened = self.tf.publish() or listened
         self._quiet_at = None if listened else version
 
     _quiet_at: int | None = None
 
     def _after_realtime_chunk(self, world: World) -> None:
         self._after_step()
+
+    def _pacing(self) -> tuple[bool, float, float | None]:
+        """Whether the node plays in real time, its target and its measured real-time factor."""
+        runner = self._runner
+        return runner.running, float(runner.real_time_factor), runner.measured_real_time_factor
 
     def _realtime_error(self, exc: BaseException) -> None:
         if isinstance(exc, UnstableSimulationError):  # contained: real time goes on
@@ -266,14 +299,22 @@ class SimulationNode(Node):
 
     def _attach_robot(self, name: str) -> None:
         info = self.world.entity(name)
+        specs = camera_specs(info.name, info.namespace, info.description, self.world.model)
+        frames = None
+        if info.category == EntityCategory.ROBOT or specs:  # robots, and whatever carries a camera
+            frames = self.tf.attach(name, [(spec.camera, spec.frame_name) for spec in specs])
         if info.category == EntityCategory.ROBOT:
             self._robots[name] = RobotInterfaces(self, self.world, info, self.lock)
-        self.cameras.attach(info)
+        self.cameras.attach(info, None if frames is None else
+                            (lambda spec: frames.camera_frames.get(spec.camera, spec.frame_id)))
+        if self.cameras.entities:
+            self.camera_stream.start()
 
     def _detach_robot(self, name: str) -> None:
         robot = self._robots.pop(name, None)
         if robot is not None:
             robot.destroy()
+        self.tf.detach(name)
         self.cameras.detach(name)
         self._frame_sets.forget(name)
 
@@ -300,6 +341,7 @@ class SimulationNode(Node):
         if state == SimulationState.STATE_STOPPED:
             with self.lock:
                 self._sync_robots(self.world.reset(ResetScope.ALL))
+            self.tf.changed()
         self._state = state
 
     def _sync_robots(self, respawned: tuple[str, ...] = ()) -> None:
@@ -452,6 +494,7 @@ class SimulationNode(Node):
             except ValueError as exc:
                 fail(res, FAILED, str(exc))
                 return response
+        self.tf.changed()
         ok(res)
         return response
 
@@ -468,6 +511,7 @@ class SimulationNode(Node):
             self._sync_robots(respawned)
             for robot in self._robots.values():
                 robot.on_reset()
+        self.tf.changed()
         ok(response.result)
         return response
 
@@ -561,6 +605,7 @@ class SimulationNode(Node):
                 return response
             robot.fill_joint_state(response.joint_state)
             response.sim_time = convert.time_msg(self.world.time)
+        self.tf.changed()
         ok(response.result)
         return response
 
@@ -621,6 +666,9 @@ class SimulationNode(Node):
             except (RenderError, EntityError, ValueError) as exc:
                 fail(response.result, FAILED, str(exc))
                 return response
+            spec = self.cameras.spec(request.camera)
+            if spec is not None:  # a camera sensor's image is in its optical frame, as its topics' are
+                response.image.header.frame_id = spec.frame_id
         ok(response.result)
         return response
 
@@ -679,6 +727,8 @@ class SimulationNode(Node):
         destroy the node. A step call in progress stops at its next chunk."""
         self._stopping.set()
         self._runner.stop()
+        self.camera_stream.close()
+        self.tf.close()
         if self._executor is not None:
             self._executor.shutdown()
             if self._spin_thread is not None and self._spin_thread is not threading.current_thread():

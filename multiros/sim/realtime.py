@@ -55,6 +55,7 @@ class RealTimeRunner:
         self._rebase = threading.Event()
         self._thread: threading.Thread | None = None
         self.error: BaseException | None = None
+        self.measured_real_time_factor: float | None = None  # sim s per wall s over the last 2 s while playing
 
     @property
     def real_time_factor(self) -> float:
@@ -96,6 +97,8 @@ class RealTimeRunner:
 
     def _run(self) -> None:
         wall0, sim0 = _time.monotonic(), self.world.time
+        window_wall, window_sim = wall0, sim0
+        self.measured_real_time_factor = None
         while not self._stop.is_set():
             try:
                 with self.lock:
@@ -115,6 +118,12 @@ class RealTimeRunner:
                 if self.on_error is not None:
                     self.on_error(exc)
                 return
+            now = _time.monotonic()
+            if self.world.time < window_sim or self._rebase.is_set():
+                window_wall, window_sim = now, self.world.time
+            elif now - window_wall >= 2.0:
+                self.measured_real_time_factor = (self.world.time - window_sim) / (now - window_wall)
+                window_wall, window_sim = now, self.world.time
             rtf = self._rtf
             if rtf <= 0:
                 wall0, sim0 = _time.monotonic(), self.world.time

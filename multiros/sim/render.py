@@ -22,7 +22,8 @@ from multiros.sim.errors import RenderError
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["FreeCamera", "Marker", "Renderer", "camera_pose", "project_points", "open_viewer", "display_available"]
+__all__ = ["FreeCamera", "Marker", "Renderer", "camera_pose", "depth_no_return", "display_available", "open_viewer",
+           "project_points", "release_gl"]
 
 
 def display_available() -> bool:
@@ -91,7 +92,15 @@ def project_points(model: mujoco.MjModel, data: mujoco.MjData, camera: str | int
     return np.column_stack([cols, rows]), depth
 
 
-def _release_gl(renderer: mujoco.Renderer) -> None:
+def depth_no_return(depth: np.ndarray, model: mujoco.MjModel) -> np.ndarray:
+    """``depth`` (metres) with the pixels that saw nothing, which MuJoCo reads as the far clipping
+    plane, set to ``+inf``: "no return" as REP 118 has it for ROS depth images (in place; returned)."""
+    far = float(model.vis.map.zfar * model.stat.extent)
+    depth[depth >= np.float32(far * (1.0 - 1e-4))] = np.inf
+    return depth
+
+
+def release_gl(renderer: mujoco.Renderer) -> None:
     """Leave ``renderer``'s GL context current in no thread.
 
     ``mujoco.Renderer`` makes its context current in the thread that creates or renders with it and
@@ -213,7 +222,7 @@ class Renderer:
                                   f"MUJOCO_GL=egl (or osmesa) before importing mujoco") from exc
             finally:
                 model.vis.quality.shadowsize, model.vis.quality.offsamples = shadow, samples
-            _release_gl(r)
+            release_gl(r)
             self._renderers[key] = r
         return r
 
@@ -258,12 +267,12 @@ class Renderer:
             if depth:
                 r.enable_depth_rendering()
                 try:
-                    return r.render().copy()
+                    return depth_no_return(r.render().copy(), r.model)
                 finally:
                     r.disable_depth_rendering()
             return r.render().copy()
         finally:
-            _release_gl(r)
+            release_gl(r)
 
     def rgb(self, camera: str | int | FreeCamera | None = None, *, width: int = 640, height: int = 480) -> np.ndarray:
         """An RGB image (uint8, HxWx3)."""

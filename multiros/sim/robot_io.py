@@ -1,7 +1,8 @@
 """The ROS interfaces of one robot in the simulation node, in the robot's namespace.
 
-* ``joint_states`` (``sensor_msgs/JointState``), ``/tf`` (its links in the ``world`` frame) and
-  ``robot_description`` (``std_msgs/String``, transient local);
+* ``joint_states`` (``sensor_msgs/JointState``) and ``robot_description`` (``std_msgs/String``,
+  transient local); its links' transforms go out on the node's ``/tf`` and ``/tf_static``
+  (:mod:`multiros.sim.tf_publisher`);
 * the controller manager's services, controller command topics and trajectory actions
   (:class:`~multiros.sim.controller_io.ControllerInterfaces`, shared with the fake robot).
 
@@ -22,8 +23,6 @@ from multiros.sim.distro_adapters import get_message
 
 JointState = get_message("sensor_msgs/msg/JointState")
 String = get_message("std_msgs/msg/String")
-TFMessage = get_message("tf2_msgs/msg/TFMessage")
-TransformStamped = get_message("geometry_msgs/msg/TransformStamped")
 
 _LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -46,10 +45,7 @@ class RobotInterfaces:
         ns = info.namespace.rstrip("/") or ""
         self.ns = ns
         self._names = list(world.joint_names(info.name))
-        self._frames = world.frame_set(info.frames, info.name) if info.frames else None
-        self._frame_names = [f"{info.name}/{f}" for f in info.frames]
         self._joint_pub = node.create_publisher(JointState, f"{ns}/joint_states", 10)
-        self._tf_pub = node.create_publisher(TFMessage, "/tf", 100)
         self._description_pub = node.create_publisher(String, f"{ns}/robot_description", _LATCHED)
         self._description_pub.publish(String(data=info.description))
         self._actions = TrajectoryActions(node, world, info.name, ns, lock)  # follow_joint_trajectory
@@ -70,25 +66,11 @@ class RobotInterfaces:
         self._actions.on_step()
 
     def publish_state(self) -> bool:
-        """Publish ``joint_states`` and ``/tf`` if anyone listens (caller holds the lock); whether anyone did."""
+        """Publish ``joint_states`` if anyone listens (caller holds the lock); whether anyone does."""
         joints = self._joint_pub.has_subscribers()
         if joints:
             self._joint_pub.publish(self.fill_joint_state(JointState()))
-        tf = self._frames is not None and self._tf_pub.has_subscribers()
-        if tf:
-            stamp = convert.time_msg(self.world.time)
-            transforms = []
-            for child, row in zip(self._frame_names, self._frames.poses()):
-                stamped = TransformStamped()
-                stamped.header.stamp = stamp
-                stamped.header.frame_id = "world"
-                stamped.child_frame_id = child
-                t, r = stamped.transform.translation, stamped.transform.rotation
-                t.x, t.y, t.z = float(row[0]), float(row[1]), float(row[2])
-                r.w, r.x, r.y, r.z = float(row[3]), float(row[4]), float(row[5]), float(row[6])
-                transforms.append(stamped)
-            self._tf_pub.publish(TFMessage(transforms=transforms))
-        return joints or tf
+        return joints
 
     def on_reset(self) -> None:
         """Called after a world reset (state topics are refreshed on the next step)."""
@@ -97,7 +79,7 @@ class RobotInterfaces:
     def destroy(self) -> None:
         """Destroy every publisher, subscription, service and action of this robot."""
         self.controllers.destroy()
-        for pub in (self._joint_pub, self._tf_pub, self._description_pub):
+        for pub in (self._joint_pub, self._description_pub):
             self.node.destroy_publisher(pub)
 
 

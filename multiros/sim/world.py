@@ -308,6 +308,11 @@ class World(WorldStepping, WorldAdmission):
         """The :class:`EntityInfo` of ``name``. Raises EntityError if unknown."""
         return self._get(name).info
 
+    def entity_description(self, name: str) -> RobotDescription:
+        """The loaded description of entity ``name`` (its links, root, body names; read it, do not
+        change it). Raises EntityError if unknown."""
+        return self._get(name).desc
+
     def has_entity(self, name: str) -> bool:
         """True when an entity called ``name`` exists."""
         return name in self._entities

@@ -47,21 +47,28 @@ def conn():
 
 
 def _receive(conn, topics: dict[str, type], steps: int = 1) -> dict[str, list]:
-    """Subscribe, step the simulation, and collect one message per topic."""
+    """Subscribe, step the simulation, and collect messages per topic until one shows the state after
+    the step (a new subscriber may first get the image of the state before it)."""
     received: dict[str, list] = {t: [] for t in topics}
     subs = [conn.node.create_subscription(kind, topic, received[topic].append, 10) for topic, kind in topics.items()]
     try:
         conn.client.step_simulation(steps)
+        now = conn.sim_node.world.time
         executor = SingleThreadedExecutor(context=conn.context)
         executor.add_node(conn.node)
-        deadline = time.monotonic() + 10.0
-        while not all(received.values()) and time.monotonic() < deadline:
+        deadline = time.monotonic() + 30.0
+
+        def after_step(messages: list) -> bool:
+            stamp = messages[-1].header.stamp if messages else None
+            return stamp is not None and abs(stamp.sec + stamp.nanosec * 1e-9 - now) < 1e-6
+
+        while not all(after_step(m) for m in received.values()) and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.1)
         executor.remove_node(conn.node)
     finally:
         for sub in subs:
             conn.node.destroy_subscription(sub)
-    assert all(received.values()), {t: len(m) for t, m in received.items()}
+    assert all(after_step(m) for m in received.values()), {t: len(m) for t, m in received.items()}
     return received
 
 
@@ -70,7 +77,7 @@ def test_cameras_publish_under_the_real_drivers_topics(conn):
     left = specs["rx200/zed2_left"]
     assert (left.rgb_topic, left.rgb_info_topic) == (f"{ZED}/rgb/image_rect_color", f"{ZED}/rgb/camera_info")
     assert (left.depth_topic, left.depth_info_topic) == (f"{ZED}/depth/depth_registered", f"{ZED}/depth/camera_info")
-    assert (left.width, left.height, left.frame_id) == (640, 360, "zed2_left_camera_optical_frame")
+    assert (left.width, left.height, left.frame_id) == (640, 360, "rx200/zed2_left_camera_optical_frame")
     right = specs["rx200/zed2_right"]
     assert right.rgb_topic == f"{ZED}/right/image_rect_color" and not right.depth
     # A plugin-less camera: gazebo_ros_camera's defaults under the entity's namespace; an MJCF camera too.
@@ -91,7 +98,7 @@ def test_image_topics_carry_the_pixels_a_composed_client_reads(conn):
     np.testing.assert_array_equal(np.frombuffer(bytes(depth.data), "<f4").reshape(360, 640), frame.depth)
     info = received[f"{ZED}/rgb/camera_info"][-1]
     np.testing.assert_allclose(np.asarray(info.k).reshape(3, 3), frame.intrinsics.k)
-    assert info.header.frame_id == rgb.header.frame_id == "zed2_left_camera_optical_frame"
+    assert info.header.frame_id == rgb.header.frame_id == "rx200/zed2_left_camera_optical_frame"
     assert rgb.header.stamp == info.header.stamp
 
 
@@ -119,6 +126,7 @@ def test_images_follow_the_arm_and_render_once_per_state(conn):
 
 def test_renders_only_for_subscribers_or_reads(conn, monkeypatch):
     renderer = conn.sim_node._get_renderer()
+    stream = conn.sim_node.camera_stream
     calls = []
     real = renderer.render
 
@@ -127,10 +135,13 @@ def test_renders_only_for_subscribers_or_reads(conn, monkeypatch):
         return real(camera, **kwargs)
 
     monkeypatch.setattr(renderer, "render", counting)
+    before = stream.renders
     conn.client.step_simulation(3)
-    assert calls == [], "nobody subscribed: nothing rendered"
+    assert calls == [] and stream.renders == before, "nobody subscribed: nothing rendered"
     _receive(conn, {"/overhead/down/image_raw": Image}, steps=1)
-    assert calls == ["overhead/down"], "one render for the subscribed camera, one step"
+    # The topic's image is rendered beside the physics (multiros.sim.camera_stream): once for the new
+    # subscriber if it came before the step, once for the new state; the observations' renderer is not used.
+    assert before + 1 <= stream.renders <= before + 2 and calls == []
 
 
 def test_errors_name_the_camera_and_the_fix(conn, monkeypatch):
@@ -153,22 +164,31 @@ def test_errors_name_the_camera_and_the_fix(conn, monkeypatch):
     with pytest.raises(RenderError, match="MUJOCO_GL=egl"):
         conn.read_camera("overhead/down", width=16, height=12)
     errors = []
-    monkeypatch.setattr(conn.sim_node.cameras, "_log_error", errors.append)
+    conn.sim_node.camera_stream.drop_renderers()
+    monkeypatch.setattr(conn.sim_node.camera_stream, "_error", errors.append)
     sub = conn.node.create_subscription(Image, "/overhead/down/image_raw", lambda msg: None, 1)
     try:
         conn.client.step_simulation(2)
+        deadline = time.monotonic() + 10.0  # the camera thread renders beside the step
+        while not errors and time.monotonic() < deadline:
+            time.sleep(0.01)
     finally:
         conn.node.destroy_subscription(sub)
     assert len(errors) == 1 and "MUJOCO_GL=egl" in errors[0]
+    (entry,) = [e for e in conn.sim_node.cameras.entries() if e.spec.camera == "overhead/down"]
+    assert entry.failed, "the camera stops publishing (its error is logged once), the node goes on"
     monkeypatch.undo()
-    conn.sim_node.cameras.attach(conn.sim_node.world.entity("overhead"))  # publishing again
+    with conn.sim_node.lock:
+        conn.sim_node._attach_robot("overhead")  # publishing again
 
 
 def test_camera_specs_read_plugin_names_without_gl():
     urdf = """<robot name="r"><link name="l"/>
       <gazebo reference="l"><sensor type="rgbd_camera" name="cam">
         <camera><image><width>32</width><height>24</height></image></camera>
-        <plugin name="p" filename="libgazebo_ros_camera.so"><ros><namespace>head</namespace>
+        <update_rate>30</update_rate>
+        <plugin name="p" filename="libgazebo_ros_camera.so"><hack_baseline>0.07</hack_baseline>
+          <ros><namespace>head</namespace>
           <remapping>~/eye/image_raw:=eye/color</remapping></ros><camera_name>eye</camera_name></plugin>
       </sensor><sensor type="camera" name="bad name!"/></gazebo></robot>"""
 
@@ -182,3 +202,42 @@ def test_camera_specs_read_plugin_names_without_gl():
     (spec,) = camera_specs("robot", "/robot", urdf, Model())
     assert spec.rgb_topic == "/robot/head/eye/color" and spec.rgb_info_topic == "/robot/head/eye/camera_info"
     assert spec.depth_topic == "/robot/head/eye/depth/image_raw" and (spec.width, spec.height) == (32, 24)
+    assert (spec.rate, spec.baseline, spec.frame_name) == (30.0, 0.07, "")
+
+
+# A camera 1 m above the floor looking straight up: it sees nothing at all.
+UP_CAMERA = DOWN_CAMERA.replace('name="overhead"', 'name="skyward"').replace('"mount"', '"sky_mount"').replace(
+    'name="down"', 'name="up"').replace(f"0 {np.pi / 2} 0</pose>", f"0 {-np.pi / 2} 0</pose>")
+
+
+def test_depth_with_no_return_is_infinity_as_rep_118_has_it(conn):
+    assert UP_CAMERA != DOWN_CAMERA and f"{-np.pi / 2}" in UP_CAMERA
+    conn.client.spawn_entity("skyward", resource_string=UP_CAMERA)
+    try:
+        frame = conn.read_camera("skyward/up", rgb=False, depth=True)
+        assert np.isposinf(frame.depth).all(), "no return reads +inf, not the far clipping plane"
+        received = _receive(conn, {"/skyward/up/depth/image_raw": Image})
+        depth = received["/skyward/up/depth/image_raw"][-1]
+        assert np.isposinf(np.frombuffer(bytes(depth.data), "<f4")).all()
+        assert np.isfinite(conn.read_camera("overhead/down", rgb=False, depth=True).depth).all()
+    finally:
+        conn.client.delete_entity("skyward")
+
+
+def test_camera_topics_are_rendered_beside_the_steps_at_most_at_their_rate(conn):
+    stream = conn.sim_node.camera_stream
+    stream.set_rate("overhead/down", 4.0)
+    sub = conn.node.create_subscription(Image, "/overhead/down/image_raw", lambda msg: None, 1)
+    try:
+        before, start = stream.renders, time.monotonic()
+        # Lockstep as fast as the node steps: every step a new state, far more than 4 per second.
+        while (elapsed := time.monotonic() - start) < 1.0 or stream.renders == before:
+            assert elapsed < 30.0, "no image rendered for a subscriber"
+            conn.client.step_simulation(1)
+        rendered = stream.renders - before
+    finally:
+        conn.node.destroy_subscription(sub)
+        stream.set_rate("overhead/down", None)
+    # Frames start at least 1/4 s apart: at most one per period in the time measured, one more that
+    # started just before it.
+    assert 1 <= rendered <= 4.0 * elapsed + 2, (rendered, elapsed)
