@@ -33,7 +33,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
@@ -42,7 +42,11 @@ from multiros.hardware.robot_spec import RobotSpec, load_robot_spec, parse_assig
 from multiros.ros.processes import start_child_program
 from multiros.sim.errors import SimError
 
-__all__ = ["GripperActionServer", "arm_robot_spec", "build_parser", "main", "vendor_controllers"]
+if TYPE_CHECKING:  # imported when used: rl_environments registers every ID on import
+    from rl_environments.arm_file import ArmFile
+
+__all__ = ["ArmRobotError", "GripperActionServer", "arm_robot_spec", "build_parser", "gripper_joint", "main",
+           "vendor_controllers"]
 
 _JTC = "joint_trajectory_controller/JointTrajectoryController"
 _FORWARD = "position_controllers/JointGroupPositionController"
@@ -56,7 +60,7 @@ class ArmRobotError(ValueError):
     """An arm file the fake robot cannot serve (one line: the file, the key, the fix)."""
 
 
-def _yaml_controllers(arm: Any) -> dict[str, Any]:
+def _yaml_controllers(arm: ArmFile) -> dict[str, Any]:
     """The description's controllers YAML (``description.controllers``) as a mapping ({} if unreadable)."""
     from multiros.sim.packages import default_index
 
@@ -82,14 +86,14 @@ def _defined(config: Mapping[str, Any], name: str) -> tuple[str | None, dict[str
     return str(entry["type"]), dict(params) if isinstance(params, Mapping) else {}
 
 
-def gripper_joint(arm: Any) -> str | None:
+def gripper_joint(arm: ArmFile) -> str | None:
     """The joint the real gripper controller commands (``real.gripper_joint``, else the first finger)."""
     if arm.gripper is None:
         return None
     return arm.real.gripper_joint or arm.gripper.joints[0]
 
 
-def vendor_controllers(arm: Any, yaml_config: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def vendor_controllers(arm: ArmFile, yaml_config: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The ros2_control YAML (as a mapping) of the arm's real driver, as its ``real:`` section names it.
 
     Args:
@@ -140,7 +144,7 @@ def vendor_controllers(arm: Any, yaml_config: Mapping[str, Any] | None = None) -
     return {"controller_manager": {"ros__parameters": cm}, **out}
 
 
-def arm_robot_spec(arm: Any, *, start: str = "home", namespace: str | None = None,
+def arm_robot_spec(arm: ArmFile, *, start: str = "home", namespace: str | None = None,
                    initial_positions: Mapping[str, float] | None = None) -> RobotSpec:
     """The fake robot of an arm file (see the module docstring).
 
@@ -297,14 +301,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _attach(arm: Any) -> Callable[[Any], Callable[[], None] | None]:
+def _attach(arm: ArmFile) -> Callable[[Any], Callable[[], None] | None]:
     """The GripperCommand server of an arm whose driver takes the gripper through one."""
 
     def attach(robot: Any) -> Callable[[], None] | None:
-        if arm.gripper is None or arm.real.gripper_interface != "gripper_action":
+        joint, gripper = gripper_joint(arm), arm.gripper
+        if joint is None or gripper is None or arm.real.gripper_interface != "gripper_action":
             return None
-        server = GripperActionServer(robot, arm.real.gripper_controller, gripper_joint(arm),
-                                     (arm.gripper.closed, arm.gripper.open), arm.real.gripper_range)
+        server = GripperActionServer(robot, arm.real.gripper_controller, joint, (gripper.closed, gripper.open),
+                                     arm.real.gripper_range)
         return server.destroy
 
     return attach
