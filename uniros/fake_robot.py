@@ -194,12 +194,13 @@ class GripperActionServer:
     the position controller of the same name: a goal's position (the driver's units, ``real_range``
     at the fingers' ``(closed, open)``) becomes the finger joint's target; the goal succeeds once the
     joint is within ``tolerance`` of it, or reports ``stalled`` when the joint stops short (a cube
-    between the fingers), as ros2_control's GripperActionController does.
+    between the fingers) for ``stall_timeout`` seconds, as ros2_control's GripperActionController
+    does; it aborts after ``goal_timeout`` seconds otherwise, or when a newer goal preempts it.
     """
 
     def __init__(self, robot: Any, controller: str, joint: str, finger_range: Sequence[float],
                  real_range: Sequence[float] | None = None, *, tolerance: float = 1e-3,
-                 stall_timeout: float = 1.0) -> None:
+                 stall_timeout: float = 1.0, goal_timeout: float = 30.0) -> None:
         from multiros.ros.action import ActionServer, CancelResponse
         from multiros.ros.interfaces import get_action
 
@@ -209,6 +210,7 @@ class GripperActionServer:
         if self.real_range[0] == self.real_range[1] or self.finger_range[0] == self.finger_range[1]:
             raise ValueError(f"gripper ranges must not be empty: fingers {self.finger_range}, driver {self.real_range}")
         self.tolerance, self.stall_timeout = float(tolerance), float(stall_timeout)
+        self.goal_timeout = float(goal_timeout)
         self._type = get_action("control_msgs/action/GripperCommand")
         self._index = list(robot.hardware.joint_names(robot.spec.name)).index(joint)
         self._lock = threading.Lock()
@@ -243,7 +245,8 @@ class GripperActionServer:
         handle.execute()
 
     def _position(self) -> tuple[float, float]:
-        state = self.robot.hardware.joint_state()
+        with self.robot.hardware.lock:
+            state = self.robot.hardware.joint_state()
         return float(state.position[self._index]), float(state.velocity[self._index])
 
     def _execute(self, handle: Any) -> Any:
@@ -258,6 +261,7 @@ class GripperActionServer:
             handle.abort()
             return result
         still_since = None
+        deadline = time.monotonic() + self.goal_timeout
         while True:
             position, velocity = self._position()
             result.position, result.effort = self.to_driver(position), 0.0
@@ -274,6 +278,9 @@ class GripperActionServer:
                 handle.succeed()
                 return result
             now = time.monotonic()
+            if now > deadline:  # neither there nor stalled (a joint still creeping): give up, as a driver would
+                handle.abort()
+                return result
             still_since = (still_since or now) if abs(velocity) < 1e-4 else None
             if still_since is not None and now - still_since >= self.stall_timeout:
                 result.stalled = True

@@ -17,6 +17,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -245,6 +246,44 @@ def test_the_push_twin_drives_the_gripper_through_the_drivers_interface(graph: C
     finally:
         recorder.close()
         env.close()
+
+
+@pytest.mark.multiprocess
+@pytest.mark.slow
+def test_the_gripper_command_action_answers_in_the_drivers_units(graph: Context, fake: Any) -> None:
+    from multiros.ros.action import STATUS_SUCCEEDED, ActionClient
+    from multiros.ros.executors import SingleThreadedExecutor
+    from multiros.ros.interfaces import get_action
+
+    arm, robot = fake
+    if arm.real.gripper_interface != "gripper_action":
+        pytest.skip(f"{arm.name}'s driver takes no GripperCommand ({arm.real.gripper_interface})")
+    assert arm.gripper is not None and arm.real.gripper_range is not None
+    gripper_command = get_action("control_msgs/action/GripperCommand")
+    node = Node(f"gripper_probe_{time.monotonic_ns()}", context=graph)
+    executor = SingleThreadedExecutor(context=graph)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    client = ActionClient(node, gripper_command, f"{robot.namespace}/{arm.real.gripper_controller}/gripper_cmd")
+    try:
+        assert client.wait_for_server(10.0)
+        rlo, rhi = arm.real.gripper_range
+        goal = gripper_command.Goal()
+        goal.command.position = rlo + 0.25 * (rhi - rlo)  # a quarter open, in the driver's units
+        sent = client.send_goal_async(goal)
+        assert sent.wait(5.0) and sent.result().accepted
+        response = sent.result().get_result(timeout_sec=15.0)
+        assert response.status == STATUS_SUCCEEDED and response.result.reached_goal
+        assert response.result.position == pytest.approx(goal.command.position, abs=0.03 * abs(rhi - rlo))
+        goal.command.position = float("nan")
+        sent = client.send_goal_async(goal)
+        assert sent.wait(5.0) and not sent.result().accepted
+    finally:
+        client.destroy()
+        executor.shutdown()
+        thread.join(timeout=5.0)
+        node.destroy_node()
 
 
 @pytest.mark.multiprocess
