@@ -26,7 +26,7 @@ import logging
 import sys
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from multiros.hardware.fake_hardware import DEFAULT_TIME_CONSTANT, FakeHardware
@@ -42,7 +42,7 @@ from multiros.sim.controller_io import ControllerInterfaces
 from multiros.sim.distro_adapters import get_message
 from multiros.sim.errors import ControllerError, SimError
 
-__all__ = ["FakeRobot", "main", "DEFAULT_RATE"]
+__all__ = ["FakeRobot", "build_parser", "main", "serve", "DEFAULT_RATE"]
 
 _logger = logging.getLogger(__name__)
 
@@ -83,12 +83,15 @@ class FakeRobot:
         stall_after: stop publishing ``joint_states`` this many seconds after :meth:`start`.
         reject_goals: refuse every FollowJointTrajectory goal.
         node_name: the node's name (ros2_control's is ``controller_manager``).
+        joint_states_topic: where ``joint_states`` go (relative to the namespace unless absolute;
+            default ``<ns>/joint_states``).
     """
 
     def __init__(self, spec: RobotSpec, context: Context, *, rate: float = DEFAULT_RATE,
                  update_rate: float | None = None, time_constant: float = DEFAULT_TIME_CONSTANT,
                  activate: Sequence[str] | None = None, stall_after: float | None = None,
-                 reject_goals: bool = False, node_name: str = "controller_manager") -> None:
+                 reject_goals: bool = False, node_name: str = "controller_manager",
+                 joint_states_topic: str | None = None) -> None:
         if not rate > 0 or (update_rate is not None and not update_rate > 0):
             raise ValueError(f"rate ({rate}) and update_rate ({update_rate}) must be positive (Hz)")
         if stall_after is not None and not stall_after >= 0:
@@ -102,7 +105,9 @@ class FakeRobot:
         self.active_controllers = self.hardware.start_controllers(list(activate) if activate is not None else None)
         self.node = Node(node_name, namespace=self.ns or None, context=context)
         self._names = spec.published_joints
-        self._joint_pub = self.node.create_publisher(JointState, f"{self.ns}/joint_states", 10)
+        topic = joint_states_topic or "joint_states"
+        self.joint_states_topic = topic if topic.startswith("/") else f"{self.ns}/{topic}"
+        self._joint_pub = self.node.create_publisher(JointState, self.joint_states_topic, 10)
         self._actions = _Actions(self.node, self.hardware, spec.name, self.ns, self.hardware.lock)
         self._actions.reject_all = bool(reject_goals)
         self.controllers = ControllerInterfaces(self.node, self.hardware, spec.name, self.ns, self.hardware.lock,
@@ -181,7 +186,8 @@ class FakeRobot:
 
 
 # ------------------------------------------------------------------------------------------ CLI
-def _parser() -> argparse.ArgumentParser:
+def build_parser() -> argparse.ArgumentParser:
+    """The command line of ``uniros-fake-robot`` (the upper layer adds ``--arm`` to it)."""
     parser = argparse.ArgumentParser(
         prog="uniros-fake-robot",
         description="A fake ros2_control robot (not a simulator): joint_states at a fixed rate, a controller "
@@ -223,7 +229,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
-    parser = _parser()
+    parser = build_parser()
     opts = parser.parse_args(argv)
     stop = start_child_program(opts)
     if not opts.robot and not opts.description:
@@ -238,6 +244,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except (ValueError, OSError, SimError) as exc:  # bad option, missing file, xacro/URDF error: exit 2
         parser.error(f"cannot load the robot: {exc}")
+    return serve(spec, opts, parser, stop)
+
+
+def serve(spec: RobotSpec, opts: argparse.Namespace, parser: argparse.ArgumentParser, stop: threading.Event, *,
+          joint_states_topic: str | None = None,
+          attach: Callable[[FakeRobot], Callable[[], None] | None] | None = None) -> int:
+    """Serve ``spec`` with the options of :func:`build_parser` until ``stop`` is set.
+
+    ``attach`` (the upper layer's) adds interfaces to the robot before it starts serving and returns
+    what closes them (or ``None``); a ``ValueError`` from it is a bad robot: exit 2.
+    """
     opts.transport = wire_transport(opts.transport)
     options: dict[str, Any] = {"router": opts.router} if opts.router and opts.transport == "zenoh" else {}
     try:
@@ -245,12 +262,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     except TransportError as exc:
         parser.exit(2, f"uniros-fake-robot: {exc}\n")
     robot = None
+    detach = None
     try:
         try:
             robot = FakeRobot(spec, ctx, rate=opts.rate, update_rate=opts.update_rate,
                               time_constant=opts.time_constant,
                               activate=opts.activate.split(",") if opts.activate else None,
-                              stall_after=opts.stall_after, reject_goals=opts.reject_goals)
+                              stall_after=opts.stall_after, reject_goals=opts.reject_goals,
+                              joint_states_topic=joint_states_topic)
+            detach = attach(robot) if attach is not None else None
         except (ValueError, ControllerError, TransportError) as exc:
             _logger.error("%s", exc)
             return 2
@@ -261,6 +281,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         while not stop.wait(0.5):
             pass
     finally:
+        if detach is not None:
+            detach()
         if robot is not None:
             robot.destroy()
         ctx.try_shutdown()

@@ -50,13 +50,15 @@ class FakeRobotProcess:
             ``--namespace`` in ``args``).
         timeout_sec: how long to wait until its controller manager answers.
         cwd: working directory of the child.
+        module: the program's module (``uniros.fake_robot`` takes ``--arm PATH``, an arm file).
 
     Raises:
         FakeRobotError: the child exited or did not answer in time (it is stopped then).
     """
 
     def __init__(self, robot: str | None = "rx200", *, context: Context, args: Sequence[str] = (),
-                 namespace: str | None = None, timeout_sec: float = 30.0, cwd: str | None = None) -> None:
+                 namespace: str | None = None, timeout_sec: float = 30.0, cwd: str | None = None,
+                 module: str = "multiros.hardware.fake_robot") -> None:
         args = list(args)
         if namespace is None:
             if "--namespace" in args:
@@ -64,7 +66,7 @@ class FakeRobotProcess:
             else:
                 namespace = PRESETS[robot].namespace if robot in PRESETS else ""
         self.namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
-        argv = [sys.executable, "-m", "multiros.hardware.fake_robot", "--router", "none",
+        argv = [sys.executable, "-m", module, "--router", "none",
                 "--owner-pid", str(os.getpid()), *(["--robot", robot] if robot else []), *args]
         env = private_environment()
         env.update(child_environment(context))

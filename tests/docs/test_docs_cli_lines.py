@@ -16,9 +16,9 @@ import shlex
 import pytest
 from docs_snippets import Block, all_blocks, shell_lines
 
-from multiros.hardware.fake_robot import _parser as fake_robot_parser
 from multiros.sim.launch import _parser as sim_parser
 from uniros.cli import build_parser
+from uniros.fake_robot import build_parser as fake_robot_parser
 
 PROGRAMS = {"uniros": build_parser, "uniros-sim": sim_parser, "uniros-fake-robot": fake_robot_parser}
 _ASSIGNMENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*=")

@@ -1,0 +1,351 @@
+"""``uniros-fake-robot``, also from an arm file: ``uniros-fake-robot --arm PATH``.
+
+The fake ros2_control robot (:mod:`multiros.hardware.fake_robot`) knows robots by their description
+and controllers YAML; an arm file (:mod:`rl_environments.arm_file`) also says how the arm's vendor
+driver names things (its ``real:`` section). This module, in the layer that knows arm files, turns one
+into the fake robot's :class:`~multiros.hardware.robot_spec.RobotSpec`, so the fake robot serves
+what the arm's Real twins (``<NAME><task>Real-v0``) expect of the real driver, by the same names:
+
+* ``joint_states`` on ``real.joint_states_topic`` (default ``<namespace>/joint_states``), every
+  joint of the description (``description.uri`` with ``xacro_args``);
+* the controller manager in ``real.namespace``;
+* ``real.arm_controller`` as a JointTrajectoryController over ``arm.joints``, with its
+  ``joint_trajectory`` topic and ``follow_joint_trajectory`` action (its parameters, tolerances
+  included, from the description's controllers YAML when that defines it as one over those joints);
+* the gripper controller as ``real.gripper_interface`` says: ``trajectory`` (a JointTrajectoryController
+  on ``real.gripper_joint``, default the first finger joint), ``forward`` (a JointGroupPositionController),
+  ``gripper_action`` (a ``control_msgs/action/GripperCommand`` server on ``<controller>/gripper_cmd``,
+  the goal's position mapped from ``real.gripper_range`` onto the fingers' closed..open), and none for
+  ``none`` and ``niryo_tool`` (Niryo's tool commander, whose interface uniros does not ship);
+* each of ``real.controllers`` the YAML defines as it defines it, any other as a placeholder that is
+  listed active and claims no joint (the Real twin only checks that it is active).
+
+The joints start at the arm file's ``arm.home`` (``--start init``: ``reach.init_joint_pos``, the
+pose a reset moves to). Without ``--arm`` the command is the lower layer's, unchanged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import yaml
+
+from multiros.hardware import fake_robot as _fake
+from multiros.hardware.robot_spec import RobotSpec, load_robot_spec, parse_assignments
+from multiros.ros.processes import start_child_program
+from multiros.sim.errors import SimError
+
+if TYPE_CHECKING:  # imported when used: rl_environments registers every ID on import
+    from rl_environments.arm_file import ArmFile
+
+__all__ = ["ArmRobotError", "GripperActionServer", "arm_robot_spec", "build_parser", "gripper_joint", "main",
+           "vendor_controllers"]
+
+_JTC = "joint_trajectory_controller/JointTrajectoryController"
+_FORWARD = "position_controllers/JointGroupPositionController"
+_BROADCASTER = "joint_state_broadcaster/JointStateBroadcaster"
+#: Options the arm file answers; with ``--arm`` they are errors.
+_ARM_ANSWERS = {"robot": "--robot", "description": "--description", "xacro_arg": "--xacro-arg",
+                "controllers_file": "--controllers-file", "controller_name": "--controller-name"}
+
+
+class ArmRobotError(ValueError):
+    """An arm file the fake robot cannot serve (one line: the file, the key, the fix)."""
+
+
+def _yaml_controllers(arm: ArmFile) -> dict[str, Any]:
+    """The description's controllers YAML (``description.controllers``) as a mapping ({} if unreadable)."""
+    from multiros.sim.packages import default_index
+
+    uri = arm.controllers_file
+    try:
+        path = default_index().resolve_uri(uri) if uri.startswith("package://") else Path(uri)
+        data = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError, SimError) as exc:
+        raise ArmRobotError(f"{arm.path}: key 'description.controllers' ({uri}): cannot be read: "
+                            f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+    if not isinstance(data, dict):
+        raise ArmRobotError(f"{arm.path}: key 'description.controllers' ({uri}) is not a ros2_control YAML mapping")
+    return data
+
+
+def _defined(config: Mapping[str, Any], name: str) -> tuple[str | None, dict[str, Any]]:
+    """A controller's type and parameters in a ros2_control YAML (``(None, {})`` when it is not there)."""
+    cm = (config.get("controller_manager") or {}).get("ros__parameters") or {}
+    entry = cm.get(name)
+    if not isinstance(entry, Mapping) or "type" not in entry:
+        return None, {}
+    params = (config.get(name) or {}).get("ros__parameters") or {}
+    return str(entry["type"]), dict(params) if isinstance(params, Mapping) else {}
+
+
+def gripper_joint(arm: ArmFile) -> str | None:
+    """The joint the real gripper controller commands (``real.gripper_joint``, else the first finger)."""
+    if arm.gripper is None:
+        return None
+    return arm.real.gripper_joint or arm.gripper.joints[0]
+
+
+def vendor_controllers(arm: ArmFile, yaml_config: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The ros2_control YAML (as a mapping) of the arm's real driver, as its ``real:`` section names it.
+
+    Args:
+        arm: a loaded :class:`~rl_environments.arm_file.ArmFile`.
+        yaml_config: the description's controllers YAML (default: read from ``description.controllers``);
+            a controller it defines under a ``real:`` name lends its parameters.
+    """
+    real = arm.real
+    config = _yaml_controllers(arm) if yaml_config is None else yaml_config
+    cm: dict[str, Any] = {"update_rate": 100, "joint_state_broadcaster": {"type": _BROADCASTER}}
+    out: dict[str, Any] = {}
+
+    def add(name: str, type_name: str, params: Mapping[str, Any]) -> None:
+        if name in cm:
+            raise ArmRobotError(f"{arm.path}: key 'real' names controller {name!r} twice (arm, gripper and "
+                                "real.controllers must be different controllers)")
+        cm[name] = {"type": type_name}
+        out[name] = {"ros__parameters": dict(params)}
+
+    kind, params = _defined(config, real.arm_controller)
+    if kind != _JTC or list(params.get("joints") or []) != list(arm.joints):
+        params = {}
+    add(real.arm_controller, _JTC, {"command_interfaces": ["position"], "state_interfaces": ["position", "velocity"],
+                                    **params, "joints": list(arm.joints)})
+    joint = gripper_joint(arm)
+    interface = real.gripper_interface if arm.gripper is not None else "none"
+    if interface in ("trajectory", "forward", "gripper_action"):
+        if not real.gripper_controller:
+            raise ArmRobotError(f"{arm.path}: key 'real.gripper_controller' is empty but real.gripper_interface is "
+                                f"{interface!r}: name the driver's gripper controller")
+        kind, params = _defined(config, real.gripper_controller)
+        wanted = _JTC if interface == "trajectory" else _FORWARD
+        if kind != wanted or list(params.get("joints") or []) != [joint]:
+            params = {}
+        if interface == "trajectory":
+            params = {"command_interfaces": ["position"], "state_interfaces": ["position", "velocity"], **params}
+        # A GripperActionController is served as a position controller on the joint plus the action
+        # (GripperActionServer): the fake robot's controller manager has no such controller type.
+        add(real.gripper_controller, wanted, {**params, "joints": [joint]})
+    for name in real.controllers:
+        if name in cm:
+            continue
+        kind, params = _defined(config, name)
+        if kind is None or kind == _BROADCASTER:
+            add(name, _BROADCASTER, {})  # a placeholder: listed, activated, claims no joint
+        else:
+            add(name, kind, params)
+    return {"controller_manager": {"ros__parameters": cm}, **out}
+
+
+def arm_robot_spec(arm: ArmFile, *, start: str = "home", namespace: str | None = None,
+                   initial_positions: Mapping[str, float] | None = None) -> RobotSpec:
+    """The fake robot of an arm file (see the module docstring).
+
+    Args:
+        arm: a loaded :class:`~rl_environments.arm_file.ArmFile`.
+        start: ``"home"`` (``arm.home``) or ``"init"`` (``reach.init_joint_pos``).
+        namespace: overrides ``real.namespace``.
+        initial_positions: start positions overriding ``start``'s, per joint.
+
+    Raises:
+        ArmRobotError: the description cannot be loaded, or the ``real:`` names do not fit it.
+    """
+    if start not in ("home", "init"):
+        raise ArmRobotError(f"start must be 'home' or 'init', got {start!r}")
+    pose = arm.home if start == "home" else tuple(arm.reach["init_joint_pos"])
+    initial = {**dict(zip(arm.joints, pose)), **dict(initial_positions or {})}
+    try:
+        spec = load_robot_spec(None, description=arm.description_uri, xacro_args=dict(arm.xacro_args),
+                               controllers_file="", namespace=arm.real.namespace if namespace is None else namespace,
+                               initial_positions=initial)
+    except ValueError as exc:
+        if initial_positions and "unknown joints" in str(exc):
+            raise ArmRobotError(f"--initial: {exc}") from None
+        raise ArmRobotError(f"{arm.path}: key 'arm.joints': {exc}") from None
+    except (OSError, SimError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ArmRobotError(f"{arm.path}: key 'description.uri' ({arm.description_uri}): {first}") from None
+    joints = [j.name for j in spec.joints]
+    mimics = [m.name for m in spec.mimics]
+    missing = [j for j in arm.joints if j not in joints]
+    if missing:
+        where = "mimic joints" if set(missing) & set(mimics) else "not hardware joints"
+        raise ArmRobotError(f"{arm.path}: key 'arm.joints': {missing} are {where} of the description "
+                            f"(its ros2_control joints: {joints})")
+    joint = gripper_joint(arm)
+    if joint is not None and arm.real.gripper_interface not in ("none", "niryo_tool") and joint not in joints:
+        key = "real.gripper_joint" if arm.real.gripper_joint else "gripper.joints"
+        raise ArmRobotError(f"{arm.path}: key {key!r}: {joint!r} is not a commandable joint of the description "
+                            f"(its ros2_control joints: {joints})")
+    spec.controllers = vendor_controllers(arm)
+    spec.name = arm.robot_name
+    return spec
+
+
+class GripperActionServer:
+    """``<ns>/<controller>/gripper_cmd`` (``control_msgs/action/GripperCommand``) of a fake robot, over
+    the position controller of the same name: a goal's position (the driver's units, ``real_range``
+    at the fingers' ``(closed, open)``) becomes the finger joint's target; the goal succeeds once the
+    joint is within ``tolerance`` of it, or reports ``stalled`` when the joint stops short (a cube
+    between the fingers) for ``stall_timeout`` seconds, as ros2_control's GripperActionController
+    does; it aborts after ``goal_timeout`` seconds otherwise, or when a newer goal preempts it.
+    """
+
+    def __init__(self, robot: Any, controller: str, joint: str, finger_range: Sequence[float],
+                 real_range: Sequence[float] | None = None, *, tolerance: float = 1e-3,
+                 stall_timeout: float = 1.0, goal_timeout: float = 30.0) -> None:
+        from multiros.ros.action import ActionServer, CancelResponse
+        from multiros.ros.interfaces import get_action
+
+        self.robot, self.controller, self.joint = robot, controller, joint
+        self.finger_range = (float(finger_range[0]), float(finger_range[1]))
+        self.real_range = self.finger_range if real_range is None else (float(real_range[0]), float(real_range[1]))
+        if self.real_range[0] == self.real_range[1] or self.finger_range[0] == self.finger_range[1]:
+            raise ValueError(f"gripper ranges must not be empty: fingers {self.finger_range}, driver {self.real_range}")
+        self.tolerance, self.stall_timeout = float(tolerance), float(stall_timeout)
+        self.goal_timeout = float(goal_timeout)
+        self._type = get_action("control_msgs/action/GripperCommand")
+        self._index = list(robot.hardware.joint_names(robot.spec.name)).index(joint)
+        self._lock = threading.Lock()
+        self._latest: Any = None
+        self._server = ActionServer(robot.node, self._type, f"{robot.ns}/{controller}/gripper_cmd", self._execute,
+                                    goal_callback=self._accept, handle_accepted_callback=self._start,
+                                    cancel_callback=lambda handle: CancelResponse.ACCEPT)
+
+    def to_joint(self, value: float) -> float:
+        """The finger joint's position for the driver's ``value`` (linear, clipped to closed..open)."""
+        (lo, hi), (rlo, rhi) = self.finger_range, self.real_range
+        finger = lo + (float(value) - rlo) / (rhi - rlo) * (hi - lo)
+        return float(min(max(finger, min(lo, hi)), max(lo, hi)))
+
+    def to_driver(self, finger: float) -> float:
+        (lo, hi), (rlo, rhi) = self.finger_range, self.real_range
+        return rlo + (float(finger) - lo) / (hi - lo) * (rhi - rlo)
+
+    def _accept(self, goal: Any) -> Any:
+        from multiros.ros.action import GoalResponse
+
+        if not math.isfinite(goal.command.position) or not math.isfinite(goal.command.max_effort):
+            self.robot.node.get_logger().warning("%s/%s/gripper_cmd: goal rejected: position %r, max_effort %r "
+                                                 "must be finite", self.robot.ns, self.controller,
+                                                 goal.command.position, goal.command.max_effort)
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _start(self, handle: Any) -> None:
+        with self._lock:
+            self._latest = handle  # a new goal preempts the running one
+        handle.execute()
+
+    def _position(self) -> tuple[float, float]:
+        with self.robot.hardware.lock:
+            state = self.robot.hardware.joint_state()
+        return float(state.position[self._index]), float(state.velocity[self._index])
+
+    def _execute(self, handle: Any) -> Any:
+        target = self.to_joint(handle.request.command.position)
+        result = self._type.Result()
+        hw = self.robot.hardware
+        try:
+            with hw.lock:
+                hw.set_command(self.robot.spec.name, self.controller, [target])
+        except Exception as exc:  # noqa: BLE001 - an inactive controller: abort, keep serving
+            self.robot.node.get_logger().warning("%s/%s/gripper_cmd: %s", self.robot.ns, self.controller, exc)
+            handle.abort()
+            return result
+        still_since = None
+        deadline = time.monotonic() + self.goal_timeout
+        while True:
+            position, velocity = self._position()
+            result.position, result.effort = self.to_driver(position), 0.0
+            if handle.is_cancel_requested:
+                handle.canceled()
+                return result
+            with self._lock:
+                preempted = self._latest is not handle
+            if preempted:
+                handle.abort()
+                return result
+            if abs(position - target) <= self.tolerance:
+                result.reached_goal = True
+                handle.succeed()
+                return result
+            now = time.monotonic()
+            if now > deadline:  # neither there nor stalled (a joint still creeping): give up, as a driver would
+                handle.abort()
+                return result
+            still_since = (still_since or now) if abs(velocity) < 1e-4 else None
+            if still_since is not None and now - still_since >= self.stall_timeout:
+                result.stalled = True
+                handle.succeed()
+                return result
+            feedback = self._type.Feedback()
+            feedback.position, feedback.effort = result.position, 0.0
+            handle.publish_feedback(feedback)
+            time.sleep(0.02)
+
+    def destroy(self) -> None:
+        self._server.destroy(timeout_sec=1.0)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """``uniros-fake-robot``'s command line: the lower layer's, with ``--arm`` and ``--start``."""
+    parser = _fake.build_parser()
+    parser.description = (parser.description or "") + (
+        " With --arm PATH, the robot of an arm file, named as its vendor driver names things (its real: section).")
+    parser.add_argument("--arm", metavar="PATH", help="an arm file (config/arms/*.yaml, or yours): its description, "
+                                                       "namespace, controllers and joint_states topic as its "
+                                                       "real: section names them")
+    parser.add_argument("--start", choices=["home", "init"], default=None,
+                        help="with --arm: start at arm.home (default) or at reach.init_joint_pos")
+    return parser
+
+
+def _attach(arm: ArmFile) -> Callable[[Any], Callable[[], None] | None]:
+    """The GripperCommand server of an arm whose driver takes the gripper through one."""
+
+    def attach(robot: Any) -> Callable[[], None] | None:
+        joint, gripper = gripper_joint(arm), arm.gripper
+        if joint is None or gripper is None or arm.real.gripper_interface != "gripper_action":
+            return None
+        server = GripperActionServer(robot, arm.real.gripper_controller, joint, (gripper.closed, gripper.open),
+                                     arm.real.gripper_range)
+        return server.destroy
+
+    return attach
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``uniros-fake-robot``: ``--arm PATH`` serves an arm file's robot; anything else is the lower layer's."""
+    parser = build_parser()
+    args = list(sys.argv[1:] if argv is None else argv)
+    opts = parser.parse_args(args)
+    if not opts.arm:
+        if opts.start is not None:
+            parser.error("--start needs --arm")
+        return _fake.main(args)
+    given = [flag for key, flag in _ARM_ANSWERS.items() if getattr(opts, key)]
+    if given:
+        parser.error(f"{', '.join(given)}: the arm file names the description and the controllers; give --arm alone "
+                     "(--namespace, --initial and --activate still override)")
+    stop = start_child_program(opts)
+    from rl_environments.arm_file import ArmFileError, load_arm_file
+
+    try:
+        arm = load_arm_file(opts.arm)
+        initial = {k: float(v) for k, v in parse_assignments(opts.initial, "--initial").items()}
+        spec = arm_robot_spec(arm, start=opts.start or "home", namespace=opts.namespace, initial_positions=initial)
+    except (ArmFileError, ArmRobotError, ValueError) as exc:
+        parser.exit(2, f"uniros-fake-robot: {exc}\n")
+    return _fake.serve(spec, opts, parser, stop, joint_states_topic=arm.real.joint_states_topic, attach=_attach(arm))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
