@@ -1,6 +1,7 @@
 """Push and pick-and-place, plain and goal-conditioned, for every arm with a gripper (its robot layer
 names the IK, fingers, gripper controller and scene: :class:`~rl_environments.arm_robot.ArmRobot`),
-configured per arm by ``config/<arm>_manipulation_task_config.yaml`` (section ``<arm>:``, checked
+configured per arm by its arm file's ``manipulation:`` section (:mod:`rl_environments.arm_file`; a
+``config_file=`` of your own has the keys under ``<robot name>:``), checked
 by :func:`manipulation_schema`; the scene's keys come from the arm's ``SCENE`` unless the file
 gives them).
 

@@ -1,5 +1,6 @@
 """The reach task of every arm, plain and goal-conditioned, configured per arm by
-``config/<arm>_reach_task_config.yaml`` (section ``<arm>:``, checked by :func:`reach_schema`).
+its arm file's ``reach:`` section (:mod:`rl_environments.arm_file`; a ``config_file=`` of your own
+has the keys under ``<robot name>:``), checked by :func:`reach_schema`.
 
 ## Description
 The end effector (the robot's ``EE_LINK``) must come within ``reach_tolerance`` of a goal sampled

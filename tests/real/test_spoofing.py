@@ -31,7 +31,7 @@ from multiros.envs.real.robot_link import JointState, JointTrajectory
 from multiros.ros import Node
 from multiros.ros.interfaces import serialize_message, type_hash
 from multiros.ros.transport.zenoh import wire
-from rl_environments.rx200.sim.task_envs.reach.config import load_rx200_reach_config
+from rl_environments.arm_registry import arm_of
 
 from .conftest import StandIn, TopicRecorder
 
@@ -41,7 +41,7 @@ TOPIC = "/rx200/joint_states"
 TRAJ_TOPIC = "/rx200/arm_controller/joint_trajectory"
 CAP = 0.15
 ARM = ["waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate"]
-INIT = [float(v) for v in load_rx200_reach_config()["init_joint_pos"]]
+INIT = [float(v) for v in arm_of("RX200").reach["init_joint_pos"]]
 
 
 def _make(ctx: Any, **kw: Any) -> Any:
