@@ -138,7 +138,7 @@ class WorkerVectorEnv(VectorEnv):
                 self._start_worker()
                 self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, dict(env_kwargs or {})))
             answers = [self._recv(k, start_timeout_sec or 120.0 + (stop - start), "start")
-                       for k, (start, stop) in enumerate(self.rows)]
+                       for k, (start, stop) in enumerate(self.rows)]  # an error here closes them all
             obs_space, act_space, metadata, render_mode = answers[0]
             for k, answer in enumerate(answers[1:], 1):
                 if answer[0] != obs_space or answer[1] != act_space:
@@ -190,6 +190,22 @@ class WorkerVectorEnv(VectorEnv):
         except (OSError, ValueError) as exc:
             raise self._dead(k, "a request") from exc
 
+    def _gather(self, ks: Sequence[int], timeout: float, what: str) -> list[Any]:
+        """The answers of workers ``ks`` to ``what``; every answer is read before a worker's error is
+        raised, so the next request's answers are the next request's."""
+        answers, error = [], None
+        for k in ks:
+            try:
+                answers.append(self._recv(k, timeout, what))
+            except WorkerError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - raised once the others have answered
+                answers.append(None)
+                error = error or exc
+        if error is not None:
+            raise error
+        return answers
+
     def _recv(self, k: int, timeout: float, what: str) -> Any:
         """Worker ``k``'s answer to ``what``, within ``timeout`` seconds; its error re-raised here."""
         conn, proc = self._workers.conns[k], self._workers.procs[k]
@@ -204,8 +220,9 @@ class WorkerVectorEnv(VectorEnv):
         if status == "error":
             exc, text = payload
             if what in ("start", "bind"):
-                raise WorkerError(f"vector env worker {k} (pid {proc.pid}) failed to {what} (vector_kwargs="
-                                  f"{{'workers': 0}} keeps the envs in this process):\n{text}")
+                last = text.strip().splitlines()[-1] if text.strip() else "no message"
+                raise WorkerError(f"vector env worker {k} (pid {proc.pid}) failed to {what}: {last} (vector_kwargs="
+                                  f"{{'workers': 0}} keeps the envs in this process); its traceback:\n{text}")
             if isinstance(exc, BaseException):
                 exc.add_note(f"in vector env worker {k} (pid {proc.pid}, envs {self.rows[k][0]} to "
                              f"{self.rows[k][1] - 1}):\n{text}")
@@ -235,8 +252,9 @@ class WorkerVectorEnv(VectorEnv):
         for k, message in enumerate(messages):
             if message is not None:
                 self._send(k, message)
-        return [self._recv(k, self.timeout_sec, what) if message is not None else None
-                for k, message in enumerate(messages)]
+        sent = [k for k, message in enumerate(messages) if message is not None]
+        answers = dict(zip(sent, self._gather(sent, self.timeout_sec, what)))
+        return [answers.get(k) for k in range(len(messages))]
 
     def _observations(self) -> Any:
         obs = self._obs
@@ -292,8 +310,8 @@ class WorkerVectorEnv(VectorEnv):
                 conns[k].send_bytes(_STEP)
             except (OSError, ValueError) as exc:
                 raise self._dead(k, "a step") from exc
-        timeout = self.timeout_sec
-        parts = [(start, self._recv(k, timeout, "a step")) for k, (start, _) in enumerate(self.rows)]
+        infos = self._gather(range(self.num_workers), self.timeout_sec, "a step")
+        parts = [(start, info) for (start, _), info in zip(self.rows, infos)]
         a = self._arrays
         return (self._observations(), a["rew"].copy(), a["term"].copy(), a["trunc"].copy(),
                 merge_infos(parts, self.num_envs))
