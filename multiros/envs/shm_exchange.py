@@ -58,10 +58,10 @@ def layout_for(num_envs: int, observation_space: spaces.Space, action_space: spa
     if not shareable(observation_space) or not isinstance(action_space, spaces.Box):
         raise ValueError(f"worker processes exchange Box or Dict-of-Box observations and Box actions through shared "
                          f"memory; got {observation_space} and {action_space}: use workers=0 (in-process)")
-    wanted: list[tuple[str, tuple[int, ...], Any]] = []
+    wanted: list[tuple[str, Any, Any]] = []
     if isinstance(observation_space, spaces.Box):
         wanted.append(("obs", observation_space.shape, observation_space.dtype))
-    else:
+    elif isinstance(observation_space, spaces.Dict):
         for key, sub in observation_space.spaces.items():
             wanted.append((f"obs/{key}", sub.shape, sub.dtype))
     wanted += [("act", action_space.shape, action_space.dtype), ("rew", (), np.float64), ("term", (), np.bool_),

@@ -105,7 +105,8 @@ class WorkerVectorEnv(VectorEnv):
         batch_options: each worker's batch options (``spacing``, ``timeout_sec``, ``num_nodes`` per
             worker, ...; see :data:`~multiros.envs.batch.BATCH_OPTIONS`).
         env_kwargs: keyword arguments of each env.
-        start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 1 s per env.
+        start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
+            loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
 
     Raises:
         WorkerError: a worker that failed to start (its error is in the message).
@@ -137,7 +138,7 @@ class WorkerVectorEnv(VectorEnv):
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker()
                 self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, dict(env_kwargs or {})))
-            answers = [self._recv(k, start_timeout_sec or 120.0 + (stop - start), "start")
+            answers = [self._recv(k, start_timeout_sec or 120.0 + 4.0 * (stop - start), "start")
                        for k, (start, stop) in enumerate(self.rows)]  # an error here closes them all
             obs_space, act_space, metadata, render_mode = answers[0]
             for k, answer in enumerate(answers[1:], 1):
@@ -218,15 +219,16 @@ class WorkerVectorEnv(VectorEnv):
             self._broken = f"worker {k} (pid {proc.pid}) did not answer {what} within {timeout:g} s"
             raise WorkerError(f"vector env {self._broken}; is the machine overloaded? close this vector env")
         if status == "error":
-            exc, text = payload
+            error, text = payload
             if what in ("start", "bind"):
                 last = text.strip().splitlines()[-1] if text.strip() else "no message"
                 raise WorkerError(f"vector env worker {k} (pid {proc.pid}) failed to {what}: {last} (vector_kwargs="
                                   f"{{'workers': 0}} keeps the envs in this process); its traceback:\n{text}")
-            if isinstance(exc, BaseException):
-                exc.add_note(f"in vector env worker {k} (pid {proc.pid}, envs {self.rows[k][0]} to "
-                             f"{self.rows[k][1] - 1}):\n{text}")
-                raise exc
+            if isinstance(error, BaseException):
+                first, last = self.rows[k][0], self.rows[k][1] - 1
+                if hasattr(error, "add_note"):  # Python 3.11+
+                    error.add_note(f"in vector env worker {k} (pid {proc.pid}, envs {first} to {last}):\n{text}")
+                raise error
             raise WorkerError(f"vector env worker {k} (pid {proc.pid}) failed {what}:\n{text}")
         return payload
 
