@@ -124,6 +124,7 @@ class WorkerVecEnv(VecEnv):
         self.actions: np.ndarray | None = None
         self.metadata = venv.metadata
         self.render_mode = venv.render_mode
+        self.max_episode_steps: int | None = venv.max_episode_steps
 
     @property
     def pids(self) -> list[int]:

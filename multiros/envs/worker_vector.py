@@ -140,7 +140,7 @@ class WorkerVectorEnv(VectorEnv):
                 self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, dict(env_kwargs or {})))
             answers = [self._recv(k, start_timeout_sec or 120.0 + 4.0 * (stop - start), "start")
                        for k, (start, stop) in enumerate(self.rows)]  # an error here closes them all
-            obs_space, act_space, metadata, render_mode = answers[0]
+            obs_space, act_space, metadata, render_mode, max_steps = answers[0]
             for k, answer in enumerate(answers[1:], 1):
                 if answer[0] != obs_space or answer[1] != act_space:
                     raise ValueError(f"worker {k} made envs with other spaces than worker 0's: {answer[:2]} vs "
@@ -162,6 +162,7 @@ class WorkerVectorEnv(VectorEnv):
         self.metadata = dict(metadata)
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = render_mode
+        self.max_episode_steps: int | None = max_steps  # the envs' truncation (``None``: never)
 
     @property
     def pids(self) -> list[int]:
@@ -422,7 +423,7 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
                 raise ValueError(f"observation space {vec.single_observation_space} cannot go through shared "
                                  "memory: use workers=0 (in-process)")
             conn.send(("ok", (vec.single_observation_space, vec.single_action_space, dict(vec.metadata),
-                              vec.render_mode)))
+                              vec.render_mode, vec.batch.max_episode_steps)))
         except Exception as exc:  # noqa: BLE001 - the parent reports it
             conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
             return
