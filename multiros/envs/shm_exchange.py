@@ -14,6 +14,7 @@ Gymnasium's ``VectorEnv._add_info`` builds it env by env.
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from multiprocessing import resource_tracker, shared_memory
@@ -95,13 +96,20 @@ class SharedArrays:
 
     @classmethod
     def attach(cls, name: str, layout: Sequence[ArraySpec]) -> SharedArrays:
-        shm = shared_memory.SharedMemory(name=name)
-        # Python < 3.13 registers an attached block with the resource tracker the parent shares with
-        # its workers, which would then unlink it (and warn) a second time: the parent owns it.
-        try:
-            resource_tracker.unregister(shm._name, "shared_memory")  # type: ignore[attr-defined]
-        except Exception:  # noqa: BLE001 - no tracker (3.13+ with track=False semantics): nothing to undo
-            pass
+        """Map the block ``name`` in a worker, without tracking it there: the parent owns it.
+
+        Python < 3.13 registers every block it maps with a resource tracker, which in a worker (not
+        a ``multiprocessing`` child) would be a tracker process of its own, unlinking the parent's
+        block when the worker exits; 3.13 says ``track=False``.
+        """
+        if sys.version_info >= (3, 13):
+            return cls(shared_memory.SharedMemory(name=name, track=False), layout, owner=False)  # type: ignore[call-arg]
+        register = resource_tracker.register
+        resource_tracker.register = lambda *args, **kwargs: None  # type: ignore[assignment]
+        try:  # a worker maps the block once, on its only thread, before it serves requests
+            shm = shared_memory.SharedMemory(name=name)
+        finally:
+            resource_tracker.register = register  # type: ignore[assignment]
         return cls(shm, layout, owner=False)
 
     @property
