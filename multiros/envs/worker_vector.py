@@ -23,6 +23,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 import traceback
 import weakref
 from collections.abc import Mapping, Sequence
@@ -79,9 +80,10 @@ class _Workers:
                 conn.send(("close",))
             except (OSError, ValueError):
                 pass
+        deadline = time.monotonic() + timeout  # one bound for all: they close at once
         for proc, conn in zip(self.procs, self.conns):
             try:
-                proc.wait(timeout)
+                proc.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 proc.kill()  # SIGKILL to this worker's PID
                 proc.wait(timeout)
