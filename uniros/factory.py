@@ -150,13 +150,18 @@ def make_vec(
     ``vectorization_mode="batched"`` returns a :class:`~multiros.envs.vector.BatchedVectorEnv`: one
     simulation node holds all ``num_envs`` robots (each in its own namespace and world slot) and one
     request steps them all. ``sim_mode="process"`` puts the node in a child process;
-    ``vector_kwargs`` takes ``num_nodes`` (K nodes, N/K robots each: composed in this process and
-    stepped at once on threads, or in K processes with ``sim_mode="process"``), ``spacing``
-    (metres between world slots), ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and
-    ``"async"`` (Gymnasium's, one node per env) work as before. The default (``None``) picks the
-    fastest form: ``"batched"`` for an ID whose env is a uniros simulated env (the shipped IDs, and
-    yours built on ``MujocoBaseEnv``/``MujocoGoalEnv``), with one composed node per core; else
-    Gymnasium's default (the ID's ``vector_entry_point``, or ``"sync"``). See ``docs/vector_envs.md``.
+    ``vector_kwargs`` takes ``workers`` (K worker processes, N/K envs each on a composed node of
+    their own, actions and observations through shared memory:
+    :class:`~multiros.envs.worker_vector.WorkerVectorEnv`; ``0``: this process), ``num_nodes`` (K
+    nodes, N/K robots each: composed in this process and stepped at once on threads, or in K
+    processes with ``sim_mode="process"``), ``spacing`` (metres between world slots),
+    ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and ``"async"`` (Gymnasium's, one node
+    per env) work as before. The default (``None``) picks the fastest form: ``"batched"`` for an ID
+    whose env is a uniros simulated env (the shipped IDs, and yours built on
+    ``MujocoBaseEnv``/``MujocoGoalEnv``), with one worker process per core (in this process where
+    that is one, or where ``num_nodes`` or ``sim_mode`` place the nodes); else Gymnasium's default
+    (the ID's ``vector_entry_point``, or ``"sync"``). An explicit ``"batched"`` runs in this process
+    unless ``vector_kwargs`` names ``workers``. See ``docs/vector_envs.md``.
 
     Raises:
         ValueError: ``num_envs`` beyond the node's ``max_robots`` or bad batch options.
@@ -164,6 +169,7 @@ def make_vec(
     if env_id not in gym.registry:
         make(env_id)  # raises the helpful error
     vector_entry = gym.spec(env_id).vector_entry_point
+    defaults = vectorization_mode is None
     if vectorization_mode is None:
         if isinstance(vector_entry, str) and vector_entry.startswith(rl_environments.VECTOR_ENTRY_MODULE + ":"):
             vectorization_mode = "batched"  # the ID's own vector entry point (see rl_environments.vector_entry)
@@ -174,7 +180,9 @@ def make_vec(
                             vector_kwargs=vector_kwargs, **kwargs)
     from multiros.envs.vector import make_batched_vector_env
 
-    return make_batched_vector_env(env_id, num_envs, vector_options=vector_kwargs, **kwargs)
+    options = dict(vector_kwargs or {})
+    options.setdefault("workers", None if defaults else 0)
+    return make_batched_vector_env(env_id, num_envs, vector_options=options, **kwargs)
 
 
 def _simulated(env_id: str) -> bool:

@@ -6,8 +6,13 @@ options given by :meth:`seed`/``set_options`` apply at the next :meth:`reset`), 
 ``StepRobots`` request per node steps every robot. ``env_method("compute_reward", ...)`` reaches
 the sub-envs, so SB3's ``HerReplayBuffer`` works with it.
 
+:class:`WorkerVecEnv` is the same contract over a
+:class:`~multiros.envs.worker_vector.WorkerVectorEnv` (the envs in worker processes, one per core,
+through shared memory), what :func:`make_batched_vec_env` builds by default.
+
     from uniros.vec_env import make_batched_vec_env
-    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", n_envs=8)          # one node, this process
+    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", n_envs=8)          # a worker process per core
+    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", 8, workers=0)      # one node, this process
     venv = make_batched_vec_env("RX200ReacherGoalSim-v0", 8, sim_mode="process", num_nodes=2)
 """
 
@@ -109,14 +114,126 @@ class BatchedVecEnv(VecEnv):
         return self.batch.node_loads()
 
 
-def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "composed", num_nodes: int = 1,
-                         spacing: float = 2.0, timeout_sec: float = 10.0, **env_kwargs: Any) -> BatchedVecEnv:
-    """An SB3 :class:`BatchedVecEnv` of ``n_envs`` envs ``env_id`` on ``num_nodes`` simulation nodes.
+class WorkerVecEnv(VecEnv):
+    """SB3 ``VecEnv`` over a :class:`~multiros.envs.worker_vector.WorkerVectorEnv` (SAME_STEP autoreset),
+    with :class:`BatchedVecEnv`'s conventions; closed with it."""
 
-    ``env_kwargs`` go to each env (``reward_type``, ``max_episode_steps``, ...).
+    def __init__(self, venv: Any) -> None:
+        self.venv = venv
+        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+        self.actions: np.ndarray | None = None
+        self.metadata = venv.metadata
+        self.render_mode = venv.render_mode
+        self.max_episode_steps: int | None = venv.max_episode_steps
+
+    @property
+    def pids(self) -> list[int]:
+        """The worker processes' PIDs."""
+        return list(self.venv.pids)
+
+    def reset(self) -> VecEnvObs:
+        options = [o or None for o in self._options]
+        if any(o != options[0] for o in options):
+            raise ValueError("envs in worker processes take one set of reset options for all: "
+                             f"set_options() gave {options}")
+        obs, infos = self.venv.reset(seed=list(self._seeds), options=options[0])
+        self.reset_infos = split_infos(infos, self.num_envs)
+        self._reset_seeds()
+        self._reset_options()
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.actions = actions
+
+    def step_wait(self) -> VecEnvStepReturn:
+        if self.actions is None:
+            raise RuntimeError("step_wait() called without step_async(actions)")
+        obs, rewards, terminated, truncated, infos = self.venv.step(np.asarray(self.actions).reshape(
+            self.num_envs, *self.action_space.shape))
+        self.actions = None
+        dones = terminated | truncated
+        current = split_infos(infos, self.num_envs)
+        ended = np.flatnonzero(dones)
+        final_infos = split_infos(infos.get("final_info", {}), self.num_envs) if len(ended) else []
+        final_obs = infos.get("final_obs")
+        out: list[dict[str, Any]] = []
+        for i in range(self.num_envs):
+            if dones[i]:
+                info = final_infos[i]
+                info["terminal_observation"] = final_obs[i]
+                self.reset_infos[i] = current[i]
+            else:
+                info = current[i]
+            info["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
+            out.append(info)
+        return obs, rewards.astype(np.float32), dones, out
+
+    def close(self) -> None:
+        self.venv.close()
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        return list(self.venv.call("render"))
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        return self.venv.call_at(self._get_indices(indices), "__getattribute__", attr_name)
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        indices = list(self._get_indices(indices))
+        self.venv.set_attr_at(indices, attr_name, [value] * len(indices))
+
+    def env_method(self, method_name: str, *method_args: Any, indices: VecEnvIndices = None,
+                   **method_kwargs: Any) -> list[Any]:
+        return self.venv.call_at(self._get_indices(indices), method_name, *method_args, **method_kwargs)
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        return [False for _ in self._get_indices(indices)]
+
+    def node_loads(self) -> list[dict[str, Any]]:
+        """Each simulation node's load (see ``GetNodeLoad``)."""
+        return self.venv.node_loads()
+
+
+def split_infos(infos: dict[str, Any], num_envs: int) -> list[dict[str, Any]]:
+    """Gymnasium's vector info (arrays with ``_key`` masks) as one dict per env, as each env returned it."""
+    out: list[dict[str, Any]] = [{} for _ in range(num_envs)]
+    for key, value in infos.items():
+        mask = infos.get(f"_{key}")
+        if mask is None or key in ("final_obs", "final_info"):
+            continue
+        nested = split_infos(value, num_envs) if isinstance(value, dict) else None
+        for i in np.flatnonzero(mask):
+            out[i][key] = nested[i] if nested is not None else value[i]
+    return out
+
+
+def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "composed", num_nodes: int | None = None,
+                         spacing: float = 2.0, timeout_sec: float = 10.0, workers: int | None = None,
+                         **env_kwargs: Any) -> VecEnv:
+    """An SB3 ``VecEnv`` of ``n_envs`` envs ``env_id``.
+
+    By default (``workers=None``) in one worker process per core (at most one per env; a composed
+    node each, actions and observations through shared memory: :class:`WorkerVecEnv`), or in this
+    process (:class:`BatchedVecEnv`) where that is one core, with ``workers=0``, with ``num_nodes``
+    (composed nodes in this process, stepped on threads) or with ``sim_mode`` ``"process"`` /
+    ``"existing"``. ``env_kwargs`` go to each env (``reward_type``, ``max_episode_steps``, ...).
     """
-    from uniros.factory import make_batch
+    from multiros.envs.worker_vector import WorkerVectorEnv, default_workers
+    from uniros.factory import make, make_batch
 
-    batch = make_batch(env_id, n_envs, {"num_nodes": num_nodes, "spacing": spacing, "timeout_sec": timeout_sec},
-                       sim_mode=sim_mode, **env_kwargs)
+    options: dict[str, Any] = {"spacing": spacing, "timeout_sec": timeout_sec}
+    if num_nodes is not None:
+        options["num_nodes"] = num_nodes
+    if workers is None:
+        workers = default_workers(n_envs, sim_mode, options)
+    if workers >= 1:
+        if sim_mode != "composed":
+            raise ValueError(f"workers={workers} run composed nodes; sim_mode={sim_mode!r} needs workers=0")
+        if env_id not in gym.registry:
+            make(env_id)  # raises the helpful error
+        from gymnasium.vector import AutoresetMode
+
+        return WorkerVecEnv(WorkerVectorEnv(env_id, n_envs, workers=workers, autoreset_mode=AutoresetMode.SAME_STEP,
+                                            batch_options=options, env_kwargs=env_kwargs))
+    options.setdefault("num_nodes", 1)
+    batch = make_batch(env_id, n_envs, options, sim_mode=sim_mode, **env_kwargs)
     return BatchedVecEnv(batch)

@@ -34,10 +34,13 @@ class BatchedVectorEnv(VectorEnv):
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``
             (or their string values).
         copy: return copies of the observations (as ``SyncVectorEnv``).
+        observations: arrays to keep the batch's observations in (an array of ``num_envs`` rows for a
+            Box space, a dict of them for a Dict of Boxes), e.g. views of shared memory
+            (:mod:`multiros.envs.worker_vector`); default: arrays of its own.
     """
 
     def __init__(self, batch: EnvBatch, *, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-                 copy: bool = True) -> None:
+                 copy: bool = True, observations: Any = None) -> None:
         self.batch = batch
         self.envs = batch.envs
         self.num_envs = batch.num_envs
@@ -65,6 +68,26 @@ class BatchedVectorEnv(VectorEnv):
             self._box_keys = ()
         elif isinstance(space, spaces.Dict) and all(isinstance(s, spaces.Box) for s in space.spaces.values()):
             self._box_keys = tuple(space.spaces)
+        if observations is not None:
+            self.bind_observations(observations)
+
+    def bind_observations(self, observations: Any) -> None:
+        """Keep the batch's observations in ``observations`` from now on (arrays of ``num_envs`` rows:
+        one for a Box space, a dict of them for a Dict of Boxes), e.g. views of shared memory.
+
+        Raises:
+            ValueError: another space, or arrays of the wrong shape or dtype.
+        """
+        if self._box_keys is None:
+            raise ValueError("observation arrays can be given for a Box or Dict-of-Box space only")
+        expected = self._observations
+        for key in self._box_keys or (None,):
+            got, want = (observations, expected) if key is None else (observations[key], expected[key])
+            if got.shape != want.shape or got.dtype != want.dtype:
+                raise ValueError(f"observation array {key!r}: shape {got.shape} {got.dtype}, expected "
+                                 f"{want.shape} {want.dtype}")
+            got[...] = want
+        self._observations = observations
 
     def _put(self, i: int, obs: Any) -> None:
         """Env ``i``'s observation into the batch buffer."""
@@ -270,15 +293,37 @@ def _merge_plain_infos(per_env: list[dict[str, Any] | None], num_envs: int) -> d
 
 
 def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: dict[str, Any] | None = None,
-                            **kwargs: Any) -> BatchedVectorEnv:
-    """A :class:`BatchedVectorEnv` of ``num_envs`` envs of the registered ID ``env_id``.
+                            **kwargs: Any) -> VectorEnv:
+    """A batched vector env of ``num_envs`` envs of the registered ID ``env_id``.
 
-    ``vector_options`` holds ``autoreset_mode``, ``copy`` and the batch's options (``num_nodes``,
-    ``spacing``, ``timeout_sec``, ``node_name``, ``connect_kwargs``); ``kwargs`` go to each env. This
-    is what ``uniros.make_vec(..., vectorization_mode="batched")`` and the IDs' Gymnasium
-    ``vector_entry_point`` build.
+    ``vector_options`` holds ``autoreset_mode``, ``copy``, ``workers`` and the batch's options
+    (``num_nodes``, ``spacing``, ``timeout_sec``, ``node_name``, ``connect_kwargs``); ``kwargs`` go to
+    each env. ``workers=K`` (K >= 1) steps the envs in K worker processes, one composed node each,
+    exchanging actions and observations through shared memory
+    (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`); ``workers=0`` (the default here) keeps
+    them in this process (:class:`BatchedVectorEnv`). This is what ``uniros.make_vec`` (which picks
+    one worker per core by default) and the IDs' Gymnasium ``vector_entry_point`` build.
     """
     options = dict(vector_options or {})
     autoreset = options.pop("autoreset_mode", AutoresetMode.NEXT_STEP)
     copy = options.pop("copy", True)
+    workers = options.pop("workers", 0)
+    if workers is None:
+        from multiros.envs.worker_vector import default_workers
+
+        workers = default_workers(num_envs, kwargs.get("sim_mode", "composed"), options)
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
+        raise ValueError(f"workers must be 0 (this process) or a number of worker processes, got {workers!r}")
+    if workers >= 1:
+        from multiros.envs.batch import BATCH_OPTIONS
+        from multiros.envs.worker_vector import WorkerVectorEnv
+
+        unknown = sorted(set(options) - set(BATCH_OPTIONS))
+        if unknown:
+            raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(BATCH_OPTIONS)} "
+                            "and autoreset_mode, copy, workers")
+        if kwargs.get("sim_mode", "composed") != "composed":
+            raise ValueError(f"workers={workers} run composed nodes; sim_mode={kwargs['sim_mode']!r} needs workers=0")
+        return WorkerVectorEnv(env_id, num_envs, workers=workers, autoreset_mode=autoreset, copy=copy,
+                               batch_options=options, env_kwargs=kwargs)
     return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)

@@ -181,7 +181,7 @@ def test_batched_envs_observe_each_through_its_own_camera():
         vec.reset(seed=0)
         obs, *_ = vec.step(vec.action_space.sample())
         assert obs["rgb"].shape == (2, 32, 32, 3) and obs["observation"].shape == (2, 21)
-        for j, env in enumerate(vec.batch.envs):  # each env's camera sees its own world slot
-            np.testing.assert_array_equal(env.read_images()[0], obs["rgb"][j])
+        for j, images in enumerate(vec.call("read_images")):  # each env's camera sees its own world slot
+            np.testing.assert_array_equal(images[0], obs["rgb"][j])
     finally:
         vec.close()

@@ -250,6 +250,8 @@ def _episode_limit(env: Any) -> int | None:
     batch = getattr(env, "batch", None)
     if batch is not None:
         return batch.max_episode_steps
+    if hasattr(env, "max_episode_steps"):  # uniros.vec_env.WorkerVecEnv (the envs in worker processes)
+        return env.max_episode_steps
     if isinstance(env, VecEnv):
         return getattr(env.get_attr("spec", [0])[0], "max_episode_steps", None)
     return None

@@ -1,0 +1,496 @@
+"""``WorkerVectorEnv``: a batched vector env whose N envs step in K worker processes, one core each.
+
+Composed simulation nodes in one process stop scaling past a core or two: ``mj_step`` releases the
+GIL, but each node's Python (the task, the client, the vector env) holds it. Here each of K worker
+processes runs a :class:`~multiros.envs.vector.BatchedVectorEnv` of its share of the N envs (rows
+``k * N // K`` up to ``(k + 1) * N // K``) on its own composed node, and the parent exchanges
+actions, observations, rewards, terminations and truncations with them through shared memory
+(:mod:`multiros.envs.shm_exchange`): a vector step writes the actions, wakes every worker with a
+byte on its pipe, and waits for each worker's answer, which carries that step's info dict only.
+
+Semantics are the in-process batched env's: the same spaces, seeds (an int seed gives env ``i``
+``seed + i`` whatever K is, so env ``i`` runs the same trajectory), autoreset modes and infos.
+Every wait has a timeout and watches the worker's process: a worker that dies or hangs raises
+:class:`WorkerError` naming it. Workers are stopped by PID on :meth:`close`, when the env is
+garbage-collected and at interpreter exit; they also exit when the parent's end of their pipe closes.
+"""
+
+from __future__ import annotations
+
+import json
+import pickle
+import signal
+import socket
+import subprocess
+import sys
+import time
+import traceback
+import weakref
+from collections.abc import Mapping, Sequence
+from multiprocessing.connection import Connection, wait
+from typing import Any
+
+import numpy as np
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from multiros.envs.batch import default_num_nodes
+from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
+
+__all__ = ["WorkerVectorEnv", "WorkerError", "default_workers", "worker_rows"]
+
+_STEP = b"s"
+
+
+class WorkerError(RuntimeError):
+    """A worker process of a :class:`WorkerVectorEnv` exited or did not answer in time."""
+
+
+def default_workers(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None) -> int:
+    """The number of worker processes ``uniros.make_vec`` uses unless told: one per core this process
+    may run on (``os.sched_getaffinity``), at most one per env, for composed nodes with the batch's
+    node layout left to the default; ``0`` (in this process) where that is one, or where the nodes
+    are in other processes already (``sim_mode="process"`` or ``"existing"``) or placed by hand
+    (``num_nodes``, ``node_name`` or ``connect_kwargs`` given)."""
+    options = options or {}
+    if sim_mode != "composed" or any(key in options for key in ("num_nodes", "node_name", "connect_kwargs")):
+        return 0
+    k = default_num_nodes(num_envs)
+    return k if k >= 2 else 0
+
+
+def worker_rows(num_envs: int, workers: int) -> list[tuple[int, int]]:
+    """Rows ``[start, stop)`` of each of ``workers`` workers (the batch's node split: ``i * K // N``)."""
+    return [(k * num_envs // workers, (k + 1) * num_envs // workers) for k in range(workers)]
+
+
+class _Workers:
+    """The worker processes, their pipes and the shared block: what :meth:`stop` must end, kept apart
+    from the env so a finalizer can stop them without holding the env alive."""
+
+    def __init__(self) -> None:
+        self.procs: list[Any] = []
+        self.conns: list[Connection] = []
+        self.shared: SharedArrays | None = None
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Ask each worker to close, then stop any that is still running by its PID; free the block."""
+        for conn in self.conns:
+            try:
+                conn.send(("close",))
+            except (OSError, ValueError):
+                pass
+        deadline = time.monotonic() + timeout  # one bound for all: they close at once
+        for proc, conn in zip(self.procs, self.conns):
+            try:
+                proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                proc.kill()  # SIGKILL to this worker's PID
+                proc.wait(timeout)
+            conn.close()
+        self.procs, self.conns = [], []
+        if self.shared is not None:
+            self.shared.close()
+            self.shared = None
+
+
+class WorkerVectorEnv(VectorEnv):
+    """N envs of the registered ID ``env_id`` in K worker processes (see the module docstring).
+
+    Args:
+        env_id: a registered ID whose envs batch (a uniros simulated env).
+        num_envs: N.
+        workers: K, from 1 to N (default: :func:`default_workers`, at least 1).
+        autoreset_mode: as :class:`~multiros.envs.vector.BatchedVectorEnv`'s.
+        copy: return copies of the observations; ``False`` returns views of shared memory, overwritten
+            by the next step.
+        batch_options: each worker's batch options (``spacing``, ``timeout_sec``, ``num_nodes`` per
+            worker, ...; see :data:`~multiros.envs.batch.BATCH_OPTIONS`).
+        env_kwargs: keyword arguments of each env.
+        start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
+            loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
+
+    Raises:
+        WorkerError: a worker that failed to start (its error is in the message).
+        ValueError: bad counts, or spaces that shared memory cannot carry.
+    """
+
+    def __init__(self, env_id: str, num_envs: int, *, workers: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = True,
+                 batch_options: Mapping[str, Any] | None = None, env_kwargs: Mapping[str, Any] | None = None,
+                 start_timeout_sec: float | None = None) -> None:
+        if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if workers is None:
+            workers = max(1, default_num_nodes(num_envs))
+        if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= num_envs:
+            raise ValueError(f"workers must be an integer from 1 to num_envs ({num_envs}), got {workers!r}")
+        self.num_envs = num_envs
+        self.num_workers = workers
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.copy = copy
+        self.rows = worker_rows(num_envs, workers)
+        options = dict(batch_options or {})
+        self.timeout_sec = float(options.get("timeout_sec", 10.0)) + 5.0  # the worker's own bound fires first
+        self._workers = _Workers()
+        self._finalizer = weakref.finalize(self, self._workers.stop)
+        self._broken: str | None = None
+        spec = _picklable_spec(env_id)
+        try:
+            for k, (start, stop) in enumerate(self.rows):
+                self._start_worker()
+                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, dict(env_kwargs or {})))
+            answers = [self._recv(k, start_timeout_sec or 120.0 + 4.0 * (stop - start), "start")
+                       for k, (start, stop) in enumerate(self.rows)]  # an error here closes them all
+            obs_space, act_space, metadata, render_mode, max_steps = answers[0]
+            for k, answer in enumerate(answers[1:], 1):
+                if answer[0] != obs_space or answer[1] != act_space:
+                    raise ValueError(f"worker {k} made envs with other spaces than worker 0's: {answer[:2]} vs "
+                                     f"{(obs_space, act_space)}")
+            self._workers.shared = shared = SharedArrays.create(layout_for(num_envs, obs_space, act_space))
+            for k, (start, stop) in enumerate(self.rows):
+                self._send(k, ("bind", shared.name, shared.layout, start, stop))
+            for k in range(workers):
+                self._recv(k, self.timeout_sec, "bind")
+        except BaseException:
+            self._finalizer()
+            raise
+        self._arrays = shared.arrays
+        self._obs = shared.observations()
+        self.single_observation_space = obs_space
+        self.single_action_space = act_space
+        self.observation_space = batch_space(obs_space, num_envs)
+        self.action_space = batch_space(act_space, num_envs)
+        self.metadata = dict(metadata)
+        self.metadata["autoreset_mode"] = self.autoreset_mode
+        self.render_mode = render_mode
+        self.max_episode_steps: int | None = max_steps  # the envs' truncation (``None``: never)
+
+    @property
+    def pids(self) -> list[int]:
+        """The worker processes' PIDs, in worker order (empty once closed)."""
+        return [int(proc.pid) for proc in self._workers.procs]
+
+    def _start_worker(self) -> None:
+        """A fresh Python running :func:`_serve` on one end of a socket pair. Not ``multiprocessing``'s
+        spawn: that runs the parent's main script again in the child (a script without a
+        ``__main__`` guard would make envs there), and fork copies a process that may run threads."""
+        ours, theirs = socket.socketpair()
+        try:
+            fd = theirs.fileno()
+            boot = ("import json, sys; sys.path[:0] = json.loads(sys.argv[2]); "
+                    "from multiros.envs.worker_vector import _serve; _serve(int(sys.argv[1]))")
+            proc = subprocess.Popen([sys.executable, "-c", boot, str(fd), json.dumps([p for p in sys.path if p])],
+                                    pass_fds=(fd,), stdin=subprocess.DEVNULL)
+        finally:
+            theirs.close()
+        self._workers.procs.append(proc)
+        self._workers.conns.append(Connection(ours.detach()))
+
+    # -- the exchange -----------------------------------------------------------------------------
+    def _send(self, k: int, message: Any) -> None:
+        try:
+            self._workers.conns[k].send(message)
+        except (OSError, ValueError) as exc:
+            raise self._dead(k, "a request") from exc
+
+    def _gather(self, ks: Sequence[int], timeout: float, what: str) -> list[Any]:
+        """The answers of workers ``ks`` to ``what``; every answer is read before a worker's error is
+        raised, so the next request's answers are the next request's."""
+        answers, error = [], None
+        for k in ks:
+            try:
+                answers.append(self._recv(k, timeout, what))
+            except WorkerError:
+                raise
+            except Exception as exc:  # noqa: BLE001 - raised once the others have answered
+                answers.append(None)
+                error = error or exc
+        if error is not None:
+            raise error
+        return answers
+
+    def _recv(self, k: int, timeout: float, what: str) -> Any:
+        """Worker ``k``'s answer to ``what``, within ``timeout`` seconds; its error re-raised here."""
+        conn, proc = self._workers.conns[k], self._workers.procs[k]
+        if wait([conn], timeout):  # an answer, or the end of the socket: the worker exited
+            try:
+                status, payload = conn.recv()
+            except (EOFError, OSError) as exc:
+                raise self._dead(k, what) from exc
+        else:
+            self._broken = f"worker {k} (pid {proc.pid}) did not answer {what} within {timeout:g} s"
+            raise WorkerError(f"vector env {self._broken}; is the machine overloaded? close this vector env")
+        if status == "error":
+            error, text = payload
+            if what in ("start", "bind"):
+                last = text.strip().splitlines()[-1] if text.strip() else "no message"
+                raise WorkerError(f"vector env worker {k} (pid {proc.pid}) failed to {what}: {last} (vector_kwargs="
+                                  f"{{'workers': 0}} keeps the envs in this process); its traceback:\n{text}")
+            if isinstance(error, BaseException):
+                first, last = self.rows[k][0], self.rows[k][1] - 1
+                if hasattr(error, "add_note"):  # Python 3.11+
+                    error.add_note(f"in vector env worker {k} (pid {proc.pid}, envs {first} to {last}):\n{text}")
+                raise error
+            raise WorkerError(f"vector env worker {k} (pid {proc.pid}) failed {what}:\n{text}")
+        return payload
+
+    def _dead(self, k: int, what: str) -> WorkerError:
+        proc = self._workers.procs[k]
+        try:
+            code: Any = proc.wait(1.0)
+        except subprocess.TimeoutExpired:
+            code = "unknown (its pipe closed)"
+        self._broken = f"worker {k} (pid {proc.pid}, envs {self.rows[k][0]} to {self.rows[k][1] - 1}) exited " \
+                       f"with code {code} during {what}"
+        return WorkerError(f"vector env {self._broken}; its envs are lost: close this vector env and make a new one")
+
+    def _check(self) -> None:
+        if self._broken is not None:
+            raise WorkerError(f"vector env {self._broken}; close this vector env and make a new one")
+        if not self._workers.procs:
+            raise WorkerError("this vector env is closed")
+
+    def _all(self, messages: Sequence[Any | None], what: str) -> list[Any]:
+        """Send each worker its message (``None``: none), then gather the answers in worker order."""
+        self._check()
+        for k, message in enumerate(messages):
+            if message is not None:
+                self._send(k, message)
+        sent = [k for k, message in enumerate(messages) if message is not None]
+        answers = dict(zip(sent, self._gather(sent, self.timeout_sec, what)))
+        return [answers.get(k) for k in range(len(messages))]
+
+    def _observations(self) -> Any:
+        obs = self._obs
+        if not self.copy:
+            return obs
+        return {key: arr.copy() for key, arr in obs.items()} if isinstance(obs, dict) else obs.copy()
+
+    # -- gymnasium API ----------------------------------------------------------------------------
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+        """Reset every env (or those in ``options["reset_mask"]``); an int seed gives env ``i`` ``seed + i``."""
+        n = self.num_envs
+        if seed is None:
+            seeds: list[int | None] = [None] * n
+        elif isinstance(seed, int):
+            seeds = [seed + i for i in range(n)]
+        else:
+            seeds = list(seed)
+        if len(seeds) != n:
+            raise ValueError(f"{len(seeds)} seeds given for num_envs={n}; give one per env or an int")
+        options = dict(options) if options else {}
+        mask = options.pop("reset_mask", None)
+        if mask is not None:
+            if not isinstance(mask, np.ndarray) or mask.shape != (n,) or mask.dtype != np.bool_:
+                raise ValueError(f"options['reset_mask'] must be a bool numpy array of shape ({n},)")
+            if not mask.any():
+                raise ValueError("options['reset_mask'] must hold at least one True value")
+        messages: list[Any] = []
+        for start, stop in self.rows:
+            sub = dict(options)
+            if mask is not None:
+                if not mask[start:stop].any():
+                    messages.append(None)
+                    continue
+                sub["reset_mask"] = mask[start:stop].copy()
+            messages.append(("reset", seeds[start:stop], sub or None))
+        infos = self._all(messages, "a reset")
+        parts = [(start, info) for (start, _), info in zip(self.rows, infos) if info is not None]
+        return self._observations(), merge_infos(parts, n) if parts else {}
+
+    def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
+        """Step every env: the actions into shared memory, a byte to each worker, its info back."""
+        self._check()
+        act = self._arrays["act"]
+        arr = np.asarray(actions)
+        if arr.shape != act.shape:
+            raise ValueError(f"actions of shape {arr.shape} for {self.num_envs} envs with action space "
+                             f"{self.single_action_space.shape}: give an array of shape {act.shape}")
+        act[...] = arr
+        conns = self._workers.conns
+        for k in range(self.num_workers):
+            try:
+                conns[k].send_bytes(_STEP)
+            except (OSError, ValueError) as exc:
+                raise self._dead(k, "a step") from exc
+        infos = self._gather(range(self.num_workers), self.timeout_sec, "a step")
+        parts = [(start, info) for (start, _), info in zip(self.rows, infos)]
+        a = self._arrays
+        return (self._observations(), a["rew"].copy(), a["term"].copy(), a["trunc"].copy(),
+                merge_infos(parts, self.num_envs))
+
+    # -- sub-env access ---------------------------------------------------------------------------
+    def call_at(self, indices: Sequence[int], name: str, *args: Any, **kwargs: Any) -> list[Any]:
+        """``call`` for the envs ``indices`` only (in that order)."""
+        wanted = [int(i) for i in indices]
+        for i in wanted:
+            if not 0 <= i < self.num_envs:
+                raise IndexError(f"env index {i} out of range for num_envs={self.num_envs}")
+        messages: list[Any] = []
+        for start, stop in self.rows:
+            local = [i - start for i in wanted if start <= i < stop]
+            messages.append(("call", local, name, args, kwargs) if local else None)
+        answers = self._all(messages, f"call({name!r})")
+        by_env: dict[int, Any] = {}
+        for (start, stop), answer in zip(self.rows, answers):
+            if answer is not None:
+                local = [i - start for i in wanted if start <= i < stop]
+                by_env.update({start + j: value for j, value in zip(local, answer)})
+        return [by_env[i] for i in wanted]
+
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call a method of every env (or read an attribute) and return the results in order."""
+        return tuple(self.call_at(range(self.num_envs), name, *args, **kwargs))
+
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """An attribute of every env."""
+        return tuple(self.call_at(range(self.num_envs), "__getattribute__", name))
+
+    def set_attr(self, name: str, values: list[Any] | tuple[Any, ...] | Any) -> None:
+        """Set an attribute of every env (one value for all, or one per env)."""
+        self.set_attr_at(range(self.num_envs), name, values)
+
+    def set_attr_at(self, indices: Sequence[int], name: str, values: Any) -> None:
+        """Set an attribute of the envs ``indices`` (one value for all, or one per index)."""
+        wanted = [int(i) for i in indices]
+        if not isinstance(values, (list, tuple)):
+            values = [values] * len(wanted)
+        if len(values) != len(wanted):
+            raise ValueError(f"{len(values)} values for {len(wanted)} envs")
+        messages: list[Any] = []
+        for start, stop in self.rows:
+            pairs = [(i - start, v) for i, v in zip(wanted, values) if start <= i < stop]
+            messages.append(("set", pairs, name) if pairs else None)
+        self._all(messages, f"set_attr({name!r})")
+
+    def render(self) -> tuple[Any, ...] | None:
+        """Each env's render."""
+        return self.call("render")
+
+    def node_loads(self) -> list[dict[str, Any]]:
+        """Each worker's simulation nodes' loads (see ``GetNodeLoad``), in worker order."""
+        return [load for loads in self._all([("loads",)] * self.num_workers, "node_loads()") for load in loads]
+
+    def close_extras(self, **kwargs: Any) -> None:
+        """Stop the workers (asked first, then by PID) and free the shared memory."""
+        self._obs = self._arrays = {}  # type: ignore[assignment]
+        self._finalizer()
+
+
+def _picklable_spec(env_id: str) -> Any:
+    """The ID's registration, for a worker to register an ID this process registered at run time
+    (``None`` when it cannot travel: the worker then needs the ID registered on import)."""
+    import gymnasium as gym
+
+    spec = gym.spec(env_id)
+    try:
+        pickle.dumps(spec)
+    except Exception:  # noqa: BLE001 - a lambda entry point, say
+        return None
+    return spec
+
+
+def _serve(fd: int) -> None:
+    """A worker process's life: its orders from the parent on socket ``fd``, then :func:`_worker_main`."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle (it closes us)
+    conn = Connection(fd)
+    try:
+        args = conn.recv()
+    except (EOFError, OSError):
+        return
+    _worker_main(conn, *args)
+
+
+def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autoreset_mode: str,
+                 options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
+    """A worker: make the batch, bind the shared arrays, then answer requests until told to close
+    or until the parent's end of the pipe closes."""
+    vec: Any = None
+    shared: SharedArrays | None = None
+    try:
+        try:
+            import gymnasium as gym
+
+            import rl_environments  # noqa: F401 - registers the shipped IDs
+            from multiros.envs.vector import make_batched_vector_env
+
+            if env_id not in gym.registry and spec is not None:
+                gym.registry[env_id] = spec
+            vec = make_batched_vector_env(env_id, num_envs, vector_options={
+                **options, "num_nodes": options.get("num_nodes", 1), "autoreset_mode": autoreset_mode,
+                "copy": False}, **env_kwargs)
+            if not shareable(vec.single_observation_space):
+                raise ValueError(f"observation space {vec.single_observation_space} cannot go through shared "
+                                 "memory: use workers=0 (in-process)")
+            conn.send(("ok", (vec.single_observation_space, vec.single_action_space, dict(vec.metadata),
+                              vec.render_mode, vec.batch.max_episode_steps)))
+        except Exception as exc:  # noqa: BLE001 - the parent reports it
+            conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
+            return
+        start = stop = 0
+        while True:
+            try:
+                data = conn.recv_bytes()
+            except (EOFError, OSError):
+                return  # the parent is gone
+            if data == _STEP:
+                try:
+                    assert shared is not None
+                    a = shared.arrays
+                    _, rew, term, trunc, info = vec.step(a["act"][start:stop].copy())
+                    a["rew"][start:stop] = rew
+                    a["term"][start:stop] = term
+                    a["trunc"][start:stop] = trunc
+                    conn.send(("ok", info))
+                except Exception as exc:  # noqa: BLE001 - the parent raises it
+                    _send_error(conn, exc)
+                continue
+            message = pickle.loads(data)
+            cmd = message[0]
+            if cmd == "close":
+                return
+            try:
+                if cmd == "bind":
+                    _, name, layout, start, stop = message
+                    shared = SharedArrays.attach(name, layout)
+                    vec.bind_observations(shared.observations(slice(start, stop)))
+                    answer: Any = None
+                elif cmd == "reset":
+                    _, seeds, reset_options = message
+                    _, answer = vec.reset(seed=seeds, options=reset_options)
+                elif cmd == "call":
+                    _, local, name, args, kwargs = message
+                    answer = []
+                    for j in local:
+                        value = getattr(vec.envs[j], name)
+                        answer.append(value(*args, **kwargs) if callable(value) else value)
+                elif cmd == "set":
+                    _, pairs, name = message
+                    for j, value in pairs:
+                        setattr(vec.envs[j], name, value)
+                    answer = None
+                elif cmd == "loads":
+                    answer = vec.node_loads()
+                else:
+                    raise ValueError(f"unknown worker request {cmd!r}")
+                conn.send(("ok", answer))
+            except Exception as exc:  # noqa: BLE001 - the parent raises it
+                _send_error(conn, exc)
+    finally:
+        if vec is not None:
+            vec.close()
+        if shared is not None:
+            shared.close()
+        conn.close()
+
+
+def _send_error(conn: Connection, exc: BaseException) -> None:
+    text = "".join(traceback.format_exception(exc))
+    try:
+        pickle.dumps(exc)
+        conn.send(("error", (exc, text)))
+    except Exception:  # noqa: BLE001 - an exception that does not pickle: its text only
+        conn.send(("error", (None, text)))
+

@@ -1,0 +1,269 @@
+"""Vector envs whose envs step in worker processes (``multiros.envs.worker_vector``): the same
+trajectories as one env and as the in-process batch whatever the number of workers, workers
+stopped by PID, a killed worker named in an error, no growth per make/close, the SB3 form."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import uniros
+from multiros.envs.shm_exchange import merge_infos
+from multiros.envs.worker_vector import WorkerError, WorkerVectorEnv
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "envs"))
+from golden_trajectories import CASES, HORIZON, SEEDS, _flat, actions_for, load  # noqa: E402
+
+ENV = "RX200ReacherGoalSim-v0"
+
+pytestmark = pytest.mark.multiprocess
+
+
+def _row(obs, i):
+    return {k: v[i] for k, v in obs.items()} if isinstance(obs, dict) else obs[i]
+
+
+def _record(vec, case: str, seeds: tuple[int, ...]) -> list[dict[str, np.ndarray]]:
+    """Each env's trajectory, as tests/envs/golden_trajectories.py records one env (SAME_STEP autoreset)."""
+    n = vec.num_envs
+    outs = [{"obs": [], "reward": [], "terminated": [], "truncated": [], "success": []} for _ in range(n)]
+    obs, info = vec.reset(seed=list(seeds))
+    for i in range(n):
+        outs[i]["obs"].append(_flat(_row(obs, i)))
+        outs[i]["success"].append(bool(info["is_success"][i]) if "is_success" in info else False)
+    acts = np.stack([actions_for(vec.single_action_space, case, s) for s in seeds], axis=1)
+    for a in acts:
+        obs, reward, terminated, truncated, info = vec.step(a)
+        for i in range(n):
+            ended = bool(terminated[i] or truncated[i])
+            o = outs[i]
+            if ended:
+                o["obs"].append(_flat(info["final_obs"][i]))
+                o["success"].append(bool(info["final_info"]["is_success"][i]))
+            else:
+                o["obs"].append(_flat(_row(obs, i)))
+                o["success"].append(bool(info["is_success"][i]))
+            o["reward"].append(float(reward[i]))
+            o["terminated"].append(bool(terminated[i]))
+            o["truncated"].append(bool(truncated[i]))
+            if ended:
+                o["obs"].append(_flat(_row(obs, i)))
+                o["success"].append(bool(info["is_success"][i]))
+    return [{k: np.asarray(v) for k, v in o.items()} for o in outs]
+
+
+def _workers_vec(env_id: str, n: int, workers: int, **kwargs):
+    return uniros.make_vec(env_id, n, max_episode_steps=HORIZON, vector_kwargs={
+        "autoreset_mode": AutoresetMode.SAME_STEP, "workers": workers}, **kwargs)
+
+
+def _check_golden(case: str, got: dict[str, np.ndarray], seed: int) -> None:
+    golden = load()
+    for key, value in got.items():
+        want = golden[f"{case}/{seed}/{key}"]
+        assert value.shape == want.shape, (case, seed, key)
+        np.testing.assert_allclose(value, want, atol=1e-9, rtol=0, err_msg=f"{case} seed {seed} {key}")
+
+
+@pytest.mark.parametrize(("case", "env_id", "kwargs"),
+                         [pytest.param(*c, marks=() if c[0] == "rx200_reach_goal" else pytest.mark.slow)
+                          for c in CASES])
+def test_workers_replay_the_single_env_recordings(case: str, env_id: str, kwargs: dict) -> None:
+    """Every shipped task, two worker processes of one env each: each env returns what one env alone
+    returned when the golden trajectories were recorded (to 1e-9)."""
+    vec = _workers_vec(env_id, len(SEEDS), 2, **kwargs)
+    try:
+        assert isinstance(vec, WorkerVectorEnv) and vec.num_workers == 2
+        for seed, got in zip(SEEDS, _record(vec, case, SEEDS)):
+            _check_golden(case, got, seed)
+    finally:
+        vec.close()
+
+
+def test_env_i_is_the_same_whatever_the_number_of_workers() -> None:
+    """Env i of 5 runs the same trajectory in this process, in 2 workers (uneven shares) and in 5."""
+    case, seeds = "rx200_reach_goal", (3, 4, 3, 4, 3)
+    vec = uniros.make_vec(ENV, 5, vectorization_mode="batched", max_episode_steps=HORIZON,
+                          vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP, "num_nodes": 1})
+    try:
+        expected = _record(vec, case, seeds)
+    finally:
+        vec.close()
+    for workers in (2, 5):
+        vec = _workers_vec(ENV, 5, workers)
+        try:
+            assert vec.rows == ([(0, 2), (2, 5)] if workers == 2 else [(i, i + 1) for i in range(5)])
+            for i, (got, want) in enumerate(zip(_record(vec, case, seeds), expected)):
+                for key in want:
+                    np.testing.assert_array_equal(got[key], want[key], err_msg=f"workers={workers} env {i} {key}")
+                _check_golden(case, got, seeds[i])
+        finally:
+            vec.close()
+
+
+def test_next_step_autoreset_reset_mask_and_sub_env_access() -> None:
+    """NEXT_STEP autoreset, ``reset_mask`` split over the workers, int seeds, ``call``/``get_attr``/
+    ``set_attr``, errors of a worker raised here with their type: as the in-process batch does."""
+    ours = uniros.make_vec(ENV, 3, max_episode_steps=4, vector_kwargs={"workers": 2})
+    theirs = uniros.make_vec(ENV, 3, vectorization_mode="batched", max_episode_steps=4,
+                             vector_kwargs={"num_nodes": 1})
+    try:
+        assert ours.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+        assert ours.observation_space == theirs.observation_space and ours.action_space == theirs.action_space
+        for vec in (ours, theirs):
+            vec.reset(seed=5)
+        rng = np.random.default_rng(2)
+        for t in range(11):
+            actions = rng.uniform(-1, 1, (3, 5)).astype(np.float32)
+            a, b = ours.step(actions), theirs.step(actions)
+            for key in a[0]:
+                np.testing.assert_array_equal(a[0][key], b[0][key])
+            for x, y in zip(a[1:4], b[1:4]):
+                np.testing.assert_array_equal(x, y)
+            assert a[4].keys() == b[4].keys()
+            for key in a[4]:
+                np.testing.assert_array_equal(a[4][key], b[4][key])
+            if t == 5:
+                mask = np.array([False, False, True])
+                ra, rb = ours.reset(options={"reset_mask": mask}), theirs.reset(options={"reset_mask": mask})
+                for key in ra[0]:
+                    np.testing.assert_array_equal(ra[0][key], rb[0][key])
+        names = ours.get_attr("robot_name")
+        assert len(names) == 3 and len(set(names)) == 3
+        assert ours.call_at([2, 0], "compute_reward", np.zeros(3), np.ones(3), {}) == [
+            theirs.envs[2].compute_reward(np.zeros(3), np.ones(3), {})] * 2
+        ours.set_attr("test_marker", [1, 2, 3])
+        assert ours.get_attr("test_marker") == (1, 2, 3)
+        with pytest.raises(AttributeError, match="no_such_attribute"):
+            ours.get_attr("no_such_attribute")
+        with pytest.raises(ValueError, match="actions of shape"):
+            ours.step(np.zeros((2, 5), np.float32))
+        assert [load["robots"] for load in ours.node_loads()] == [1, 2]
+    finally:
+        ours.close()
+        theirs.close()
+
+
+def _gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test_close_stops_the_workers_by_pid_and_frees_the_shared_memory() -> None:
+    vec = _workers_vec(ENV, 2, 2)
+    pids, shm = vec.pids, Path("/dev/shm") / vec._workers.shared.name.lstrip("/")
+    assert len(set(pids)) == 2 and os.getpid() not in pids and shm.exists()
+    vec.close()
+    assert all(_gone(pid) for pid in pids)  # exited and reaped
+    assert not shm.exists() and vec.pids == []
+    with pytest.raises(WorkerError, match="closed"):
+        vec.step(np.zeros((2, 5), np.float32))
+
+
+def test_a_killed_worker_is_named_at_once() -> None:
+    vec = uniros.make_vec(ENV, 2, vector_kwargs={"workers": 2, "timeout_sec": 5.0})
+    try:
+        vec.reset(seed=0)
+        vec.step(np.zeros((2, 5), np.float32))
+        victim = vec.pids[1]
+        os.kill(victim, signal.SIGKILL)
+        start = time.monotonic()
+        with pytest.raises(WorkerError, match=rf"worker 1 \(pid {victim}, envs 1 to 1\) exited with code -9"):
+            vec.step(np.zeros((2, 5), np.float32))
+        assert time.monotonic() - start < 5.0  # seen by the closed socket, not by the timeout
+        with pytest.raises(WorkerError, match="close this vector env"):
+            vec.reset()
+    finally:
+        pids = vec.pids
+        vec.close()
+    assert all(_gone(pid) for pid in pids)
+
+
+def test_a_worker_that_cannot_start_says_why() -> None:
+    with pytest.raises(WorkerError, match=r"failed to start: TypeError: .*'no_such_knob'.*workers': 0"):
+        uniros.make_vec(ENV, 2, vector_kwargs={"workers": 2}, no_such_knob=1)
+
+
+def _census() -> tuple[int, int, int]:
+    fds = len(os.listdir("/proc/self/fd"))
+    shm = len([p for p in os.listdir("/dev/shm") if p.startswith("psm_")])
+    children = len(Path(f"/proc/{os.getpid()}/task/{os.getpid()}/children").read_text().split())
+    return fds, shm, children
+
+
+def test_make_close_cycles_do_not_grow() -> None:
+    def cycle() -> None:
+        vec = _workers_vec(ENV, 2, 2)
+        vec.reset(seed=1)
+        vec.step(np.zeros((2, 5), np.float32))
+        vec.close()
+
+    cycle()  # first-use imports and caches
+    before = _census()
+    for _ in range(3):
+        cycle()
+    fds, shm, children = _census()
+    assert fds <= before[0] and children == before[2]  # the resource tracker, started once, stays
+    assert shm <= before[1]  # other sessions' blocks may come and go; ours are all unlinked
+
+
+def test_merge_infos_fills_what_a_worker_lacks() -> None:
+    """As gymnasium's _add_info env by env: zeros / None and False masks where a worker has no key."""
+    a = {"is_success": np.array([True, False]), "_is_success": np.array([True, True])}
+    b = {"is_success": np.array([1.0]), "_is_success": np.array([True]),
+         "final_info": {"x": np.array([2]), "_x": np.array([True])}, "_final_info": np.array([True])}
+    out = merge_infos([(0, a), (2, b)], 3)
+    np.testing.assert_array_equal(out["is_success"], [True, False, True])
+    np.testing.assert_array_equal(out["_final_info"], [False, False, True])
+    np.testing.assert_array_equal(out["final_info"]["x"], [0, 0, 2])
+    np.testing.assert_array_equal(out["final_info"]["_x"], [False, False, True])
+    assert merge_infos([(0, a)], 2) == a
+
+
+def test_sb3_worker_vec_env_equals_the_in_process_one() -> None:
+    """``make_batched_vec_env`` in worker processes (its default on several cores) and in this
+    process: same observations, rewards, dones, terminal observations and TimeLimit flags."""
+    from uniros.vec_env import BatchedVecEnv, WorkerVecEnv, make_batched_vec_env
+
+    ours = make_batched_vec_env(ENV, 3, workers=2, max_episode_steps=5)
+    theirs = make_batched_vec_env(ENV, 3, workers=0, max_episode_steps=5)
+    try:
+        assert isinstance(ours, WorkerVecEnv) and isinstance(theirs, BatchedVecEnv)
+        for venv in (ours, theirs):
+            venv.seed(9)
+        oa, ob = ours.reset(), theirs.reset()
+        for key in oa:
+            np.testing.assert_array_equal(oa[key], ob[key])
+        rng = np.random.default_rng(4)
+        for _ in range(12):
+            actions = rng.uniform(-1, 1, (3, 5)).astype(np.float32)
+            a, b = ours.step(actions), theirs.step(actions)
+            for key in a[0]:
+                np.testing.assert_array_equal(a[0][key], b[0][key])
+            np.testing.assert_array_equal(a[1], b[1])
+            np.testing.assert_array_equal(a[2], b[2])
+            for ia, ib in zip(a[3], b[3]):
+                assert ia.keys() == ib.keys()
+                assert ia["TimeLimit.truncated"] == ib["TimeLimit.truncated"]
+                assert ia["is_success"] == ib["is_success"]
+                if "terminal_observation" in ib:
+                    for key in ib["terminal_observation"]:
+                        np.testing.assert_array_equal(ia["terminal_observation"][key], ib["terminal_observation"][key])
+        assert ours.env_method("compute_reward", np.zeros((4, 3)), np.zeros((4, 3)), [{}] * 4, indices=[1])[0].shape \
+            == (4,)
+        assert ours.get_attr("robot_name", indices=0)[0].startswith("rx200_")
+    finally:
+        pids = ours.pids
+        ours.close()
+        theirs.close()
+    assert all(_gone(pid) for pid in pids)
