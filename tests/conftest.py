@@ -22,6 +22,8 @@ import shutil
 import socket
 import tempfile
 
+import pytest
+
 import multiros  # noqa: F401  (sets MUJOCO_GL=egl when there is no display and none was chosen)
 
 
@@ -51,3 +53,16 @@ os.environ["OMP_NUM_THREADS"] = "1"  # before torch is imported: its default thr
 _sb3_logs = tempfile.mkdtemp(prefix="uniros-tests-sb3-")
 os.environ["SB3_LOGDIR"] = _sb3_logs
 atexit.register(shutil.rmtree, _sb3_logs, ignore_errors=True)
+# A user's arm files (UNIROS_ARMS) are not the suite's; a test that registers one
+# (uniros.register_arm adds it to the variable for child processes) must not leave it to later tests.
+os.environ.pop("UNIROS_ARMS", None)
+
+
+@pytest.fixture(autouse=True)
+def _arm_files_stay_with_their_test():
+    before = os.environ.get("UNIROS_ARMS")
+    yield
+    if before is None:
+        os.environ.pop("UNIROS_ARMS", None)
+    else:
+        os.environ["UNIROS_ARMS"] = before

@@ -182,17 +182,21 @@ class PackageIndex:
 
 
 def _python_package_dir(module: str) -> Path | None:
-    """Directory of an importable package, without importing it (importing may be slow or fail)."""
-    module = module.split(":", 1)[0].strip()
+    """Directory of an importable package, without importing it (importing may be slow or fail: a
+    package's ``__init__`` may read user files). The top-level package is found by its spec, which
+    does not run it; the rest of the dotted name is followed through the folders."""
+    parts = module.split(":", 1)[0].strip().split(".")
     try:
-        spec = importlib.util.find_spec(module)
+        spec = importlib.util.find_spec(parts[0])
     except (ImportError, ValueError):
         return None
-    if spec is None:
-        return None
-    if spec.submodule_search_locations:
-        return Path(next(iter(spec.submodule_search_locations)))
-    return Path(spec.origin).parent if spec.origin else None
+    if spec is None or not spec.submodule_search_locations:
+        return Path(spec.origin).parent if spec is not None and spec.origin and len(parts) == 1 else None
+    for base in spec.submodule_search_locations:
+        path = Path(base).joinpath(*parts[1:])
+        if path.is_dir():
+            return path
+    return None
 
 
 _PKG_NAME = re.compile(r"<name>\s*([^<\s]+)\s*</name>")
