@@ -238,9 +238,10 @@ def inspect_description(uri: str, xacro_args: Mapping[str, str] | None = None) -
         desc = load_description(str(path), args=args, index=index)
     except SimError as exc:
         text = _first(exc)
+        missing = bool(getattr(exc, "missing_assets", False))
         fix = ("pass it: --xacro-arg NAME=VALUE" if "undefined argument" in text or "arg" in text.lower()
                and "xacro" in text.lower() else
-               "source the workspace with the package, or install the meshes" if exc.missing_assets else
+               "source the workspace with the package, or install the meshes" if missing else
                "fix the description (it must be URDF or xacro of one tree)")
         _fail(uri, f"{text}; fix: {fix}")
     except Exception as exc:  # noqa: BLE001 - xacro, XML and trimesh raise many kinds
@@ -367,7 +368,7 @@ def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tupl
         def dist(link: str) -> float:
             return float(np.linalg.norm(tree.transform(link, {}) [:3, 3] - gripper.midpoint))
         pool = candidates or fixed
-        best = min(pool, key=lambda n: (round(dist(n), 3), fixed.index(n)))
+        best = min(pool, key=lambda n: (round(dist(n), 3), -fixed.index(n)))  # ties: the deeper link
         if candidates:
             return best, (f"inferred: the link named like a tool frame nearest the fingers ({dist(best) * 100:.1f} cm "
                           "from their midpoint); check it lies between the fingertips")
@@ -394,7 +395,7 @@ def _r(value: float, digits: int = 4) -> float:
     return 0.0 if out == 0 else out
 
 
-def _rl(values: Sequence[float], digits: int = 4) -> list[float]:
+def _rl(values: Sequence[float] | np.ndarray, digits: int = 4) -> list[float]:
     return [_r(v, digits) for v in values]
 
 
@@ -478,7 +479,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     max_vel = max(max_vel, 1.0)
 
     # A top-down start pose above the middle of the goal box.
-    ik = ChainTopDownIK(chain, approach, closing, home, home=home, lower=lower, upper=upper)
+    ik = ChainTopDownIK(chain, approach, closing, home.tolist(), home=home.tolist(), lower=lower.tolist(),
+                        upper=upper.tolist())
     start = np.array([0.5 * reach, 0.0, 0.3 * reach])
     seed_q, err = _top_down(ik, chain, start, rng, approach)
     why_seed = (f"inferred: top-down pose (ChainTopDownIK) with the EE at {_rl(start, 3)} in the base frame"
@@ -552,11 +554,13 @@ def _top_down(ik: Any, chain: Any, target: np.ndarray, rng: np.random.Generator,
     """The top-down IK's pose for ``target`` nearest home, from its seed and random seeds: (q, error)."""
     axis = "xyz".index(approach)
     found: list[tuple[float, float, np.ndarray]] = []
-    for s in [None, *chain.sample_configurations(rng, 24)]:
+    for s in [None, *chain.sample_configurations(rng, 12)]:
         q = np.asarray(ik.solve(target, q0=s), dtype=float)
         tf = chain.fk_matrix(q)
         err = float(np.linalg.norm(tf[:3, 3] - target)) + 0.05 * float(np.linalg.norm(tf[:3, axis] - [0, 0, -1]))
         found.append((err, float(np.linalg.norm(q - ik.home)), q))
+        if sum(f[0] < 0.002 for f in found) >= 3:
+            break
     good = [f for f in found if f[0] < 0.002]
     err, _, q = min(good, key=lambda f: f[1]) if good else min(found, key=lambda f: f[0])
     return q, err
@@ -586,7 +590,7 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
                f"{worst * 1000:.0f} mm" if worst < 0.01 else
                f"guessed: the top-down IK misses a corner by {worst * 100:.1f} cm; shrink the box")
     init = [_r((x_lo + x_hi) / 2, 3), 0.0, _r(max(0.6 * target_height, 2 * half + 0.05), 3)]
-    m = {
+    m: dict[str, Any] = {
         "robot_height": robot_height,
         "table_center": _rl([0.3 * reach, 0.0, -robot_height / 2 - 0.0005], 4),
         "table_half_extents": _rl([0.58 * reach + 0.05, 0.68 * reach + 0.05, robot_height / 2 - 0.0005], 4),
