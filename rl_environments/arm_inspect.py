@@ -482,7 +482,13 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     ik = ChainTopDownIK(chain, approach, closing, home.tolist(), home=home.tolist(), lower=lower.tolist(),
                         upper=upper.tolist())
     start = np.array([0.5 * reach, 0.0, 0.3 * reach])
-    seed_q, err = _top_down(ik, chain, start, rng, approach)
+    base_z = tree.transform(base, {})[2, 3]
+
+    def lowest(q: np.ndarray) -> float:
+        values = dict(zip(joints, q))
+        return min(tree.transform(tree.joints[j].child, values)[2, 3] for j in joints) - base_z
+
+    seed_q, err = _top_down(ik, chain, start, rng, approach, 0.1 * reach, lowest)
     why_seed = (f"inferred: top-down pose (ChainTopDownIK) with the EE at {_rl(start, 3)} in the base frame"
                 if err < 0.005 else f"guessed: the nearest top-down pose found misses {_rl(start, 3)} by "
                 f"{err * 100:.1f} cm")
@@ -549,17 +555,20 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     return draft
 
 
-def _top_down(ik: Any, chain: Any, target: np.ndarray, rng: np.random.Generator,
-              approach: str) -> tuple[np.ndarray, float]:
-    """The top-down IK's pose for ``target`` nearest home, from its seed and random seeds: (q, error)."""
+def _top_down(ik: Any, chain: Any, target: np.ndarray, rng: np.random.Generator, approach: str, clearance: float,
+              lowest: Any = None) -> tuple[np.ndarray, float]:
+    """The top-down IK's pose for ``target`` from its seed and random seeds: (q, error). Of the poses
+    that meet it, the one whose joints all stay ``clearance`` above the base (``lowest(q)``: the lowest joint's
+    height), then the one nearest home."""
     axis = "xyz".index(approach)
-    found: list[tuple[float, float, np.ndarray]] = []
+    found: list[tuple[float, tuple[bool, float], np.ndarray]] = []
     for s in [None, *chain.sample_configurations(rng, 12)]:
         q = np.asarray(ik.solve(target, q0=s), dtype=float)
         tf = chain.fk_matrix(q)
         err = float(np.linalg.norm(tf[:3, 3] - target)) + 0.05 * float(np.linalg.norm(tf[:3, axis] - [0, 0, -1]))
-        found.append((err, float(np.linalg.norm(q - ik.home)), q))
-        if sum(f[0] < 0.002 for f in found) >= 3:
+        below = lowest is not None and lowest(q) < clearance
+        found.append((err, (below, float(np.linalg.norm(q - ik.home))), q))
+        if sum(f[0] < 0.002 and not f[1][0] for f in found) >= 3:
             break
     good = [f for f in found if f[0] < 0.002]
     err, _, q = min(good, key=lambda f: f[1]) if good else min(found, key=lambda f: f[0])
@@ -608,7 +617,8 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
         "delta_coeff": 0.05, "ee_delta_coeff": _r(float(np.clip(0.04 * reach / 0.95, 0.015, 0.04)), 3),
         "gripper_min": _r(gripper.closed), "gripper_max": _r(gripper.open),
         "object_yaw_range": 0.3, "target_in_the_air": 0.5,
-        "min_object_goal_distance": _r(min(0.08, 0.2 * reach), 3), "distance_threshold": 0.05, "fall_margin": 0.05,
+        "min_object_goal_distance": _r(min(0.08, 0.2 * reach, 0.5 * math.hypot(x_hi - x_lo, 2 * y_half)), 3),
+        "distance_threshold": 0.05, "fall_margin": 0.05,
         "max_linear_velocity": 2.0, "max_angular_velocity": 20.0, "max_joint_vel": _r(max_vel, 3),
     }
     draft.sections["manipulation"] = m
