@@ -17,9 +17,10 @@ inferred or guessed, so the user reviews one file instead of starting from a bla
 * the approach axis (the EE frame's axis from the wrist towards the fingers) and the closing axis
   (the fingers' axis, in the EE frame);
 * home (zeros clipped into the limits, unless that puts the EE below the base), the workspace
-  and goal boxes from the forward kinematics of random configurations, a top-down start pose
-  from :class:`~rl_environments.arm_ik.ChainTopDownIK`, the table and the cube from the reach and
-  the gripper's opening;
+  and reach goal boxes from the forward kinematics of random configurations, the object box where
+  :class:`~rl_environments.arm_ik.ChainTopDownIK` reaches the table and the lift height in front of
+  the base, a top-down start pose whose joints stay clear of the floor, the table and the cube from
+  the reach and the gripper's opening;
 * the simulation's controllers (servo gains from the joints' effort limits, the worst gravity
   torque and the joint-space inertia over random poses, checked by holding two poses in MuJoCo);
 * the real twin's driver names from the ``<ros2_control>`` tag's hardware plugin where we know its
@@ -549,7 +550,15 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft.note("reach.max_joint_vel", "inferred: the largest URDF velocity limit")
 
     if gripper is not None:
-        _manipulation(draft, ik, chain, gripper, reach, lower, upper, seed_q, max_vel, rng)
+        init = _manipulation(draft, ik, chain, gripper, reach, lower, upper, seed_q, max_vel, rng)
+        if err >= 0.005:  # the first target was out of the top-down IK's reach: the episodes' start is not
+            q, err2 = _top_down(ik, chain, init, rng, approach, 0.1 * reach, lowest)
+            if err2 < err:
+                seed_q, err = q, err2
+                ik.seed = ik.home = np.asarray(seed_q)
+                draft.sections["arm"]["ik_seed"] = draft.sections["reach"]["init_joint_pos"] = _rl(seed_q)
+                draft.note("arm.ik_seed", f"inferred: top-down pose (ChainTopDownIK) with the EE at {_rl(init, 3)} "
+                                          "(manipulation.init_ee_position) in the base frame")
     _real(draft, ins, joints, gripper, ee_min, ee_max)
     _controllers(draft, ins, joints, gripper, home, seed_q, rng)
     return draft
@@ -576,29 +585,61 @@ def _top_down(ik: Any, chain: Any, target: np.ndarray, rng: np.random.Generator,
 
 
 def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach: float, lower: np.ndarray,
-                  upper: np.ndarray, seed_q: np.ndarray, max_vel: float, rng: np.random.Generator) -> None:
-    """The push / pick-and-place settings and scene: a table under the base, a cube the fingers grip."""
+                  upper: np.ndarray, seed_q: np.ndarray, max_vel: float, rng: np.random.Generator) -> np.ndarray:
+    """The push / pick-and-place settings and scene: a table under the base, a cube the fingers grip;
+    returns the start of the episodes (``init_ee_position``), where the top-down IK reaches."""
     half = float(np.clip(round(0.3 * gripper.opening, 3), 0.008, 0.025))
     robot_height = 0.4 if reach > 0.6 else 0.3
     target_height = _r(0.25 * reach, 3)
-    x_lo, x_hi, y_half = 0.37 * reach, 0.65 * reach, 0.26 * reach
-    # Shrink the object box until the top-down IK reaches its corners at the table and in the air.
-    for _ in range(6):
+    axis = "xyz".index(draft.sections["arm"]["approach_axis"])
+
+    def miss(target: np.ndarray, q0: np.ndarray) -> tuple[float, np.ndarray]:
+        q = np.asarray(ik.solve(target, q0=q0), dtype=float)
+        tf = chain.fk_matrix(q)
+        return float(np.linalg.norm(tf[:3, 3] - target)) + 0.05 * float(np.linalg.norm(tf[:3, axis] - [0, 0, -1])), q
+
+    # Along the x axis in front of the base: where the top-down IK reaches the table and target_height_max.
+    x_lo = x_hi = math.nan
+    for _ in range(2):
+        xs = np.linspace(0.3 * reach, 0.65 * reach, 8)  # not over the base, nor at full stretch (as shipped)
+        ok, q_low, q_high = [], seed_q, seed_q
+        for x in xs:
+            e_low, q_low = miss(np.array([x, 0.0, half + 0.003]), q_low)
+            e_high, q_high = miss(np.array([x, 0.0, target_height]), q_high)
+            ok.append(e_low < 0.005 and e_high < 0.005)
+            if len(ok) > 1 and ok[-2] and not ok[-1]:
+                break  # past the reachable band (it is one band in front of a serial arm)
+        runs: list[tuple[int, int]] = []
+        for i, good in enumerate(ok):
+            if good and (not runs or runs[-1][1] != i - 1):
+                runs.append((i, i))
+            elif good:
+                runs[-1] = (runs[-1][0], i)
+        if runs:
+            first, last = max(runs, key=lambda r: r[1] - r[0])
+            x_lo, x_hi = float(xs[first]), float(xs[last])
+            if x_hi - x_lo < 0.04 * reach:  # one sample: a box around it
+                x_lo, x_hi = x_lo - 0.02 * reach, x_hi + 0.02 * reach
+            break
+        target_height = _r(0.5 * target_height, 3)  # the arm may not lift that high top-down
+    if math.isnan(x_lo):
+        x_lo, x_hi = 0.37 * reach, 0.65 * reach
+    # The box lies inside the band's ring: its far corners at radius x_hi, not beyond.
+    y_half = min(0.26 * reach, 0.6 * (x_hi - x_lo))
+    x_hi = math.sqrt(max(x_hi ** 2 - y_half ** 2, (x_lo + 0.02 * reach) ** 2))
+    # Then the corners, narrowing the box's width until the IK reaches them all.
+    worst = math.inf
+    for _ in range(4):
         corners = [np.array([x, y, z]) for x in (x_lo, x_hi) for y in (-y_half, y_half)
                    for z in (half + 0.003, target_height)]
-        q = seed_q
-        worst = 0.0
-        for c in corners:
-            q = ik.solve(c, q0=seed_q)
-            worst = max(worst, float(np.linalg.norm(chain.fk_position(q[None])[0] - c)))
+        worst = max(miss(c, seed_q)[0] for c in corners)
         if worst < 0.01:
             break
-        mid = (x_lo + x_hi) / 2
-        x_lo, x_hi, y_half = mid - 0.4 * (x_hi - x_lo), mid + 0.4 * (x_hi - x_lo), 0.8 * y_half
-    why_box = ("inferred: the top-down IK reaches its corners at the table and at target_height_max within "
-               f"{worst * 1000:.0f} mm" if worst < 0.01 else
+        y_half *= 0.6
+    why_box = ("inferred: the top-down IK reaches its corners at the table and at target_height_max"
+               if worst < 0.01 else
                f"guessed: the top-down IK misses a corner by {worst * 100:.1f} cm; shrink the box")
-    init = [_r((x_lo + x_hi) / 2, 3), 0.0, _r(max(0.6 * target_height, 2 * half + 0.05), 3)]
+    init = [_r((x_lo + x_hi) / 2, 3), 0.0, _r(max(0.6 * target_height, min(2 * half + 0.05, target_height)), 3)]
     m: dict[str, Any] = {
         "robot_height": robot_height,
         "table_center": _rl([0.3 * reach, 0.0, -robot_height / 2 - 0.0005], 4),
@@ -630,6 +671,7 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
     draft.note("manipulation.gripper_min", "the closed fingers (gripper.closed)")
     draft.sections["scene"] = {"table": f"{draft.name}/table.xml", "object": f"{draft.name}/cube.xml"}
     draft.note("scene", "written by uniros arm add from manipulation's sizes")
+    start = np.array(init)
     hx, hy, hz = m["table_half_extents"]
     draft.table_xml = f"""<!--
   The work table of the {draft.name} push and pick-and-place scene (written by uniros arm add): a
@@ -661,6 +703,7 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
   </worldbody>
 </mujoco>
 """
+    return start
 
 
 def _real(draft: ArmDraft, ins: Inspection, joints: Sequence[str], gripper: _Gripper | None,

@@ -58,26 +58,63 @@ def _error(capsys, *argv: str) -> str:
     return err
 
 
-@pytest.mark.parametrize(("uri", "name", "extra", "joints", "ee", "approach"), [
-    (PANDA, "ArmAddPanda", ("--xacro-arg", "hand=true"), 7, "panda_hand_tcp", "z"),
-    (OMX, "ArmAddOmx", (), 4, "end_effector_link", "x"),
-])
-def test_arm_add_writes_a_file_that_registers_its_ids_and_passes_check_env(
-        workspace, capsys, tmp_path, uri, name, extra, joints, ee, approach):
-    path, ids = _add(capsys, workspace, uri, name, tmp_path, *extra)
+ARMS = {  # name: (URI, arguments, joints, EE link, approach axis)
+    "ArmAddPanda": (PANDA, ("--xacro-arg", "hand=true"), 7, "panda_hand_tcp", "z"),
+    "ArmAddOmx": (OMX, (), 4, "end_effector_link", "x"),
+}
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """Both test arms added once (``uniros arm add``) for the tests that only read or use them."""
+    out = tmp_path_factory.mktemp("arms")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("AMENT_PREFIX_PATH", str(DATA))
+        mp.setenv("UNIROS_ARMS", "")
+        result = {}
+        for name, (uri, extra, *_) in ARMS.items():
+            import io
+            from contextlib import redirect_stdout
+
+            buf = io.StringIO()
+            with redirect_stdout(buf):
+                assert cli(["arm", "add", uri, "--name", name, "--output", str(out), *extra]) == 0
+            ids = [line.strip() for line in buf.getvalue().splitlines() if line.startswith("  ")]
+            result[name] = (out / f"{name}.yaml", ids)
+        yield result
+        for name in ARMS:
+            unregister_arm(name)
+
+
+@pytest.mark.parametrize("name", list(ARMS))
+def test_arm_add_writes_a_file_that_loads_and_registers_its_ids(written, name):
+    path, ids = written[name]
+    _, _, joints, ee, approach = ARMS[name]
     assert ids == [f"{name}{t}Sim-v0" for t in TASKS] + [f"{name}{t}Real-v0" for t in TASKS]
     spec = load_arm_file(path)
     assert len(spec.joints) == joints and spec.ee_link == ee and spec.approach_axis == approach
     assert spec.gripper is not None and spec.gripper.closed < spec.gripper.open
-    assert Path(spec.controllers_file) == tmp_path / name / "controllers.yaml"
+    assert Path(spec.controllers_file) == path.parent / name / "controllers.yaml"
     assert set(spec.scene_files) == {"table", "object"}
     text = path.read_text()
     assert "# inferred: the serial chain" in text and "guessed" in text
-    controllers = yaml.safe_load((tmp_path / name / "controllers.yaml").read_text())
+    controllers = yaml.safe_load((path.parent / name / "controllers.yaml").read_text())
     gains = controllers["arm_position_controller"]["ros__parameters"]["gains"]
     assert list(gains) == list(spec.joints) and all(g["p"] > 0 and g["d"] > 0 for g in gains.values())
-    assert "largest tracking error" in (tmp_path / name / "controllers.yaml").read_text()
-    for env_id in ids[:6]:
+    error = float(text_after((path.parent / name / "controllers.yaml").read_text(), "largest tracking error"))
+    assert error < 0.02, "the settle check holds both poses"
+    cube = (path.parent / name / "cube.xml").read_text()
+    assert f'size="{spec.scene["object_half_size"]}' in cube
+
+
+def text_after(text: str, marker: str) -> str:
+    return text.split(marker, 1)[1].split()[0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(ARMS))
+def test_every_sim_id_of_the_written_arm_passes_check_env(written, name):
+    for env_id in written[name][1][:6]:
         env = uniros.make(env_id)
         try:
             obs, _ = env.reset(seed=0)
@@ -87,21 +124,17 @@ def test_arm_add_writes_a_file_that_registers_its_ids_and_passes_check_env(
             env.close()
 
 
-@pytest.mark.parametrize(("uri", "name", "extra"), [
-    (PANDA, "ArmAddPandaReach", ("--xacro-arg", "hand=true")),
-    (OMX, "ArmAddOmxReach", ()),
-])
-def test_scripted_reach_succeeds_on_the_written_arm(workspace, capsys, tmp_path, uri, name, extra):
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(ARMS))
+def test_scripted_reach_succeeds_on_the_written_arm(written, name):
     """The servos hold the start pose and the scripted reach meets every goal of fixed seeds."""
-    _add(capsys, workspace, uri, name, tmp_path, *extra)
     env = uniros.make(f"{name}ReacherGoalSim-v0", ee_action_type=True)
     try:
-        obs, _ = env.reset(seed=0)
-        start = np.asarray(env.unwrapped.init_joint_pos)
-        np.testing.assert_allclose(env.unwrapped.arm_positions(), start, atol=0.03)
+        env.reset(seed=0)
+        np.testing.assert_allclose(env.unwrapped.arm_positions(), env.unwrapped.init_joint_pos, atol=0.03)
         policy = scripted_policy(env)
         assert isinstance(policy, ScriptedReach)
-        results = [run_episode(env, policy, seed=s) for s in range(8)]
+        results = [run_episode(env, policy, seed=s) for s in range(10)]
         assert all(r["is_success"] for r in results), results
     finally:
         env.close()
@@ -119,12 +152,15 @@ def test_an_arm_without_a_gripper_is_reach_only_and_says_so(workspace, capsys, t
 
 
 def test_ros2_control_plugin_names_the_real_drivers_controllers(workspace, capsys, tmp_path):
+    """A xacro argument (a prefix) reaches the names; the Dynamixel plugin gives ROBOTIS' controller names."""
     path, _ = _add(capsys, workspace, OMX, "ArmAddOmxReal", tmp_path, "--xacro-arg", "prefix=omx_")
     spec = load_arm_file(path)
     assert spec.joints == ("omx_joint1", "omx_joint2", "omx_joint3", "omx_joint4")
     assert spec.real.arm_controller == "arm_controller" and spec.real.gripper_interface == "gripper_action"
     assert "dynamixel_hardware" in path.read_text()
-    panda, _ = _add(capsys, workspace, PANDA, "ArmAddPandaReal", tmp_path, "--xacro-arg", "hand=true")
+
+def test_without_a_known_plugin_the_real_names_are_conventional_and_marked_guessed(written):
+    panda = written["ArmAddPanda"][0]
     assert load_arm_file(panda).real.arm_controller == "joint_trajectory_controller"
     assert "guessed: ROS 2 control's conventional names" in panda.read_text()
 
@@ -180,20 +216,30 @@ def test_missing_package_file_and_xacro_argument_are_one_line_errors(workspace, 
     assert not out.exists() or not any(out.iterdir())
 
 
-def test_an_existing_file_is_kept_unless_forced_and_names_in_use_are_refused(workspace, capsys, tmp_path):
-    path, _ = _add(capsys, workspace, OMX, "ArmAddOmxTwice", tmp_path)
+def test_an_existing_file_is_kept_unless_forced_and_names_in_use_are_refused(written, workspace, capsys, tmp_path):
+    path = written["ArmAddOmx"][0]
     before = path.read_text()
-    err = _error(capsys, OMX, "--name", "ArmAddOmxTwice", "--output", str(tmp_path))
+    err = _error(capsys, OMX, "--name", "ArmAddOmx", "--output", str(path.parent))
     assert str(path) in err and "--force" in err and path.read_text() == before
-    _add(capsys, workspace, OMX, "ArmAddOmxTwice", tmp_path, "--force")
-    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], "no temporary files left"
     other = tmp_path / "other"
-    err = _error(capsys, OMX, "--name", "ArmAddOmxTwice", "--output", str(other))
+    err = _error(capsys, OMX, "--name", "ArmAddOmx", "--output", str(other))
     assert "is the name of the registered arm" in err and not other.exists()
     err = _error(capsys, OMX, "--name", "UR5e", "--output", str(other))  # a shipped arm's
     assert "UR5e" in err and not other.exists()
     err = _error(capsys, OMX, "--name", "9lives", "--output", str(other))
     assert "--name" in err and not other.exists()
+
+
+def test_force_replaces_the_file_and_its_folder_leaving_no_temporary_files(workspace, capsys, tmp_path):
+    stale = tmp_path / "ArmAddOmxTwice" / "stale.txt"
+    stale.parent.mkdir()
+    stale.write_text("from before")
+    (tmp_path / "ArmAddOmxTwice.yaml").write_text("old")
+    err = _error(capsys, OMX, "--name", "ArmAddOmxTwice", "--output", str(tmp_path))
+    assert "--force" in err and (tmp_path / "ArmAddOmxTwice.yaml").read_text() == "old"
+    path, ids = _add(capsys, workspace, OMX, "ArmAddOmxTwice", tmp_path, "--force")
+    assert len(ids) == 12 and load_arm_file(path).name == "ArmAddOmxTwice" and not stale.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ArmAddOmxTwice", "ArmAddOmxTwice.yaml"]
 
 
 def test_a_path_uri_is_written_relative_to_the_arm_file(workspace, capsys, tmp_path):
