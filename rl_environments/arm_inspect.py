@@ -300,6 +300,35 @@ class _Gripper:
     opening: float  # m: the gap's change from closed to open
     midpoint: np.ndarray  # root frame, fingers open, arm at zero
     closing_direction: np.ndarray  # root frame
+    pads: tuple[float, float] | None = None  # m: the gap between the fingers' geometry (closed, open)
+
+
+def _pad_gaps(ins: Inspection, gripper: _Gripper) -> tuple[float, float] | None:
+    """The smallest distance between the two fingers' collision geometry, closed and open (MuJoCo's
+    geom distance on the description's model: meshes included), or None without geometry."""
+    import mujoco
+
+    model = ins.description.spec.copy().compile()
+    data = mujoco.MjData(model)
+    lead, follower = ins.tree.joints[gripper.joint], ins.tree.joints[gripper.follower]
+
+    def geoms(link: str) -> list[int]:
+        bodies = {int(model.body(ins.description.body_name(n)).id) for n in ins.tree.descendants(link)}
+        found = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies]
+        solid = [g for g in found if model.geom_contype[g] or model.geom_conaffinity[g]]
+        return solid or found
+
+    first, second = geoms(lead.child), geoms(follower.child)
+    if not first or not second:
+        return None
+    out = []
+    for value in (gripper.closed, gripper.open):
+        data.qpos[model.joint(lead.name).qposadr[0]] = value
+        data.qpos[model.joint(follower.name).qposadr[0]] = follower.mimic.multiplier * value + follower.mimic.offset
+        mujoco.mj_kinematics(model, data)
+        fromto = np.zeros(6)
+        out.append(min(mujoco.mj_geomDistance(model, data, a, b, 1.0, fromto) for a in first for b in second))
+    return float(out[0]), float(out[1])
 
 
 def _finger_point(tree: _Tree, joint: Any, q: Mapping[str, float]) -> np.ndarray:
@@ -410,6 +439,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     joints, why_chain = _pick_chain(ins)
     base = _base_link(tree, joints[0])
     gripper, why_gripper = _gripper(tree, joints[-1])
+    if gripper is not None:
+        gripper.pads = _pad_gaps(ins, gripper)
     ee, why_ee = _ee_link(tree, joints[-1], gripper)
     try:
         chain = KinematicChain.from_urdf(ins.description.text, base, ee)
@@ -588,7 +619,9 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
                   upper: np.ndarray, seed_q: np.ndarray, max_vel: float, rng: np.random.Generator) -> np.ndarray:
     """The push / pick-and-place settings and scene: a table under the base, a cube the fingers grip;
     returns the start of the episodes (``init_ee_position``), where the top-down IK reaches."""
-    half = float(np.clip(round(0.3 * gripper.opening, 3), 0.008, 0.025))
+    gap = gripper.pads[1] if gripper.pads is not None else gripper.opening
+    half = float(np.clip(round(0.3 * gap, 3), 0.008, 0.025))
+    grips = gripper.pads is None or gripper.pads[0] < 2 * half - 0.004
     robot_height = 0.4 if reach > 0.6 else 0.3
     target_height = _r(0.25 * reach, 3)
     axis = "xyz".index(draft.sections["arm"]["approach_axis"])
@@ -664,8 +697,11 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
     }
     draft.sections["manipulation"] = m
     draft.note("manipulation.robot_height", "guessed: the table's height; the base stands on its top")
-    draft.note("manipulation.object_half_size", f"inferred: 30 % of the gripper's {gripper.opening * 100:.1f} cm "
-                                                "opening (0.8 .. 2.5 cm)")
+    what = "gap between the open fingers' geometry" if gripper.pads is not None else "opening"
+    draft.note("manipulation.object_half_size", f"inferred: 30 % of the gripper's {gap * 100:.1f} cm {what} "
+                                                "(0.8 .. 2.5 cm)" + ("" if grips or gripper.pads is None else
+                                                f"; the closed fingers stay {gripper.pads[0] * 100:.1f} cm apart "
+                                                "(wider than the cube): guessed, check the grasp"))
     draft.note("manipulation.object_mass", f"inferred: a cube of {_CUBE_DENSITY:g} kg/m^3, as the shipped ones")
     draft.note("manipulation.object_xy_min", why_box)
     draft.note("manipulation.gripper_min", "the closed fingers (gripper.closed)")
