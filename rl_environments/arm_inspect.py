@@ -809,7 +809,10 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
     if gripper is not None:
         f_effort = ins.tree.efforts.get(gripper.joint, 0.0) or 20.0
         prismatic = ins.tree.joints[gripper.joint].type == "prismatic"
-        p = float(np.clip(f_effort / (0.02 if prismatic else 0.2), 50.0, 2000.0))
+        # A squeeze of at most 20 N (or the effort limit) over the full stroke: the shipped grippers'
+        # ~25 N; a stiffer one overpowers the second finger's <mimic> and flings the cube.
+        stroke = abs(gripper.open - gripper.closed)
+        p = float(np.clip(min(f_effort, 20.0 if prismatic else 2.0) / max(stroke, 1e-3), 20.0, 2000.0))
         fingers[gripper.joint] = {"p": _r(p, 1), "d": _r(0.02 * p, 2)}
     lines = [
         f"# ros2_control controllers of the {draft.name} in simulation (written by uniros arm add).",
@@ -822,7 +825,8 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
         "# gains: position-servo stiffness p (N m/rad, N/m) and damping d of the simulation node's joint",
         f"# servos: p = max(worst gravity torque / {_SAG} rad, inertia x (2 pi 4 Hz)^2) over 200 random poses,",
         "# capped where a 4 ms step stays stable; d critically damps the largest inertia. Forces are clamped",
-        "# to the URDF efforts. Settle check (gravity compensation off, 1 s at home and at the start pose):",
+        "# to the URDF efforts. The finger's p squeezes with at most 20 N (or its effort) over the full stroke.",
+        "# Settle check (gravity compensation off, 1 s at home and at the start pose):",
         f"# largest tracking error {err:.4f} rad.",
     ]
     if weak:
