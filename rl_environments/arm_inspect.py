@@ -47,7 +47,7 @@ import numpy as np
 
 from rl_environments.arm_file import ArmFileError
 
-__all__ = ["ArmDraft", "add_arm", "draft_arm", "inspect_description"]
+__all__ = ["ArmDraft", "Inspection", "add_arm", "draft_arm", "inspect_description", "render_arm_file"]
 
 _MOVING = ("revolute", "continuous", "prismatic")
 _REVOLUTE = ("revolute", "continuous")
