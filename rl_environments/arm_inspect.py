@@ -21,8 +21,9 @@ inferred or guessed, so the user reviews one file instead of starting from a bla
   :class:`~rl_environments.arm_ik.ChainTopDownIK` reaches the table and the lift height in front of
   the base, a top-down start pose whose joints stay clear of the floor, the table and the cube from
   the reach and the gripper's opening;
-* the simulation's controllers (servo gains from the joints' effort limits, the worst gravity
-  torque and the joint-space inertia over random poses, checked by holding two poses in MuJoCo);
+* the simulation's controllers (servo gains of :mod:`rl_environments.arm_gains`: from the joints'
+  effort limits, the worst gravity torque and the joint-space inertia over random poses, checked by
+  holding two poses in MuJoCo);
 * the real twin's driver names from the ``<ros2_control>`` tag's hardware plugin where we know its
   vendor's convention, else ROS 2 control's conventional names, each marked ``guessed``.
 
@@ -53,10 +54,6 @@ _MOVING = ("revolute", "continuous", "prismatic")
 _REVOLUTE = ("revolute", "continuous")
 # End-effector link names, most specific first (matched as whole words of the link name).
 _EE_NAMES = ("tcp", "grasp", "grasping", "gripper_center", "end_effector", "eef", "ee", "tool", "tool0")
-_TIMESTEP = 0.004  # s: the tasks' physics step
-_SAG = 0.008  # rad: the most a joint may sag under gravity with gravity compensation off
-_BANDWIDTH = 2 * math.pi * 4.0  # rad/s: the servos' least natural frequency
-_SETTLE_TOLERANCE = 0.02  # rad: the settle check's largest tracking error
 _CUBE_DENSITY = 1100.0  # kg/m^3: the shipped cubes' (0.14 kg for 5 cm)
 #: Vendors' ros2_control hardware plugins -> (arm controller, gripper controller, gripper interface)
 #: of their drivers' launch files; an unknown plugin gets ROS 2 control's conventional names.
@@ -778,32 +775,16 @@ def _real(draft: ArmDraft, ins: Inspection, joints: Sequence[str], gripper: _Gri
 def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], gripper: _Gripper | None,
                  home: np.ndarray, start: np.ndarray, rng: np.random.Generator) -> None:
     """The simulation's controllers YAML: servo gains per joint, checked by a settle test."""
-    import mujoco
+    from rl_environments.arm_gains import SAG, servo_gains, settle_error
 
     model = ins.description.spec.copy().compile()
-    data = mujoco.MjData(model)
-    dofs = [int(model.joint(j).dofadr[0]) for j in joints]
-    qadr = [int(model.joint(j).qposadr[0]) for j in joints]
     lower = np.array([max(_limits(ins.tree.joints[j])[0], -math.pi) for j in joints])
     upper = np.array([min(_limits(ins.tree.joints[j])[1], math.pi) for j in joints])
-    gravity, inertia = np.zeros(len(joints)), np.zeros(len(joints))
-    least = np.full(len(joints), np.inf)
-    full = np.zeros((model.nv, model.nv))
-    for q in rng.uniform(lower, upper, size=(200, len(joints))):
-        data.qpos[qadr] = q
-        data.qvel[:] = 0.0
-        mujoco.mj_forward(model, data)
-        gravity = np.maximum(gravity, np.abs(data.qfrc_bias[dofs]))
-        mujoco.mj_fullM(model, data, full)
-        inertia = np.maximum(inertia, full[dofs, dofs])
-        least = np.minimum(least, full[dofs, dofs])
-    effort = np.array([ins.tree.efforts.get(j, 0.0) for j in joints])
-    kp = np.maximum(gravity / _SAG, inertia * _BANDWIDTH ** 2)
-    kp = np.minimum(kp, 0.5 * np.maximum(least, 1e-4) / _TIMESTEP ** 2)  # explicit stiffness stays stable
-    kd = 2.0 * np.sqrt(kp * inertia)
-    weak = [j for j, e, g in zip(joints, effort, gravity) if 0 < e < g]
-    gains = {j: {"p": _r(p, 1), "d": _r(d, 2)} for j, p, d in zip(joints, kp, kd)}
-    err = _settle(model, joints, kp, kd, effort, (home, start))
+    effort = [ins.tree.efforts.get(j, 0.0) for j in joints]
+    servo = servo_gains(model, joints, effort, lower, upper, rng)
+    weak = list(servo.weak)
+    gains = {j: {"p": _r(p, 1), "d": _r(d, 2)} for j, p, d in zip(joints, servo.p, servo.d)}
+    err = settle_error(model, joints, servo, effort, (home, start))
     draft.settle_error = err
     fingers: dict[str, dict[str, float]] = {}
     if gripper is not None:
@@ -823,7 +804,7 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
         "# uniros-fake-robot; it is not started in simulation.",
         "#",
         "# gains: position-servo stiffness p (N m/rad, N/m) and damping d of the simulation node's joint",
-        f"# servos: p = max(worst gravity torque / {_SAG} rad, inertia x (2 pi 4 Hz)^2) over 200 random poses,",
+        f"# servos: p = max(worst gravity torque / {SAG} rad, inertia x (2 pi 4 Hz)^2) over 200 random poses,",
         "# capped where a 4 ms step stays stable; d critically damps the largest inertia. Forces are clamped",
         "# to the URDF efforts. The finger's p squeezes with at most 20 N (or its effort) over the full stroke.",
         "# Settle check (gravity compensation off, 1 s at home and at the start pose):",
@@ -860,32 +841,6 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
 
     draft.controllers_yaml = "\n".join(lines) + "\n" + yaml.dump(doc, Dumper=_NoAliases, sort_keys=False,
                                                                  default_flow_style=None, width=110)
-
-
-def _settle(model: Any, joints: Sequence[str], kp: np.ndarray, kd: np.ndarray, effort: np.ndarray,
-            poses: Sequence[np.ndarray]) -> float:
-    """The largest error of servos with these gains holding each pose for 1 s (gravity compensation off)."""
-    import mujoco
-
-    model.geom_contype[:], model.geom_conaffinity[:] = 2, 1  # no self-collision, as the node's robots
-    model.opt.timestep = _TIMESTEP
-    model.opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
-    data = mujoco.MjData(model)
-    qadr = [int(model.joint(j).qposadr[0]) for j in joints]
-    dofs = [int(model.joint(j).dofadr[0]) for j in joints]
-    model.dof_damping[dofs] = kd  # the servos' damping, integrated implicitly as the node's are
-    worst = 0.0
-    for pose in poses:
-        mujoco.mj_resetData(model, data)
-        data.qpos[qadr] = pose
-        for _ in range(int(1.0 / _TIMESTEP)):
-            force = kp * (pose - data.qpos[qadr])
-            data.qfrc_applied[dofs] = np.where(effort > 0, np.clip(force, -effort, effort), force)
-            mujoco.mj_step(model, data)
-            if not np.all(np.isfinite(data.qpos)):
-                return math.inf
-        worst = max(worst, float(np.max(np.abs(data.qpos[qadr] - pose))))
-    return worst
 
 
 # -- writing -------------------------------------------------------------------------------------------
