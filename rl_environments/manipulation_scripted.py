@@ -97,11 +97,36 @@ class ScriptedPush(ScriptedPickAndPlace):
     """
 
 
-def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace:
-    """The scripted policy for a push or pick-and-place env (its task and action scale)."""
+class ScriptedReach:
+    """Moves the end effector straight at the goal (a reach env made with ``ee_action_type=True``): the
+    check that an arm's IK, servos and goal box fit together.
+
+    Args:
+        ee_delta_coeff: metres per unit action (the task's ``ee_delta_coeff``).
+    """
+
+    def __init__(self, ee_delta_coeff: float) -> None:
+        self.coeff = ee_delta_coeff
+
+    def reset(self) -> None:
+        """Nothing to forget between episodes."""
+
+    def __call__(self, obs: Any) -> Action:
+        if isinstance(obs, dict) and "desired_goal" in obs:
+            ee, goal = np.asarray(obs["achieved_goal"]), np.asarray(obs["desired_goal"])
+        else:  # plain reach: EE position, unit vector to the goal, distance first
+            o = np.asarray(obs["observation"] if isinstance(obs, dict) else obs, dtype=np.float64)
+            ee, goal = o[0:3], o[0:3] + o[3:6] * o[6]
+        return _move(ee, goal, self.coeff).astype(np.float32)
+
+
+def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace | ScriptedReach:
+    """The scripted policy for a reach, push or pick-and-place env (its task and action scale)."""
     task = env.unwrapped
     if not getattr(task, "ee_action_type", False):
         raise ValueError("the scripted policies drive end-effector actions; make the env with ee_action_type=True")
+    if getattr(task, "task", None) not in ("push", "pnp"):
+        return ScriptedReach(ee_delta_coeff=task.ee_delta_coeff)
     cls = ScriptedPush if task.task == "push" else ScriptedPickAndPlace
     return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0])
 

@@ -1,4 +1,4 @@
-"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim`` and ``new``.
+"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim``, ``new`` and ``arm add``.
 
 Each subcommand is a small function taking parsed arguments and returning an exit code.
 """
@@ -282,6 +282,37 @@ def _cmd_new(args: argparse.Namespace) -> int:
     return 0
 
 
+# -- uniros arm add (issue 34) ------------------------------------------------------------------------
+def _cmd_arm_add(args: argparse.Namespace) -> int:
+    from rl_environments.arm_inspect import add_arm
+
+    xacro_args: dict[str, str] = {}
+    for item in args.xacro_arg:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--xacro-arg {item!r} must be NAME=VALUE")
+        xacro_args[key] = value
+    path, ids, draft = add_arm(args.uri, args.name, xacro_args=xacro_args, output=args.output, force=args.force)
+    print(f"wrote {path} (and {path.parent / args.name}/): check the values marked 'guessed'")
+    print(f"servo settle check: largest tracking error {draft.settle_error:.4f} rad")
+    print(f"registered (uniros.register_arm({str(path)!r}), or UNIROS_ARMS={path}):")
+    for env_id in ids:
+        print(f"  {env_id}")
+    return 0
+
+
+def _arm_parser(sub: Any) -> None:
+    arm = sub.add_parser("arm", help="arms as data: write an arm file from a robot description")
+    arm_sub = arm.add_subparsers(dest="arm_command", required=True)
+    p = arm_sub.add_parser("add", help="inspect a URDF/xacro description and write NAME.yaml (an arm file)")
+    p.add_argument("uri", help="package://pkg/urdf/robot.urdf.xacro (found through AMENT_PREFIX_PATH) or a path")
+    p.add_argument("--xacro-arg", action="append", default=[], metavar="K=V", help="a xacro argument (repeat)")
+    p.add_argument("--name", required=True, help="the arm's name, the IDs' prefix (MyArm: MyArmReacherSim-v0, ...)")
+    p.add_argument("--output", default=".", help="where NAME.yaml and NAME/ go (default: %(default)s)")
+    p.add_argument("--force", action="store_true", help="replace an existing NAME.yaml and NAME/")
+    p.set_defaults(func=_cmd_arm_add)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``uniros`` argument parser."""
     from uniros.algorithms import ALGORITHMS
@@ -354,6 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--style", choices=["multiros", "frobs"], default="multiros",
                    help="template style: MultiROS (MyRobotEnv/MyTaskEnv) or FRobs_RL (CustomRobotEnv/CustomTaskEnv)")
     p.set_defaults(func=_cmd_new)
+    _arm_parser(sub)
     return parser
 
 

@@ -1,0 +1,255 @@
+"""``uniros arm add``: an arm file inferred from a description laid out as a sourced ament workspace
+gives it (``share/<pkg>``, xacro with ``$(find)`` and arguments, found through ``AMENT_PREFIX_PATH``).
+
+The two descriptions under ``arm_add_data/install/share`` are written for these tests from published
+kinematics with primitive geometry (no vendor files): a 7-joint arm with a parallel gripper (Franka
+Emika Panda's DH parameters and limits; ``hand:=false`` leaves the gripper out) and a 4-joint arm with
+a parallel gripper (ROBOTIS OpenManipulator-X's). The written file loads, registers its 6 + 6 IDs,
+every simulated ID passes gymnasium's checker, the scripted reach reaches, and every bad input is a
+one-line error that leaves nothing behind.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from gymnasium.utils.env_checker import check_env
+
+import uniros
+from rl_environments.arm_file import ArmFileError, load_arm_file
+from rl_environments.arm_registry import unregister_arm
+from rl_environments.manipulation_scripted import ScriptedReach, run_episode, scripted_policy
+from uniros.cli import main as cli
+
+DATA = Path(__file__).parent / "arm_add_data" / "install"
+PANDA = "package://uniros_test_panda_description/urdf/panda.urdf.xacro"
+OMX = "package://uniros_test_omx_description/urdf/omx.urdf.xacro"
+TASKS = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
+
+
+@pytest.fixture
+def workspace(monkeypatch, tmp_path):
+    """The test descriptions' install prefix on AMENT_PREFIX_PATH; arms registered here are removed."""
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(DATA))
+    monkeypatch.setenv("UNIROS_ARMS", "")
+    names: list[str] = []
+    yield names
+    for name in names:
+        unregister_arm(name)
+
+
+def _add(capsys, names: list[str], uri: str, name: str, out: Path, *extra: str) -> tuple[Path, list[str]]:
+    names.append(name)
+    code = cli(["arm", "add", uri, "--name", name, "--output", str(out), *extra])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    ids = [line.strip() for line in printed.out.splitlines() if line.startswith("  ")]
+    return out / f"{name}.yaml", ids
+
+
+def _error(capsys, *argv: str) -> str:
+    assert cli(["arm", "add", *argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0, err
+    return err
+
+
+ARMS = {  # name: (URI, arguments, joints, EE link, approach axis)
+    "ArmAddPanda": (PANDA, ("--xacro-arg", "hand=true"), 7, "panda_hand_tcp", "z"),
+    "ArmAddOmx": (OMX, (), 4, "end_effector_link", "x"),
+}
+
+
+@pytest.fixture(scope="module")
+def written(tmp_path_factory):
+    """Both test arms added once (``uniros arm add``) for the tests that only read or use them."""
+    out = tmp_path_factory.mktemp("arms")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("AMENT_PREFIX_PATH", str(DATA))
+        mp.setenv("UNIROS_ARMS", "")
+        result = {}
+        for name, (uri, extra, *_) in ARMS.items():
+            import io
+            from contextlib import redirect_stdout
+
+            buf = io.StringIO()
+            with redirect_stdout(buf):
+                assert cli(["arm", "add", uri, "--name", name, "--output", str(out), *extra]) == 0
+            ids = [line.strip() for line in buf.getvalue().splitlines() if line.startswith("  ")]
+            result[name] = (out / f"{name}.yaml", ids)
+        yield result
+        for name in ARMS:
+            unregister_arm(name)
+
+
+@pytest.mark.parametrize("name", list(ARMS))
+def test_arm_add_writes_a_file_that_loads_and_registers_its_ids(written, name):
+    path, ids = written[name]
+    _, _, joints, ee, approach = ARMS[name]
+    assert ids == [f"{name}{t}Sim-v0" for t in TASKS] + [f"{name}{t}Real-v0" for t in TASKS]
+    spec = load_arm_file(path)
+    assert len(spec.joints) == joints and spec.ee_link == ee and spec.approach_axis == approach
+    assert spec.gripper is not None and spec.gripper.closed < spec.gripper.open
+    assert Path(spec.controllers_file) == path.parent / name / "controllers.yaml"
+    assert set(spec.scene_files) == {"table", "object"}
+    text = path.read_text()
+    assert "# inferred: the serial chain" in text and "guessed" in text
+    controllers = yaml.safe_load((path.parent / name / "controllers.yaml").read_text())
+    gains = controllers["arm_position_controller"]["ros__parameters"]["gains"]
+    assert list(gains) == list(spec.joints) and all(g["p"] > 0 and g["d"] > 0 for g in gains.values())
+    error = float(text_after((path.parent / name / "controllers.yaml").read_text(), "largest tracking error"))
+    assert error < 0.02, "the settle check holds both poses"
+    cube = (path.parent / name / "cube.xml").read_text()
+    assert f'size="{spec.scene["object_half_size"]}' in cube
+
+
+def text_after(text: str, marker: str) -> str:
+    return text.split(marker, 1)[1].split()[0]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(ARMS))
+def test_every_sim_id_of_the_written_arm_passes_check_env(written, name):
+    for env_id in written[name][1][:6]:
+        env = uniros.make(env_id)
+        try:
+            obs, _ = env.reset(seed=0)
+            assert env.observation_space.contains(obs)
+            check_env(env.unwrapped, skip_render_check=True)
+        finally:
+            env.close()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(ARMS))
+def test_scripted_reach_succeeds_on_the_written_arm(written, name):
+    """The servos hold the start pose and the scripted reach meets every goal of fixed seeds."""
+    env = uniros.make(f"{name}ReacherGoalSim-v0", ee_action_type=True)
+    try:
+        env.reset(seed=0)
+        np.testing.assert_allclose(env.unwrapped.arm_positions(), env.unwrapped.init_joint_pos, atol=0.03)
+        policy = scripted_policy(env)
+        assert isinstance(policy, ScriptedReach)
+        results = [run_episode(env, policy, seed=s) for s in range(10)]
+        assert all(r["is_success"] for r in results), results
+    finally:
+        env.close()
+
+
+def test_an_arm_without_a_gripper_is_reach_only_and_says_so(workspace, capsys, tmp_path):
+    path, ids = _add(capsys, workspace, PANDA, "ArmAddPandaBare", tmp_path, "--xacro-arg", "hand=false")
+    assert ids == ["ArmAddPandaBareReacherSim-v0", "ArmAddPandaBareReacherGoalSim-v0",
+                   "ArmAddPandaBareReacherReal-v0", "ArmAddPandaBareReacherGoalReal-v0"]
+    text = path.read_text()
+    assert "gripper: null  # no actuated joint after the arm: reach only" in text
+    spec = load_arm_file(path)
+    assert spec.gripper is None and spec.ee_link == "panda_link8" and not spec.scene_files
+    assert not (tmp_path / "ArmAddPandaBare" / "table.xml").exists()
+
+
+def test_ros2_control_plugin_names_the_real_drivers_controllers(workspace, capsys, tmp_path):
+    """A xacro argument (a prefix) reaches the names; the Dynamixel plugin gives ROBOTIS' controller names."""
+    path, _ = _add(capsys, workspace, OMX, "ArmAddOmxReal", tmp_path, "--xacro-arg", "prefix=omx_")
+    spec = load_arm_file(path)
+    assert spec.joints == ("omx_joint1", "omx_joint2", "omx_joint3", "omx_joint4")
+    assert spec.real.arm_controller == "arm_controller" and spec.real.gripper_interface == "gripper_action"
+    assert "dynamixel_hardware" in path.read_text()
+
+def test_without_a_known_plugin_the_real_names_are_conventional_and_marked_guessed(written):
+    panda = written["ArmAddPanda"][0]
+    assert load_arm_file(panda).real.arm_controller == "joint_trajectory_controller"
+    assert "guessed: ROS 2 control's conventional names" in panda.read_text()
+
+
+def _write_package(root: Path, name: str, urdf: str) -> str:
+    share = root / "share" / name
+    (share / "urdf").mkdir(parents=True)
+    (share / "package.xml").write_text(f"<package format='3'><name>{name}</name></package>")
+    (share / "urdf" / "robot.urdf").write_text(urdf)
+    return f"package://{name}/urdf/robot.urdf"
+
+
+def _chain_urdf(types: list[str], extra: str = "") -> str:
+    links = "".join(f"<link name='l{i}'><inertial><mass value='0.5'/><inertia ixx='0.01' iyy='0.01' izz='0.01' "
+                    f"ixy='0' ixz='0' iyz='0'/></inertial></link>" for i in range(len(types) + 1))
+    joints = "".join(f"<joint name='j{i}' type='{t}'><parent link='l{i}'/><child link='l{i + 1}'/>"
+                     f"<origin xyz='0 0 0.1'/><axis xyz='0 {1 if i % 2 else 0} {0 if i % 2 else 1}'/>"
+                     f"<limit lower='-1' upper='1' effort='10' velocity='1'/></joint>" for i, t in enumerate(types))
+    return f"<robot name='r'>{links}{joints}{extra}</robot>"
+
+
+@pytest.mark.parametrize(("urdf", "match"), [
+    ("<robot name='r'><link name='a'>", "malformed URDF XML"),
+    (_chain_urdf(["revolute"] * 3), "no serial chain of 4 to 7 revolute joints"),
+    (_chain_urdf(["prismatic"] * 5), "are all prismatic"),
+    (_chain_urdf(["revolute"] * 8), "has 8 revolute joints"),
+    (_chain_urdf(["revolute"] * 5).replace("</robot>", "<link name='m'><visual><geometry><mesh filename="
+                                           "'package://arm_add_bad/meshes/nope.stl'/></geometry></visual></link>"
+                                           "<joint name='f' type='fixed'><parent link='l5'/><child link='m'/>"
+                                           "</joint></robot>"), "mesh 'package://arm_add_bad/meshes/nope.stl'"),
+])
+def test_bad_descriptions_are_one_line_errors_and_write_nothing(workspace, capsys, tmp_path, monkeypatch, urdf,
+                                                                 match):
+    prefix = tmp_path / "ws"
+    uri = _write_package(prefix, "arm_add_bad", urdf)
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(prefix))
+    out = tmp_path / "out"
+    err = _error(capsys, uri, "--name", "ArmAddBad", "--output", str(out))
+    assert match in err and uri in err and "fix:" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_missing_package_file_and_xacro_argument_are_one_line_errors(workspace, capsys, tmp_path):
+    out = tmp_path / "out"
+    err = _error(capsys, "package://no_such_description/urdf/r.urdf", "--name", "ArmAddX", "--output", str(out))
+    assert "package 'no_such_description' not found" in err and "AMENT_PREFIX_PATH" in err
+    err = _error(capsys, str(tmp_path / "nope.urdf"), "--name", "ArmAddX", "--output", str(out))
+    assert "not found" in err
+    err = _error(capsys, PANDA, "--name", "ArmAddX", "--output", str(out))  # `hand` has no default
+    assert "hand" in err and "--xacro-arg" in err
+    err = _error(capsys, OMX, "--name", "ArmAddX", "--xacro-arg", "prefix", "--output", str(out))
+    assert "NAME=VALUE" in err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_an_existing_file_is_kept_unless_forced_and_names_in_use_are_refused(written, workspace, capsys, tmp_path):
+    path = written["ArmAddOmx"][0]
+    before = path.read_text()
+    err = _error(capsys, OMX, "--name", "ArmAddOmx", "--output", str(path.parent))
+    assert str(path) in err and "--force" in err and path.read_text() == before
+    other = tmp_path / "other"
+    err = _error(capsys, OMX, "--name", "ArmAddOmx", "--output", str(other))
+    assert "is the name of the registered arm" in err and not other.exists()
+    err = _error(capsys, OMX, "--name", "UR5e", "--output", str(other))  # a shipped arm's
+    assert "UR5e" in err and not other.exists()
+    err = _error(capsys, OMX, "--name", "9lives", "--output", str(other))
+    assert "--name" in err and not other.exists()
+
+
+def test_force_replaces_the_file_and_its_folder_leaving_no_temporary_files(workspace, capsys, tmp_path):
+    stale = tmp_path / "ArmAddOmxTwice" / "stale.txt"
+    stale.parent.mkdir()
+    stale.write_text("from before")
+    (tmp_path / "ArmAddOmxTwice.yaml").write_text("old")
+    err = _error(capsys, OMX, "--name", "ArmAddOmxTwice", "--output", str(tmp_path))
+    assert "--force" in err and (tmp_path / "ArmAddOmxTwice.yaml").read_text() == "old"
+    path, ids = _add(capsys, workspace, OMX, "ArmAddOmxTwice", tmp_path, "--force")
+    assert len(ids) == 12 and load_arm_file(path).name == "ArmAddOmxTwice" and not stale.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ArmAddOmxTwice", "ArmAddOmxTwice.yaml"]
+
+
+def test_a_path_uri_is_written_relative_to_the_arm_file(workspace, capsys, tmp_path):
+    copy = tmp_path / "desc"
+    shutil.copytree(DATA / "share" / "uniros_test_omx_description", copy)
+    out = tmp_path / "arms"
+    path, ids = _add(capsys, workspace, str(copy / "urdf" / "omx.urdf.xacro"), "ArmAddOmxPath", out)
+    assert yaml.safe_load(path.read_text())["description"]["uri"] == "../desc/urdf/omx.urdf.xacro"
+    assert len(ids) == 12
+
+
+def test_arm_file_error_is_a_value_error():
+    assert issubclass(ArmFileError, ValueError)
