@@ -902,7 +902,7 @@ def add_arm(uri: str, name: str, *, xacro_args: Mapping[str, str] | None = None,
 
     import rl_environments  # noqa: F401 - registers the shipped arms, so their names are taken
     from rl_environments.arm_file import load_arm_file
-    from rl_environments.arm_registry import _check_description, register_arm, registered_arms
+    from rl_environments.arm_registry import check_description, register_arm, registered_arms
 
     if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name or ""):
         _fail("--name", f"{name!r} must be letters, digits and _ starting with a letter (it prefixes the IDs, "
@@ -937,7 +937,7 @@ def add_arm(uri: str, name: str, *, xacro_args: Mapping[str, str] | None = None,
         text = render_arm_file(draft)
         (tmp / f"{name}.yaml").write_text(text)
         spec = load_arm_file(tmp / f"{name}.yaml")  # what we wrote loads, and holds its chain
-        _check_description(spec)
+        check_description(spec)
         if "://" not in uri:
             draft.sections["description"]["uri"] = os.path.relpath(ins.source, out_dir)
             (tmp / f"{name}.yaml").write_text(render_arm_file(draft))

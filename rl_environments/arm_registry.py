@@ -26,7 +26,7 @@ from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
 from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
-__all__ = ["ARM_TASKS", "arm_env_ids", "chain_of", "top_down_ik_of", "arm_of", "registered_arms", "register_arm",
+__all__ = ["ARM_TASKS", "arm_env_ids", "chain_of", "check_description", "top_down_ik_of", "arm_of", "registered_arms", "register_arm",
            "register_env_arms", "unregister_arm"]
 
 #: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
@@ -134,7 +134,7 @@ def arm_env_ids(spec: ArmFile) -> dict[str, tuple[str, str, str]]:
     return out
 
 
-def _check_description(spec: ArmFile) -> None:
+def check_description(spec: ArmFile) -> None:
     """The file's joints and links against its description: the chain exists and is the arm's joints."""
     try:
         chain = chain_of(spec)
@@ -205,7 +205,7 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_d
             raise ArmFileError(f"{spec.path}: key 'name' {spec.name!r} gives ID {clash[0]!r}, which is already "
                                "registered: give the arm another name")
     if check_description:
-        _check_description(spec)
+        check_description(spec)
     if previous is not None:
         unregister_arm(spec.name)
     _ARMS[spec.name] = spec
