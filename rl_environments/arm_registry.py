@@ -176,13 +176,13 @@ def _check_gripper(spec: ArmFile) -> None:
                                "finger joint is the commanded one (put the mimicking one second)")
 
 
-def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_description: bool = True) -> list[str]:
+def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_chain: bool = True) -> list[str]:
     """Register an arm file's IDs with gymnasium and return them (simulated, then the Real twins).
 
     Args:
         path: the arm file.
         replace: re-register an arm of the same name from the same file (after editing it).
-        check_description: load the description and check the chain now (the shipped arms skip it at
+        check_chain: load the description and check the chain now (the shipped arms skip it at
             import: their files are checked by the tests).
 
     Raises:
@@ -204,7 +204,7 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_d
         if clash:
             raise ArmFileError(f"{spec.path}: key 'name' {spec.name!r} gives ID {clash[0]!r}, which is already "
                                "registered: give the arm another name")
-    if check_description:
+    if check_chain:
         check_description(spec)
     if previous is not None:
         unregister_arm(spec.name)
