@@ -26,8 +26,8 @@ from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
 from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
-__all__ = ["ARM_TASKS", "arm_env_ids", "chain_of", "check_description", "top_down_ik_of", "arm_of", "registered_arms", "register_arm",
-           "register_env_arms", "unregister_arm"]
+__all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "register_arm", "register_env_arms",
+           "registered_arms", "top_down_ik_of", "unregister_arm"]
 
 #: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
 ARM_TASKS: dict[str, tuple[bool, str | None]] = {
