@@ -128,7 +128,7 @@ def _register_arm_files() -> None:
 
     for name in SHIPPED_ARM_FILES:
         path = _Path(str(resources.files("rl_environments.config").joinpath("arms", name)))
-        register_arm(path, check_chain=False)
+        register_arm(path, check_chain=False, tell_children=False)
     for arm, spec in registered_arms().items():
         ARMS[arm] = spec.robot_name
     register_env_arms()

@@ -176,7 +176,8 @@ def _check_gripper(spec: ArmFile) -> None:
                                "finger joint is the commanded one (put the mimicking one second)")
 
 
-def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_chain: bool = True) -> list[str]:
+def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_chain: bool = True,
+                 tell_children: bool = True) -> list[str]:
     """Register an arm file's IDs with gymnasium and return them (simulated, then the Real twins).
 
     Args:
@@ -184,6 +185,8 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
         replace: re-register an arm of the same name from the same file (after editing it).
         check_chain: load the description and check the chain now (the shipped arms skip it at
             import: their files are checked by the tests).
+        tell_children: add the file to ``UNIROS_ARMS`` for the processes this one starts (the shipped
+            arms need not: every process registers them).
 
     Raises:
         ArmFileError: the file does not check, its description does not hold its chain, or another
@@ -219,7 +222,8 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
         pkg.note_arm_ids(sim_id, real_id, goal=ARM_TASKS[task][0], manipulation=kind is not None, steps=steps)
         out.append(sim_id)
     out += [ids[i][2] for i in ids]
-    _remember_in_environment(spec.path)
+    if tell_children:
+        _remember_in_environment(spec.path)
     return out
 
 
