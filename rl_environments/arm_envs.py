@@ -168,12 +168,13 @@ def robot_env_class(name: str, *, goal: bool = False, real: bool = False) -> typ
     return cls
 
 
-def forget(*class_names: str) -> None:
-    """Drop built classes (their arm was unregistered)."""
-    for class_name in class_names:
-        _CLASSES.pop(class_name, None)
-    for key in [k for k in _ROBOTS if any(n.startswith(k[0]) for n in class_names)]:
-        _ROBOTS.pop(key, None)
+def forget_arm(name: str) -> None:
+    """Drop every class built for arm ``name`` (it was unregistered; registering it again rebuilds them)."""
+    built = [n for n, cls in _CLASSES.items() if getattr(getattr(cls, "ARM_FILE", None), "name", None) == name]
+    for class_name in built:
+        del _CLASSES[class_name]
+    for key in [k for k in _ROBOTS if k[0] == name]:
+        del _ROBOTS[key]
 
 
 def __getattr__(class_name: str) -> type:

@@ -237,11 +237,11 @@ def unregister_arm(name: str) -> None:
     spec = _ARMS.pop(name, None)
     if spec is None:
         return
-    for sim_id, (task, cls_name, real_id) in arm_env_ids(spec).items():
+    for sim_id, (_, _, real_id) in arm_env_ids(spec).items():
         registry.pop(sim_id, None)
         registry.pop(real_id, None)
         pkg.forget_arm_ids(sim_id, real_id)
-        arm_envs.forget(cls_name, f"{spec.name}{task}RealEnv")
+    arm_envs.forget_arm(spec.name)
     if str(spec.path) in _ADDED_TO_ENVIRONMENT:
         _ADDED_TO_ENVIRONMENT.discard(str(spec.path))
         kept = [p for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p and p != str(spec.path)]
@@ -276,11 +276,7 @@ def register_env_arms(paths: str | None = None) -> list[str]:
     for item in text.split(os.pathsep):
         if item.strip():
             path = Path(item.strip()).expanduser()
-            spec_name = None
-            for name, spec in _ARMS.items():
-                if spec.path == path.resolve():
-                    spec_name = name
-            if spec_name is None:
+            if not any(spec.path == path.resolve() for spec in _ARMS.values()):  # not registered yet
                 try:
                     out += register_arm(path)
                 except ArmFileError as exc:
