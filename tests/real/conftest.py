@@ -27,6 +27,10 @@ from multiros.ros.processes import child_environment, private_context, stop_proc
 RX200_URI = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
 STANDINS = ("sim", "fake")
 _CWD = tempfile.gettempdir()  # children import the installed package, as a user's scripts do
+#: ``joint_state_timeout`` for tests that are not about the staleness watchdog. The default (0.5 s) is a
+#: robot's; on a loaded shared machine a stand-in in another process can pause longer than that, and a
+#: test of names or spaces must not then fail on the watchdog. Watchdog tests set their own limit.
+STATE_TIMEOUT = 5.0
 
 
 def _fake_available() -> bool:

@@ -22,7 +22,7 @@ from multiros.ros import Context, Node
 from multiros.ros.interfaces import get_message
 from rl_environments import ARM_TASKS
 
-from .conftest import TopicRecorder
+from .conftest import STATE_TIMEOUT, TopicRecorder
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
@@ -96,6 +96,7 @@ def arm(request: pytest.FixtureRequest, graph: Context) -> Iterator[tuple[str, F
 
 
 def _make(graph: Context, env_id: str, **kwargs: Any) -> Any:
+    kwargs.setdefault("joint_state_timeout", STATE_TIMEOUT)  # not a watchdog test: a loaded machine stalls children
     return uniros.make(env_id, context=graph, startup_timeout=15.0, **kwargs)
 
 
