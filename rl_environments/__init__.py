@@ -1,14 +1,14 @@
 """Robots and tasks for uniros, registered as gymnasium IDs on import.
 
 Arms are data: one arm file each (:mod:`rl_environments.arm_file`; the shipped ones in
-``config/arms/``: the RX200, VX300S, UR5e and NED2; yours through ``uniros.register_arm`` or
+``config/arms/``: the RX200, VX300S, UR5e, NED2 and IRB120; yours through ``uniros.register_arm`` or
 ``UNIROS_ARMS``). Each gives ``<ARM><task>Sim-v0`` for each ``<task>`` of ``ARM_TASKS``
 (``Reacher``, ``ReacherGoal``, ``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``; push and pick-and-place
 only for an arm with a gripper) and each one's ``<ARM><task>Real-v0`` twin, entry points
 ``rl_environments.arm_envs:<ARM><task>Env`` and ``...RealEnv`` (:mod:`rl_environments.arm_registry`).
 
-Besides: FRobs_RL's ABB IRB120 reacher, ``ABBIRB120ReacherEnv-v0`` and ``ABBIRB120ReacherGoalEnv-v0``
-(``rl_environments.abb_irb120.sim.task_envs.reacher``) with their Real twins
+Besides: FRobs_RL's reacher on the IRB120's arm file, ``ABBIRB120ReacherEnv-v0`` and
+``ABBIRB120ReacherGoalEnv-v0`` (``rl_environments.frobs_reach``) with their Real twins
 ``ABBIRB120ReacherRealEnv-v0`` and ``ABBIRB120ReacherGoalRealEnv-v0``; and the RX200's six tasks
 observed through a Zed2 camera, ``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``,
 ``rl_environments.rx200.sim.zed2``).
@@ -39,15 +39,13 @@ ARMS: dict[str, str] = {}
 #: The six tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper).
 ARM_TASKS: tuple[str, ...] = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
 #: The shipped arm files (in ``rl_environments.config``, ``config/arms/`` of a checkout).
-SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml")
+SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml", "irb120.yaml")
 #: The RX200's tasks observed through a Zed2 stereo camera (rl_environments.rx200.sim.zed2).
 ZED2_TASKS: tuple[str, ...] = ARM_TASKS
 CAMERA_ENV_IDS: tuple[str, ...] = tuple(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS)
 _STATIC_SPECS: dict[str, str] = {
-    "ABBIRB120ReacherEnv-v0": "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher:ABBIRB120ReacherEnv",
-    "ABBIRB120ReacherGoalEnv-v0": (
-        "rl_environments.abb_irb120.sim.task_envs.reacher.irb120_reacher_goal:ABBIRB120ReacherGoalEnv"
-    ),
+    "ABBIRB120ReacherEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherEnv",
+    "ABBIRB120ReacherGoalEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalEnv",
     **{f"RX200Zed2{task}Sim-v0": f"rl_environments.rx200.sim.zed2:RX200Zed2{task}Env" for task in ZED2_TASKS},
 }
 ENV_IDS: tuple[str, ...] = ()
@@ -62,12 +60,8 @@ MANIPULATION_EPISODE_STEPS = 50
 EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, MANIPULATION_EPISODE_STEPS)
 REAL_ENV_SPECS: dict[str, str] = {}
 _STATIC_REAL_SPECS: dict[str, str] = {
-    "ABBIRB120ReacherRealEnv-v0": (
-        "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_real:ABBIRB120ReacherRealEnv"
-    ),
-    "ABBIRB120ReacherGoalRealEnv-v0": (
-        "rl_environments.abb_irb120.real.task_envs.reacher.irb120_reacher_goal_real:ABBIRB120ReacherGoalRealEnv"
-    ),
+    "ABBIRB120ReacherRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherRealEnv",
+    "ABBIRB120ReacherGoalRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalRealEnv",
 }
 REAL_ENV_IDS: tuple[str, ...] = ()
 REAL_GOAL_ENV_IDS: tuple[str, ...] = ("ABBIRB120ReacherGoalRealEnv-v0",)

@@ -31,7 +31,7 @@ def test_task_configs_and_templates_are_installed():
     configs = {p.name for p in resources.files("rl_environments.config").iterdir()}
     assert "irb120_reacher_task_config.yaml" in configs
     arms = {p.name for p in resources.files("rl_environments.config").joinpath("arms").iterdir()}
-    assert {"rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml"} <= arms
+    assert {"rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml", "irb120.yaml"} <= arms
     tasks = {p.name for p in resources.files("rl_environments.config").joinpath("training", "tasks").iterdir()}
     assert {"Reacher.yaml", "ReacherGoal.yaml", "Push.yaml", "PushGoal.yaml", "PnP.yaml", "PnPGoal.yaml"} <= tasks
     templates = {p.name for p in resources.files("uniros.templates").iterdir()}

@@ -18,8 +18,7 @@ from multiros.envs.real.robot_link import JointState
 from multiros.envs.RealBaseEnv import RealBaseEnv
 from multiros.envs.RealGoalEnv import RealGoalEnv
 from multiros.ros import Context, Node
-from rl_environments.abb_irb120.real.robot_envs.irb120_robot_real import ABBIRB120RobotRealEnv
-from rl_environments.arm_envs import RX200ReacherGoalEnv, RX200ReacherGoalRealEnv
+from rl_environments.arm_envs import IRB120RobotRealEnv, RX200ReacherGoalEnv, RX200ReacherGoalRealEnv
 from rl_environments.arm_interface import ARM_INTERFACE_MEMBERS
 
 
@@ -97,7 +96,7 @@ def test_knobs_that_would_launch_a_robot_are_refused() -> None:
 
 def test_no_robot_is_a_clear_error_within_the_startup_timeout() -> None:
     with Context(transport="inproc", env={}) as ctx, pytest.raises(RobotConnectionError, match="no joint_states"):
-        ABBIRB120RobotRealEnv(context=ctx, startup_timeout=0.2)
+        IRB120RobotRealEnv(context=ctx, startup_timeout=0.2)
 
 
 def test_both_robot_layers_provide_the_arm_interface() -> None:

@@ -45,18 +45,19 @@ def write(tmp_path, monkeypatch):
 
     yield _write
     for name in made:
-        if name not in ("VX300S", "UR5e", "NED2"):
+        if name not in ("VX300S", "UR5e", "NED2", "IRB120"):
             unregister_arm(name)
 
 
-@pytest.mark.parametrize("name", ["vx300s", "ur5e", "ned2"])
+@pytest.mark.parametrize("name", ["vx300s", "ur5e", "ned2", "irb120"])
 def test_shipped_arm_files_match_their_descriptions(name):
     spec = load_arm_file(SHIPPED / f"{name}.yaml")
     chain = chain_of(spec)
     assert chain.joint_names == spec.joints
     assert registered_arms()[spec.name].path == spec.path
     ids = arm_env_ids(spec)
-    assert len(ids) == 6 and all(i in gym.registry and real in gym.registry for i, (_, _, real) in ids.items())
+    assert len(ids) == (6 if spec.gripper else 2)  # a gripperless arm (the IRB120): the two reach tasks
+    assert all(i in gym.registry and real in gym.registry for i, (_, _, real) in ids.items())
     # the home pose and the reach's start pose lie within the joint limits
     for pose in (spec.home, spec.reach["init_joint_pos"]):
         assert np.all(chain.lower - 1e-9 <= pose) and np.all(np.asarray(pose) <= chain.upper + 1e-9)

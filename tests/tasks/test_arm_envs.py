@@ -1,4 +1,4 @@
-"""The VX300S, UR5e and NED2 envs and the camera observations: the IDs and their twins, every new
+"""The VX300S, UR5e, NED2 and IRB120 envs and the camera observations: the IDs and their twins, every new
 simulated ID through gymnasium's checker, the scripted push and pick-and-place of each arm, camera
 images that follow the arm, match a render of the same pose and equal the node's Image topics, and
 clear errors for bad camera options and a camera that cannot render."""
@@ -20,13 +20,16 @@ from multiros.sim.errors import RenderError
 from rl_environments import ARM_TASKS, ARMS
 from rl_environments.manipulation_scripted import run_episode, scripted_policy
 
-NEW_SIM = [f"{arm}{task}Sim-v0" for arm in ARMS for task in ARM_TASKS]
+# Push and pick-and-place only for an arm with a gripper (not the IRB120).
+NEW_SIM = [i for i in (f"{arm}{task}Sim-v0" for arm in ARMS for task in ARM_TASKS) if i in rl_environments.ENV_IDS]
 ZED2 = list(rl_environments.CAMERA_ENV_IDS)
 Image = get_message("sensor_msgs/msg/Image")
 
 
 def test_ids_and_twins_are_registered_as_rl_environments_names_them():
-    """multiros_uniros.md §5.1's names: 3 arms x 6 tasks x (Sim, Real), the RX200's Zed2 variants."""
+    """multiros_uniros.md §5.1's names: 4 arms x 6 tasks and the IRB120's 2 x (Sim, Real), the RX200's Zed2
+    variants."""
+    assert len(NEW_SIM) == 4 * 6 + 2
     real = [i.replace("Sim-v0", "Real-v0") for i in NEW_SIM]
     assert set(NEW_SIM) | set(ZED2) <= set(rl_environments.ENV_IDS)
     assert set(real) <= set(rl_environments.REAL_ENV_IDS)
@@ -52,7 +55,7 @@ def test_make_reset_step_and_check_env(make, env_id):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id", [f"{arm}{task}GoalSim-v0" for arm in ARMS for task in ("Push", "PnP")])
+@pytest.mark.parametrize("env_id", [i for i in NEW_SIM if i.endswith(("PushGoalSim-v0", "PnPGoalSim-v0"))])
 def test_scripted_policy_solves_each_arms_task(make, env_id):
     """>= 0.8 over fixed seeds through the registered ID (benchmarks/bench_scripted_envs.py runs 30)."""
     env = make(env_id)

@@ -14,7 +14,8 @@ import uniros
 from rl_environments.reach import GoalSampler, goal_reward, is_success
 from rl_environments.task_config import TaskConfigError, load_task_config, vector
 
-# The RX200's and the IRB120's IDs; the other arms' and the camera variants are tests/tasks/test_arm_envs.py's.
+# The RX200's IDs and FRobs_RL's IRB120 reacher; the other arms' (the IRB120's arm-file reach included) and the
+# camera variants are tests/tasks/test_arm_envs.py's.
 ALL_IDS = ("RX200ReacherSim-v0", "RX200ReacherGoalSim-v0", "ABBIRB120ReacherEnv-v0", "ABBIRB120ReacherGoalEnv-v0",
            "RX200PushSim-v0", "RX200PushGoalSim-v0", "RX200PnPSim-v0", "RX200PnPGoalSim-v0")
 GOAL_IDS = tuple(i for i in rl_environments.GOAL_ENV_IDS if i in ALL_IDS)
@@ -23,6 +24,7 @@ GOAL_IDS = tuple(i for i in rl_environments.GOAL_ENV_IDS if i in ALL_IDS)
 def test_every_id_is_registered_on_import():
     arms = [f"{arm}{task}Sim-v0" for arm in ("VX300S", "UR5e", "NED2", "RX200Zed2")
             for task in ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")]
+    arms += ["IRB120ReacherSim-v0", "IRB120ReacherGoalSim-v0"]  # no gripper: reach only
     assert set(rl_environments.ENV_IDS) == {*ALL_IDS, *arms}
     for env_id in rl_environments.ENV_IDS:
         spec = gym.spec(env_id)

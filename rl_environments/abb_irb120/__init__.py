@@ -1,1 +1,0 @@
-"""ABB IRB120 environments."""

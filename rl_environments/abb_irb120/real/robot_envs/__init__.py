@@ -1,1 +1,0 @@
-"""IRB120 real robot envs (the robot layer)."""

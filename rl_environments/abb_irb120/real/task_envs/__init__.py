@@ -1,1 +1,0 @@
-"""IRB120 real task envs."""

@@ -1,1 +1,0 @@
-"""IRB120 environments on the MuJoCo simulation node."""

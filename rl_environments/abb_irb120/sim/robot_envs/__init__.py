@@ -1,1 +1,0 @@
-"""IRB120 robot envs (the robot layer)."""
