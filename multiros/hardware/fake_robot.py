@@ -35,7 +35,8 @@ from multiros.ros import Context, Node
 from multiros.ros.action import GoalResponse
 from multiros.ros.exceptions import TransportError
 from multiros.ros.executors import SingleThreadedExecutor
-from multiros.ros.processes import add_child_options, start_child_program
+from multiros.ros.names import split_ros_arguments
+from multiros.ros.processes import add_child_options, discovery_environment, start_child_program
 from multiros.ros.transport import wire_transport
 from multiros.sim.actions import TrajectoryActions
 from multiros.sim.controller_io import ControllerInterfaces
@@ -224,7 +225,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
     parser = _parser()
-    opts = parser.parse_args(argv)
+    own, ros_args = split_ros_arguments(sys.argv[1:] if argv is None else list(argv))
+    opts = parser.parse_args(own)
     stop = start_child_program(opts)
     if not opts.robot and not opts.description:
         parser.error(f"give --robot (one of {', '.join(sorted(PRESETS))}) or --description")
@@ -241,7 +243,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     opts.transport = wire_transport(opts.transport)
     options: dict[str, Any] = {"router": opts.router} if opts.router and opts.transport == "zenoh" else {}
     try:
-        ctx = Context(transport=opts.transport, **options).init()
+        ctx = Context(transport=opts.transport, env=discovery_environment(), **options).init(ros_args)
     except TransportError as exc:
         parser.exit(2, f"uniros-fake-robot: {exc}\n")
     robot = None

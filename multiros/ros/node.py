@@ -114,6 +114,11 @@ class Node:
 
         self.context._add_node(self)
         self._wire = self.context.transport.add_node(self)
+        self._parameter_services: Any = None
+        if start_parameter_services and self.context.transport.serves_parameters:
+            from multiros.ros.parameter_services import ParameterServices
+
+            self._parameter_services = ParameterServices(self)
 
     # -- identity ----------------------------------------------------------------------------
     def get_name(self) -> str:
