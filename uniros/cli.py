@@ -49,6 +49,7 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
     import os
 
     import rl_environments
+    from multiros.ros.transport import wire_transport
     from multiros.ros.transport.zenoh.config import DEFAULT_ROUTER_ENDPOINT, ROUTER_ENV
 
     real = env_id.rpartition(":")[2] in rl_environments.REAL_ENV_IDS
@@ -57,6 +58,14 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
     if not shared:
         return None
     domain = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    explicit = env_kwargs.get("transport")
+    transport = (wire_transport(explicit if isinstance(explicit, str) else None)
+                 if real or env_kwargs.get("sim_mode") == "existing" else "zenoh")
+    if transport == "rclpy":  # DDS: no router; how far discovery reaches is what matters
+        reach = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip() or "ROS 2's default (SUBNET on Jazzy)"
+        return (f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'} over rclpy "
+                f"(DDS discovery range: {reach}); everyone it reaches on that domain shares it "
+                "(docs/ros2_system.md, What protects a node on DDS)")
     router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
     text = (f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'} through the Zenoh "
             f"router {router}")

@@ -77,3 +77,14 @@ def test_client_ids_of_unknown_bindings_are_never_read_from_memory() -> None:
 
     a, b = client_of(FakeRequestId()), client_of(FakeRequestId())
     assert a != b and a[0] == "request"
+
+
+def test_uniros_train_names_the_graph_of_a_dds_run_without_a_router(monkeypatch) -> None:
+    from uniros.cli import _shared_graph_note
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", "17")
+    monkeypatch.setenv(DISCOVERY_RANGE_ENV, "LOCALHOST")
+    text = _shared_graph_note("RX200ReacherGoalSim-v0", {"sim_mode": "existing", "transport": "rclpy"})
+    assert text is not None and "over rclpy" in text and "LOCALHOST" in text and "Zenoh" not in text
+    text = _shared_graph_note("RX200ReacherGoalSim-v0", {"sim_mode": "existing", "transport": "zenoh"})
+    assert text is not None and "through the Zenoh router" in text
