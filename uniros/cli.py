@@ -63,13 +63,12 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
     transport = wire_transport(explicit if isinstance(explicit, str) else None, prefer_rclpy=real or mode == "existing")
     domain = os.environ.get("ROS_DOMAIN_ID", "").strip()
     where = f"{env_id} joins the ROS 2 graph of domain {domain or '0 (ROS_DOMAIN_ID unset)'}"
-    if transport == "rclpy":
+    if transport == "rclpy":  # DDS: no router; how far discovery reaches is what matters
         rmw = os.environ.get(RMW_ENV, "").strip()
-        text = f"{where} through rclpy on {rmw or 'its default middleware'} ({RMW_ENV})"
-        if domain in ("", "0"):
-            text += ("; every user of this machine with the defaults shares it: set ROS_DOMAIN_ID per user "
-                     "(docs/pitfalls.md, Shared machines)")
-        return text
+        reach = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip() or "ROS 2's default (SUBNET on Jazzy)"
+        return (f"{where} through rclpy on {rmw or 'its default middleware'} ({RMW_ENV}; DDS discovery range: "
+                f"{reach}); everyone it reaches on that domain shares it (docs/ros2_system.md, What protects a "
+                "node on DDS)")
     router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
     text = f"{where} through the Zenoh router {router}"
     if domain in ("", "0") and router == DEFAULT_ROUTER_ENDPOINT:

@@ -39,6 +39,7 @@ import yaml
 
 from multiros.hardware import fake_robot as _fake
 from multiros.hardware.robot_spec import RobotSpec, load_robot_spec, parse_assignments
+from multiros.ros.names import split_ros_arguments
 from multiros.ros.processes import start_child_program
 from multiros.sim.errors import SimError
 
@@ -326,7 +327,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: ``--arm PATH`` serves an arm file's robot; anything else is the lower layer's."""
     parser = build_parser()
     args = list(sys.argv[1:] if argv is None else argv)
-    opts = parser.parse_args(args)
+    own, ros_args = split_ros_arguments(args)
+    opts = parser.parse_args(own)
     if not opts.arm:
         if opts.start is not None:
             parser.error("--start needs --arm")
@@ -344,7 +346,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         spec = arm_robot_spec(arm, start=opts.start or "home", namespace=opts.namespace, initial_positions=initial)
     except (ArmFileError, ArmRobotError, ValueError) as exc:
         parser.exit(2, f"uniros-fake-robot: {exc}\n")
-    return _fake.serve(spec, opts, parser, stop, joint_states_topic=arm.real.joint_states_topic, attach=_attach(arm))
+    return _fake.serve(spec, opts, parser, stop, joint_states_topic=arm.real.joint_states_topic, attach=_attach(arm),
+                       ros_args=ros_args)
 
 
 if __name__ == "__main__":

@@ -53,6 +53,8 @@ class FakeHardware:
         lock: held around every access to the hardware and its controllers.
     """
 
+    hardware_plugin = "uniros/FakeSystem"  # the hardware component list_hardware_components names
+
     def __init__(self, spec: RobotSpec, *, time_constant: float = DEFAULT_TIME_CONSTANT,
                  clock: Callable[[], float] = time.time) -> None:
         if not math.isfinite(time_constant) or time_constant < 0:

@@ -35,7 +35,8 @@ from multiros.ros import Context, Node
 from multiros.ros.action import GoalResponse
 from multiros.ros.exceptions import TransportError
 from multiros.ros.executors import SingleThreadedExecutor
-from multiros.ros.processes import add_child_options, start_child_program
+from multiros.ros.names import split_ros_arguments
+from multiros.ros.processes import add_child_options, discovery_environment, start_child_program
 from multiros.ros.transport import wire_transport
 from multiros.sim.actions import TrajectoryActions
 from multiros.sim.controller_io import ControllerInterfaces
@@ -230,7 +231,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: serve a fake robot until interrupted (or the owner is gone)."""
     parser = build_parser()
-    opts = parser.parse_args(argv)
+    own, ros_args = split_ros_arguments(sys.argv[1:] if argv is None else list(argv))
+    opts = parser.parse_args(own)
     stop = start_child_program(opts)
     if not opts.robot and not opts.description:
         parser.error(f"give --robot (one of {', '.join(sorted(PRESETS))}) or --description")
@@ -244,13 +246,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
     except (ValueError, OSError, SimError) as exc:  # bad option, missing file, xacro/URDF error: exit 2
         parser.error(f"cannot load the robot: {exc}")
-    return serve(spec, opts, parser, stop)
+    return serve(spec, opts, parser, stop, ros_args=ros_args)
 
 
 def serve(spec: RobotSpec, opts: argparse.Namespace, parser: argparse.ArgumentParser, stop: threading.Event, *,
           joint_states_topic: str | None = None,
-          attach: Callable[[FakeRobot], Callable[[], None] | None] | None = None) -> int:
+          attach: Callable[[FakeRobot], Callable[[], None] | None] | None = None,
+          ros_args: Sequence[str] = ()) -> int:
     """Serve ``spec`` with the options of :func:`build_parser` until ``stop`` is set.
+
+    ``ros_args`` are the ``--ros-args ...`` of the command line, for rcl (enclave, remaps).
 
     ``attach`` (the upper layer's) adds interfaces to the robot before it starts serving and returns
     what closes them (or ``None``); a ``ValueError`` from it is a bad robot: exit 2.
@@ -258,7 +263,7 @@ def serve(spec: RobotSpec, opts: argparse.Namespace, parser: argparse.ArgumentPa
     opts.transport = wire_transport(opts.transport)
     options: dict[str, Any] = {"router": opts.router} if opts.router and opts.transport == "zenoh" else {}
     try:
-        ctx = Context(transport=opts.transport, **options).init()
+        ctx = Context(transport=opts.transport, env=discovery_environment(), **options).init(list(ros_args))
     except TransportError as exc:
         parser.exit(2, f"uniros-fake-robot: {exc}\n")
     robot = None

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from multiros.ros.exceptions import NotInitializedException
 from multiros.ros.graph import GraphQueries
-from multiros.ros.names import RosArguments, parse_ros_arguments
+from multiros.ros.names import RosArguments, parse_ros_arguments, split_ros_arguments
 from multiros.ros.registry import LocalRegistry
 
 if TYPE_CHECKING:
@@ -63,6 +63,7 @@ class Context:
         self.transport_options = transport_options
         self.registry = LocalRegistry()
         self.arguments = RosArguments()
+        self.ros_argv: list[str] = []  # the --ros-args sections of init's args, for rcl (the rclpy transport)
         self._transport: Transport | None = None
         self._cond = threading.Condition()
         self._generation = 0
@@ -86,6 +87,7 @@ class Context:
         if domain_id is not None:
             self.domain_id = _domain_id(domain_id, self.env)
         self.arguments = parse_ros_arguments(list(args) if args else None)
+        self.ros_argv = split_ros_arguments(list(args) if args else [])[1]
         from multiros.ros.transport import make_transport
 
         transport = make_transport(self.transport_name, self)

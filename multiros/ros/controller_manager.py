@@ -3,7 +3,9 @@ ros2_control client, used alike by the simulation envs and by the Real envs.
 
 Talks to ``<robot ns>/controller_manager/{list_controllers, load_controller, configure_controller,
 switch_controller, unload_controller}`` (``controller_manager_msgs/srv/*``), which the MuJoCo
-simulation node serves for every robot and a real ros2_control robot serves too. A refused request
+simulation node serves for every robot and a real ros2_control robot serves too; the node also
+serves ``list_hardware_interfaces``, ``list_hardware_components``, ``list_controller_types`` and
+``set_hardware_component_state`` (:data:`CONTROLLER_SERVICES`), so ``ros2 control`` works against it. A refused request
 raises :class:`ControllerManagerError` naming the controllers and the namespace; a timeout is
 retried at most ``max_retries`` times, then raises. :mod:`multiros.utils.ros_controllers` adds the
 MultiROS and FRobs_RL function names on top.
@@ -34,6 +36,10 @@ CONTROLLER_SERVICES: dict[str, str] = {
     "load_controller": "controller_manager_msgs/srv/LoadController",
     "configure_controller": "controller_manager_msgs/srv/ConfigureController",
     "unload_controller": "controller_manager_msgs/srv/UnloadController",
+    "list_hardware_interfaces": "controller_manager_msgs/srv/ListHardwareInterfaces",
+    "list_hardware_components": "controller_manager_msgs/srv/ListHardwareComponents",
+    "list_controller_types": "controller_manager_msgs/srv/ListControllerTypes",
+    "set_hardware_component_state": "controller_manager_msgs/srv/SetHardwareComponentState",
 }
 Duration = get_message("builtin_interfaces/msg/Duration")
 

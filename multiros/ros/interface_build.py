@@ -52,7 +52,9 @@ USED_TYPES: dict[str, tuple[str, ...]] = {
     "control_msgs": ("action/FollowJointTrajectory",),
     "controller_manager_msgs": (
         "srv/ListControllers", "srv/SwitchController", "srv/LoadController", "srv/ConfigureController",
-        "srv/UnloadController", "msg/ControllerState",
+        "srv/UnloadController", "msg/ControllerState", "srv/ListHardwareInterfaces", "srv/ListHardwareComponents",
+        "srv/ListControllerTypes", "srv/SetHardwareComponentState", "msg/HardwareComponentState",
+        "msg/HardwareInterface",
     ),
 }
 _EXT = {"msg": ".msg", "srv": ".srv", "action": ".action"}

@@ -6,6 +6,7 @@ Hand-written: the rules are small and there is no PyPI package implementing them
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import yaml
@@ -27,6 +28,7 @@ __all__ = [
     "normalize_namespace",
     "RemapRule",
     "RosArguments",
+    "split_ros_arguments",
     "parse_ros_arguments",
 ]
 
@@ -234,6 +236,26 @@ def _parse_value(text: str) -> object:
         return yaml.safe_load(text)
     except yaml.YAMLError:
         return text
+
+
+def split_ros_arguments(args: Sequence[str]) -> tuple[list[str], list[str]]:
+    """``(the program's own arguments, the --ros-args sections)`` of a command line, as rcl splits
+    it: a section runs from ``--ros-args`` to ``--`` or the end; the ``--ros-args`` markers stay in
+    the second list (``--`` does not), so it can be handed to rcl or :func:`parse_ros_arguments`."""
+    own: list[str] = []
+    ros: list[str] = []
+    in_ros = False
+    for arg in args:
+        if arg == "--ros-args":
+            in_ros = True
+            ros.append(arg)
+        elif arg == "--" and in_ros:
+            in_ros = False
+        elif in_ros:
+            ros.append(arg)
+        else:
+            own.append(arg)
+    return own, ros
 
 
 def parse_ros_arguments(args: list[str] | None) -> RosArguments:

@@ -113,7 +113,16 @@ class Node:
                     self.declare_parameter(name, value)
 
         self.context._add_node(self)
-        self._wire = self.context.transport.add_node(self)
+        try:
+            self._wire = self.context.transport.add_node(self)
+        except BaseException:  # e.g. rcl refused the node: the context must not try to destroy it later
+            self.context._remove_node(self)
+            raise
+        self._parameter_services: Any = None
+        if start_parameter_services and self.context.transport.serves_parameters:
+            from multiros.ros.parameter_services import ParameterServices
+
+            self._parameter_services = ParameterServices(self)
 
     # -- identity ----------------------------------------------------------------------------
     def get_name(self) -> str:

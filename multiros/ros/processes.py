@@ -16,6 +16,14 @@ own port alike; the owner's children get the secret through their environment
 a Zenoh session config file for rmw_zenoh (``ZENOH_SESSION_CONFIG_URI``) and Zenoh tools. The
 folder is removed when the context shuts down (or at exit). Processes of the same user can read
 that file and the owner's memory anyway: the boundary is between users, as for any file.
+
+DDS (the rclpy transport) has no router and no authentication without SROS2, so a private graph
+there is what DDS offers: :func:`private_dds_context` takes a domain id nobody on this machine uses
+now and discovery on this machine only (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, no static
+peers). Other hosts never see it; the owner's own ``ROS_DOMAIN_ID`` (where strangers look) never
+holds it; a process of this machine that scans every domain could still find it (only SROS2
+closes that; see docs/ros2_system.md). Every program an owner starts also gets localhost-only
+discovery unless the owner's environment names a range (:data:`DISCOVERY_RANGE_ENV`).
 """
 
 from __future__ import annotations
@@ -40,12 +48,16 @@ from multiros.ros.context import Context
 from multiros.ros.exceptions import TransportError
 
 __all__ = [
+    "DISCOVERY_RANGE_ENV",
     "OWNER_POLL_SEC",
     "SHARED_GRAPH_PREFIXES",
     "add_child_options",
     "child_environment",
     "free_loopback_endpoint",
+    "discovery_environment",
+    "free_dds_domain",
     "private_context",
+    "private_dds_context",
     "private_environment",
     "private_graph_credentials",
     "start_child_program",
@@ -62,6 +74,13 @@ _logger = logging.getLogger(__name__)
 #: Prefixes of the environment variables that point a Zenoh context at a shared graph (router,
 #: session files, overrides, endpoints, credentials); a private context and its child ignore them all.
 SHARED_GRAPH_PREFIXES = ("ZENOH_", "UNIROS_ZENOH_")
+#: The variable rcl (Jazzy on) reads for how far DDS discovery reaches: LOCALHOST, SUBNET, OFF, SYSTEM_DEFAULT.
+DISCOVERY_RANGE_ENV = "ROS_AUTOMATIC_DISCOVERY_RANGE"
+#: rcl's list of peers to reach beyond the range (a private graph drops it).
+STATIC_PEERS_ENV = "ROS_STATIC_PEERS"
+#: Domains a private DDS graph is taken from: 1..100 (0 is everybody's; 101..232 are the test
+#: suites' own, and their ports fall into Linux' ephemeral range above 101).
+PRIVATE_DOMAINS = range(1, 101)
 #: How often a child checks that its owner is alive (seconds).
 OWNER_POLL_SEC = 0.2
 
@@ -190,11 +209,64 @@ def private_graph_credentials(ctx: Context) -> dict[str, str]:
     return out
 
 
+def discovery_environment(env: Mapping[str, str] | None = None) -> dict[str, str]:
+    """``env`` (default: this process's) with DDS discovery on this machine only, unless it names a
+    range itself (:data:`DISCOVERY_RANGE_ENV`): what every program uniros starts gets."""
+    out = dict(os.environ if env is None else env)
+    if not out.get(DISCOVERY_RANGE_ENV, "").strip():
+        out[DISCOVERY_RANGE_ENV] = "LOCALHOST"
+    return out
+
+
+def _domain_in_use(domain: int) -> bool:
+    """Whether a DDS participant of this machine holds ``domain``'s first unicast discovery port
+    (RTPS: 7400 + 250 * domain + 10; every participant binds it or the next ones)."""
+    port = 7410 + 250 * domain
+    for offset in (0, 1):  # the first participant's discovery and user ports
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            try:
+                sock.bind(("0.0.0.0", port + offset))
+            except OSError:
+                return True
+    return False
+
+
+def free_dds_domain(exclude: tuple[int, ...] = ()) -> int:
+    """A domain id of :data:`PRIVATE_DOMAINS` that no participant on this machine uses now (picked at
+    random, so owners starting at the same moment rarely pick the same one).
+
+    Raises:
+        TransportError: every one is in use.
+    """
+    candidates = [d for d in PRIVATE_DOMAINS if d not in exclude]
+    secrets.SystemRandom().shuffle(candidates)
+    for domain in candidates:
+        if not _domain_in_use(domain):
+            return domain
+    raise TransportError(f"no free ROS domain id in {PRIVATE_DOMAINS.start}..{PRIVATE_DOMAINS.stop - 1} on this "
+                         "machine for a private DDS graph: stop some ROS processes, or use transport='zenoh'")
+
+
+def private_dds_context() -> Context:
+    """An rclpy context on a free domain with discovery on this machine only (see the module
+    docstring): a child given :func:`child_environment` of it joins it and nothing else.
+
+    Raises:
+        TransportError: rclpy cannot be loaded, or no domain is free.
+    """
+    env = {k: v for k, v in os.environ.items() if k != STATIC_PEERS_ENV}
+    env[DISCOVERY_RANGE_ENV] = "LOCALHOST"
+    user_domain = Context(env=os.environ).domain_id
+    return Context(transport="rclpy", env=env, domain_id=free_dds_domain((user_domain,))).init()
+
+
 def child_environment(ctx: Context) -> dict[str, str]:
     """Environment variables that make a child process join ``ctx``'s ROS graph: its domain, its
     router and, for a private graph, its credentials (never on a command line, which every user
-    can read; a process's environment is readable by its own user only)."""
-    env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": ctx.transport_name}
+    can read; a process's environment is readable by its own user only). DDS discovery: the
+    context's range, else this machine only (:func:`discovery_environment`)."""
+    env = {"ROS_DOMAIN_ID": str(ctx.domain_id), "UNIROS_TRANSPORT": ctx.transport_name,
+           DISCOVERY_RANGE_ENV: discovery_environment(ctx.env)[DISCOVERY_RANGE_ENV]}
     if ctx.transport_name != "zenoh":
         return env
     endpoint = ctx.transport_options.get("router_endpoint") or ctx.env.get("UNIROS_ZENOH_ROUTER")

@@ -1,8 +1,12 @@
 """The ROS surface of one robot's ros2_control controller manager, in the robot's namespace.
 
 * controller-manager services: ``controller_manager/list_controllers``, ``load_controller``,
-  ``configure_controller``, ``switch_controller``, ``unload_controller`` (every served
-  distribution's variant, :mod:`multiros.sim.distro_adapters`);
+  ``configure_controller``, ``switch_controller``, ``unload_controller``, and what ``ros2 control``
+  asks besides: ``list_hardware_interfaces`` (every joint's position, velocity and effort
+  interfaces, claimed or not), ``list_hardware_components`` (one system per robot, always active),
+  ``list_controller_types`` and ``set_hardware_component_state`` (only ``active`` is accepted:
+  the simulated hardware cannot be switched off) (every served distribution's variant,
+  :mod:`multiros.sim.distro_adapters`);
 * controller command topics: ``<controller>/commands`` (``std_msgs/Float64MultiArray``) for forward
   command controllers, ``<controller>/joint_trajectory`` (``trajectory_msgs/JointTrajectory``) plus
   the ``follow_joint_trajectory`` action (:class:`~multiros.sim.actions.TrajectoryActions`) for
@@ -22,7 +26,7 @@ from typing import Any
 
 from multiros.ros.logging import LogThrottle
 from multiros.sim.actions import TrajectoryActions
-from multiros.sim.controllers import JointTrajectoryController
+from multiros.sim.controllers import CONTROLLER_TYPES, JointTrajectoryController
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import CommandError, ControllerError
 from multiros.sim.services import CONTROLLER_SERVICES
@@ -33,6 +37,11 @@ Float64MultiArray = get_message("std_msgs/msg/Float64MultiArray")
 JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
 ControllerState = get_message("controller_manager_msgs/msg/ControllerState")
 SwitchController = get_service(CONTROLLER_SERVICES["switch_controller"])
+HardwareInterface = get_message("controller_manager_msgs/msg/HardwareInterface")
+HardwareComponentState = get_message("controller_manager_msgs/msg/HardwareComponentState")
+LifecycleState = get_message("lifecycle_msgs/msg/State")
+_COMMAND_INTERFACES = ("position", "velocity", "effort")  # what every simulated joint takes
+_ACTIVE = (3, "active")  # lifecycle_msgs/State PRIMARY_STATE_ACTIVE
 
 
 class ControllerInterfaces:
@@ -66,7 +75,9 @@ class ControllerInterfaces:
         cm = f"{self.ns}/controller_manager"
         handlers = {"list_controllers": self._list, "load_controller": self._load,
                     "configure_controller": self._configure, "switch_controller": self._switch,
-                    "unload_controller": self._unload}
+                    "unload_controller": self._unload, "list_hardware_interfaces": self._interfaces,
+                    "list_hardware_components": self._components, "list_controller_types": self._types,
+                    "set_hardware_component_state": self._set_component_state}
         self._services = [  # every served distribution's variant (multiros.sim.distro_adapters)
             srv for name, type_name in CONTROLLER_SERVICES.items()
             for srv in create_services(self.node, type_name, f"{cm}/{name}", handlers[name])
@@ -139,6 +150,53 @@ class ControllerInterfaces:
             )
             for i in infos
         ]
+        return response
+
+    def _hardware(self) -> tuple[list[Any], list[Any]]:
+        """The robot's command and state interfaces, claimed ones marked (lock held)."""
+        cm = self.world.controller_manager(self.robot)
+        claimed = {i for info in cm.list_controllers() for i in info.claimed_interfaces}
+        joints = cm.hw.joint_names
+        command = [HardwareInterface(name=f"{j}/{i}", data_type="double", is_available=True,
+                                     is_claimed=f"{j}/{i}" in claimed) for j in joints for i in _COMMAND_INTERFACES]
+        state = [HardwareInterface(name=f"{j}/{i}", data_type="double", is_available=True, is_claimed=False)
+                 for j in joints for i in _COMMAND_INTERFACES]
+        return command, state
+
+    def _interfaces(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            response.command_interfaces, response.state_interfaces = self._hardware()
+        return response
+
+    def _component_name(self) -> str:
+        return f"{self.robot}_system"
+
+    def _components(self, request: Any, response: Any) -> Any:
+        with self.lock:
+            command, state = self._hardware()
+        component = HardwareComponentState(name=self._component_name(), type="system",
+                                           state=LifecycleState(id=_ACTIVE[0], label=_ACTIVE[1]),
+                                           command_interfaces=command, state_interfaces=state)
+        if hasattr(component, "plugin_name"):  # Jazzy on
+            component.plugin_name = getattr(self.world, "hardware_plugin", "uniros/MujocoSystem")
+        response.component = [component]
+        return response
+
+    def _types(self, request: Any, response: Any) -> Any:
+        response.types = sorted(CONTROLLER_TYPES)
+        response.base_classes = ["controller_interface::ControllerInterface"] * len(response.types)
+        return response
+
+    def _set_component_state(self, request: Any, response: Any) -> Any:
+        target = request.target_state
+        wanted = int(target.id) == _ACTIVE[0] or str(target.label).strip().lower() == _ACTIVE[1]
+        response.ok = request.name == self._component_name() and wanted
+        response.state = LifecycleState(id=_ACTIVE[0], label=_ACTIVE[1])
+        if not response.ok:
+            self._ignored.log(self.node.get_logger(), logging.WARNING,
+                              "%s/controller_manager: set_hardware_component_state %r -> %r refused: the only "
+                              "component is %r, and it stays active", self.ns, request.name,
+                              target.label or target.id, self._component_name())
         return response
 
     def _manage(self, response: Any, action: Any) -> Any:

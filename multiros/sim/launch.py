@@ -12,10 +12,16 @@ Readiness is signalled, never slept for: a child process is ready when its servi
 Isolation (``process`` mode): the env's context starts a **private Zenoh router** on a free
 loopback port and the child node joins only that router, so several owners on one machine (scripts,
 vector envs, SB3's ``SubprocVecEnv`` workers, test suites) never see each other's nodes, whatever
-router or ``ROS_DOMAIN_ID`` the user's shell points at. The child watches its owner and exits within
-about a second of the owner's death, whatever signal ended it. ``isolated=False`` joins the user's
-graph instead (router and domain from the environment), for a child that ROS tools should see.
-``existing`` mode and ``uniros-sim`` keep the ROS conventions: a named node on the user's domain.
+router or ``ROS_DOMAIN_ID`` the user's shell points at. Over rclpy (DDS: no router, no
+authentication without SROS2) the env's context and the child take a **domain of their own**, one no
+participant on this machine uses, with discovery on this machine only, and the child node a name of
+its own (``<node_name>_<owner pid>_<n>``): strangers on the user's domain or on other hosts never
+see it, and two owners never share or clash (``multiros.ros.processes.private_dds_context``). The
+child watches its owner and exits within about a second of the owner's death, whatever signal ended
+it. ``isolated=False`` joins the user's graph instead (router and domain from the environment), for
+a child that ROS tools should see. ``existing`` mode and ``uniros-sim`` keep the ROS conventions: a
+named node on the user's domain (``uniros-sim`` with discovery on this machine only unless
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` says otherwise).
 """
 
 from __future__ import annotations
@@ -34,11 +40,16 @@ from urllib.parse import urlencode
 
 from multiros.ros import Context, Node
 from multiros.ros.exceptions import TransportError
+from multiros.ros.names import split_ros_arguments
 from multiros.ros.processes import (
+    DISCOVERY_RANGE_ENV,
+    STATIC_PEERS_ENV,
     add_child_options,
     child_environment,
+    discovery_environment,
     free_loopback_endpoint,
     private_context,
+    private_dds_context,
     private_environment,
     start_child_program,
     stop_process,
@@ -53,6 +64,7 @@ if TYPE_CHECKING:
 
 _logger = logging.getLogger(__name__)
 _env_ids = itertools.count()
+_private_names = itertools.count()
 __all__ = ["SimulationConnection", "compose", "connect", "free_loopback_endpoint", "local_description_dirs", "main",
            "private_context", "robot_resource"]
 def compose(
@@ -227,10 +239,10 @@ def connect(
         timeout_sec: how long to wait for the node to become ready.
         paused, real_time_factor, timestep: start-up options of a node this call starts.
         context: join this context instead of creating one (the caller then owns its shutdown).
-        isolated: ``process`` mode over Zenoh only: give the child a private Zenoh router on a free
-            loopback port (the default), so no other process on the machine sees it or is seen by it.
-            Over rclpy the child joins the context's ROS domain (DDS has no private router): give
-            concurrent envs domains of their own (``ROS_DOMAIN_ID``).
+        isolated: ``process`` mode: give the child a graph of its own (the default). Over Zenoh a
+            private router on a free loopback port, closed by a secret, so no other process on the
+            machine sees it or is seen by it; over rclpy a free domain id with discovery on this
+            machine only, and a node name of its own (``<node_name>_<pid>_<n>``).
             ``False`` joins the graph the environment names (``UNIROS_ZENOH_ROUTER``,
             ``ROS_DOMAIN_ID``, ``ZENOH_*``); pick a ``node_name`` nobody else uses then.
         trusted_paths: directories (besides the package roots) from which a node this call starts
@@ -250,6 +262,9 @@ def connect(
         ctx = context
     elif mode == "process" and isolated and transport == "zenoh":
         ctx = private_context()
+    elif mode == "process" and isolated and transport == "rclpy":
+        ctx = private_dds_context()
+        node_name = f"{node_name.strip('/')}_{os.getpid()}_{next(_private_names)}"
     else:
         ctx = Context(transport=transport).init()
     sim_node = None
@@ -336,6 +351,9 @@ def _spawn_child(
     env = private_environment() if private else dict(os.environ)
     if private:
         argv += ["--router", "none"]
+    if ctx.transport_name == "rclpy" and ctx.env.get(DISCOVERY_RANGE_ENV) == "LOCALHOST" \
+            and STATIC_PEERS_ENV not in ctx.env:
+        env.pop(STATIC_PEERS_ENV, None)  # a private DDS graph (private_dds_context): no peers beyond it
     env.update(child_environment(ctx))
     return track_child(subprocess.Popen(argv, env=env, stdin=subprocess.DEVNULL))
 
@@ -403,6 +421,9 @@ def _parser() -> argparse.ArgumentParser:
         prog="uniros-sim",
         description="Run the uniros MuJoCo simulation node. It reports ready (a log line, and its services "
                     "start answering) only once every --robot is spawned.",
+        epilog="ROS arguments go to rcl as for any ROS 2 program: --ros-args [--enclave E] [-r from:=to] "
+               "[--log-level L] [--]. Over rclpy, DDS discovery stays on this machine unless "
+               "ROS_AUTOMATIC_DISCOVERY_RANGE says otherwise (SUBNET: the LAN).",
     )
     parser.add_argument("--name", default=DEFAULT_NODE_NAME, help="node name (default: %(default)s)")
     parser.add_argument("--namespace", default="", help="node namespace")
@@ -445,7 +466,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-sim``: run the simulation node standalone until interrupted."""
     parser = _parser()
-    opts = parser.parse_args(argv)
+    own, ros_args = split_ros_arguments(sys.argv[1:] if argv is None else list(argv))
+    opts = parser.parse_args(own)
     robots = []
     for spec in opts.robot:
         name, sep, uri = spec.partition("=")
@@ -458,10 +480,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         transport_options["router"] = opts.router
     stop = start_child_program(opts)
     opts.transport = wire_transport(opts.transport)
+    env = discovery_environment()
     try:
-        ctx = Context(transport=opts.transport, **(transport_options if opts.transport == "zenoh" else {})).init()
+        ctx = Context(transport=opts.transport, env=env,
+                      **(transport_options if opts.transport == "zenoh" else {})).init(ros_args)
     except (TransportError, ValueError) as exc:
         parser.exit(2, f"uniros-sim: {exc}\n")
+    if opts.transport == "rclpy" and not os.environ.get(DISCOVERY_RANGE_ENV, "").strip():
+        _logger.info("DDS discovery on this machine only (%s=LOCALHOST); set %s=SUBNET to reach other hosts",
+                     DISCOVERY_RANGE_ENV, DISCOVERY_RANGE_ENV)
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True

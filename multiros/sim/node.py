@@ -725,6 +725,8 @@ class SimulationNode(Node):
     def destroy_node(self) -> None:
         """Stop real-time physics and the topic thread, drop the per-robot interfaces and the renderer,
         destroy the node. A step call in progress stops at its next chunk."""
+        if not hasattr(self, "_runner"):  # __init__ failed early (e.g. rcl refused the node): nothing to stop
+            return
         self._stopping.set()
         self._runner.stop()
         self.camera_stream.close()

@@ -356,3 +356,32 @@ def test_render_camera(sim):
     assert image.std() > 0
     depth = client.render(width=64, height=48, depth=True)
     assert depth.shape == (48, 64) and np.all(np.isfinite(depth))
+
+
+def test_the_rest_of_ros2_control_s_controller_manager_services(sim):
+    """What `ros2 control list_hardware_interfaces/list_hardware_components/list_controller_types/
+    set_hardware_component_state` asks, with the active controller's interfaces claimed."""
+    _node, client, user = sim
+    _spawn_arm(client)
+
+    def call(type_name: str, /, **fields):
+        srv = get_service(f"controller_manager_msgs/srv/{type_name}")
+        snake = "".join(f"_{c.lower()}" if c.isupper() else c for c in type_name).lstrip("_")
+        cli = user.create_client(srv, f"/arm/controller_manager/{snake}")
+        return cli.call(srv.Request(**fields), timeout_sec=5.0)
+
+    interfaces = call("ListHardwareInterfaces")
+    claimed = {i.name for i in interfaces.command_interfaces if i.is_claimed}
+    assert claimed == {f"{j}/position" for j in ARM_JOINTS}
+    assert {i.name for i in interfaces.state_interfaces} == {f"{j}/{k}" for j in ARM_JOINTS
+                                                             for k in ("position", "velocity", "effort")}
+    (component,) = call("ListHardwareComponents").component
+    assert component.name == "arm_system" and component.state.label == "active"
+    assert {i.name for i in component.command_interfaces} >= {f"{j}/position" for j in ARM_JOINTS}
+    types = call("ListControllerTypes").types
+    assert "joint_trajectory_controller/JointTrajectoryController" in types
+    State = get_message("lifecycle_msgs/msg/State")
+    assert call("SetHardwareComponentState", name="arm_system", target_state=State(id=3, label="active")).ok
+    refused = call("SetHardwareComponentState", name="arm_system", target_state=State(id=2, label="inactive"))
+    assert not refused.ok and refused.state.label == "active"
+    assert not call("SetHardwareComponentState", name="nope", target_state=State(id=3, label="active")).ok

@@ -49,6 +49,8 @@ class Transport(ABC):
     #: The transport delivers topic messages between entities of its own context (rclpy cannot
     #: drop a process's own publications): the registry then leaves topics to it.
     delivers_local_topics: bool = False
+    #: whether nodes serve their parameters (rcl_interfaces services) on it: where ROS tools reach them
+    serves_parameters: bool = False
     #: Longest a ``Context.wait_for`` sleeps between checks of its predicate; a transport that
     #: announces no graph changes (``Context.notify``) sets it short.
     poll_sec: float = 1.0

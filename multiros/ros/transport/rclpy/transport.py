@@ -8,12 +8,17 @@ nothing more: ours are built from services and topics with rcl_action's names an
 One rclpy context per uniros context, one receive thread waiting on all its entities at once
 (``loop.py``; rclpy's executors cost time per entity on every wake-up, which a node with dozens of
 services pays on every call). That thread stays short: a message is decoded and queued for the
-subscription's executor, a response completes a future; a service request runs the service
-callback there, under the node's lock, as the Zenoh transport does on its receive thread. A
-callback that defers its answer (a ``Future``, as an action's ``get_result``) frees the thread at
-once: the reply is sent when the future completes, from the thread that completes it. Do not make
-blocking calls over this same transport from a service callback served over the wire: the reply
-could only come in on the thread that is blocked.
+subscription's executor, a response completes a future, a service request is queued in the lane
+of the client that sent it (``lanes.py``): worker threads run each client's requests in order and
+different clients' side by side, so a long request of one client (seconds of stepping) holds up
+neither the receive thread nor another client, whose request gets its turn as over Zenoh. A
+callback that defers its answer (a ``Future``, as an action's ``get_result``) frees its worker at
+once: the reply is sent when the future completes, from the thread that completes it.
+
+Services and clients keep every request and response until taken (``KEEP_ALL``), whatever depth
+their profile names: rclpy's default (``KEEP_LAST`` 10) dropped all but 10-21 of 200 parallel
+calls of one client. History is not part of DDS's request/offer matching, so any peer's profile
+still matches.
 
 Message conversion: uniros classes and the installed ones encode to the same CDR bytes when
 their type hashes agree (``types.py`` checks that), so conversion goes through CDR bytes, not
@@ -37,20 +42,24 @@ both ways would deliver twice. Service calls within one context stay direct call
 
 from __future__ import annotations
 
+import ctypes
 import heapq
 import itertools
 import logging
 import os
+import sys
 import threading
 import time
+from collections.abc import Hashable
 from typing import TYPE_CHECKING, Any
 
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError, TransportError
 from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
-from multiros.ros.qos import DurabilityPolicy, QoSProfile
+from multiros.ros.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
 from multiros.ros.task import Future
 from multiros.ros.transport.base import Transport
 from multiros.ros.transport.rclpy import loop as wire_loop
+from multiros.ros.transport.rclpy.lanes import ServiceLanes
 from multiros.ros.transport.rclpy.loader import import_rclpy
 from multiros.ros.transport.rclpy.types import PRIVATE_PACKAGES, InstalledTypes, MissingInterfacePackageError
 
@@ -65,9 +74,7 @@ if TYPE_CHECKING:
 __all__ = ["RclpyTransport"]
 
 _log = logging.getLogger(__name__)
-_GRAPH_NODE_PREFIX = "_uniros_graph_"
 _SERVER_CHECK_SEC = 0.25  # how often a pending call checks that its server is still in the graph
-_contexts = itertools.count()
 _TAKE_PER_WAKE = 64  # most messages/requests/responses taken from one entity per wake-up
 
 
@@ -76,6 +83,7 @@ class RclpyTransport(Transport):
 
     name = "rclpy"
     delivers_local_topics = True  # the context's registry leaves topic delivery to rclpy
+    serves_parameters = True  # `ros2 param` reaches uniros nodes (multiros.ros.parameter_services)
     poll_sec = 0.02  # rclpy tells nobody about graph changes: waits re-check this often
 
     def __init__(self, context: Context) -> None:
@@ -85,12 +93,12 @@ class RclpyTransport(Transport):
         self._ser: Any = None
         self._rctx: Any = None
         self.loop: wire_loop.WireLoop | None = None
-        self._graph_node: Any = None
         self._lock = threading.Lock()
         self._handles: set[Any] = set()
         self._closed = False
         self._skipped_private: set[str] = set()
         self.deadlines = _Deadlines()
+        self.lanes = ServiceLanes()
 
     # -- lifecycle ---------------------------------------------------------------------------
     def open(self) -> None:
@@ -100,18 +108,18 @@ class RclpyTransport(Transport):
         self._rclpy = rclpy
         self._ser = rclpy.serialization
         self._rctx = rclpy.Context()
+        # Only the context's --ros-args reach rcl (enclave, log levels; remaps and parameters uniros
+        # applies itself, so nodes ignore rcl's global ones), never this process's sys.argv. No
+        # signal handlers: the program's own Ctrl-C handling stays in charge.
+        args = ["uniros", *self.context.ros_argv]
         try:
-            # args=[]: never parse this process's sys.argv; no signal handlers: the program's own
-            # Ctrl-C handling stays in charge.
-            rclpy.init(args=[], context=self._rctx, domain_id=self.context.domain_id,
-                       signal_handler_options=SignalHandlerOptions.NO)
+            _with_environment(self.context.env, lambda: rclpy.init(
+                args=args, context=self._rctx, domain_id=self.context.domain_id,
+                signal_handler_options=SignalHandlerOptions.NO))
         except Exception as exc:  # noqa: BLE001 - rclpy raises its own RCLError
-            raise TransportError(f"rclpy could not start a ROS context on domain {self.context.domain_id}: {exc}") \
-                from exc
+            raise TransportError(f"rclpy could not start a ROS context on domain {self.context.domain_id}: "
+                                 f"{one_line(exc)}") from exc
         try:
-            self._graph_node = rclpy.create_node(
-                f"{_GRAPH_NODE_PREFIX}{os.getpid()}_{next(_contexts)}", context=self._rctx,
-                **self.node_options())
             self.loop = wire_loop.WireLoop(self._rctx)
             self.loop.start()
             self.deadlines.start(self)
@@ -146,6 +154,7 @@ class RclpyTransport(Transport):
             handles = list(self._handles)
             self._handles.clear()
         self.deadlines.stop()
+        self.lanes.stop()
         for h in handles:
             try:
                 h.close()
@@ -153,11 +162,6 @@ class RclpyTransport(Transport):
                 _log.debug("closing %r failed", h, exc_info=True)
         if self.loop is not None:
             self.loop.stop()
-        if self._graph_node is not None:
-            try:
-                self._graph_node.destroy_node()
-            except Exception:  # noqa: BLE001
-                pass
         if self._rctx is not None:
             try:
                 self._rclpy.try_shutdown(context=self._rctx)
@@ -175,25 +179,44 @@ class RclpyTransport(Transport):
         with self._lock:
             self._handles.discard(handle)
 
-    def qos(self, profile: QoSProfile) -> Any:
+    def qos(self, profile: QoSProfile, *, keep_all: bool = False) -> Any:
+        """rclpy's profile of ``profile``; ``keep_all``: history KEEP_ALL whatever it names (services)."""
         q = self._rclpy.qos
-        return q.QoSProfile(history=q.HistoryPolicy(int(profile.history)), depth=int(profile.depth),
+        history = HistoryPolicy.KEEP_ALL if keep_all else profile.history
+        return q.QoSProfile(history=q.HistoryPolicy(int(history)), depth=int(profile.depth),
                             reliability=q.ReliabilityPolicy(int(profile.reliability)),
                             durability=q.DurabilityPolicy(int(profile.durability)))
 
     # -- graph -------------------------------------------------------------------------------
+    def _graph(self) -> Any:
+        """An rclpy node of this context to ask about the graph (every node of a context sees the
+        same graph), or None while it has none: no hidden node of its own in everybody's graph."""
+        with self._lock:
+            for handle in self._handles:
+                if isinstance(handle, _NodeHandle) and not handle._closed:
+                    return handle.rnode
+        return None
+
     def endpoints(self) -> list[Endpoint]:
-        g = self._graph_node
-        if g is None:
-            return []
+        for _ in range(3):  # the node asked may be destroyed meanwhile: ask another
+            g = self._graph()
+            if g is None:
+                return []
+            try:
+                return self._endpoints(g)
+            except Exception:  # noqa: BLE001 - InvalidHandle of a node destroyed meanwhile
+                continue
+        return []
+
+    def _endpoints(self, g: Any) -> list[Endpoint]:
         out: list[Endpoint] = []
-        nodes = [(n, ns) for n, ns in g.get_node_names_and_namespaces() if not n.startswith(_GRAPH_NODE_PREFIX)]
+        nodes = list(g.get_node_names_and_namespaces())
         out.extend(Endpoint(NODE, n, ns) for n, ns in nodes)
         for topic, _types in g.get_topic_names_and_types():
             for kind, infos in ((PUBLISHER, g.get_publishers_info_by_topic(topic)),
                                 (SUBSCRIPTION, g.get_subscriptions_info_by_topic(topic))):
                 out.extend(Endpoint(kind, i.node_name, i.node_namespace, topic, i.topic_type, origin="rclpy")
-                           for i in infos if not i.node_name.startswith(_GRAPH_NODE_PREFIX))
+                           for i in infos)
         for n, ns in nodes:
             for kind, query in ((SERVICE, g.get_service_names_and_types_by_node),
                                 (CLIENT, g.get_client_names_and_types_by_node)):
@@ -205,9 +228,17 @@ class RclpyTransport(Transport):
         return out
 
     def count(self, kind: str, name: str) -> int:
-        g = self._graph_node
-        if g is None:
-            return 0
+        for _ in range(3):
+            g = self._graph()
+            if g is None:
+                return 0
+            try:
+                return self._count(g, kind, name)
+            except Exception:  # noqa: BLE001 - InvalidHandle of a node destroyed meanwhile
+                continue
+        return 0
+
+    def _count(self, g: Any, kind: str, name: str) -> int:
         if kind == PUBLISHER:
             return g.count_publishers(name)
         if kind == SUBSCRIPTION:
@@ -273,6 +304,39 @@ class RclpyTransport(Transport):
         return deserialize_message(self._ser.serialize_message(rmsg), cls, trailing="ignore")
 
 
+_RCL_ENVIRONMENT = ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_STATIC_PEERS", "ROS_LOCALHOST_ONLY")
+_environment_lock = threading.Lock()
+
+
+def _with_environment(env: dict[str, str], fn: Any) -> Any:
+    """``fn()`` with the discovery settings rcl reads at init taken from ``env`` (the context's, which
+    may differ from this process's: a private graph's), this process's put back after."""
+    with _environment_lock:
+        saved = {k: os.environ.get(k) for k in _RCL_ENVIRONMENT}
+        try:
+            for key in _RCL_ENVIRONMENT:
+                _set_env(key, env.get(key))
+            return fn()
+        finally:
+            for key, value in saved.items():
+                _set_env(key, value)
+
+
+def _set_env(key: str, value: str | None) -> None:
+    if value is None:
+        os.environ.pop(key, None)
+    else:
+        os.environ[key] = value
+
+
+def one_line(exc: BaseException) -> str:
+    """rcl's message on one line: its first line (rcl appends ``, at <file>:<line>`` and the error
+    stack on further lines), whitespace squeezed."""
+    text = str(exc).strip() or type(exc).__name__
+    first = text.splitlines()[0]
+    return " ".join(first.split(", at ")[0].split())
+
+
 class _NodeHandle:
     def __init__(self, transport: RclpyTransport, node: Node) -> None:
         self.transport = transport
@@ -282,7 +346,8 @@ class _NodeHandle:
             self.rnode = rclpy.create_node(node.get_name(), namespace=node.get_namespace(), context=transport._rctx,
                                            **transport.node_options())
         except Exception as exc:  # noqa: BLE001 - rclpy's name checks and RCLError
-            raise TransportError(f"rclpy could not create node '{node.get_fully_qualified_name()}': {exc}") from exc
+            raise TransportError(f"rclpy could not create node '{node.get_fully_qualified_name()}': "
+                                 f"{one_line(exc)}") from exc
         node._rclpy_node = self.rnode
         self._closed = False
 
@@ -382,7 +447,8 @@ class _ServiceHandle(_Entity):
         self._rcls = rcls
         self._request_type = srv.srv_type.Request
         self._srv = self.rnode.create_service(rcls, srv.srv_name, _never_called,
-                                              qos_profile=transport.qos(srv.qos_profile))
+                                              qos_profile=transport.qos(srv.qos_profile, keep_all=True))
+        self._what = f"a request of service '{srv.srv_name}'"
         transport.loop.add(wire_loop.SERVICE, self._srv, self._on_ready)
 
     def _on_ready(self) -> None:
@@ -392,7 +458,9 @@ class _ServiceHandle(_Entity):
             request, header = take(request_type)
             if header is None:
                 return
-            self._take(request, header)
+            # The lane: the client (its request writer's GUID), whose requests stay in order.
+            self.transport.lanes.submit(client_of(header.request_id),
+                                        lambda r=request, h=header: self._take(r, h), self._what)
 
     def _take(self, request: Any, header: Any) -> None:
         name = self._srv_entity.srv_name
@@ -438,6 +506,37 @@ class _ServiceHandle(_Entity):
         self.rnode.destroy_service(self._srv)
 
 
+_WORD = ctypes.sizeof(ctypes.c_void_p)
+_unknown_clients = itertools.count()
+_guid_readable: list[bool] = []  # [] untried, [True]/[False] once the first request told
+
+
+def client_of(request_id: Any) -> Hashable:
+    """The GUID of the client that sent a request (16 bytes), else a key of its own per request.
+
+    rclpy (Humble to Kilted) exposes only the ``sequence_number`` of ``rmw_request_id_t``, not its
+    ``writer_guid``. The binding is a pybind11 object (checked) whose first slot after the Python header
+    points at the C struct (``int8_t writer_guid[16]; int64_t sequence_number``); the GUID is read
+    from there only once the struct's ``sequence_number`` was found equal to the binding's, which
+    checks the layout. Where it does not hold, every request is a lane of its own: still served
+    off the receive thread in turns, without the per-client order.
+    """
+    if _guid_readable == [False] or type(type(request_id)).__name__ != "pybind11_type":
+        return ("request", next(_unknown_clients))  # not the binding described above: never read its memory
+    try:
+        address = ctypes.c_void_p.from_address(id(request_id) + 2 * _WORD).value
+        raw = ctypes.string_at(address, 24) if address else b""
+        ok = len(raw) == 24 and int.from_bytes(raw[16:], sys.byteorder, signed=True) == request_id.sequence_number
+    except Exception:  # noqa: BLE001 - any surprise means: not readable
+        ok = False
+    if not _guid_readable:
+        _guid_readable.append(ok)
+        if not ok:
+            _log.info("rclpy's request ids do not show their client here: requests are served in turns "
+                      "without per-client order")
+    return raw[:16] if ok and _guid_readable == [True] else ("request", next(_unknown_clients))
+
+
 def _never_called(*_args: Any) -> Any:  # pragma: no cover - no rclpy executor spins our nodes
     raise RuntimeError("a uniros entity reached rclpy's own dispatch")
 
@@ -448,7 +547,8 @@ class _ClientHandle(_Entity):
         self._cli_entity = cli
         self._rcls = rcls
         self._response_type = cli.srv_type.Response
-        self._cli = self.rnode.create_client(rcls, cli.srv_name, qos_profile=transport.qos(cli.qos_profile))
+        self._cli = self.rnode.create_client(rcls, cli.srv_name,
+                                             qos_profile=transport.qos(cli.qos_profile, keep_all=True))
         self._pending: dict[int, Future] = {}
         self._pending_lock = threading.Lock()
         transport.loop.add(wire_loop.CLIENT, self._cli, self._on_ready)

@@ -1,0 +1,196 @@
+"""A node's parameters over the wire: the six ``rcl_interfaces`` services rclpy and rclcpp nodes serve.
+
+``ros2 param list/get/set/describe/dump`` talk to ``<node>/list_parameters``, ``get_parameters``,
+``get_parameter_types``, ``describe_parameters``, ``set_parameters`` and
+``set_parameters_atomically``. :class:`ParameterServices` serves them from a node's own
+:class:`~multiros.ros.parameters.ParameterStore`, so settings a node declares (the simulation node's
+``max_steps_per_call`` and ``max_robots``, ``use_sim_time``) are real ROS parameters: read-only
+ones refuse a set with the reason (``parameter 'max_robots' is read-only``), a wrong type says
+which type it is. Nodes start them on transports whose graph ROS tools reach
+(``Transport.serves_parameters``); ``start_parameter_services=False`` leaves them out, as in rclpy.
+
+Requests are hostile input like any other: an unknown type code or a value that does not fit its
+type is a refused parameter with the reason, never an exception out of the service.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import TYPE_CHECKING, Any
+
+from multiros.ros.interfaces import get_message, get_service
+from multiros.ros.parameters import Parameter
+
+if TYPE_CHECKING:
+    from multiros.ros.node import Node
+
+__all__ = ["PARAMETER_SERVICES", "ParameterServices", "from_value_msg", "to_value_msg"]
+
+#: Name under the node (``~/<name>``) -> service type.
+PARAMETER_SERVICES: dict[str, str] = {
+    "describe_parameters": "rcl_interfaces/srv/DescribeParameters",
+    "get_parameter_types": "rcl_interfaces/srv/GetParameterTypes",
+    "get_parameters": "rcl_interfaces/srv/GetParameters",
+    "list_parameters": "rcl_interfaces/srv/ListParameters",
+    "set_parameters": "rcl_interfaces/srv/SetParameters",
+    "set_parameters_atomically": "rcl_interfaces/srv/SetParametersAtomically",
+}
+_SEPARATOR = "."
+# ParameterValue's field for each type code (rcl_interfaces/msg/ParameterType).
+_FIELDS = {1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value", 5: "byte_array_value",
+           6: "bool_array_value", 7: "integer_array_value", 8: "double_array_value", 9: "string_array_value"}
+
+
+def to_value_msg(param: Parameter) -> Any:
+    """``rcl_interfaces/msg/ParameterValue`` of ``param``."""
+    msg = get_message("rcl_interfaces/msg/ParameterValue")()
+    code = int(param.type_)
+    msg.type = code
+    if code in _FIELDS and param.value is not None:
+        value = param.value
+        if code == 5:
+            value = bytes(value)
+        elif code >= 6:
+            value = list(value)
+        setattr(msg, _FIELDS[code], value)
+    return msg
+
+
+def from_value_msg(name: str, msg: Any) -> Parameter:
+    """The :class:`Parameter` a ``ParameterValue`` carries.
+
+    Raises:
+        ValueError: an unknown type code, or a value its type cannot hold (the message says which).
+    """
+    code = int(msg.type)
+    if code == 0:
+        return Parameter(name, Parameter.Type.NOT_SET, None)
+    if code not in _FIELDS:
+        raise ValueError(f"parameter '{name}': unknown ParameterValue type {code} (0-9 are defined)")
+    value = getattr(msg, _FIELDS[code])
+    if code == 5:
+        value = bytes(value)
+    elif code >= 6:
+        value = list(value.tolist() if hasattr(value, "tolist") else value)
+        if code == 7:
+            value = [int(v) for v in value]
+        elif code == 8:
+            value = [float(v) for v in value]
+    try:
+        return Parameter(name, Parameter.Type(code), value)
+    except Exception as exc:  # noqa: BLE001 - whatever the value was, say so
+        raise ValueError(f"parameter '{name}': {exc}") from exc
+
+
+def list_names(names: Iterable[str], prefixes: list[str], depth: int) -> tuple[list[str], list[str]]:
+    """``(names, prefixes)`` of ``ListParameters``: the names under any of ``prefixes`` (all without
+    one) at most ``depth`` levels below it (0: any depth), and the prefixes those names have."""
+    out: list[str] = []
+    found: list[str] = []
+    for name in sorted(names):
+        if prefixes:
+            bases = [p for p in prefixes if name == p or name.startswith(p + _SEPARATOR)]
+            if not bases:
+                continue
+            below = min(name[len(p):].count(_SEPARATOR) for p in bases)
+        else:
+            below = name.count(_SEPARATOR) + 1
+        if depth and below > depth:
+            continue
+        out.append(name)
+        prefix = name.rpartition(_SEPARATOR)[0]
+        if prefix and prefix not in found:
+            found.append(prefix)
+    return out, found
+
+
+class ParameterServices:
+    """The parameter services of one node (created at once; :meth:`destroy` removes them)."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        handlers = {
+            "describe_parameters": self._describe, "get_parameter_types": self._types,
+            "get_parameters": self._get, "list_parameters": self._list,
+            "set_parameters": self._set, "set_parameters_atomically": self._set_atomically,
+        }
+        self.services = [node.create_service(get_service(type_name), f"~/{name}", handlers[name])
+                         for name, type_name in PARAMETER_SERVICES.items()]
+
+    def destroy(self) -> None:
+        for srv in self.services:
+            self.node.destroy_service(srv)
+        self.services = []
+
+    # -- handlers (under the node's callback lock) --------------------------------------------
+    def _store(self) -> Any:
+        return self.node._parameters
+
+    def _describe(self, request: Any, response: Any) -> Any:
+        store = self._store()
+        cls = get_message("rcl_interfaces/msg/ParameterDescriptor")
+        for name in request.names:
+            d = store.descriptors.get(name)
+            msg = cls(name=name)
+            if d is not None:
+                msg.type = int(d.type)
+                msg.description = d.description
+                msg.additional_constraints = d.additional_constraints
+                msg.read_only = bool(d.read_only)
+                msg.dynamic_typing = bool(d.dynamic_typing)
+            response.descriptors.append(msg)
+        return response
+
+    def _types(self, request: Any, response: Any) -> Any:
+        values = self._store().values
+        response.types = [int(values[n].type_) if n in values else 0 for n in request.names]
+        return response
+
+    def _get(self, request: Any, response: Any) -> Any:
+        values = self._store().values
+        response.values = [to_value_msg(values[n]) if n in values else to_value_msg(Parameter(n))
+                           for n in request.names]
+        return response
+
+    def _list(self, request: Any, response: Any) -> Any:
+        names, prefixes = list_names(list(self._store().values), list(request.prefixes), int(request.depth))
+        response.result.names = names
+        response.result.prefixes = prefixes
+        return response
+
+    def _parameters(self, msgs: Any) -> tuple[list[Parameter | None], list[str]]:
+        params: list[Parameter | None] = []
+        errors: list[str] = []
+        for msg in msgs:
+            try:
+                param = from_value_msg(msg.name, msg.value)
+                if param.type_ == Parameter.Type.NOT_SET:
+                    raise ValueError(f"parameter '{msg.name}': a value of type NOT_SET would undeclare it, which "
+                                     "this node does not allow")
+                params.append(param)
+                errors.append("")
+            except ValueError as exc:
+                params.append(None)
+                errors.append(str(exc))
+        return params, errors
+
+    def _set(self, request: Any, response: Any) -> Any:
+        cls = get_message("rcl_interfaces/msg/SetParametersResult")
+        params, errors = self._parameters(request.parameters)
+        for param, error in zip(params, errors):
+            if param is None:
+                response.results.append(cls(successful=False, reason=error))
+                continue
+            result = self.node.set_parameters([param])[0]
+            response.results.append(cls(successful=bool(result.successful), reason=result.reason))
+        return response
+
+    def _set_atomically(self, request: Any, response: Any) -> Any:
+        params, errors = self._parameters(request.parameters)
+        bad = [e for e in errors if e]
+        if bad:
+            response.result.successful, response.result.reason = False, "; ".join(bad)
+            return response
+        result = self.node.set_parameters_atomically([p for p in params if p is not None])
+        response.result.successful, response.result.reason = bool(result.successful), result.reason
+        return response

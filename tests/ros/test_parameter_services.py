@@ -1,0 +1,98 @@
+"""A node's parameters over its rcl_interfaces services (what `ros2 param` calls): list, get, describe,
+set, read-only refused with the reason, hostile values refused, never an exception."""
+
+from __future__ import annotations
+
+import pytest
+
+from multiros import ros
+from multiros.ros.interfaces import get_message, get_service
+from multiros.ros.parameter_services import ParameterServices, from_value_msg, list_names, to_value_msg
+from multiros.ros.parameters import Parameter, ParameterDescriptor
+
+Value = get_message("rcl_interfaces/msg/ParameterValue")
+ParamMsg = get_message("rcl_interfaces/msg/Parameter")
+
+
+@pytest.fixture
+def served():
+    ctx = ros.Context(transport="inproc").init()
+    node = ros.Node("sim", context=ctx)
+    node.declare_parameter("max_robots", 256, ParameterDescriptor(read_only=True, description="most robots"))
+    node.declare_parameter("gains.kp", 10.0)
+    node.declare_parameter("gains.inner.ki", [1, 2])
+    services = ParameterServices(node)
+    user = ros.Node("user", context=ctx)
+
+    def call(name: str, /, **fields):
+        srv = get_service(services_types[name])
+        return user.create_client(srv, f"/sim/{name}").call(srv.Request(**fields), timeout_sec=5.0)
+
+    services_types = {"list_parameters": "rcl_interfaces/srv/ListParameters",
+                      "get_parameters": "rcl_interfaces/srv/GetParameters",
+                      "get_parameter_types": "rcl_interfaces/srv/GetParameterTypes",
+                      "describe_parameters": "rcl_interfaces/srv/DescribeParameters",
+                      "set_parameters": "rcl_interfaces/srv/SetParameters",
+                      "set_parameters_atomically": "rcl_interfaces/srv/SetParametersAtomically"}
+    yield node, call
+    services.destroy()
+    ctx.try_shutdown()
+
+
+def test_list_get_describe(served) -> None:
+    node, call = served
+    listed = call("list_parameters").result
+    assert set(listed.names) == {"use_sim_time", "max_robots", "gains.kp", "gains.inner.ki"}
+    assert set(listed.prefixes) == {"gains", "gains.inner"}
+    assert call("list_parameters", prefixes=["gains"], depth=1).result.names == ["gains.kp"]
+    values = call("get_parameters", names=["max_robots", "gains.kp", "missing"]).values
+    assert [v.type for v in values] == [2, 3, 0]
+    assert values[0].integer_value == 256 and values[1].double_value == 10.0
+    assert list(call("get_parameter_types", names=["gains.inner.ki", "x"]).types) == [7, 0]
+    (desc,) = call("describe_parameters", names=["max_robots"]).descriptors
+    assert desc.read_only and desc.description == "most robots" and desc.type == 2
+
+
+def test_set_refuses_read_only_and_wrong_types_with_the_reason(served) -> None:
+    node, call = served
+    results = call("set_parameters", parameters=[
+        ParamMsg(name="max_robots", value=Value(type=2, integer_value=1)),
+        ParamMsg(name="gains.kp", value=Value(type=3, double_value=2.5)),
+        ParamMsg(name="gains.kp", value=Value(type=4, string_value="high")),
+        ParamMsg(name="gains.kp", value=Value(type=42)),
+        ParamMsg(name="gains.kp", value=Value(type=0)),
+        ParamMsg(name="undeclared", value=Value(type=1, bool_value=True)),
+    ]).results
+    assert [r.successful for r in results] == [False, True, False, False, False, False]
+    assert "read-only" in results[0].reason
+    assert "DOUBLE" in results[2].reason and "unknown ParameterValue type 42" in results[3].reason
+    assert "NOT_SET" in results[4].reason and "undeclared" in results[5].reason
+    assert node.get_parameter("max_robots").value == 256 and node.get_parameter("gains.kp").value == 2.5
+    atomic = call("set_parameters_atomically", parameters=[
+        ParamMsg(name="gains.kp", value=Value(type=3, double_value=7.0)),
+        ParamMsg(name="max_robots", value=Value(type=2, integer_value=1)),
+    ]).result
+    assert not atomic.successful and "read-only" in atomic.reason
+    assert node.get_parameter("gains.kp").value == 2.5  # all or nothing
+
+
+def test_values_round_trip_through_their_messages() -> None:
+    for value in (True, 3, 2.5, "s", b"\x01\x02", [True, False], [1, 2], [0.5], ["a", "b"]):
+        param = Parameter("p", value=value)
+        back = from_value_msg("p", to_value_msg(param))
+        assert back == param, value
+
+
+def test_list_names_depth() -> None:
+    names = ["a", "b.c", "b.d.e"]
+    assert list_names(names, [], 1) == (["a"], [])
+    assert list_names(names, [], 0) == (["a", "b.c", "b.d.e"], ["b", "b.d"])
+    assert list_names(names, ["b"], 1) == (["b.c"], ["b"])
+
+
+def test_nodes_serve_them_only_where_ros_tools_reach() -> None:
+    ctx = ros.Context(transport="inproc").init()
+    try:
+        assert ros.Node("n", context=ctx).get_service_names_and_types() == []
+    finally:
+        ctx.try_shutdown()

@@ -1,0 +1,130 @@
+"""``uniros-sim --transport rclpy`` as a good citizen of a DDS graph, seen by plain rclpy peers (no uniros
+import in what they call): a quick request answered while another client's long step runs, a burst of
+200 calls of one client all answered, the node's settings as ROS parameters (read-only ones refused
+with the reason), the rest of the controller manager's services, and no hidden node of uniros' own.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import threading
+
+import pytest
+
+_NEEDED = ("rclpy", "simulation_interfaces", "controller_manager_msgs", "rcl_interfaces", "uniros_interfaces")
+if any(importlib.util.find_spec(p) is None for p in _NEEDED):
+    pytest.skip("needs rclpy and the interface packages .ci/rclpy builds (run by .ci/rclpy)", allow_module_level=True)
+
+from controller_manager_msgs.srv import ListControllerTypes, ListHardwareComponents, ListHardwareInterfaces  # noqa: E402
+from plain_ros import PlainPeer, wait_until  # noqa: E402
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue  # noqa: E402
+from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters, SetParameters  # noqa: E402
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
+from rclpy_harness import Program, uniros_script  # noqa: E402
+from simulation_interfaces.msg import Result  # noqa: E402
+from simulation_interfaces.srv import GetEntities, GetSimulationState, StepSimulation  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+RX200 = "rx200=package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
+SIM = "/mujoco_sim"
+ARM = ["waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate"]
+
+
+@pytest.fixture(scope="module")
+def sim(tmp_path_factory):
+    """One ``uniros-sim`` with an RX200 for the module (stopped by PID at its end)."""
+    log = tmp_path_factory.mktemp("citizen") / "uniros-sim.log"
+    prog = Program([uniros_script("uniros-sim"), "--transport", "rclpy", "--robot", RX200, "--max-robots", "4"],
+                   str(log))
+    try:
+        prog.wait_ready("simulation node /mujoco_sim ready")
+        yield prog
+    finally:
+        prog.stop()
+
+
+def _answered(peer: PlainPeer, srv_type, name: str):
+    client = peer.node.create_client(srv_type, name)
+    assert client.wait_for_service(timeout_sec=30.0), f"service {name} not available"
+    return client
+
+
+def test_a_quick_request_is_answered_while_another_client_s_long_step_runs(sim) -> None:
+    """Each client's request runs on a worker of its own and the node's lock gives turns: another
+    client's GetEntities is answered before a StepSimulation(100000) (seconds of physics) ends. The
+    long step is checked still running when the answer came, which a serial receive loop never allows."""
+    with PlainPeer("flooder") as flooder, PlainPeer("quick_one") as quick:
+        step = _answered(flooder, StepSimulation, f"{SIM}/step_simulation")
+        entities = _answered(quick, GetEntities, f"{SIM}/get_entities")
+        for _attempt in range(3):  # a loaded machine may deliver the quick request late: try a fresh step
+            long_call = step.call_async(StepSimulation.Request(steps=100000))
+            answer = entities.call_async(GetEntities.Request())
+            wait_until(lambda: answer.done() or long_call.done(), 120, "either answer")  # noqa: B023
+            overtaken = answer.done() and not long_call.done()
+            wait_until(lambda: answer.done() and long_call.done(), 120, "both answers")  # noqa: B023
+            assert list(answer.result().entities) == ["rx200"]
+            assert long_call.result().result.result == Result.RESULT_OK, long_call.result().result.error_message
+            if overtaken:
+                return
+        raise AssertionError("GetEntities was never answered during another client's StepSimulation(100000)")
+
+
+def test_a_burst_of_200_calls_of_one_client_is_queued_not_dropped(sim) -> None:
+    """The node keeps every request (KEEP_ALL) and answers a client's burst in order. The client here
+    keeps every answer too (KEEP_ALL): with rclpy's default KEEP_LAST 10 a client drops the answers it
+    has not taken yet beyond 10, which a loaded machine can make happen whatever the server does (the
+    node paces bursts for such clients: benchmarks/bench_rclpy_fairness.py measures them)."""
+    with PlainPeer("burst") as peer:
+        qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+        client = peer.node.create_client(GetSimulationState, f"{SIM}/get_simulation_state", qos_profile=qos)
+        assert client.wait_for_service(timeout_sec=30.0)
+        lock, answered = threading.Lock(), [0]
+
+        def count(_future) -> None:
+            with lock:
+                answered[0] += 1
+
+        futures = [client.call_async(GetSimulationState.Request()) for _ in range(200)]
+        for future in futures:
+            future.add_done_callback(count)
+        wait_until(lambda: answered[0] == 200, 60, f"200 answers (got {answered[0]})")
+        assert all(f.result().result.result == Result.RESULT_OK for f in futures)
+
+
+def test_the_node_s_settings_are_ros_parameters(sim) -> None:
+    """What ``ros2 param list/get/describe/set`` calls."""
+    with PlainPeer("param_user") as peer:
+        names = peer.call(ListParameters, f"{SIM}/list_parameters", ListParameters.Request()).result.names
+        assert {"max_steps_per_call", "max_robots", "use_sim_time"} <= set(names)
+        values = peer.call(GetParameters, f"{SIM}/get_parameters",
+                           GetParameters.Request(names=["max_robots", "max_steps_per_call"])).values
+        assert [(v.type, v.integer_value) for v in values] == [(ParameterType.PARAMETER_INTEGER, 4),
+                                                               (ParameterType.PARAMETER_INTEGER, 100000)]
+        (desc,) = peer.call(DescribeParameters, f"{SIM}/describe_parameters",
+                            DescribeParameters.Request(names=["max_robots"])).descriptors
+        assert desc.read_only and desc.description
+        bad = Parameter(name="max_robots", value=ParameterValue(type=ParameterType.PARAMETER_INTEGER,
+                                                                integer_value=1000))
+        (result,) = peer.call(SetParameters, f"{SIM}/set_parameters", SetParameters.Request(parameters=[bad])).results
+        assert not result.successful and "read-only" in result.reason
+
+
+def test_ros2_control_s_hardware_and_type_services(sim) -> None:
+    with PlainPeer("control_user") as peer:
+        cm = "/rx200/controller_manager"
+        interfaces = peer.call(ListHardwareInterfaces, f"{cm}/list_hardware_interfaces",
+                               ListHardwareInterfaces.Request())
+        assert {f"{j}/position" for j in ARM} <= {i.name for i in interfaces.command_interfaces}
+        assert any(i.is_claimed for i in interfaces.command_interfaces)
+        (component,) = peer.call(ListHardwareComponents, f"{cm}/list_hardware_components",
+                                 ListHardwareComponents.Request()).component
+        assert component.state.label == "active"
+        types = peer.call(ListControllerTypes, f"{cm}/list_controller_types", ListControllerTypes.Request()).types
+        assert "joint_state_broadcaster/JointStateBroadcaster" in types
+
+
+def test_no_hidden_node_of_uniros_in_the_graph(sim) -> None:
+    with PlainPeer("graph_user") as peer:
+        peer.wait_for_node(SIM)
+        assert not [n for n in peer.nodes() if "_uniros_graph_" in n], peer.nodes()
