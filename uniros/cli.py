@@ -66,9 +66,12 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
     if transport == "rclpy":  # DDS: no router; how far discovery reaches is what matters
         rmw = os.environ.get(RMW_ENV, "").strip()
         reach = os.environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip() or "ROS 2's default (SUBNET on Jazzy)"
-        return (f"{where} through rclpy on {rmw or 'its default middleware'} ({RMW_ENV}; DDS discovery range: "
-                f"{reach}); everyone it reaches on that domain shares it (docs/ros2_system.md, What protects a "
+        text = (f"{where} through rclpy on {rmw or 'its default middleware'} ({RMW_ENV}), DDS discovery range "
+                f"{reach}: everyone it reaches on that domain shares it (docs/ros2_system.md, What protects a "
                 "node on DDS)")
+        if domain in ("", "0"):
+            text += "; set ROS_DOMAIN_ID per user (docs/pitfalls.md, Shared machines)"
+        return text
     router = os.environ.get(ROUTER_ENV) or DEFAULT_ROUTER_ENDPOINT
     text = f"{where} through the Zenoh router {router}"
     if domain in ("", "0") and router == DEFAULT_ROUTER_ENDPOINT:

@@ -85,6 +85,6 @@ def test_uniros_train_names_the_graph_of_a_dds_run_without_a_router(monkeypatch)
     monkeypatch.setenv("ROS_DOMAIN_ID", "17")
     monkeypatch.setenv(DISCOVERY_RANGE_ENV, "LOCALHOST")
     text = _shared_graph_note("RX200ReacherGoalSim-v0", {"sim_mode": "existing", "transport": "rclpy"})
-    assert text is not None and "over rclpy" in text and "LOCALHOST" in text and "Zenoh" not in text
+    assert text is not None and "through rclpy" in text and "LOCALHOST" in text and "Zenoh" not in text
     text = _shared_graph_note("RX200ReacherGoalSim-v0", {"sim_mode": "existing", "transport": "zenoh"})
     assert text is not None and "through the Zenoh router" in text
