@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import difflib
+import logging
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -31,6 +32,8 @@ from uniros.algorithms import (
 )
 from uniros.devices import check_device
 from uniros.errors import TrainingConfigError, TrainingError
+
+_log = logging.getLogger(__name__)
 
 # A checkpoint prefix is part of file names inside the run folder: one plain name component.
 _PLAIN_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._+-]*$")
@@ -346,6 +349,14 @@ def parse_training_config(
         if "policy_params" not in data:
             raise TrainingConfigError(f"{source}: missing key 'policy_params' (use_custom_policy is true)")
         policy = nested["policy_params"]
+    elif "policy_params" in data:
+        if "use_custom_policy" not in data:  # policy_params alone: the writer meant them to be used
+            raise TrainingConfigError(
+                f"{source}: policy_params is given without use_custom_policy: true, so it would be ignored: add "
+                "use_custom_policy: true to use it, or remove it")
+        # MultiROS/FRobs_RL files keep policy_params beside use_custom_policy: false: say it is not used
+        _log.warning("%s: use_custom_policy is false: policy_params is not used (the algorithm's default policy)",
+                     source)
     use_her = bool(_typed(data, "use_HER", source))
     if use_her and not is_off_policy(algo):
         raise TrainingConfigError(

@@ -70,6 +70,41 @@ def test_delete_keeps_other_state(make_world):
     np.testing.assert_allclose(world.joint_state("keep").position, [0.4, -0.3, 0.2], atol=5e-3)
 
 
+def _wide_urdf(joints: int) -> str:
+    """A robot of ``joints`` actuated revolute joints in chains of 50 from its base."""
+    inertial = ('<inertial><mass value="0.01"/><inertia ixx="1e-5" iyy="1e-5" izz="1e-5" ixy="0" ixz="0" iyz="0"/>'
+                '</inertial>')
+    links = [f'<link name="base">{inertial}</link>']
+    links += [f'<link name="l{i}">{inertial}</link>' for i in range(joints)]
+    chain = [f'<joint name="j{i}" type="revolute"><parent link="{"base" if i % 50 == 0 else f"l{i - 1}"}"/>'
+             f'<child link="l{i}"/><origin xyz="0 0 0.001"/><axis xyz="0 0 1"/>'
+             '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>' for i in range(joints)]
+    control = "".join(f'<joint name="j{i}"><command_interface name="position"/><state_interface name="position"/>'
+                      "</joint>" for i in range(joints))
+    return (f'<robot name="wide">{"".join(links)}{"".join(chain)}<ros2_control name="h" type="system"><hardware>'
+            f"<plugin>mock_components/GenericSystem</plugin></hardware>{control}</ros2_control></robot>")
+
+
+def test_deleting_a_large_entity_removes_all_of_it_and_nothing_else(make_world, tmp_path):
+    """The body goes first and takes its joints' actuators with it (one by one, ~1,000 actuators held the
+    node's lock 20-36 s; benchmarks/bench_entity_delete.py): nothing of it is left, the other robot
+    keeps its actuators and state, and the world still steps."""
+    world = make_world()
+    world.spawn("keep", ARM_XACRO)
+    kept = [world.model.actuator(i).name for i in range(world.model.nu)]
+    path = tmp_path / "wide.urdf"
+    path.write_text(_wide_urdf(300))
+    world.spawn("wide", str(path), pose=([2, 0, 0], [1, 0, 0, 0]))
+    assert world.model.nu == len(kept) + 300
+    q = world.joint_state("keep").position.copy()
+    world.delete("wide")
+    names = [world.model.actuator(i).name for i in range(world.model.nu)]
+    bodies = [world.model.body(i).name for i in range(world.model.nbody)]
+    assert names == kept and not [b for b in bodies if b.startswith("wide")]
+    np.testing.assert_array_equal(world.joint_state("keep").position, q)
+    world.step(5)
+
+
 def test_spawn_keeps_other_state(make_world):
     world = make_world()
     world.spawn("arm", ARM_XACRO)

@@ -24,7 +24,9 @@ from uniros.training import (
 @pytest.mark.parametrize("env_id", rl_environments.ENV_IDS)
 def test_every_simulated_id_ships_a_config_that_parses(env_id):
     config = default_config_for(env_id)
-    assert config.algorithm == "sac" and config.training_steps >= 10_000
+    # From pixels: drq_sac (the Zed2 reach, the policy seeing the image and the goal only); else SAC.
+    assert config.algorithm == ("drq_sac" if env_id == "RX200Zed2ReacherGoalSim-v0" else "sac")
+    assert config.training_steps >= 10_000
     assert config.use_her == (env_id in rl_environments.GOAL_ENV_IDS)
     # One update per env step at any n_envs (docs/training.md, "Several envs at once").
     assert config.algo_params["gradient_steps"] == -1 and config.algo_params["train_freq"] == (1, "step")
@@ -71,6 +73,7 @@ def test_frobs_style_yaml_parses(tmp_path):
         ({"algorithm": "sac", "training_steps": "ten"}, "'training_steps' must be int"),
         ({"algorithm": "sac", "training_steps": 10, "sac_params": [1]}, "'sac_params' must be dict"),
         ({"algorithm": "sac", "training_steps": 10, "use_custom_policy": True}, "missing key 'policy_params'"),
+        ({"training_steps": 10, "policy_params": {"net_arch": [8]}}, "policy_params is given without use_custom"),
         ({"training_steps": 10, "eval_frq": 5}, "unknown key 'eval_frq'; did you mean 'eval_freq'"),
         ({"training_steps": 10, "sac_params": {"learnig_rate": 1}}, "did you mean 'learning_rate'"),
         ({"training_steps": 10, "her_params": {"n_sampled_goals": 4}}, "did you mean 'n_sampled_goal'"),
@@ -90,6 +93,15 @@ def test_frobs_style_yaml_parses(tmp_path):
 def test_bad_training_yaml_names_the_key(data, match):
     with pytest.raises(TrainingConfigError, match=match):
         parse_training_config(data, "cfg.yaml")
+
+
+def test_policy_params_beside_use_custom_policy_false_are_named_unused(caplog):
+    """MultiROS/FRobs_RL files keep policy_params with use_custom_policy: false: accepted, with a warning."""
+    with caplog.at_level("WARNING", logger="uniros.train_config"):
+        config = parse_training_config({"training_steps": 10, "use_custom_policy": False,
+                                        "policy_params": {"net_arch": [8]}}, "cfg.yaml")
+    assert config.policy_params is None
+    assert "policy_params is not used" in caplog.text
 
 
 def test_missing_and_malformed_files(tmp_path):
