@@ -63,7 +63,7 @@ class ArmInterface:
     if TYPE_CHECKING:  # provided by the env core below the robot layer; declared for type checkers only
         node: Any
         robot_name: str
-        connection: Any
+        connection: Any  # a RobotConnection (typed as such, it clashes with the env cores' narrower types)
 
         @property
         def robot_state(self) -> RobotState: ...

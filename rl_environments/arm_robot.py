@@ -184,8 +184,9 @@ class ArmRobot(ArmInterface):
 
     @classmethod
     def ee_positions_of(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
-        """The ``EE_LINK`` frame of each state (relative to each env's world slot: the env's own numbers)."""
-        return states.frame_positions[:, envs[0].connection.frame_index(cls.EE_LINK)]
+        """The ``EE_LINK`` frame of each state, in each env's world (returned with the step in simulation,
+        forward kinematics of the observed joints on a robot: the connection's)."""
+        return envs[0].connection.frame_positions(states, cls.EE_LINK)
 
     @classmethod
     def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
@@ -227,10 +228,9 @@ class ArmRobot(ArmInterface):
 
     @classmethod
     def object_poses_of(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
-        """``(N, 3)`` positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of the envs' objects
-        (frames returned with the step)."""
-        fi = envs[0].connection.frame_index(envs[0].object_frame)
-        return states.frame_positions[:, fi], states.frame_orientations[:, fi]
+        """``(N, 3)`` positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of the envs' objects (frames
+        returned with the step in simulation, a tracker's poses on a robot: the connection's)."""
+        return envs[0].connection.frame_poses(states, envs[0].object_frame)
 
     @classmethod
     def observation_time(cls, envs: Sequence[Any], states: RobotStates) -> float:
@@ -253,7 +253,8 @@ class ArmRobot(ArmInterface):
 
     @classmethod
     def command_grippers(cls, envs: Sequence[Any], targets: Sequence[float]) -> None:
-        """Each env's finger target (the gripper controller's command, with the next step)."""
+        """Each env's finger target: the gripper controller's command (with the next step in simulation; on
+        a robot, routed by the connection to the gripper driver's interface)."""
         for env, target in zip(envs, targets):
             env.connection.command(cls.GRIPPER_CONTROLLER, np.array([float(target)]))
 

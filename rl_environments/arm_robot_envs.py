@@ -38,6 +38,7 @@ class ArmRobotRealEnv(RealArmRobot, RealBaseEnv):
 
     def __init__(self, **kwargs: Any) -> None:
         RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
+        self.serve_frames()
 
 
 class ArmRobotRealGoalEnv(RealArmRobot, RealGoalEnv):
@@ -45,3 +46,4 @@ class ArmRobotRealGoalEnv(RealArmRobot, RealGoalEnv):
 
     def __init__(self, **kwargs: Any) -> None:
         RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
+        self.serve_frames()

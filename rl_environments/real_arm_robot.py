@@ -180,8 +180,16 @@ class RealArmRobot(ArmRobot):
     def _take_base(self, kwargs: dict[str, Any]) -> dict[str, Any]:
         self._base_position = kwargs.pop("_base_position")
         self._scene_options = kwargs.pop("_scene_options")
-        self._ee_cache: tuple[Any, np.ndarray] | None = None
         return kwargs
+
+    def serve_frames(self) -> None:
+        """Give the connection the end-effector frame a simulation returns with each step: forward
+        kinematics of the observed arm joints through the description's chain (a real robot offers no
+        end-effector pose; the sim's frame is the same link of the same description), in the task's world."""
+        chain, base = self.kinematic_chain(), self._base_position
+        arm_positions_of = self.arm_positions_of
+        self.connection.add_frame_source(self.EE_LINK,
+                                         lambda states: (chain.fk_position(arm_positions_of(states)) + base, None))
 
     def apply_task_joint_limits(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:
         """Tighten the safety rules' joint limits to the task config's (the tighter bound wins)."""
@@ -197,14 +205,6 @@ class RealArmRobot(ArmRobot):
 
     # -- the robot layer, batch-first (see rl_environments.arm_interface) -----------------------------
     @classmethod
-    def ee_positions_of(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
-        """End-effector world positions: forward kinematics of the observed arm joint positions (a real
-        robot offers no end-effector pose; the sim's frame is the same link of the same description)."""
-        chain = cls.kinematic_chain()
-        base = np.array([env.base_position for env in envs])
-        return chain.fk_position(cls.arm_positions_of(states)) + base
-
-    @classmethod
     def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
         """Command each env's arm through its safety rules (``info["safety"]`` says what they did)."""
         for env, row in zip(envs, targets):
@@ -215,16 +215,6 @@ class RealArmRobot(ArmRobot):
     def base_position(self) -> np.ndarray:
         """World position of the robot base (``base_position`` option; the origin by default)."""
         return self._base_position.copy()
-
-    def ee_position(self) -> np.ndarray:
-        """End-effector world position: forward kinematics of the observed arm joint positions."""
-        state = self.robot_state
-        cached = self._ee_cache
-        if cached is not None and cached[0] is state:
-            return cached[1].copy()
-        ee = self.kinematic_chain().fk_position(self.arm_positions()) + self._base_position
-        self._ee_cache = (state, ee)
-        return ee.copy()
 
     # -- push and pick-and-place on a robot: the tracker's object, the driver's gripper -----------------
     def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
@@ -245,21 +235,21 @@ class RealArmRobot(ArmRobot):
                                       opts["object_pose_frame"])
         self._object_pose_timeout = opts["object_pose_timeout"]
         self._object_pose.wait_first(wait)
+        # What a simulation returns with each step, from the robot's side: the object's frame from the
+        # tracker, the gripper controller's commands to the gripper's driver.
+        self.connection.add_frame_source(f"{obj}/object", lambda _states: self._object_pose_latest())
+        gripper = self._gripper
+        self.connection.route_controller(self.GRIPPER_CONTROLLER, lambda values: gripper.command(float(values[0])))
 
-    @classmethod
-    def object_poses_of(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
-        """The tracker's newest object poses (base frame) in the world frame of the task; a stale one
-        stops the env (:class:`~multiros.envs.real.sensor_link.StaleSensorError`)."""
-        positions, quats = [], []
-        for env in envs:
-            try:
-                position, quat = env._object_pose.latest(env._object_pose_timeout)
-            except StaleStateError as exc:
-                env.connection.fault = exc
-                raise
-            positions.append(position + env.base_position)
-            quats.append(quat)
-        return np.array(positions), np.array(quats)
+    def _object_pose_latest(self) -> tuple[np.ndarray, np.ndarray]:
+        """The tracker's newest object pose in the task's world, ``(1, 3)`` and ``(1, 4)``; a stale one stops
+        the env (:class:`~multiros.envs.real.sensor_link.StaleSensorError`)."""
+        try:
+            position, quat = self._object_pose.latest(self._object_pose_timeout)
+        except StaleStateError as exc:
+            self.connection.fault = exc
+            raise
+        return (np.asarray(position, dtype=np.float64) + self._base_position)[None], np.asarray(quat, np.float64)[None]
 
     @classmethod
     def observation_time(cls, envs: Sequence[Any], states: RobotStates) -> float:
@@ -275,12 +265,6 @@ class RealArmRobot(ArmRobot):
         """Open the gripper (a command to its driver)."""
         assert self._gripper is not None
         self._gripper.command(opening)
-
-    @classmethod
-    def command_grippers(cls, envs: Sequence[Any], targets: Sequence[float]) -> None:
-        """Each env's finger target to its gripper's driver."""
-        for env, target in zip(envs, targets):
-            env._gripper.command(target)
 
     def close(self) -> None:
         """Release the object pose subscription and the gripper's client, then the robot."""

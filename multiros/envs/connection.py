@@ -93,6 +93,20 @@ class RobotConnection(ABC):
         """Where ``frame`` sits in the state's frame arrays."""
         raise EnvError(f"frame {frame!r}: robot {self.robot_name!r} reports no frame poses")
 
+    def frame_positions(self, states: RobotStates, frame: str) -> np.ndarray:
+        """``(N, 3)`` world positions of ``frame`` in each of ``states`` (this connection's, or a batch of
+        connections like it). A simulation returns them with each step; a real robot computes them
+        (forward kinematics of the joints, a tracker's pose: :meth:`RealConnection.add_frame_source
+        <multiros.envs.real.connection.RealConnection.add_frame_source>`). The robot layer asks here,
+        whichever it has."""
+        return states.frame_positions[:, self.frame_index(frame)]
+
+    def frame_poses(self, states: RobotStates, frame: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(N, 3)`` positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of ``frame`` (as
+        :meth:`frame_positions`)."""
+        index = self.frame_index(frame)
+        return states.frame_positions[:, index], states.frame_orientations[:, index]
+
     # -- acting and stepping -----------------------------------------------------------------
     @abstractmethod
     def command(self, controller: str, values: np.ndarray) -> None:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -107,6 +107,8 @@ class RealConnection(RobotConnection):
         self._observed: tuple[str, ...] = ()
         self._driver_endpoint: Any = None  # the graph's record of the driver the states were pinned to
         self._closed = False
+        self._frame_sources: dict[str, Callable[[RobotStates], tuple[np.ndarray, np.ndarray | None]]] = {}
+        self._routes: dict[str, Callable[[np.ndarray], None]] = {}
         self.link = RobotLink(node, namespace, joint_states_topic=joint_states_topic, use_sim_time=use_sim_time,
                               timeout_sec=self.timeout_sec)
         self._connect(load_controllers)
@@ -362,9 +364,45 @@ class RealConnection(RobotConnection):
         self.commands_sent += 1
         return handle
 
+    # -- what a simulation returns with each step, from the robot's side ---------------------------------
+    def add_frame_source(self, frame: str,
+                         poses: Callable[[RobotStates], tuple[np.ndarray, np.ndarray | None]]) -> None:
+        """Serve ``frame`` to :meth:`frame_positions` and :meth:`frame_poses`: ``poses(states)`` gives its
+        ``(N, 3)`` world positions and ``(N, 4)`` quaternions ``(w, x, y, z)``, or ``None`` for no
+        orientation (identity): forward kinematics of the observed joints, a tracker's newest pose. The
+        robot layer adds the frames its task reads, as a simulated robot's env asks for them with each
+        step."""
+        self._frame_sources[frame] = poses
+
+    @property
+    def frames(self) -> tuple[str, ...]:
+        return tuple(self._frame_sources)
+
+    def _frame_source(self, frame: str) -> Callable[[RobotStates], tuple[np.ndarray, np.ndarray | None]]:
+        try:
+            return self._frame_sources[frame]
+        except KeyError:
+            raise EnvError(f"frame {frame!r}: robot {self.robot_name!r} serves the frames {list(self._frame_sources)} "
+                           "(add_frame_source)") from None
+
+    def frame_positions(self, states: RobotStates, frame: str) -> np.ndarray:
+        return self._frame_source(frame)(states)[0]
+
+    def frame_poses(self, states: RobotStates, frame: str) -> tuple[np.ndarray, np.ndarray]:
+        where, orientations = self._frame_source(frame)(states)
+        if orientations is None:
+            return where, np.tile([1.0, 0.0, 0.0, 0.0], (len(where), 1))
+        return where, orientations
+
+    def route_controller(self, controller: str, send: Callable[[np.ndarray], None]) -> None:
+        """Commands for ``controller`` go to ``send`` (after the checks every command passes): a controller
+        the simulation has whose driver on the robot takes another interface (a gripper's action)."""
+        self._routes[controller] = send
+
     def command(self, controller: str, values: np.ndarray) -> None:
-        """The arm controller's command goes through :meth:`send_joint_targets`; another (e.g. a
-        gripper's forward command controller) gets finite values on ``<controller>/commands``."""
+        """The arm controller's command goes through :meth:`send_joint_targets`; a routed controller's
+        (:meth:`route_controller`) to its route; another (e.g. a gripper's forward command controller)
+        gets finite values on ``<controller>/commands``."""
         if controller == self.arm_controller:
             self.send_joint_targets(values)
             return
@@ -374,6 +412,10 @@ class RealConnection(RobotConnection):
             raise UnsafeCommandError(f"command for {controller!r} must be a 1-D finite vector, got {values!r}; "
                                      "nothing was sent")
         self.fresh_sample()
+        route = self._routes.get(controller)
+        if route is not None:
+            route(arr)
+            return
         self.link.publish_forward(controller, arr)
 
     def advance(self, info: dict[str, Any]) -> StepStatus:
