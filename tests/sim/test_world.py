@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib.util
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -71,18 +73,13 @@ def test_delete_keeps_other_state(make_world):
 
 
 def _wide_urdf(joints: int) -> str:
-    """A robot of ``joints`` actuated revolute joints in chains of 50 from its base."""
-    inertial = ('<inertial><mass value="0.01"/><inertia ixx="1e-5" iyy="1e-5" izz="1e-5" ixy="0" ixz="0" iyz="0"/>'
-                '</inertial>')
-    links = [f'<link name="base">{inertial}</link>']
-    links += [f'<link name="l{i}">{inertial}</link>' for i in range(joints)]
-    chain = [f'<joint name="j{i}" type="revolute"><parent link="{"base" if i % 50 == 0 else f"l{i - 1}"}"/>'
-             f'<child link="l{i}"/><origin xyz="0 0 0.001"/><axis xyz="0 0 1"/>'
-             '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>' for i in range(joints)]
-    control = "".join(f'<joint name="j{i}"><command_interface name="position"/><state_interface name="position"/>'
-                      "</joint>" for i in range(joints))
-    return (f'<robot name="wide">{"".join(links)}{"".join(chain)}<ros2_control name="h" type="system"><hardware>'
-            f"<plugin>mock_components/GenericSystem</plugin></hardware>{control}</ros2_control></robot>")
+    """benchmarks/bench_entity_delete.py's robot: ``joints`` actuated revolute joints in chains of 50."""
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_entity_delete.py"
+    spec = importlib.util.spec_from_file_location("bench_entity_delete", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.wide_urdf(joints)
 
 
 def test_deleting_a_large_entity_removes_all_of_it_and_nothing_else(make_world, tmp_path):
