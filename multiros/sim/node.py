@@ -212,8 +212,7 @@ class SimulationNode(Node):
             self.cameras, self.world, self.lock, rate=rate, pacing=self._pacing,
             warn=lambda text: self.get_logger().warning("%s", text),
             error=lambda text: self.get_logger().error("%s", text))
-        self.tf = TFPublisher(self, self.world, self.lock, prefix,
-                              warn=lambda text: self.get_logger().warning("%s", text))
+        self.tf = TFPublisher(self, self.world, self.lock, prefix, warn=self._tf_warning)
         self._services: list[Any] = []
         if serve:
             self.start_serving()
@@ -226,6 +225,14 @@ class SimulationNode(Node):
             self._executor.add_node(self)
             self._spin_thread = threading.Thread(target=self._executor.spin, name=f"{node_name}-topics", daemon=True)
             self._spin_thread.start()
+
+    def _tf_warning(self, text: str) -> None:
+        """A TF frame clash: a warning where ROS 2 tools may look at /tf; on an in-process graph (an env's
+        own node, the robots of a vector env) nobody outside can, so it is only logged at INFO."""
+        if self.context.transport_name == "inproc":
+            self.get_logger().info("%s", text)
+        else:
+            self.get_logger().warning("%s", text)
 
     def start_serving(self) -> None:
         """Create the simulation services (once); until then the node answers no service call."""

@@ -249,4 +249,21 @@ def test_frame_prefix_is_applied_once_and_clashing_robots_fall_back_to_their_nam
         for node in (prefixed, plain):
             node.destroy_node()
     finally:
+        ctx.shutdown()
+
+
+def test_a_frame_clash_on_an_in_process_graph_is_info_not_a_warning(caplog):
+    """Nobody outside the process sees an in-process node's /tf (an env's own node, a vector env's robots):
+    the fallback is logged at INFO there (on a wire transport, a warning; its text: the test above)."""
+    ctx = Context(transport="inproc").init()
+    try:
+        node = SimulationNode("clash", context=ctx)
+        with caplog.at_level("INFO"), node.lock:
+            for name in ("rx200", "second"):
+                node.world.spawn(name, RX200.split("?")[0], xacro_args={"robot_name": "rx200"})
+                node._attach_robot(name)
+        said = [r for r in caplog.records if "already published by entity" in r.getMessage()]
+        assert [r.levelname for r in said] == ["INFO"]
+        node.destroy_node()
+    finally:
         ctx.try_shutdown()
