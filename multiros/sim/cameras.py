@@ -300,6 +300,7 @@ class CameraHub:
         self._image_type = get_message("sensor_msgs/msg/Image")
         self._info_type = get_message("sensor_msgs/msg/CameraInfo")
         self._entities: dict[str, list[_Publishers]] = {}
+        self._unpublished: dict[str, list[CameraSpec]] = {}  # cameras read as observations only (_trespass)
         self._cache = _Cache()
         self._cache_lock = threading.Lock()
 
@@ -316,6 +317,15 @@ class CameraHub:
         world = self._node.world
         pubs = []
         for spec in camera_specs(info.name, info.namespace, info.description, world.model):
+            trespass = self._trespass(info.name, spec)
+            if trespass:  # still an observation camera of its env (read), with its size: only not published
+                text = f"entity {info.name!r}: camera {spec.camera!r} is not published: {trespass}"
+                if getattr(self._node.context, "transport_name", "") == "inproc":
+                    self._node.get_logger().info("%s", text)  # in-process (a vector env's robots): nobody outside
+                else:
+                    self._log_error(text)
+                self._unpublished.setdefault(info.name, []).append(spec)
+                continue
             if frame_of is not None:
                 spec = dataclasses.replace(spec, frame_id=frame_of(spec))
             qos = 2  # the newest images only; reliable, as camera drivers' default publishers
@@ -328,8 +338,36 @@ class CameraHub:
         if pubs:
             self._entities[info.name] = pubs
 
+    def _trespass(self, name: str, spec: CameraSpec) -> str:
+        """Why a camera of entity ``name`` may not publish its topics ('' when it may): a topic that
+        another entity's camera publishes, or one inside another entity's namespace (a description's
+        sensor plugin names its namespace, absolute ones included: a stranger's description must not
+        publish images into another robot's camera topics)."""
+        topics = [t for t in (spec.rgb_topic, spec.rgb_info_topic, spec.depth_topic, spec.depth_info_topic) if t]
+        for other, entries in self._entities.items():
+            if other == name:
+                continue
+            taken = {t for e in entries for t in (e.spec.rgb_topic, e.spec.rgb_info_topic, e.spec.depth_topic,
+                                                   e.spec.depth_info_topic) if t}
+            clash = [t for t in topics if t in taken]
+            if clash:
+                return f"entity {other!r} publishes {clash[0]}"
+        world = self._node.world
+        own = world.entity(name).namespace.rstrip("/")
+        for other in world.entity_names():
+            if other == name:
+                continue
+            ns = world.entity(other).namespace.rstrip("/")
+            if not ns or (own and (own == ns or own.startswith(ns + "/"))):
+                continue  # the root namespace, or this entity lives inside the other's: its own topics
+            inside = [t for t in topics if t == ns or t.startswith(ns + "/")]
+            if inside:
+                return f"{inside[0]} is in entity {other!r}'s namespace {ns} (a sensor plugin's <namespace>)"
+        return ""
+
     def detach(self, name: str) -> None:
         """Destroy an entity's camera publishers."""
+        self._unpublished.pop(name, None)
         for entry in self._entities.pop(name, []):
             for pub in (entry.rgb, entry.rgb_info, entry.depth, entry.depth_info):
                 if pub is not None:
@@ -354,6 +392,10 @@ class CameraHub:
             for entry in entries:
                 if entry.spec.camera == camera:
                     return entry.spec
+        for specs in self._unpublished.values():
+            for spec in specs:
+                if spec.camera == camera:
+                    return spec
         return None
 
     # -- images -------------------------------------------------------------------------------

@@ -241,3 +241,31 @@ def test_camera_topics_are_rendered_beside_the_steps_at_most_at_their_rate(conn)
     # Frames start at least 1/4 s apart: at most one per period in the time measured, one more that
     # started just before it.
     assert 1 <= rendered <= 4.0 * elapsed + 2, (rendered, elapsed)
+
+
+def _intruder(name: str, namespace: str) -> str:
+    return DOWN_CAMERA.replace('name="overhead"', f'name="{name}"').replace(
+        "</camera></sensor>", '</camera><plugin name="p" filename="libgazebo_ros_camera.so"><ros>'
+        f"<namespace>{namespace}</namespace></ros><camera_name>rgb</camera_name></plugin></sensor>")
+
+
+@pytest.mark.parametrize(("namespace", "why"), [
+    ("/rx200/zed2/zed_node", "entity 'rx200' publishes /rx200/zed2/zed_node/rgb/"),  # the Zed2's own topics
+    ("/rx200/spy", "is in entity 'rx200''s namespace /rx200"),  # new topics in the robot's namespace
+])
+def test_a_sensor_plugin_cannot_publish_into_another_entitys_namespace(conn, caplog, namespace, why):
+    """A stranger's description whose sensor plugin names another robot's namespace (absolute) gets no
+    camera topics there: the entity is spawned, its camera is not published (an error on a wire graph;
+    INFO on this in-process one, where it is a vector env's second robot of one description), and the
+    log says why; the camera is still read as an observation, at its size."""
+    before = {s.rgb_topic for s in conn.sim_node.cameras.specs()}
+    with caplog.at_level("INFO"):
+        conn.client.spawn_entity("intruder", resource_string=_intruder("intruder", namespace), position=(3.0, 3.0, 0))
+    try:
+        specs = conn.sim_node.cameras.specs()
+        assert not [s for s in specs if s.entity == "intruder"]
+        assert {s.rgb_topic for s in specs} == before
+        assert "entity 'intruder': camera 'intruder/down' is not published" in caplog.text and why in caplog.text
+        assert conn.read_camera("intruder/down").rgb.shape == (48, 64, 3)
+    finally:
+        conn.client.delete_entity("intruder")
