@@ -131,6 +131,7 @@ eval_freq: 60
 eval_episodes: 1
 normalize: True
 use_HER: True
+use_custom_policy: True
 policy_params:
   net_arch: [16, 16]
   features_extractor_kwargs: {ignore_keys: [achieved_goal], image_features: 16}
