@@ -1,12 +1,12 @@
 """``uniros-fake-robot --arm PATH``: the fake robot of an arm file, named as the arm's vendor driver names
 things (the file's ``real:`` section), so a Real twin runs against it with its defaults.
 
-For each shipped arm file (VX300S, UR5e, NED2) the fake robot runs in a child process (on a private
-router, stopped by PID) and the Real twins reset and step against it with the simulated twins'
-spaces: reach, and push where the fake robot serves the driver's gripper interface (a trajectory
-controller for the VX300S, a GripperCommand action for the UR5e; the NED2's tool commander is not
-served, so its push twin runs with ``gripper_interface='none'``). A bad arm file is one line on
-stderr and exit code 2.
+For each shipped arm file with a Real twin to try (VX300S, UR5e, NED2, IRB120) the fake robot runs in a
+child process (on a private router, stopped by PID) and the Real twins reset and step against it with
+the simulated twins' spaces: reach, and push where the fake robot serves the driver's gripper interface
+(a trajectory controller for the VX300S, a GripperCommand action for the UR5e; the NED2's tool
+commander is not served, so its push twin runs with ``gripper_interface='none'``; the IRB120 has no
+gripper: reach only). A bad arm file is one line on stderr and exit code 2.
 """
 
 from __future__ import annotations
@@ -42,11 +42,12 @@ from .conftest import STATE_TIMEOUT, TopicRecorder
 JTC = "joint_trajectory_controller/JointTrajectoryController"
 FORWARD = "position_controllers/JointGroupPositionController"
 BROADCASTER = "joint_state_broadcaster/JointStateBroadcaster"
-ARMS = ("VX300S", "UR5e", "NED2")
+ARMS = ("VX300S", "UR5e", "NED2", "IRB120")
 #: The gripper controller each arm's fake robot serves: (name, type, joint), or None.
 GRIPPERS = {"VX300S": ("gripper_controller", JTC, "left_finger"),
             "UR5e": ("robotiq_gripper_controller", FORWARD, "left_finger_joint"),  # + gripper_cmd (GripperCommand)
-            "NED2": None}  # Niryo's tool commander: not served
+            "NED2": None,  # Niryo's tool commander: not served
+            "IRB120": None}  # no gripper: reach only
 _CWD = tempfile.gettempdir()
 JointState = get_message("sensor_msgs/msg/JointState")
 
@@ -216,6 +217,8 @@ def test_the_reach_twin_resets_and_steps_against_the_fake_robot(graph: Context, 
 @pytest.mark.slow
 def test_the_push_twin_drives_the_gripper_through_the_drivers_interface(graph: Context, fake: Any) -> None:
     arm, robot = fake
+    if arm.gripper is None:
+        pytest.skip(f"the {arm.name} has no gripper: no push twin")
     served = GRIPPERS[arm.name]
     kwargs = {} if served is not None else {"gripper_interface": "none"}
     env = _make(graph, f"{arm.name}PushGoalReal-v0", **kwargs)
