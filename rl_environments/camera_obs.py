@@ -207,15 +207,6 @@ def camera_entity_urdf(position: Sequence[float], lookat: Sequence[float], width
     )
 
 
-def resize_nearest(image: np.ndarray, height: int, width: int) -> np.ndarray:
-    """``image`` (H x W or H x W x C) at ``height`` x ``width``, each pixel the nearest source pixel's."""
-    if image.shape[0] == height and image.shape[1] == width:
-        return image
-    rows = np.minimum((np.arange(height) + 0.5) * image.shape[0] / height, image.shape[0] - 1).astype(np.intp)
-    cols = np.minimum((np.arange(width) + 0.5) * image.shape[1] / width, image.shape[1] - 1).astype(np.intp)
-    return image[rows][:, cols]
-
-
 class CameraObservations:
     """Camera observations for a task class (see the module docstring): mix it in before the task.
 
@@ -327,24 +318,19 @@ class CameraObservations:
         self.image_size = (int(frame.rgb.shape[0]), int(frame.rgb.shape[1]))
 
     def _setup_real_camera(self, options: CameraOptions) -> None:
-        from multiros.envs.real.sensor_link import ImageTopic
-
         name = (options.camera_name or CAMERA_ENTITY).strip("/")
         short = name.rsplit("/", 1)[-1]
         rgb_default, depth_default = self.CAMERA_TOPICS.get(
             short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
-        link = self.link
-        rgb = ImageTopic(self.node, link.resolve(options.rgb_topic or rgb_default), "rgb")
-        depth = (ImageTopic(self.node, link.resolve(options.depth_topic or depth_default), "depth")
-                 if options.depth else None)
-        self.camera_source = (rgb, depth)
+        self.connection.add_camera(short, options.rgb_topic or rgb_default,
+                                   (options.depth_topic or depth_default) if options.depth else None)
+        self.camera_source = short
         if options.width is None or options.height is None:
             if options.width is not None or options.height is not None:
                 raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither")
             h = w = DEFAULT_SIZE
             if options.camera_name is not None:  # the camera's own size: its first image says
-                first = rgb.wait_first(self.connection.startup_timeout)
-                h, w = first.shape[:2]
+                h, w = self.connection.camera_size(short, self.connection.startup_timeout)
             self.image_size = (int(h), int(w))
         else:
             self.image_size = (options.height, options.width)
@@ -355,21 +341,11 @@ class CameraObservations:
         options = self.camera
         assert options is not None
         h, w = self.image_size
-        if self._camera_real:
-            from multiros.envs.real.errors import StaleStateError
-
-            rgb_topic, depth_topic = self.camera_source
-            try:
-                rgb = resize_nearest(rgb_topic.latest(options.image_timeout), h, w)
-                depth = (None if depth_topic is None
-                         else resize_nearest(depth_topic.latest(options.image_timeout), h, w))
-            except StaleStateError as exc:  # the env stops, as for stale joint states
-                self.connection.fault = exc
-                raise
-        else:
-            frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth,
-                                                width=w, height=h)
-            rgb, depth = frame.rgb, frame.depth
+        # The same call on both sides: a simulation renders the camera; a robot's connection gives its
+        # driver's newest images (a stale one stops the env, as stale joint states do).
+        frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth, width=w, height=h,
+                                            max_age=options.image_timeout)
+        rgb, depth = frame.rgb, frame.depth
         assert rgb is not None
         rgb = np.array(rgb, dtype=np.uint8, copy=True)
         if depth is not None:

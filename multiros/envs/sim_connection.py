@@ -324,11 +324,12 @@ class SimConnection(RobotConnection):
         return self.sim.render(camera, width, height, depth=depth)
 
     def read_camera(self, camera: str, *, rgb: bool = True, depth: bool = False, width: int | None = None,
-                    height: int | None = None) -> CameraFrame:
+                    height: int | None = None, max_age: float | None = None) -> CameraFrame:
         """A camera sensor's images of the world after the last step (a camera observation): from a
         composed node the very pixels its Image topics carry for this state, without messages; from
         another process through its RenderCamera service
-        (:meth:`~multiros.sim.launch.SimulationConnection.read_camera`).
+        (:meth:`~multiros.sim.launch.SimulationConnection.read_camera`). ``max_age`` is the real
+        connection's (how old a driver's image may be); a rendered image is of the state now.
 
         Raises:
             multiros.sim.errors.RenderError: an unknown camera, a bad size, or no offscreen GL (the

@@ -16,6 +16,7 @@ import logging
 import sys
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,16 @@ from multiros.robot_state import RobotState, RobotStates
 __all__ = ["RealConnection"]
 
 _logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CameraImages:
+    """A real camera's newest images (:meth:`RealConnection.read_camera`): what a simulated camera's
+    ``CameraFrame`` gives, without the intrinsics (a driver publishes its own ``camera_info``)."""
+
+    camera: str
+    rgb: np.ndarray | None
+    depth: np.ndarray | None
 
 
 def _interactive() -> bool:
@@ -109,6 +120,7 @@ class RealConnection(RobotConnection):
         self._closed = False
         self._frame_sources: dict[str, Callable[[RobotStates], tuple[np.ndarray, np.ndarray | None]]] = {}
         self._routes: dict[str, Callable[[np.ndarray], None]] = {}
+        self._cameras: dict[str, tuple[Any, Any]] = {}  # name -> (rgb, depth) ImageTopic
         self.link = RobotLink(node, namespace, joint_states_topic=joint_states_topic, use_sim_time=use_sim_time,
                               timeout_sec=self.timeout_sec)
         self._connect(load_controllers)
@@ -394,6 +406,56 @@ class RealConnection(RobotConnection):
             return where, np.tile([1.0, 0.0, 0.0, 0.0], (len(where), 1))
         return where, orientations
 
+    def add_camera(self, name: str, rgb_topic: str, depth_topic: str | None = None) -> None:
+        """Serve camera ``name`` to :meth:`read_camera`: the newest images of a camera driver's
+        ``sensor_msgs/Image`` topics (relative names resolve in the robot's namespace), as a simulation
+        renders its cameras. Subscribes now; images arrive in the background."""
+        from multiros.envs.real.sensor_link import ImageTopic
+
+        self.close_camera(name)
+        rgb = ImageTopic(self.node, self.link.resolve(rgb_topic), "rgb")
+        depth = ImageTopic(self.node, self.link.resolve(depth_topic), "depth") if depth_topic else None
+        self._cameras[name] = (rgb, depth)
+
+    def _camera(self, name: str) -> tuple[Any, Any]:
+        try:
+            return self._cameras[name]
+        except KeyError:
+            raise EnvError(f"camera {name!r}: robot {self.robot_name!r} serves the cameras {list(self._cameras)} "
+                           "(add_camera)") from None
+
+    def camera_size(self, name: str, timeout: float) -> tuple[int, int]:
+        """``(height, width)`` of camera ``name``'s images: its first image's (waiting up to ``timeout``)."""
+        first = self._camera(name)[0].wait_first(timeout)
+        return int(first.shape[0]), int(first.shape[1])
+
+    def read_camera(self, name: str, *, rgb: bool = True, depth: bool = False, width: int | None = None,
+                    height: int | None = None, max_age: float = 1.0) -> CameraImages:
+        """Camera ``name``'s newest images, at ``height`` x ``width`` when given (nearest pixel). An image
+        older than ``max_age`` seconds is stale: the env stops, as for stale joint states
+        (:class:`~multiros.envs.real.sensor_link.StaleSensorError`)."""
+        from multiros.envs.real.sensor_link import resize_nearest
+
+        rgb_topic, depth_topic = self._camera(name)
+        if depth and depth_topic is None:
+            raise EnvError(f"camera {name!r} has no depth topic (add_camera(..., depth_topic=))")
+
+        def newest(topic: Any) -> np.ndarray:
+            image = topic.latest(max_age)
+            return image if width is None or height is None else resize_nearest(image, height, width)
+
+        try:
+            return CameraImages(name, newest(rgb_topic) if rgb else None, newest(depth_topic) if depth else None)
+        except StaleStateError as exc:
+            self.fault = exc
+            raise
+
+    def close_camera(self, name: str) -> None:
+        """Unsubscribe camera ``name``'s topics (nothing when there is no such camera)."""
+        for topic in self._cameras.pop(name, ()):
+            if topic is not None:
+                topic.close()
+
     def route_controller(self, controller: str, send: Callable[[np.ndarray], None]) -> None:
         """Commands for ``controller`` go to ``send`` (after the checks every command passes): a controller
         the simulation has whose driver on the robot takes another interface (a gripper's action)."""
@@ -536,6 +598,11 @@ class RealConnection(RobotConnection):
         self._closed = True
         if self.close_env_prompt:
             self.prompt("Closing the env: the robot holds its last command. Press Enter: ")
+        for name in list(self._cameras):
+            try:
+                self.close_camera(name)
+            except Exception:  # noqa: BLE001 - closing must go on
+                _logger.debug("camera %s did not close cleanly", name, exc_info=True)
         try:
             self.link.close()
         except Exception:  # noqa: BLE001 - closing must go on

@@ -179,6 +179,15 @@ class LatestMessage(Generic[T]):
             pass
 
 
+def resize_nearest(image: np.ndarray, height: int, width: int) -> np.ndarray:
+    """``image`` (H x W or H x W x C) at ``height`` x ``width``, each pixel the nearest source pixel's."""
+    if image.shape[0] == height and image.shape[1] == width:
+        return image
+    rows = np.minimum((np.arange(height) + 0.5) * image.shape[0] / height, image.shape[0] - 1).astype(np.intp)
+    cols = np.minimum((np.arange(width) + 0.5) * image.shape[1] / width, image.shape[1] - 1).astype(np.intp)
+    return image[rows][:, cols]
+
+
 class ImageTopic(LatestMessage[np.ndarray]):
     """The newest image of a camera driver's ``sensor_msgs/Image`` topic (``kind``: ``"rgb"`` or ``"depth"``)."""
 
