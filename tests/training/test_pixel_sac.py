@@ -12,7 +12,7 @@ from gymnasium import spaces
 import uniros
 from uniros.errors import TrainingConfigError
 from uniros.pixel_sac import DrQSAC, ImageEncoder, random_shift
-from uniros.train_config import parse_training_config
+from uniros.train_config import load_training_config, parse_training_config
 
 
 def test_random_shift_crops_the_edge_padded_image_at_an_offset_per_image():
@@ -117,6 +117,24 @@ def test_a_training_yaml_names_drq_sac_and_its_keywords():
     assert config.algorithm == "drq_sac" and config.algo_params["image_shift"] == 4
     with pytest.raises(TrainingConfigError, match="image_shfit"):
         parse_training_config({"algorithm": "drq_sac", "training_steps": 1000, "drq_sac_params": {"image_shfit": 4}})
+
+
+def test_the_shipped_pixel_config_is_the_documented_recipe():
+    """config/training/pixels/RX200ReacherGoalSim-v0.yaml (installed with the package): drq_sac on the image
+    and the goal only, the settings of docs/training.md's my_drq.yaml (bench_pixel_learning's pixels_strict)."""
+    from importlib import resources
+
+    import yaml
+
+    shipped = resources.files("rl_environments.config").joinpath("training", "pixels", "RX200ReacherGoalSim-v0.yaml")
+    config = load_training_config(str(shipped))
+    documented = parse_training_config(yaml.safe_load(_doc_block(":caption: my_drq.yaml\n", "```")), "docs")
+    assert config.algorithm == documented.algorithm == "drq_sac" and config.use_her
+    assert config.policy_params == documented.policy_params
+    assert config.policy_params["features_extractor_kwargs"] == {"ignore_keys": ["achieved_goal"]}
+    for key in ("learning_rate", "batch_size", "tau", "image_shift", "learning_starts", "buffer_size", "device"):
+        assert config.algo_params[key] == documented.algo_params[key], key
+    assert config.env_kwargs == documented.env_kwargs and config.training_steps == documented.training_steps
 
 
 @pytest.mark.slow
