@@ -558,6 +558,11 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None, p
         jtype = int(j.type)
         if jtype not in (int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
             continue
+        if not j.name:  # a joint is known by name: joint_states, commands and the controllers' actuators
+            body = j.parent.name or "an unnamed body"
+            raise DescriptionError(f"{name}: a {'slide' if jtype == int(mujoco.mjtJoint.mjJNT_SLIDE) else 'hinge'} "
+                                   f"joint of body '{body}' has no name: give every hinge and slide joint a name "
+                                   "(<joint name=\"...\">); ROS addresses joints by name", source=name)
         lim = int(j.limited)
         limited = lim == int(mujoco.mjtLimited.mjLIMITED_TRUE) or (
             lim == int(mujoco.mjtLimited.mjLIMITED_AUTO) and j.range[1] > j.range[0])

@@ -152,6 +152,14 @@ def test_mjcf_file_degrees_and_actuators_removed(index):
     assert model.nu == 0 and model.site("bob").id >= 0 and model.site("tip").id >= 0
 
 
+def test_an_unnamed_mjcf_joint_is_named_in_the_error(index):
+    """Was an obscure compile error ("unknown transmission target 'u/'") from the actuator added for it."""
+    text = ("<mujoco><worldbody><body name='b'><joint type='slide' axis='0 0 1'/><geom size='0.1' mass='1'/>"
+            "</body></worldbody></mujoco>")
+    with pytest.raises(DescriptionError, match="a slide joint of body 'b' has no name: give every hinge and slide"):
+        load_description(text, index=index)
+
+
 def test_mesh_cache_rejects_garbage(tmp_path):
     bad = tmp_path / "x.dae"
     bad.write_text("garbage")
