@@ -55,6 +55,9 @@ from multiros.envs.batch_task import StepResults
 __all__ = ["CAMERA_KEYWORDS", "CameraObservations", "CameraOptions", "MODES", "camera_entity_urdf"]
 
 _logger = logging.getLogger(__name__)
+#: An observation camera whose first image spans at most this many levels (of 255) sees nothing of use:
+#: the inside of a body, a patch of floor, the sky. The shipped views span well over 100.
+_FLAT_IMAGE_LEVELS = 8
 
 MODES = ("rgb_obs_only", "rgb_plus_normal_obs", "rgb_plus_depth_plus_normal_obs")
 _SIM_ONLY = ("camera_position", "camera_lookat", "camera_fovy")
@@ -312,6 +315,11 @@ class CameraObservations:
             raise RenderError(f"{type(self).__name__}: the observation camera {self.camera_source!r} cannot render: "
                               f"{exc}") from exc
         assert frame.rgb is not None
+        if frame.rgb.size and int(frame.rgb.max()) - int(frame.rgb.min()) <= _FLAT_IMAGE_LEVELS:
+            _logger.warning("%s: the observation camera %r sees almost one colour in its first image (levels %d-%d): "
+                            "is it inside a body, or looking away from the robot? (camera_position=, "
+                            "camera_lookat=, camera_fovy=)", type(self).__name__, self.camera_source,
+                            int(frame.rgb.min()), int(frame.rgb.max()))
         if options.camera_name is not None and (options.width is None) != (options.height is None):
             raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither (the "
                              "camera's own size)")

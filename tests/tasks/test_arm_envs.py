@@ -165,6 +165,16 @@ def test_bad_camera_options_are_clear_errors(kwargs, match):
         uniros.make("VX300SReacherSim-v0", **kwargs)
 
 
+def test_a_camera_that_sees_almost_one_colour_is_named(make, caplog):
+    """A 1-degree view of a patch of floor (levels 204-209): a warning at make; the default view: none."""
+    with caplog.at_level("WARNING", logger="rl_environments.camera_obs"):
+        make("RX200ReacherSim-v0", rgb_obs_only=True, image_width=16, image_height=16)
+        assert "sees almost one colour" not in caplog.text
+        make("RX200ReacherSim-v0", rgb_obs_only=True, image_width=16, image_height=16,
+             camera_position=(0.9, 0.9, 0.05), camera_lookat=(0.9, 0.9, -1.0), camera_fovy=1.0)
+    assert "the observation camera 'rx200_camera/camera' sees almost one colour" in caplog.text
+
+
 def test_a_camera_that_does_not_exist_or_cannot_render_says_so(monkeypatch):
     with pytest.raises(RenderError, match="camera 'vx300s/nope' not found"):
         uniros.make("VX300SReacherSim-v0", rgb_obs_only=True, camera_name="nope")
