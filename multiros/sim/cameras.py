@@ -51,6 +51,7 @@ import numpy as np
 
 from multiros.sim import convert
 from multiros.sim.errors import RenderError
+from multiros.sim.limits import MAX_CAMERA_PIXELS
 from multiros.sim.urdf_tags import CAMERA_SENSOR_TYPES
 
 __all__ = ["CameraFrame", "CameraHub", "CameraIntrinsics", "CameraSpec", "camera_specs", "fill_camera_info",
@@ -301,6 +302,7 @@ class CameraHub:
         self._info_type = get_message("sensor_msgs/msg/CameraInfo")
         self._entities: dict[str, list[_Publishers]] = {}
         self._unpublished: dict[str, list[CameraSpec]] = {}  # cameras read as observations only (_trespass)
+        self.max_pixels = MAX_CAMERA_PIXELS  # of all published cameras' images together
         self._cache = _Cache()
         self._cache_lock = threading.Lock()
 
@@ -317,7 +319,7 @@ class CameraHub:
         world = self._node.world
         pubs = []
         for spec in camera_specs(info.name, info.namespace, info.description, world.model):
-            trespass = self._trespass(info.name, spec)
+            trespass = self._trespass(info.name, spec, sum(e.spec.width * e.spec.height for e in pubs))
             if trespass:  # still an observation camera of its env (read), with its size: only not published
                 text = f"entity {info.name!r}: camera {spec.camera!r} is not published: {trespass}"
                 if getattr(self._node.context, "transport_name", "") == "inproc":
@@ -338,11 +340,18 @@ class CameraHub:
         if pubs:
             self._entities[info.name] = pubs
 
-    def _trespass(self, name: str, spec: CameraSpec) -> str:
+    def _trespass(self, name: str, spec: CameraSpec, pending: int = 0) -> str:
         """Why a camera of entity ``name`` may not publish its topics ('' when it may): a topic that
         another entity's camera publishes, or one inside another entity's namespace (a description's
         sensor plugin names its namespace, absolute ones included: a stranger's description must not
-        publish images into another robot's camera topics)."""
+        publish images into another robot's camera topics), or more pixels than the node publishes in
+        all (``max_pixels``; ``pending``: this entity's cameras accepted so far)."""
+        published = pending + sum(e.spec.width * e.spec.height for other, entries in self._entities.items()
+                                  if other != name for e in entries)
+        if published + spec.width * spec.height > self.max_pixels:
+            return (f"the node publishes {published:,} pixels of camera images already, and {spec.width} x "
+                    f"{spec.height} more would pass its limit of {self.max_pixels:,} (multiros.sim.limits."
+                    "MAX_CAMERA_PIXELS)")
         topics = [t for t in (spec.rgb_topic, spec.rgb_info_topic, spec.depth_topic, spec.depth_info_topic) if t]
         for other, entries in self._entities.items():
             if other == name:

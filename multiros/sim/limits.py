@@ -35,6 +35,7 @@ __all__ = [
     "SPAWN_TRIAL_STEPS",
     "MAX_SPAWN_PENETRATION",
     "MAX_LOAD_RATIO",
+    "MAX_CAMERA_PIXELS",
 ]
 
 MAX_DESCRIPTION_CHARS = 4_000_000  # characters of URDF/MJCF text (after xacro); real robots: < 500 k
@@ -109,3 +110,9 @@ class DescriptionLimits:
     trial_steps: int = SPAWN_TRIAL_STEPS
     max_penetration: float = MAX_SPAWN_PENETRATION
     max_load_ratio: float = MAX_LOAD_RATIO
+
+# Pixels of the camera images one node publishes, all its entities' camera sensors together (width x
+# height each): eight 1920 x 1080 sensors. Each published camera keeps its images and render buffers in
+# the node's memory (32 such sensors took it to 766 MB); a camera beyond the limit is not published
+# (its env still reads it as an observation).
+MAX_CAMERA_PIXELS = 8 * 1920 * 1080

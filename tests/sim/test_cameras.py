@@ -15,6 +15,7 @@ from multiros.ros.interfaces import get_message
 from multiros.sim import launch
 from multiros.sim.cameras import CameraIntrinsics, camera_specs
 from multiros.sim.errors import RenderError
+from multiros.sim.limits import MAX_CAMERA_PIXELS
 
 Image = get_message("sensor_msgs/msg/Image")
 CameraInfo = get_message("sensor_msgs/msg/CameraInfo")
@@ -269,3 +270,24 @@ def test_a_sensor_plugin_cannot_publish_into_another_entitys_namespace(conn, cap
         assert conn.read_camera("intruder/down").rgb.shape == (48, 64, 3)
     finally:
         conn.client.delete_entity("intruder")
+
+
+def test_cameras_beyond_the_nodes_pixel_limit_are_not_published(conn, caplog):
+    """The node publishes at most ``max_pixels`` of camera images in all (MAX_CAMERA_PIXELS: eight 1080p
+    sensors); a camera beyond it is not published, says why, and is still read as an observation."""
+    hub = conn.sim_node.cameras
+    published = sum(s.width * s.height for s in hub.specs())
+    hub.max_pixels = published + 64 * 48 - 1  # one pixel short of another 64 x 48 camera
+    try:
+        with caplog.at_level("INFO"):
+            conn.client.spawn_entity("extra", resource_string=DOWN_CAMERA.replace('name="overhead"', 'name="extra"'),
+                                     position=(4.0, 4.0, 0.0))
+        try:
+            assert not [s for s in hub.specs() if s.entity == "extra"]
+            assert "camera 'extra/down' is not published: the node publishes" in caplog.text
+            assert "MAX_CAMERA_PIXELS" in caplog.text
+            assert conn.read_camera("extra/down").rgb.shape == (48, 64, 3)
+        finally:
+            conn.client.delete_entity("extra")
+    finally:
+        hub.max_pixels = MAX_CAMERA_PIXELS
