@@ -285,6 +285,7 @@ class CameraHub:
         node: the simulation node (publishers are its; ``node.world``, ``node.lock``).
         renderer: returns the node's :class:`~multiros.sim.render.Renderer` (created on first use).
         log_error: reports a camera that cannot render (once per camera).
+        log_unpublished: reports a camera that is not published (see ``attach``); ``log_error`` by default.
 
     Attributes:
         fast: render the cameras' images without shadows, reflections or multisampling (default True).
@@ -292,12 +293,14 @@ class CameraHub:
 
     fast: bool = True
 
-    def __init__(self, node: Any, renderer: Callable[[], Any], log_error: Callable[[str], None]) -> None:
+    def __init__(self, node: Any, renderer: Callable[[], Any], log_error: Callable[[str], None],
+                 log_unpublished: Callable[[str], None] | None = None) -> None:
         from multiros.sim.distro_adapters import get_message
 
         self._node = node
         self._renderer = renderer
         self._log_error = log_error
+        self._log_unpublished = log_unpublished or log_error
         self._image_type = get_message("sensor_msgs/msg/Image")
         self._info_type = get_message("sensor_msgs/msg/CameraInfo")
         self._entities: dict[str, list[_Publishers]] = {}
@@ -321,11 +324,7 @@ class CameraHub:
         for spec in camera_specs(info.name, info.namespace, info.description, world.model):
             trespass = self._trespass(info.name, spec, sum(e.spec.width * e.spec.height for e in pubs))
             if trespass:  # still an observation camera of its env (read), with its size: only not published
-                text = f"entity {info.name!r}: camera {spec.camera!r} is not published: {trespass}"
-                if getattr(self._node.context, "transport_name", "") == "inproc":
-                    self._node.get_logger().info("%s", text)  # in-process (a vector env's robots): nobody outside
-                else:
-                    self._log_error(text)
+                self._log_unpublished(f"entity {info.name!r}: camera {spec.camera!r} is not published: {trespass}")
                 self._unpublished.setdefault(info.name, []).append(spec)
                 continue
             if frame_of is not None:

@@ -207,12 +207,14 @@ class SimulationNode(Node):
         for sub in self._marker_subs:
             sub._deliver_directly(wire_inline=True)
         # Camera topics (sensor_msgs/Image, CameraInfo) of the entities' cameras (multiros.sim.cameras).
-        self.cameras = CameraHub(self, self._get_renderer, lambda text: self.get_logger().error("%s", text))
+        self.cameras = CameraHub(self, self._get_renderer, lambda text: self.get_logger().error("%s", text),
+                                 log_unpublished=lambda text: self._log_for_the_graph(logging.ERROR, text))
         self.camera_stream = CameraStream(
             self.cameras, self.world, self.lock, rate=rate, pacing=self._pacing,
             warn=lambda text: self.get_logger().warning("%s", text),
             error=lambda text: self.get_logger().error("%s", text))
-        self.tf = TFPublisher(self, self.world, self.lock, prefix, warn=self._tf_warning)
+        self.tf = TFPublisher(self, self.world, self.lock, prefix,
+                              warn=lambda text: self._log_for_the_graph(logging.WARNING, text))
         self._services: list[Any] = []
         if serve:
             self.start_serving()
@@ -226,13 +228,11 @@ class SimulationNode(Node):
             self._spin_thread = threading.Thread(target=self._executor.spin, name=f"{node_name}-topics", daemon=True)
             self._spin_thread.start()
 
-    def _tf_warning(self, text: str) -> None:
-        """A TF frame clash: a warning where ROS 2 tools may look at /tf; on an in-process graph (an env's
-        own node, the robots of a vector env) nobody outside can, so it is only logged at INFO."""
-        if self.context.transport_name == "inproc":
-            self.get_logger().info("%s", text)
-        else:
-            self.get_logger().warning("%s", text)
+    def _log_for_the_graph(self, level: int, text: str) -> None:
+        """A refusal that matters to ROS 2 tools looking at the node (a TF frame clash, a camera not
+        published): at ``level`` where they may look; on an in-process graph (an env's own node, the
+        robots of a vector env) nobody outside can, so it is only logged at INFO."""
+        self.get_logger().log(logging.INFO if self.context.transport_name == "inproc" else level, "%s", text)
 
     def start_serving(self) -> None:
         """Create the simulation services (once); until then the node answers no service call."""
