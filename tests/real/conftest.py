@@ -33,6 +33,14 @@ _CWD = tempfile.gettempdir()  # children import the installed package, as a user
 STATE_TIMEOUT = 5.0
 
 
+def make_real(context: Context, env_id: str, *, startup_timeout: float, **kwargs: Any) -> Any:
+    """``uniros.make`` of a Real env on ``context``, with ``STATE_TIMEOUT`` unless the test sets its own."""
+    import uniros
+
+    kwargs.setdefault("joint_state_timeout", STATE_TIMEOUT)
+    return uniros.make(env_id, context=context, startup_timeout=startup_timeout, **kwargs)
+
+
 def _fake_available() -> bool:
     try:
         import multiros.hardware.process  # noqa: F401

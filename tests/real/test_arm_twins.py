@@ -22,7 +22,7 @@ from multiros.ros import Context, Node
 from multiros.ros.interfaces import get_message
 from rl_environments import ARM_TASKS
 
-from .conftest import STATE_TIMEOUT, TopicRecorder
+from .conftest import TopicRecorder, make_real
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
@@ -96,8 +96,7 @@ def arm(request: pytest.FixtureRequest, graph: Context) -> Iterator[tuple[str, F
 
 
 def _make(graph: Context, env_id: str, **kwargs: Any) -> Any:
-    kwargs.setdefault("joint_state_timeout", STATE_TIMEOUT)  # not a watchdog test: a loaded machine stalls children
-    return uniros.make(env_id, context=graph, startup_timeout=15.0, **kwargs)
+    return make_real(graph, env_id, startup_timeout=15.0, **kwargs)
 
 
 def test_every_twin_has_its_simulated_twins_spaces(graph, arm) -> None:

@@ -37,7 +37,7 @@ from rl_environments.arm_file import ArmFile
 from rl_environments.arm_registry import registered_arms
 from uniros.fake_robot import ArmRobotError, arm_robot_spec, vendor_controllers
 
-from .conftest import STATE_TIMEOUT, TopicRecorder
+from .conftest import TopicRecorder, make_real
 
 JTC = "joint_trajectory_controller/JointTrajectoryController"
 FORWARD = "position_controllers/JointGroupPositionController"
@@ -180,8 +180,7 @@ def fake(request: pytest.FixtureRequest, graph: Context) -> Iterator[tuple[ArmFi
 
 
 def _make(graph: Context, env_id: str, **kwargs: Any) -> Any:
-    kwargs.setdefault("joint_state_timeout", STATE_TIMEOUT)  # not a watchdog test: a loaded machine stalls children
-    return uniros.make(env_id, context=graph, startup_timeout=20.0, **kwargs)
+    return make_real(graph, env_id, startup_timeout=20.0, **kwargs)
 
 
 @pytest.mark.multiprocess

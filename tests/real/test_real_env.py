@@ -31,7 +31,7 @@ from multiros.ros.controller_manager import ControllerManagerClient
 from multiros.sim.launch import private_context
 from rl_environments.arm_registry import arm_of
 
-from .conftest import STATE_TIMEOUT, StandIn, TopicRecorder
+from .conftest import StandIn, TopicRecorder, make_real
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
@@ -49,8 +49,7 @@ def _sim_spaces() -> tuple[Any, Any]:
 
 def _make(ctx, env_id: str = "RX200ReacherGoalReal-v0", **kw: Any) -> Any:
     kw.setdefault("startup_timeout", 10.0)
-    kw.setdefault("joint_state_timeout", STATE_TIMEOUT)  # watchdog tests set their own
-    return uniros.make(env_id, context=ctx, **kw)
+    return make_real(ctx, env_id, **kw)  # the watchdog's tests set joint_state_timeout
 
 
 def _wait_publisher_matched(env: Any, subscribers: int = 2, timeout: float = 5.0) -> None:
