@@ -39,9 +39,9 @@ def wide_urdf(joints: int) -> str:
 def old_order_seconds(joints: int) -> float:
     """Deleting ``joints`` actuators one by one, then their body, on an MjSpec (the node's former order)."""
     spec = mujoco.MjSpec()
-    root = spec.worldbody.add_body(name="wide/root")
+    root = body = spec.worldbody.add_body(name="wide/root")
     for i in range(joints):
-        body = (root if i % 50 == 0 else body).add_body(name=f"wide/l{i}", pos=[0, 0, 0.001])  # noqa: F821
+        body = (root if i % 50 == 0 else body).add_body(name=f"wide/l{i}", pos=[0, 0, 0.001])
         body.add_geom(size=[0.001, 0, 0], type=mujoco.mjtGeom.mjGEOM_SPHERE)
         body.add_joint(name=f"wide/j{i}", type=mujoco.mjtJoint.mjJNT_HINGE)
         spec.add_actuator(name=f"wide/a{i}", target=f"wide/j{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
