@@ -6,6 +6,11 @@ uniros, the suite's private Zenoh router and ROS domain from tests/conftest.py),
 marked ``run`` run with the venv's programs first on ``PATH``. Markers (HTML comments above a
 block, see ``docs_snippets.py``) skip a block that cannot run here, shrink a training run, or mark
 it slow; blocks marked slow run in a second, slow test after the page's files and commands.
+
+No network here: a page that works through a vendor's description package (docs/add_your_arm.md:
+ROBOTIS' OpenManipulator-X) runs against the suite's stand-in of it, written from the same published
+kinematics (``tests/robots/arm_add_data``, on ``AMENT_PREFIX_PATH`` as a sourced workspace puts it;
+the page's ``replace`` marker names the stand-in's URI).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ EXPECTED_SKIPS = {
 MAX_SKIPS = 5
 TIMEOUT = 180.0
 VENV_BIN = Path(sys.executable).parent
+DESCRIPTION_STAND_INS = REPO / "tests" / "robots" / "arm_add_data" / "install"
 
 
 def _page_ids() -> list[str]:
@@ -39,6 +45,7 @@ def _env() -> dict[str, str]:
     env.setdefault("MUJOCO_GL", "egl")
     env["MPLBACKEND"] = "Agg"
     env.pop("PYTHONPATH", None)
+    env["AMENT_PREFIX_PATH"] = os.pathsep.join(p for p in (str(DESCRIPTION_STAND_INS), env.get("AMENT_PREFIX_PATH")) if p)
     return env
 
 
@@ -93,7 +100,7 @@ def _run_page(page: str, tmp_path: Path, *, slow: bool) -> int:
 
 # Pages whose fast blocks take over 10 s together on a quiet machine (each block makes an env, so a
 # simulation node): marked slow as a whole, so that `-m "not slow"` stays quick (CI runs them all).
-HEAVY_PAGES = {"docs/create_env.md", "docs/concepts.md", "docs/vector_envs.md"}
+HEAVY_PAGES = {"docs/create_env.md", "docs/concepts.md", "docs/vector_envs.md", "docs/add_your_arm.md"}
 
 
 @pytest.mark.parametrize("page", [pytest.param(p, marks=pytest.mark.slow) if p in HEAVY_PAGES else p
