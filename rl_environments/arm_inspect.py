@@ -55,6 +55,7 @@ _REVOLUTE = ("revolute", "continuous")
 # End-effector link names, most specific first (matched as whole words of the link name).
 _EE_NAMES = ("tcp", "grasp", "grasping", "gripper_center", "end_effector", "eef", "ee", "tool", "tool0")
 _CUBE_DENSITY = 1100.0  # kg/m^3: the shipped cubes' (0.14 kg for 5 cm)
+_HOLD_ABOVE = 0.02  # m: the EE above a held cube's centre (the scripted grasp: 3 mm; a cube slips ~2 cm in the pads)
 #: Vendors' ros2_control hardware plugins -> (arm controller, gripper controller, gripper interface)
 #: of their drivers' launch files; an unknown plugin gets ROS 2 control's conventional names.
 _DRIVERS = {
@@ -628,14 +629,20 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
         tf = chain.fk_matrix(q)
         return float(np.linalg.norm(tf[:3, 3] - target)) + 0.05 * float(np.linalg.norm(tf[:3, axis] - [0, 0, -1])), q
 
-    # Along the x axis in front of the base: where the top-down IK reaches the table and target_height_max.
+    def carried(height: float) -> float:
+        """The EE's height holding the cube at a goal ``height`` above the table: the cube's centre
+        (``half`` above the goal's floor) plus where the EE sits on a held cube, slip included."""
+        return height + half + _HOLD_ABOVE
+
+    # Along the x axis in front of the base: where the top-down IK reaches the table, and carries the
+    # cube to target_height_max (pick-and-place goals in the air).
     x_lo = x_hi = math.nan
     for _ in range(2):
         xs = np.linspace(0.3 * reach, 0.65 * reach, 8)  # not over the base, nor at full stretch (as shipped)
         ok, q_low, q_high = [], seed_q, seed_q
         for x in xs:
             e_low, q_low = miss(np.array([x, 0.0, half + 0.003]), q_low)
-            e_high, q_high = miss(np.array([x, 0.0, target_height]), q_high)
+            e_high, q_high = miss(np.array([x, 0.0, carried(target_height)]), q_high)
             ok.append(e_low < 0.005 and e_high < 0.005)
             if len(ok) > 1 and ok[-2] and not ok[-1]:
                 break  # past the reachable band (it is one band in front of a serial arm)
@@ -661,12 +668,12 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
     worst = math.inf
     for _ in range(4):
         corners = [np.array([x, y, z]) for x in (x_lo, x_hi) for y in (-y_half, y_half)
-                   for z in (half + 0.003, target_height)]
+                   for z in (half + 0.003, carried(target_height))]
         worst = max(miss(c, seed_q)[0] for c in corners)
         if worst < 0.01:
             break
         y_half *= 0.6
-    why_box = ("inferred: the top-down IK reaches its corners at the table and at target_height_max"
+    why_box = ("inferred: the top-down IK reaches its corners at the table and carrying the cube at target_height_max"
                if worst < 0.01 else
                f"guessed: the top-down IK misses a corner by {worst * 100:.1f} cm; shrink the box")
     init = [_r((x_lo + x_hi) / 2, 3), 0.0, _r(max(0.6 * target_height, min(2 * half + 0.05, target_height)), 3)]

@@ -45,7 +45,8 @@ def _env() -> dict[str, str]:
     env.setdefault("MUJOCO_GL", "egl")
     env["MPLBACKEND"] = "Agg"
     env.pop("PYTHONPATH", None)
-    env["AMENT_PREFIX_PATH"] = os.pathsep.join(p for p in (str(DESCRIPTION_STAND_INS), env.get("AMENT_PREFIX_PATH")) if p)
+    prefixes = (str(DESCRIPTION_STAND_INS), env.get("AMENT_PREFIX_PATH"))
+    env["AMENT_PREFIX_PATH"] = os.pathsep.join(p for p in prefixes if p)
     return env
 
 
