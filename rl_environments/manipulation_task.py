@@ -201,15 +201,31 @@ class ManipulationTask(BatchTask, ArmInterface):
         ee = cls.ee_positions_of(envs, states)
         obj, obj_q = cls.object_poses_of(envs, states)
         vel = cls.batch_velocities(envs, cls.observation_time(envs, states), ee, obj, obj_q)
-        finger = cls.finger_index(states.names)
+        finger_pos, finger_vel = cls.finger_states(states)
         arm = cls.arm_positions_of(states)
-        return np.concatenate([ee, obj, obj - ee, states.position[:, finger], quat_to_euler(obj_q), vel[:, 3:6],
-                               vel[:, 6:9], vel[:, 0:3], states.velocity[:, finger], arm], axis=1)
+        return np.concatenate([ee, obj, obj - ee, finger_pos, quat_to_euler(obj_q), vel[:, 3:6],
+                               vel[:, 6:9], vel[:, 0:3], finger_vel, arm], axis=1)
 
     @classmethod
-    def finger_index(cls, names: tuple[str, ...]) -> list[int]:
-        where = {name: i for i, name in enumerate(names)}
-        return [where[f] for f in cls.FINGER_JOINTS]
+    def finger_states(cls, states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
+        """Both fingers' positions and velocities (N x 2 each), in ``FINGER_JOINTS`` order.
+
+        A driver may publish only the commanded finger: a ros2_control mimic joint has no hardware
+        behind it (ROBOTIS' OpenManipulator-X driver declares ``gripper_right_joint`` in simulation
+        only). The mimicking finger is then the commanded one times ``FINGER_MIMIC``, as its URDF
+        ``<mimic>`` says; a simulation always has both.
+        """
+        where = {name: i for i, name in enumerate(states.names)}
+        lead = cls.FINGER_JOINTS[0]
+        if lead not in where:
+            raise KeyError(f"the robot's joint states have no {lead!r}, the gripper's commanded finger "
+                           f"(gripper.joints[0]); joints: {list(states.names)}")
+        pos, vel = states.position[:, where[lead]], states.velocity[:, where[lead]]
+        other = cls.FINGER_JOINTS[1] if len(cls.FINGER_JOINTS) > 1 else None
+        if other is not None and other in where:
+            return (np.stack([pos, states.position[:, where[other]]], axis=1),
+                    np.stack([vel, states.velocity[:, where[other]]], axis=1))
+        return np.stack([pos, cls.FINGER_MIMIC * pos], axis=1), np.stack([vel, cls.FINGER_MIMIC * vel], axis=1)
 
     @staticmethod
     def batch_velocities(envs: Sequence[Any], t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:

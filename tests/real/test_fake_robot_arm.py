@@ -323,3 +323,51 @@ def test_an_arm_file_of_your_own_with_its_own_driver_names(graph: Context, tmp_p
     finally:
         robot.stop()
         unregister_arm("NED2Mine")
+
+
+@pytest.mark.multiprocess
+@pytest.mark.slow
+def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
+        graph: Context, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    """An arm the project does not ship, from its description package alone: ``uniros arm add`` of the
+    OpenManipulator-X stand-in (tests/robots/arm_add_data, found through ``AMENT_PREFIX_PATH`` as a
+    sourced workspace gives it), then ``uniros-fake-robot --arm`` of the written file serves the driver
+    names the file took from the description's ros2_control tag, and the reach and push twins reset and
+    step against it with their simulated twins' spaces, the gripper through its GripperCommand action."""
+    from rl_environments.arm_registry import unregister_arm
+    from uniros.cli import main as cli
+
+    from .test_arm_twins import Tracker
+
+    monkeypatch.setenv("AMENT_PREFIX_PATH", str(Path(__file__).parents[1] / "robots" / "arm_add_data" / "install"))
+    monkeypatch.setenv("UNIROS_ARMS", "")  # arm add registers the file for child processes; restored after
+    name = "OmxWritten"
+    code = cli(["arm", "add", "package://uniros_test_omx_description/urdf/omx.urdf.xacro", "--name", name,
+                "--output", str(tmp_path)])
+    assert code == 0, capsys.readouterr().err
+    path = tmp_path / f"{name}.yaml"
+    try:
+        arm = registered_arms()[name]
+        assert arm.real.gripper_interface == "gripper_action"
+        robot = FakeRobotProcess(None, context=graph, args=["--arm", str(path), "--log-level", "WARNING"],
+                                 namespace=arm.real.namespace, timeout_sec=90.0, cwd=_CWD, module="uniros.fake_robot")
+        tracker = Tracker(graph, arm.base_link)  # the push twin's object pose, from a stand-in tracker
+        try:
+            for task in ("ReacherGoal", "PushGoal"):
+                env = _make(graph, f"{name}{task}Real-v0")
+                try:
+                    obs_space, act_space = _sim_spaces(f"{name}{task}Sim-v0")
+                    assert env.observation_space == obs_space and env.action_space == act_space
+                    obs, _ = env.reset(seed=0)
+                    assert obs_space.contains(obs)
+                    for _ in range(3):
+                        obs, _, _, _, info = env.step(env.action_space.sample())
+                        assert obs_space.contains(obs) and info["safety"]["refused"] is False
+                    assert env.unwrapped.commands_sent >= 3
+                finally:
+                    env.close()
+        finally:
+            tracker.stop()
+            robot.stop()
+    finally:
+        unregister_arm(name)
