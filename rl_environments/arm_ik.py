@@ -69,6 +69,24 @@ def _closing_yaw(x: float, y: float, yaw: float | None) -> float:
     return float(math.atan2(y, x) + math.pi / 2) if math.hypot(x, y) > 1e-6 else math.pi / 2
 
 
+def _limits_and_seed(chain: KinematicChain, seed: Sequence[float] | np.ndarray,
+                     lower: Sequence[float] | np.ndarray | None,
+                     upper: Sequence[float] | np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The joint limits (default the chain's) and ``seed`` clipped into them, as float64 arrays."""
+    low = np.asarray(chain.lower if lower is None else lower, dtype=np.float64)
+    high = np.asarray(chain.upper if upper is None else upper, dtype=np.float64)
+    return low, high, np.clip(np.asarray(seed, dtype=np.float64), low, high)
+
+
+def _nearer_yaw(chain: KinematicChain, closing: int, start: np.ndarray, yaw: float) -> float:
+    """Of ``yaw`` and ``yaw + pi`` (the same grasp), the one nearer the fingers' closing direction
+    (the grasp frame's axis ``closing``) at the joints ``start``."""
+    current = chain.fk_matrix(start)[:3, closing]
+    if current[0] * math.cos(yaw) + current[1] * math.sin(yaw) < 0:
+        yaw += math.pi
+    return yaw
+
+
 class NumericTopDownIK:
     """Top-down IK by damped least squares on a 6-joint chain (full pose: position, gripper down,
     fingers along the yaw).
@@ -93,9 +111,7 @@ class NumericTopDownIK:
             raise ValueError(f"approach and closing axes must be two of x, y, z; got {approach_axis}, {closing_axis}")
         self.chain = chain
         self.joint_names = chain.joint_names
-        self.lower = np.asarray(chain.lower if lower is None else lower, dtype=np.float64)
-        self.upper = np.asarray(chain.upper if upper is None else upper, dtype=np.float64)
-        self.seed = np.clip(np.asarray(seed, dtype=np.float64), self.lower, self.upper)
+        self.lower, self.upper, self.seed = _limits_and_seed(chain, seed, lower, upper)
         self._approach, self._closing = self._AXES[approach_axis], self._AXES[closing_axis]
         self.tol = float(tol)
 
@@ -122,9 +138,7 @@ class NumericTopDownIK:
         start = self.seed if q0 is None else np.clip(np.asarray(q0, dtype=np.float64), self.lower, self.upper)
         # Of yaw and yaw + pi (the same grasp), try first the one closer to the start's closing
         # direction; the other when that one is out of the joints' reach; the seed last.
-        current = self.chain.fk_matrix(start)[:3, self._closing]
-        if current[0] * math.cos(yaw) + current[1] * math.sin(yaw) < 0:
-            yaw += math.pi
+        yaw = _nearer_yaw(self.chain, self._closing, start, yaw)
         attempts = [(start, yaw), (start, yaw + math.pi)]
         if q0 is not None:
             attempts += [(self.seed, yaw), (self.seed, yaw + math.pi)]
@@ -241,9 +255,7 @@ class ChainTopDownIK:
             raise ValueError(f"top-down IK serves chains of 4 to 7 joints, got {chain.n_joints}: {chain.joint_names}")
         self.chain = chain
         self.joint_names = chain.joint_names
-        self.lower = np.asarray(chain.lower if lower is None else lower, dtype=np.float64)
-        self.upper = np.asarray(chain.upper if upper is None else upper, dtype=np.float64)
-        self.seed = np.clip(np.asarray(seed, dtype=np.float64), self.lower, self.upper)
+        self.lower, self.upper, self.seed = _limits_and_seed(chain, seed, lower, upper)
         self.home = self.seed if home is None else np.clip(np.asarray(home, dtype=np.float64), self.lower, self.upper)
         self.tol = float(tol)
         self._six = (NumericTopDownIK(chain, approach_axis, closing_axis, self.seed, lower=self.lower,
@@ -262,9 +274,7 @@ class ChainTopDownIK:
         target = np.asarray(target, dtype=np.float64)
         yaw = _closing_yaw(float(target[0]), float(target[1]), yaw)
         start = self.seed if q0 is None else np.clip(np.asarray(q0, dtype=np.float64), self.lower, self.upper)
-        current = self.chain.fk_matrix(start)[:3, self._closing]
-        if current[0] * math.cos(yaw) + current[1] * math.sin(yaw) < 0:
-            yaw += math.pi  # the same grasp, closer to where the fingers are
+        yaw = _nearer_yaw(self.chain, self._closing, start, yaw)
         best_q, best_err = start, math.inf
         for q_start in ((start, self.seed) if q0 is not None else (start,)):
             q, err = self._iterate(q_start, target, yaw)

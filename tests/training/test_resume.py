@@ -22,10 +22,12 @@ import yaml
 
 from uniros.cli import main as cli_main
 
-pytestmark = pytest.mark.slow  # each case trains (2-10 s on a quiet machine); the module ~1 minute
+from .conftest import POINT_GOAL_ENV as ENV
+from .conftest import bare_run_folder, resume
 
-HERE = Path(__file__).resolve().parent
-ENV = "point_goal_env:UnirosTestPointGoal-v0"
+# each case trains (2-10 s on a quiet machine); the module ~1 minute
+pytestmark = [pytest.mark.slow, pytest.mark.usefixtures("point_goal_env_on_path")]
+
 CONFIG = """algorithm: sac
 training_steps: 150
 eval_freq: 50
@@ -42,9 +44,8 @@ sac_params: {learning_starts: 20, batch_size: 16, buffer_size: 5000}
 
 
 @pytest.fixture(scope="module")
-def base_run(tmp_path_factory) -> Path:
+def base_run(tmp_path_factory, point_goal_env_on_path) -> Path:
     """A finished 150-step run with a complete checkpoint every 25 steps (all kept)."""
-    sys.path.insert(0, str(HERE))
     folder = tmp_path_factory.mktemp("base")
     (folder / "cfg.yaml").write_text(CONFIG)
     assert cli_main(["train", ENV, "--config", str(folder / "cfg.yaml"), "--output", str(folder / "runs"),
@@ -61,9 +62,7 @@ def run(base_run, tmp_path) -> Path:
 
 
 def _resume(run: Path, capsys, *extra: str) -> tuple[int, str]:
-    code = cli_main(["train", "--resume", str(run), "--steps", "200", "--eval-episodes", "0", *extra])
-    out = capsys.readouterr()
-    return code, out.out + out.err
+    return resume(run, capsys, "--steps", "200", *extra)
 
 
 def _meta(run: Path) -> dict:
@@ -194,13 +193,13 @@ def test_stale_temporaries_of_killed_writes_are_removed(run, capsys):
     assert not [p for p in stale if p.exists()]
 
 
-def test_a_second_resume_of_a_running_run_is_refused(run, capsys):
+def test_a_second_resume_of_a_running_run_is_refused(run, capsys, point_goal_env_on_path):
     """Two processes: the first resumes (and holds the run's lock while it trains); the second is
     refused before it writes anything, and the first's monitor file stays in order."""
     (run / "config.yaml").write_text((run / "config.yaml").read_text())
     monitor = run / "monitor" / "train.monitor.csv"
     earlier = len(monitor.read_text().splitlines()[2:])  # the rows of the run before this resume
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(HERE), os.environ.get("PYTHONPATH", "")])}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(point_goal_env_on_path), os.environ.get("PYTHONPATH", "")])}
     first = subprocess.Popen([sys.executable, "-c", "import sys; from uniros.cli import main; sys.exit(main())",
                               "train", "--resume", str(run), "--steps", "400", "--eval-episodes", "0"],
                              env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -272,7 +271,6 @@ def test_hyperparameters_a_loaded_model_takes_are_applied(run, capsys):
 
 @pytest.mark.parametrize("prefix", ["../../../x", "/tmp/abs", "a/b", ".hidden", "p" * 65])
 def test_a_save_prefix_outside_the_run_folder_is_refused(tmp_path, capsys, prefix):
-    sys.path.insert(0, str(HERE))
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text(CONFIG + f"save_prefix: {json.dumps(prefix)}\n")
     assert cli_main(["train", ENV, "--config", str(cfg), "--output", str(tmp_path / "runs")]) == 2
@@ -332,7 +330,6 @@ def test_a_full_disk_is_one_line_and_the_run_resumes(run, capsys, monkeypatch):
 def test_a_run_stopped_before_its_first_checkpoint_is_never_a_dead_end(tmp_path, capsys):
     """A run directory without a checkpoint (the process died early): --name says to use --resume,
     and --resume starts it again from step 0 under its name."""
-    sys.path.insert(0, str(HERE))
     from uniros.training import parse_training_config, start_run
 
     config = parse_training_config(yaml.safe_load(CONFIG), "cfg.yaml")
@@ -349,19 +346,15 @@ def test_a_run_stopped_before_its_first_checkpoint_is_never_a_dead_end(tmp_path,
 
 
 def test_a_directory_left_by_a_killed_start_is_taken_over(tmp_path):
-    sys.path.insert(0, str(HERE))
     from uniros.run_dir import RunDir
 
-    root = tmp_path / "runs" / "half"
-    for sub in ("monitor", "checkpoints", "tensorboard"):
-        (root / sub).mkdir(parents=True)
+    root = bare_run_folder(tmp_path / "runs", "half")
     (root / ".tmp123_config.yaml").write_text("half")
     run = RunDir.create(tmp_path / "runs", "half", ENV, "sac")
     assert run.root == root and run.locked and not (root / ".tmp123_config.yaml").exists()
 
 
 def test_a_refused_run_writes_nothing(tmp_path, capsys):
-    sys.path.insert(0, str(HERE))
     cfg = tmp_path / "cfg.yaml"
     cfg.write_text(CONFIG + "env_kwargs: {ee_action_type: true}\n")
     assert cli_main(["train", ENV, "--config", str(cfg), "--output", str(tmp_path / "runs")]) == 2

@@ -13,7 +13,6 @@ import errno
 import hashlib
 import json
 import os
-import sys
 from collections import namedtuple
 from pathlib import Path
 
@@ -24,8 +23,11 @@ from gymnasium import spaces
 from uniros.cli import main as cli_main
 from uniros.errors import DiskFullError, RunDirError, TrainingConfigError, TrainingError
 
-HERE = Path(__file__).resolve().parent
-ENV = "point_goal_env:UnirosTestPointGoal-v0"
+from .conftest import POINT_GOAL_ENV as ENV
+from .conftest import bare_run_folder, resume
+
+pytestmark = pytest.mark.usefixtures("point_goal_env_on_path")
+
 CONFIG = """algorithm: sac
 training_steps: 150
 eval_freq: 50
@@ -39,18 +41,9 @@ sac_params: {learning_starts: 20, batch_size: 16}
 """
 
 
-@pytest.fixture(autouse=True)
-def _env_module():
-    sys.path.insert(0, str(HERE))
-    yield
-    sys.path.remove(str(HERE))
-
-
 def _crafted_run(tmp_path: Path) -> Path:
     """A run folder as `uniros train` leaves it before its first checkpoint (enough for --resume to open)."""
-    root = tmp_path / "runs" / "r"
-    for sub in ("monitor", "checkpoints", "tensorboard"):
-        (root / sub).mkdir(parents=True)
+    root = bare_run_folder(tmp_path / "runs", "r")
     (root / "config.yaml").write_text(CONFIG)
     (root / "run.json").write_text(json.dumps({"env_id": ENV, "algorithm": "sac", "status": "interrupted"}))
     return root
@@ -65,19 +58,13 @@ def _snapshot(folder: Path, outside_of: Path) -> dict[str, str]:
     return found
 
 
-def _resume(root: Path, capsys) -> tuple[int, str]:
-    code = cli_main(["train", "--resume", str(root), "--eval-episodes", "0"])
-    out = capsys.readouterr()
-    return code, out.out + out.err
-
-
 # -- item 6: links ----------------------------------------------------------------------------------
 def test_a_lock_link_never_gets_the_pid(tmp_path, capsys):
     root = _crafted_run(tmp_path)
     victim = tmp_path / "victim.txt"
     victim.write_text("precious")
     (root / ".lock").symlink_to(victim)
-    code, text = _resume(root, capsys)
+    code, text = resume(root, capsys)
     assert code == 2 and ".lock is a symbolic link" in text and "Traceback" not in text, text
     assert victim.read_text() == "precious"
 
@@ -87,7 +74,7 @@ def test_a_dangling_lock_link_creates_nothing(tmp_path, capsys):
     target = tmp_path / "elsewhere" / "made.txt"
     target.parent.mkdir()
     (root / ".lock").symlink_to(target)
-    code, text = _resume(root, capsys)
+    code, text = resume(root, capsys)
     assert code == 2 and ".lock is a symbolic link" in text, text
     assert not target.exists()
 
@@ -97,7 +84,7 @@ def test_a_lock_hard_link_is_refused(tmp_path, capsys):
     victim = tmp_path / "victim.txt"
     victim.write_text("precious")
     os.link(victim, root / ".lock")
-    code, text = _resume(root, capsys)
+    code, text = resume(root, capsys)
     assert code == 2 and "2 hard links" in text, text
     assert victim.read_text() == "precious"
 
@@ -112,7 +99,7 @@ def test_a_symlinked_checkpoints_folder_is_refused_and_the_other_run_keeps_its_f
     (root / "checkpoints").rmdir()
     (root / "checkpoints").symlink_to(other, target_is_directory=True)
     before = _snapshot(tmp_path, root)
-    code, text = _resume(root, capsys)
+    code, text = resume(root, capsys)
     assert code == 2 and "holds symbolic links (checkpoints -> " in text and "Traceback" not in text, text
     assert _snapshot(tmp_path, root) == before  # 0 files touched outside the run folder
     assert len(list(other.iterdir())) == 10
@@ -130,7 +117,7 @@ def test_any_link_in_a_run_is_refused_before_anything_is_written(tmp_path, capsy
         path.rmdir()
     path.symlink_to(outside if "." not in path.name else outside / "file")
     before, meta = _snapshot(tmp_path, root), (root / "run.json").read_text()
-    code, text = _resume(root, capsys)
+    code, text = resume(root, capsys)
     assert code == 2 and f"holds symbolic links ({link} -> {path.readlink()}" in text, text
     assert _snapshot(tmp_path, root) == before and (root / "run.json").read_text() == meta
     assert [p.name for p in outside.iterdir()] == ["file"]

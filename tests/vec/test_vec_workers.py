@@ -8,6 +8,7 @@ import os
 import signal
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -72,6 +73,19 @@ def _check_golden(case: str, got: dict[str, np.ndarray], seed: int) -> None:
         np.testing.assert_allclose(value, want, atol=1e-9, rtol=0, err_msg=f"{case} seed {seed} {key}")
 
 
+def _step_alike(ours, theirs, *, seed: int, steps: int) -> Iterator[tuple[int, tuple, tuple]]:
+    """Step two vector envs of 3 RX200 envs with the same random actions (``default_rng(seed)``),
+    assert each step's observations equal key by key, and yield ``(t, ours' step, theirs' step)``
+    for the test to compare the rest."""
+    rng = np.random.default_rng(seed)
+    for t in range(steps):
+        actions = rng.uniform(-1, 1, (3, 5)).astype(np.float32)
+        a, b = ours.step(actions), theirs.step(actions)
+        for key in a[0]:
+            np.testing.assert_array_equal(a[0][key], b[0][key])
+        yield t, a, b
+
+
 # The exchange carries whatever the batch returns, so one case of each kind of observation proves it
 # (plain Box, goal Dict, a scene with an object); the in-process batch replays all twelve
 # (tests/envs/test_golden_trajectories.py). All twelve through workers took ~190 s of the suite.
@@ -125,12 +139,7 @@ def test_next_step_autoreset_reset_mask_and_sub_env_access() -> None:
         assert ours.observation_space == theirs.observation_space and ours.action_space == theirs.action_space
         for vec in (ours, theirs):
             vec.reset(seed=5)
-        rng = np.random.default_rng(2)
-        for t in range(11):
-            actions = rng.uniform(-1, 1, (3, 5)).astype(np.float32)
-            a, b = ours.step(actions), theirs.step(actions)
-            for key in a[0]:
-                np.testing.assert_array_equal(a[0][key], b[0][key])
+        for t, a, b in _step_alike(ours, theirs, seed=2, steps=11):
             for x, y in zip(a[1:4], b[1:4]):
                 np.testing.assert_array_equal(x, y)
             assert a[4].keys() == b[4].keys()
@@ -250,12 +259,7 @@ def test_sb3_worker_vec_env_equals_the_in_process_one() -> None:
         oa, ob = ours.reset(), theirs.reset()
         for key in oa:
             np.testing.assert_array_equal(oa[key], ob[key])
-        rng = np.random.default_rng(4)
-        for _ in range(12):
-            actions = rng.uniform(-1, 1, (3, 5)).astype(np.float32)
-            a, b = ours.step(actions), theirs.step(actions)
-            for key in a[0]:
-                np.testing.assert_array_equal(a[0][key], b[0][key])
+        for _, a, b in _step_alike(ours, theirs, seed=4, steps=12):
             np.testing.assert_array_equal(a[1], b[1])
             np.testing.assert_array_equal(a[2], b[2])
             for ia, ib in zip(a[3], b[3]):
