@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from gymnasium import spaces
 
+from multiros.envs.connection import RobotConnection
 from multiros.robot_state import RobotState, RobotStates
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_ik import TopDownIK
@@ -63,7 +64,7 @@ class ArmInterface:
     if TYPE_CHECKING:  # provided by the env core below the robot layer; declared for type checkers only
         node: Any
         robot_name: str
-        connection: Any  # a RobotConnection (typed as such, it clashes with the env cores' narrower types)
+        connection: RobotConnection  # the sim and real robot layers narrow it, as their env cores do
 
         @property
         def robot_state(self) -> RobotState: ...

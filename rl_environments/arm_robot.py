@@ -1,14 +1,16 @@
-"""The robot layer every arm shares: spawn from a description package, a group position
-controller for the arm, an end-effector frame, and a kinematic chain for EE actions and goals;
-for push and pick-and-place also its gripper, its top-down IK and its scene (a table and a cube
-from the description package's ``mjcf/``, spawned next to the robot).
+"""The robot layer every arm shares, in simulation and on a robot: an arm of ``ARM_JOINTS`` under a
+group position controller, an end-effector frame, a kinematic chain for EE actions and goals, and for
+push and pick-and-place its gripper, its top-down IK and its scene (a table and a cube).
 
-A robot env is this mixin plus constants (see ``rl_environments/rx200/sim/robot_envs`` or
-``rl_environments/vx300s/robot.py``), mixed into :class:`~multiros.envs.MujocoBaseEnv` or
-:class:`~multiros.envs.MujocoGoalEnv`. The real robot layer
-(:class:`~rl_environments.real_arm_robot.RealArmRobot`) keeps the constants and replaces what
-differs on a robot: the end effector by forward kinematics, commands through the safety rules, the
-object's pose from a tracker instead of the simulation.
+:class:`ArmRobot` reads states and sends commands only through the robot connection
+(:class:`~multiros.envs.connection.RobotConnection`: frames, the gripper as a controller command,
+cameras), so the same code serves both sides. What only a side can do is its own small class:
+:class:`SimArmRobot` spawns and teleports the scene on the simulation node (its connection is a
+:class:`~multiros.envs.sim_connection.SimConnection`); :class:`~rl_environments.real_arm_robot.RealArmRobot`
+adds a robot's safety rules, driver names and object tracker (a
+:class:`~multiros.envs.real.connection.RealConnection`). An arm's constants come from its arm file
+(:mod:`rl_environments.arm_envs`); the env cores below are mixed in by
+:mod:`rl_environments.arm_robot_envs`.
 """
 
 from __future__ import annotations
@@ -27,6 +29,9 @@ from multiros.robot_state import RobotStates
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_ik import TopDownIK
 from rl_environments.arm_interface import ArmInterface
+
+if TYPE_CHECKING:
+    from multiros.envs.sim_connection import SimConnection
 
 _ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray | slice] = {}
 
@@ -120,9 +125,6 @@ class ArmRobot(ArmInterface):
         """``package://`` URI of the scene's ``"table"`` or ``"cube"`` MJCF in the description package."""
         return f"package://{cls.DESCRIPTION_PACKAGE}/mjcf/{item}.xml"
 
-    if TYPE_CHECKING:  # the simulated env core's, below this layer
-        spawn_pose: SpawnPose
-
     @classmethod
     def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
         """Base-env constructor arguments for this robot; ``overrides`` (user kwargs) win."""
@@ -196,11 +198,6 @@ class ArmRobot(ArmInterface):
             env.connection.command(controller, row)
 
     # -- the same for one env (scripted policies, user code) -------------------------------------------
-    @property
-    def base_position(self) -> np.ndarray:
-        """World position of the robot base (its spawn position)."""
-        return np.asarray(self.spawn_pose.position, dtype=np.float64)
-
     def arm_positions(self) -> np.ndarray:
         """Arm joint positions after the last step, in ``ARM_JOINTS`` order (a fresh array)."""
         return self.arm_positions_of(self.connection.states)[0].copy()
@@ -217,15 +214,6 @@ class ArmRobot(ArmInterface):
         """Command the arm's position controller (sent with the next physics step)."""
         self.set_arm_targets_of([self], np.asarray(targets, dtype=np.float64)[None])
 
-    # -- the push / pick-and-place scene in simulation (a real robot layer replaces these) -------------
-    def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
-        """Spawn the table and the object into the robot's namespace (a shared world's reset puts them
-        back with the robot) and ask every step for their root bodies' poses too."""
-        self.connection.spawn_entity(table, self.scene_uri("table"), table_position)
-        self.connection.spawn_entity(obj, self.scene_uri("cube"), object_position)
-        self.connection.add_frames((f"{obj}/object", f"{table}/table"))
-        self.connection.refresh(0)
-
     @classmethod
     def object_poses_of(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
         """``(N, 3)`` positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of the envs' objects (frames
@@ -236,20 +224,6 @@ class ArmRobot(ArmInterface):
     def observation_time(cls, envs: Sequence[Any], states: RobotStates) -> float:
         """The clock of the states (finite-difference velocities): simulation time."""
         return states.sim_time
-
-    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
-        """Teleport the object (at rest) to its episode start; put the table back when knocked."""
-        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
-            self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
-        self.connection.place_entity(self.object_entity, position, quat)
-
-    def open_fingers_at_reset(self, opening: float) -> None:
-        """Put the fingers at ``opening`` for the episode start (a teleport, held; the second finger
-        at its mimic position, or left to follow through the mimic when ``RESET_MIMIC`` is false)."""
-        if not self.RESET_MIMIC or len(self.FINGER_JOINTS) < 2:
-            self.connection.set_joint_positions(self.FINGER_JOINTS[:1], [opening])
-            return
-        self.connection.set_joint_positions(self.FINGER_JOINTS, [opening, self.FINGER_MIMIC * opening])
 
     @classmethod
     def command_grippers(cls, envs: Sequence[Any], targets: Sequence[float]) -> None:
@@ -264,3 +238,40 @@ class ArmRobot(ArmInterface):
         if missing:
             raise EnvError(f"robot {self.robot_name!r} reports no joints {missing}; joints: {names}")
         return True
+
+
+class SimArmRobot(ArmRobot):
+    """:class:`ArmRobot` on the simulation node: the base where it was spawned, the push /
+    pick-and-place scene spawned into the robot's namespace (a shared world's reset puts it back with
+    the robot), the object teleported to each episode's start and the fingers set at reset."""
+
+    if TYPE_CHECKING:  # the simulated env core's, below this layer
+        connection: SimConnection
+        spawn_pose: SpawnPose
+
+    @property
+    def base_position(self) -> np.ndarray:
+        """World position of the robot base (its spawn position)."""
+        return np.asarray(self.spawn_pose.position, dtype=np.float64)
+
+    def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
+        """Spawn the table and the object into the robot's namespace (a shared world's reset puts them
+        back with the robot) and ask every step for their root bodies' poses too."""
+        self.connection.spawn_entity(table, self.scene_uri("table"), table_position)
+        self.connection.spawn_entity(obj, self.scene_uri("cube"), object_position)
+        self.connection.add_frames((f"{obj}/object", f"{table}/table"))
+        self.connection.refresh(0)
+
+    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
+        """Teleport the object (at rest) to its episode start; put the table back when knocked."""
+        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
+            self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
+        self.connection.place_entity(self.object_entity, position, quat)
+
+    def open_fingers_at_reset(self, opening: float) -> None:
+        """Put the fingers at ``opening`` for the episode start (a teleport, held; the second finger
+        at its mimic position, or left to follow through the mimic when ``RESET_MIMIC`` is false)."""
+        if not self.RESET_MIMIC or len(self.FINGER_JOINTS) < 2:
+            self.connection.set_joint_positions(self.FINGER_JOINTS[:1], [opening])
+            return
+        self.connection.set_joint_positions(self.FINGER_JOINTS, [opening, self.FINGER_MIMIC * opening])

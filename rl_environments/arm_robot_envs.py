@@ -11,23 +11,31 @@ keyword arguments the constants make of the user's (:meth:`ArmRobot.robot_kwargs
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from multiros.envs.real import RealBaseEnv, RealGoalEnv
-from rl_environments.arm_robot import ArmRobot
+from rl_environments.arm_robot import SimArmRobot
 from rl_environments.real_arm_robot import RealArmRobot
 
+if TYPE_CHECKING:
+    from multiros.envs.real.connection import RealConnection
+    from multiros.envs.sim_connection import SimConnection
 
-class ArmRobotEnv(ArmRobot, MujocoBaseEnv):
+
+class ArmRobotEnv(SimArmRobot, MujocoBaseEnv):
     """An arm's robot layer for plain task envs on the simulation node."""
+
+    connection: SimConnection  # the robot layer's and the env core's, one type
 
     def __init__(self, **kwargs: Any) -> None:
         MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
 
-class ArmRobotGoalEnv(ArmRobot, MujocoGoalEnv):
+class ArmRobotGoalEnv(SimArmRobot, MujocoGoalEnv):
     """An arm's robot layer for goal-conditioned task envs on the simulation node."""
+
+    connection: SimConnection  # the robot layer's and the env core's, one type
 
     def __init__(self, **kwargs: Any) -> None:
         MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
@@ -36,6 +44,8 @@ class ArmRobotGoalEnv(ArmRobot, MujocoGoalEnv):
 class ArmRobotRealEnv(RealArmRobot, RealBaseEnv):
     """A real arm's robot layer for plain task envs."""
 
+    connection: RealConnection  # the robot layer's and the env core's, one type
+
     def __init__(self, **kwargs: Any) -> None:
         RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
         self.serve_frames()
@@ -43,6 +53,8 @@ class ArmRobotRealEnv(RealArmRobot, RealBaseEnv):
 
 class ArmRobotRealGoalEnv(RealArmRobot, RealGoalEnv):
     """A real arm's robot layer for goal-conditioned task envs."""
+
+    connection: RealConnection  # the robot layer's and the env core's, one type
 
     def __init__(self, **kwargs: Any) -> None:
         RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))

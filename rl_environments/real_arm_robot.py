@@ -1,5 +1,7 @@
-"""The robot layer of a real arm: the same constants and helpers as the simulated
-:class:`~rl_environments.arm_robot.ArmRobot`, over a robot's ROS 2 driver instead of the simulation node.
+"""The robot layer of a real arm: :class:`~rl_environments.arm_robot.ArmRobot` (the arm's constants and
+everything both sides share) over a robot's ROS 2 driver, where the simulated arm has
+:class:`~rl_environments.arm_robot.SimArmRobot`. Its connection is a
+:class:`~multiros.envs.real.connection.RealConnection`.
 
 The end-effector position is forward kinematics of ``joint_states`` through the description
 package's URDF (a real robot offers no end-effector service); arm targets go through the env's
@@ -37,6 +39,9 @@ from multiros.envs.real.safety import SafetyRules
 from multiros.robot_state import RobotStates
 from rl_environments.arm_robot import ArmRobot
 from rl_environments.real_gripper import GRIPPER_INTERFACES, RealGripper
+
+if TYPE_CHECKING:
+    from multiros.envs.real.connection import RealConnection
 
 
 def _velocity_limits(chain: Any) -> np.ndarray | None:
@@ -85,6 +90,7 @@ class RealArmRobot(ArmRobot):
     _gripper: RealGripper | None = None
 
     if TYPE_CHECKING:  # the real env core's, below this layer
+        connection: RealConnection
         safety: SafetyRules | None
         link: Any
         loop: Any

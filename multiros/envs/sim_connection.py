@@ -153,8 +153,8 @@ class SimConnection(RobotConnection):
             position=tuple(self.to_world(np.asarray(self.spawn_pose.position, dtype=np.float64))),
             orientation=self.spawn_pose.orientation, timeout_sec=max(self.timeout_sec, 30.0))
 
-    def spawn_entity(self, name: str, uri: str, position: Sequence[float],
-                     orientation: Sequence[float] = (1.0, 0.0, 0.0, 0.0)) -> str:
+    def spawn_entity(self, name: str, uri: str, position: Sequence[float] | np.ndarray,
+                     orientation: Sequence[float] | np.ndarray = (1.0, 0.0, 0.0, 0.0)) -> str:
         """Spawn an object of the robot's task (a table, a cube) into the robot's namespace, at a
         position in the robot's frame of the world (its slot's offset added): a shared-world reset
         puts it back with the robot."""
@@ -162,7 +162,8 @@ class SimConnection(RobotConnection):
                                      position=tuple(self.to_world(np.asarray(position, dtype=np.float64))),
                                      orientation=tuple(orientation), timeout_sec=max(self.timeout_sec, 30.0))
 
-    def place_entity(self, name: str, position: Sequence[float], orientation: Sequence[float]) -> None:
+    def place_entity(self, name: str, position: Sequence[float] | np.ndarray,
+                     orientation: Sequence[float] | np.ndarray) -> None:
         """Teleport an entity (at rest) to a pose in the robot's frame of the world."""
         self.sim.set_entity_pose(name, tuple(self.to_world(np.asarray(position, dtype=np.float64))),
                                  tuple(orientation))
