@@ -33,6 +33,7 @@ from multiros.hardware.process import FakeRobotProcess
 from multiros.ros import Context, Node
 from multiros.ros.controller_manager import ControllerManagerClient
 from multiros.ros.interfaces import get_message
+from multiros.ros.processes import private_context
 from rl_environments.arm_file import ArmFile
 from rl_environments.arm_registry import registered_arms
 from uniros.fake_robot import ArmRobotError, arm_robot_spec, vendor_controllers
@@ -328,7 +329,7 @@ def test_an_arm_file_of_your_own_with_its_own_driver_names(graph: Context, tmp_p
 @pytest.mark.multiprocess
 @pytest.mark.slow
 def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
-        graph: Context, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
     """An arm the project does not ship, from its description package alone: ``uniros arm add`` of the
     OpenManipulator-X stand-in (tests/robots/arm_add_data, found through ``AMENT_PREFIX_PATH`` as a
     sourced workspace gives it), then ``uniros-fake-robot --arm`` of the written file serves the driver
@@ -346,6 +347,7 @@ def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
                 "--output", str(tmp_path)])
     assert code == 0, capsys.readouterr().err
     path = tmp_path / f"{name}.yaml"
+    graph = private_context()  # a graph of its own: the module's holds the IRB120's fake robot on /joint_states
     try:
         arm = registered_arms()[name]
         assert arm.real.gripper_interface == "gripper_action"
@@ -370,4 +372,5 @@ def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
             tracker.stop()
             robot.stop()
     finally:
+        graph.try_shutdown()
         unregister_arm(name)
