@@ -8,8 +8,8 @@ for a while, so compare loops of the same length, and try ``MALLOC_ARENA_MAX=1``
 
     MUJOCO_GL=egl python benchmarks/bench_make_close_memory.py [--cycles 40] [--warm-up 5] [--loops camera]
 
-The camera env's RSS climbs for about 25 cycles (the software GL driver's and the allocator's pools)
-and then stays: measure it after a longer warm-up (``--loops camera --warm-up 30 --cycles 60``).
+The camera env's RSS climbs for the first 20-30 cycles (the software GL driver's and the allocator's
+pools) and then stays: measure it after a longer warm-up too (``--loops camera --warm-up 30 --cycles 60``).
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--cycles", type=int, default=40)
     parser.add_argument("--warm-up", type=int, default=5,
-                        help="cycles before measuring (the camera env's RSS climbs for ~25 cycles, then stays)")
+                        help="cycles before measuring (the camera env's RSS climbs for 20-30 cycles, then stays)")
     parser.add_argument("--loops", nargs="+", choices=("vector", "camera", "plain"),
                         default=["vector", "camera", "plain"])
     opts = parser.parse_args()

@@ -178,6 +178,7 @@ class SimulationNode(Node):
         self._executor: Any = None
         self._spin_thread: threading.Thread | None = None
         self.world = world if world is not None else World(options)
+        self._owns_world = world is None  # destroy_node closes a world it made
         # One lock over the world, granting turns first come first served; long step calls give way
         # between chunks (multiros.sim.fair_lock), so no client monopolises the node.
         self._runner = RealTimeRunner(
@@ -754,3 +755,8 @@ class SimulationNode(Node):
             self._viewer.close()
             self._viewer = None
         super().destroy_node()
+        if self._owns_world:  # its MuJoCo memory goes now, not at the next full garbage collection
+            with self.lock:
+                self.world.close()
+                self._frame_sets.clear()
+                self.state_gather.clear()

@@ -57,6 +57,10 @@ class FrameSetCache:
             self._sets[key] = frame_set
         return frame_set
 
+    def clear(self) -> None:
+        """Forget every frame set."""
+        self._sets.clear()
+
     def forget(self, entity: str) -> None:
         """Drop the frame sets of an entity (deleted, or re-created by a reset)."""
         for key in [k for k in self._sets if k[0] == entity]:

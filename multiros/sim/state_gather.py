@@ -62,6 +62,10 @@ class StateGather:
         # per robot list (a batch's, and each env's alone for its resets): its indices
         self._indices: dict[tuple[int, tuple[str, ...]], _Indices] = {}
 
+    def clear(self) -> None:
+        """Forget every robot list's indices (and the frame sets they hold)."""
+        self._indices.clear()
+
     def read(self, names: Sequence[str], frame_sets: Sequence[FrameSet | None], sim_time: float) -> RobotStates | None:
         """The robots' states stacked, or ``None`` when they cannot be (robots with different joint
         counts, frame lists of different lengths or naming sites): read them one by one then.

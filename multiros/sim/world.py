@@ -667,7 +667,14 @@ class World(WorldStepping, WorldAdmission):
         self._callbacks.append(callback)
 
     def close(self) -> None:
-        """Release the model; the world is unusable afterwards."""
+        """Release the model, its data and spec, and the meshes read for it; the world is unusable
+        afterwards. A node's objects refer to each other (services to their node, the node to its
+        world), so the garbage collector, not reference counting, frees them, and only at a full
+        collection: released here, the megabytes of MuJoCo memory go at once (a camera env's make and
+        close left ~4.6 MB per cycle behind otherwise)."""
         self._closed = True
         self._callbacks.clear()
         self._entities.clear()
+        self._launched.clear()
+        self._varying = ()
+        self._spec = self._model = self._data = None  # type: ignore[assignment]
