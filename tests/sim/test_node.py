@@ -385,3 +385,22 @@ def test_the_rest_of_ros2_control_s_controller_manager_services(sim):
     refused = call("SetHardwareComponentState", name="arm_system", target_state=State(id=2, label="inactive"))
     assert not refused.ok and refused.state.label == "active"
     assert not call("SetHardwareComponentState", name="nope", target_state=State(id=3, label="active")).ok
+
+
+def test_destroying_the_node_releases_the_world_it_made_and_keeps_one_it_was_given(index, tmp_path):
+    """The node's objects refer to each other, so garbage collection frees them late; the MuJoCo model,
+    data and spec of a world the node made go when it is destroyed. A world passed in stays its owner's."""
+    ctx = Context(transport="inproc").init()
+    try:
+        own = SimulationNode("own_world_sim", context=ctx)
+        world = own.world
+        assert world.model is not None
+        own.destroy_node()
+        assert world.model is None and world.data is None and list(world.entity_names()) == []
+        given = World(WorldOptions(), package_index=index, mesh_cache=tmp_path / "meshes")
+        node = SimulationNode("given_world_sim", world=given, context=ctx)
+        node.destroy_node()
+        assert given.model is not None
+        given.step(1)
+    finally:
+        ctx.try_shutdown()
