@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import socket
 import struct
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -235,3 +237,11 @@ def test_quota_per_zenoh_client(tmp_path) -> None:
         for p in peers:
             p.close()
         ctx.try_shutdown()
+
+
+@pytest.mark.parametrize(("option", "value"), [("--max-entities", "0"), ("--max-entities-per-client", "-1")])
+def test_uniros_sim_refuses_bad_entity_limits(option: str, value: str) -> None:
+    """``uniros-sim --max-entities N --max-entities-per-client N``: bad values are a usage error."""
+    run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", option, value],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2 and f"{option} must be" in run.stderr
