@@ -78,11 +78,12 @@ MAX_ROBOTS = 256
 # every entity costs every owner's steps. Measured (2 cores): a 4 cm box resting on the floor (4
 # contacts) adds ~15 us to every physics step of the world, whose RX200 alone takes 25 us; 200 boxes
 # from one neighbour made a victim's steps 43x slower, 32 boxes 3.9x (a victim's StepRobot(10) over
-# Zenoh, benchmarks/bench_hostile_neighbour.py --attacks boxes), 16 3.0x; 12 keep it within the
-# 3x that round 4 promises. A client may hold MAX_ENTITIES_PER_CLIENT entities plus
-# ENTITIES_PER_ROBOT for each robot it holds: a robot brings its scene (itself, a table, an object, a camera mount in the shipped push, pick-and-place and camera
-# tasks), so a vector env of N such robots on one client fits whatever N, while a client without
-# robots gets 12 objects (a bin of parts). Robots themselves are bounded by max_robots.
+# Zenoh, benchmarks/bench_hostile_neighbour.py --attacks boxes), 16 3.0x; 12 keep it within the 3x
+# that round 4 promises. A client may hold MAX_ENTITIES_PER_CLIENT entities plus ENTITIES_PER_ROBOT
+# for each robot it holds: a robot brings its scene (itself, a table, an object, a camera mount in
+# the shipped push, pick-and-place and camera tasks), so a vector env of N such robots on one client
+# fits whatever N, while a client without robots gets 12 objects (a bin of parts). Robots themselves
+# are bounded by max_robots.
 MAX_ENTITIES_PER_CLIENT = 12
 ENTITIES_PER_ROBOT = 4
 # Entities of a node, all clients together, beyond ENTITIES_PER_ROBOT per robot it accepts: the bound
