@@ -457,7 +457,7 @@ def _parser() -> argparse.ArgumentParser:
                         help="most entities (robots and objects, every client together) this node holds "
                              "(default 4 per robot it accepts + 64); SpawnEntity refuses more")
     parser.add_argument("--max-entities-per-client", type=int, default=None, metavar="N",
-                        help="entities one client may hold besides 4 per robot it holds (default 12); "
+                        help="entities one client may hold besides 4 per robot it holds (default 12, at least 1); "
                              "SpawnEntity refuses more")
     parser.add_argument("--frame-prefix", default=None, metavar="PREFIX",
                         help="TF frame prefix of every entity's links: '' (default) the URDF's link names as "
@@ -511,8 +511,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error("--max-entities must be a positive integer")
         node_options["max_entities"] = opts.max_entities
     if opts.max_entities_per_client is not None:
-        if opts.max_entities_per_client < 0:
-            parser.error("--max-entities-per-client must be an integer >= 0")
+        if opts.max_entities_per_client < 1:
+            parser.error("--max-entities-per-client must be a positive integer")
         node_options["max_entities_per_client"] = opts.max_entities_per_client
     if opts.frame_prefix is not None:
         from multiros.sim.tf_publisher import check_frame_prefix

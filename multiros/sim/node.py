@@ -192,8 +192,8 @@ class SimulationNode(Node):
             ParameterDescriptor(read_only=True, description="most entities one client holds on this node, "
                                                             "besides 4 per robot it holds"),
         ).value
-        if not isinstance(per_client, int) or per_client < 0:
-            raise ValueError(f"max_entities_per_client must be an integer >= 0, got {per_client!r}")
+        if not isinstance(per_client, int) or per_client < 1:
+            raise ValueError(f"max_entities_per_client must be an integer >= 1, got {per_client!r}")
         self.entity_quota = EntityQuota(entities, per_client, robots)  # multiros.sim.node_quota
         prefix = check_frame_prefix(self.declare_parameter(
             "frame_prefix", str(frame_prefix),

@@ -11,9 +11,9 @@ limit, the count and the fix:
   :data:`~multiros.sim.limits.ENTITIES_PER_ROBOT` for each robot the caller holds (a robot brings
   its scene: a vector env of N pick-and-place robots on one client fits whatever N).
 
-The checks run before the description is loaded (refusing what no entity could pass), again once
-it is loaded (robot or object known), and last under the node's lock just before the world
-compiles it, so a refused spawn costs a few dictionary lookups, not a compile under the lock.
+The quotas and ``max_entities`` are checked before the description is loaded, ``max_robots`` once it
+is (robot or object known), and all of them again under the node's lock just before the world
+compiles it: a spawn refused by a quota costs a few dictionary lookups, not a load or a compile.
 Deleting an entity (or a reset removing it) frees its owner's quota.
 
 The caller's identity comes from the wire and serves accounting only: a peer that names itself anew
@@ -42,7 +42,8 @@ class EntityQuota:
 
     Args:
         max_entities: most entities in the node.
-        max_entities_per_client: entities one client may hold besides :data:`ENTITIES_PER_ROBOT` per robot.
+        max_entities_per_client: entities one client may hold besides :data:`ENTITIES_PER_ROBOT` per robot
+            (at least 1: a client's first robot must fit).
         max_robots: most robots in the node.
     """
 
@@ -68,8 +69,8 @@ class EntityQuota:
 
         Args:
             caller: who asks (``current_caller()``).
-            robot: whether the newcomer is a robot; ``None`` before its description is loaded
-                (then only what neither a robot nor an object could pass is refused).
+            robot: whether the newcomer is a robot; ``None`` before its description is loaded (then
+                ``max_robots`` is not checked yet; everything else is).
             present: names of the entities in the world now.
             robots: robots in the node now.
         """
@@ -77,15 +78,12 @@ class EntityQuota:
             return (f"SpawnEntity refused: this node holds {len(present)} entities, max_entities="
                     f"{self.max_entities}; delete some (DeleteEntity), spawn on another node, or start this "
                     f"one with a larger max_entities (uniros-sim --max-entities N)")
-        robot_refused = robots >= self.max_robots
-        if robot and robot_refused:
+        if robot and robots >= self.max_robots:
             return (f"this node already holds max_robots={self.max_robots} robots; spawn it on another node, "
                     f"or start this one with a larger max_robots (uniros-sim --max-robots)")
+        # Robot or object alike (known before loading): a robot spawned within the quota raises it by
+        # ENTITIES_PER_ROBOT, room for itself and its scene.
         held, own_robots = self.held(caller, present)
-        # A robot raises the holder's allowance by ENTITIES_PER_ROBOT: it always fits what a holder within
-        # its quota may add. Before loading, refuse only when an object would not fit and a robot could not.
-        if robot is True or (robot is None and not robot_refused):
-            return None
         allowance = self.allowance(own_robots)
         if held < allowance:
             return None

@@ -64,33 +64,33 @@ def test_defaults_fit_every_robot_with_its_scene() -> None:
 
 def test_quota_per_in_process_client(tmp_path, monkeypatch) -> None:
     """Two clients of one process: each gets its own quota; a refusal names the limit, the count and
-    the fix and never reaches the world's compiler; a deletion frees the quota; a robot raises it."""
+    the fix and is decided before the description is even loaded; a deletion frees the quota; a
+    robot raises its holder's quota by ENTITIES_PER_ROBOT."""
     ctx = Context(transport="inproc").init()
     try:
         node = _node(ctx, tmp_path, max_entities_per_client=3)
         a, b = _client(ctx, "a"), _client(ctx, "b")
         for i in range(3):
             _spawn_box(a, f"a{i}", i)
-        compiled: list[str] = []
-        spawn = node.world.spawn
-        monkeypatch.setattr(node.world, "spawn", lambda name, *args, **kw: compiled.append(name) or spawn(name, *args,
-                                                                                                       **kw))
+        loaded: list[str] = []
+        load = node_spawn.load_description
+        monkeypatch.setattr(node_spawn, "load_description", lambda *args, **kw: loaded.append("x") or load(*args, **kw))
         with pytest.raises(SimulationServiceError) as refused:
             _spawn_box(a, "a3", 3)
         message = refused.value.message
         assert "holds 3 entities" in message and "max_entities_per_client=3" in message
         assert "DeleteEntity" in message and "uniros-sim --max-entities-per-client" in message
-        assert "\n" not in message and compiled == []
+        assert "\n" not in message and loaded == []
+        with pytest.raises(SimulationServiceError, match="holds 3 entities"):  # a robot too: delete first
+            a.spawn_entity("arm", uri=ARM)
+        assert loaded == []
         for i in range(3):  # the other client is not affected
             _spawn_box(b, f"b{i}", 10 + i)
         with pytest.raises(SimulationServiceError, match="holds 3 entities"):
             _spawn_box(b, "b3", 13)
         b.delete_entity("a0")  # whoever deletes it, the owner's quota is freed
-        _spawn_box(a, "a3", 3)
-        with pytest.raises(SimulationServiceError, match="holds 3 entities"):
-            _spawn_box(a, "a4", 4)
         a.spawn_entity("arm", uri=ARM)  # a robot: its owner may hold ENTITIES_PER_ROBOT more
-        for i in range(ENTITIES_PER_ROBOT - 1):
+        for i in range(ENTITIES_PER_ROBOT):
             _spawn_box(a, f"scene{i}", 20 + i)
         with pytest.raises(SimulationServiceError, match=f"holds {3 + ENTITIES_PER_ROBOT} entities"):
             _spawn_box(a, "one_too_many", 30)
@@ -130,7 +130,7 @@ def test_node_wide_limits_refuse_before_loading(tmp_path, monkeypatch) -> None:
         with pytest.raises(ValueError, match="max_entities must be"):
             SimulationNode("bad", context=ctx, spin_topics=False, max_entities=0)
         with pytest.raises(ValueError, match="max_entities_per_client must be"):
-            SimulationNode("bad2", context=ctx, spin_topics=False, max_entities_per_client=-1)
+            SimulationNode("bad2", context=ctx, spin_topics=False, max_entities_per_client=0)
     finally:
         ctx.try_shutdown()
 
@@ -150,7 +150,7 @@ def test_a_batch_of_pick_and_place_robots_fits_on_one_client(tmp_path) -> None:
     mount: none is refused at the default quotas."""
     ctx = Context(transport="inproc").init()
     try:
-        node = _node(ctx, tmp_path, max_robots=3, max_entities_per_client=0)
+        node = _node(ctx, tmp_path, max_robots=3, max_entities_per_client=1)
         client = _client(ctx, "vec")
         for r in range(3):
             client.spawn_entity(f"arm{r}", uri=ARM, position=(4.0 * r, 0.0, 0.0))
@@ -239,7 +239,7 @@ def test_quota_per_zenoh_client(tmp_path) -> None:
         ctx.try_shutdown()
 
 
-@pytest.mark.parametrize(("option", "value"), [("--max-entities", "0"), ("--max-entities-per-client", "-1")])
+@pytest.mark.parametrize(("option", "value"), [("--max-entities", "0"), ("--max-entities-per-client", "0")])
 def test_uniros_sim_refuses_bad_entity_limits(option: str, value: str) -> None:
     """``uniros-sim --max-entities N --max-entities-per-client N``: bad values are a usage error."""
     run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", option, value],
