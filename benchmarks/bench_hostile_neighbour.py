@@ -243,6 +243,10 @@ def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0
 
         alone = victim_latencies(for_seconds(seconds))
         peer = neighbour_peer = _RawPeer(endpoint, DOMAIN)
+        deadline = time.monotonic() + 20.0  # the neighbour's session reaches the node's services first
+        while peer.call("mujoco_sim", "get_entities", "simulation_interfaces/srv/GetEntities", timeout=0.5) is None:
+            if time.monotonic() > deadline:
+                raise RuntimeError("the neighbour's session did not reach the node within 20 s")
         outcomes: list[int] = []
         refusals: list[str] = []
         done = threading.Event()
