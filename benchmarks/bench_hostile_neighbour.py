@@ -12,12 +12,18 @@ Each attack runs against a victim RX200 holding its initial pose and prints what
 * ``flood``: 4 attackers, each its own Zenoh session, sending ``StepSimulation`` with the node's
   maximum step count back to back while the victim calls ``StepRobot`` (10 steps): the victim's
   latency (median, 95th percentile) against the same calls alone.
+* ``boxes``: a neighbour (a raw Zenoh peer with a GID of its own) tries to spawn 200 small boxes
+  (``--boxes N``) beside a victim RX200 whose client is another Zenoh session, while the victim calls
+  ``StepRobot`` (10 steps): how many boxes the node admits (its per-client quota), and the victim's
+  median / p95 latency alone, while the neighbour spawns, and after, with the ratios to alone.
+  ``--unlimited-too`` runs it again on a node without quotas (the behaviour before them).
 * ``intruder``: an owner's ``sim_mode="process"`` node; another local process finds the private
   router's port (and every port the owner and its child listen on, as ``ss -ltnp`` shows them)
   and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
   ``DeleteEntity(rx200)``: answered or refused?
 
-    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood intruder]
+    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood boxes intruder]
+                                                 [--boxes 200] [--unlimited-too]
 """
 
 from __future__ import annotations
@@ -28,6 +34,8 @@ import os
 import struct
 import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import zenoh
@@ -203,6 +211,97 @@ def attack_flood(attackers: int = 4, seconds: float = 4.0) -> None:
         ctx.try_shutdown()
 
 
+SMALL_BOX = BOX.format(h=0.02, m=0.05)
+
+
+def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0) -> None:
+    endpoint = free_loopback_endpoint()
+    ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
+    peer: _RawPeer | None = None
+    victim_ctx = None
+    try:
+        limits = {"max_entities": 10**6, "max_entities_per_client": 10**6} if unlimited else {}
+        sim = compose("mujoco_sim", context=ctx, spin_topics=False, **limits)
+        victim_ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none",
+                             router_endpoint=endpoint).init()
+        client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
+        client.wait_until_ready(20.0)
+        client.spawn_entity("rx200", uri=RX200)
+        client.step_robot("rx200", {ARM: HOLD}, 200)
+
+        def victim_latencies(until: Callable[[], bool]) -> np.ndarray:
+            lat = []
+            while not until():
+                t = time.perf_counter()
+                client.step_robot("rx200", {ARM: HOLD}, 10)
+                lat.append(time.perf_counter() - t)
+            return np.array(lat)
+
+        def for_seconds(duration: float) -> Callable[[], bool]:
+            end = time.monotonic() + duration
+            return lambda: time.monotonic() >= end
+
+        alone = victim_latencies(for_seconds(seconds))
+        peer = neighbour_peer = _RawPeer(endpoint, DOMAIN)
+        deadline = time.monotonic() + 20.0  # the neighbour's session reaches the node's services first
+        while peer.call("mujoco_sim", "get_entities", "simulation_interfaces/srv/GetEntities", timeout=0.5) is None:
+            if time.monotonic() > deadline:
+                raise RuntimeError("the neighbour's session did not reach the node within 20 s")
+        outcomes: list[int] = []
+        refusals: list[str] = []
+        done = threading.Event()
+        spawn = get_service("simulation_interfaces/srv/SpawnEntity")
+
+        def neighbour() -> None:
+            try:
+                for i in range(boxes):
+                    req = spawn.Request(name=f"box{i}")
+                    req.entity_resource.resource_string = SMALL_BOX
+                    p = req.initial_pose.pose.position
+                    p.x, p.y, p.z = 1.0 + 0.1 * (i % 20), -1.0 + 0.1 * (i // 20), 0.02
+                    res: Any = neighbour_peer.call(
+                        "mujoco_sim", "spawn_entity", "simulation_interfaces/srv/SpawnEntity", timeout=60.0,
+                        name=req.name, entity_resource=req.entity_resource, initial_pose=req.initial_pose)
+                    code = -1 if res is None else int(res.result.result)
+                    outcomes.append(code)
+                    if code != 1 and not refusals:
+                        refusals.append("no answer" if res is None else res.result.error_message)
+            finally:
+                done.set()
+
+        thread = threading.Thread(target=neighbour, daemon=True)
+        t0 = time.monotonic()
+        thread.start()
+        during = victim_latencies(done.is_set)
+        spawn_sec = time.monotonic() - t0
+        thread.join(timeout=600)
+        after = victim_latencies(for_seconds(seconds))
+        admitted = outcomes.count(1)
+        base = float(np.median(alone))
+
+        def figures(lat: np.ndarray) -> str:
+            if not len(lat):
+                return "no calls"
+            med, p95 = float(np.median(lat)), float(np.percentile(lat, 95))
+            return f"median {med * 1e3:.2f} ms ({med / base:.1f}x), p95 {p95 * 1e3:.2f} ms, {len(lat)} calls"
+
+        what = "no quotas" if unlimited else (f"max_entities_per_client={sim.max_entities_per_client}, "
+                                              f"max_entities={sim.max_entities}")
+        print(f"boxes ({what}): neighbour asked for {boxes} boxes in {spawn_sec:.1f} s, {admitted} admitted, "
+              f"{len(outcomes) - admitted} refused; victim StepRobot(10) alone: median {base * 1e3:.2f} ms, "
+              f"p95 {np.percentile(alone, 95) * 1e3:.2f} ms; while spawning: {figures(during)}; "
+              f"after, beside the admitted boxes: {figures(after)}")
+        if refusals:
+            print(f"  the neighbour's first refusal: {refusals[0]}")
+        client.close()
+    finally:
+        if peer is not None:
+            peer.close()
+        if victim_ctx is not None:
+            victim_ctx.try_shutdown()
+        ctx.try_shutdown()
+
+
 def _listening_ports(pid: int) -> set[int]:
     """Loopback TCP ports a process listens on, as ``ss -ltnp`` shows them to anyone on the machine."""
     inodes = set()
@@ -252,15 +351,23 @@ def attack_intruder() -> None:
 
 
 ATTACKS = {"stiff": attack_stiff, "stiff_late": lambda: attack_stiff(late=True), "overlap": attack_overlap,
-           "drop": attack_drop, "flood": attack_flood, "intruder": attack_intruder}
+           "drop": attack_drop, "flood": attack_flood, "boxes": attack_boxes, "intruder": attack_intruder}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--attacks", nargs="+", choices=sorted(ATTACKS), default=list(ATTACKS))
+    parser.add_argument("--boxes", type=int, default=200, help="boxes the neighbour of the 'boxes' attack asks for")
+    parser.add_argument("--unlimited-too", action="store_true",
+                        help="run the 'boxes' attack also on a node without quotas, for comparison")
     args = parser.parse_args()
     for name in args.attacks:
-        ATTACKS[name]()
+        if name == "boxes":
+            attack_boxes(args.boxes)
+            if args.unlimited_too:
+                attack_boxes(args.boxes, unlimited=True)
+        else:
+            ATTACKS[name]()
 
 
 if __name__ == "__main__":

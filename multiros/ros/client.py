@@ -8,6 +8,7 @@ transport. Every wait is bounded: ``timeout_sec=None`` means the context's
 
 from __future__ import annotations
 
+import itertools
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -21,6 +22,8 @@ if TYPE_CHECKING:
     from multiros.ros.node import Node
 
 __all__ = ["Client"]
+
+_client_ids = itertools.count(1)
 
 
 class Client:
@@ -37,6 +40,8 @@ class Client:
         # In-process servers match on name and type hash, as on the Zenoh wire.
         self._key = (srv_name, type_key(srv_type))
         self._wire: Any = None  # transport handle: call(), call_async(), service_is_ready(), close()
+        #: who this client is to a server in the same context (``multiros.ros.service.current_caller``)
+        self.caller_id = f"inproc:{node.get_fully_qualified_name()}#{next(_client_ids)}"
 
     @property
     def service_name(self) -> str:
@@ -67,7 +72,7 @@ class Client:
         """
         srv = self._services.get(self._key)
         if srv is not None:
-            return srv._call_wait(request, self._timeout(timeout_sec))
+            return srv._call_wait(request, self._timeout(timeout_sec), self.caller_id)
         return self._call_remote(request, timeout_sec)
 
     def _timeout(self, timeout_sec: float | None) -> float:
@@ -81,7 +86,7 @@ class Client:
         remaining = max(0.0, timeout - (time.monotonic() - start))
         srv = self._services.get(self._key)
         if srv is not None:
-            return srv._call_wait(request, remaining)
+            return srv._call_wait(request, remaining, self.caller_id)
         return self._wire.call(request, remaining, timeout)
 
     def call_async(self, request: Any, *, timeout_sec: float | None = None) -> Future:
@@ -95,7 +100,7 @@ class Client:
         srv = self._services.get(self._key)
         if srv is not None:
             try:
-                response = srv._call(request)
+                response = srv._call(request, self.caller_id)
             except ServiceCallError as exc:
                 future.set_exception(exc)
                 return future

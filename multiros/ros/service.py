@@ -12,10 +12,19 @@ Deferred responses: a callback may return a ``Future`` instead of the response (
 server's ``get_result`` does, to answer when the goal ends). The node lock is released at once;
 the reply goes out when the future completes (an in-process caller waits on it, within its
 timeout; over Zenoh the query is kept open and answered then).
+
+Who is calling: during a callback, :func:`current_caller` names the client that sent the request,
+for accounting (a node's per-client quotas), never for authority: over the wire the identity is
+whatever the peer put there. ``inproc:<node>#<n>`` for a client in the same context (one per
+``Client`` object), ``zenoh:<gid hex>`` for the GID in an rmw_zenoh request's attachment,
+``dds:<guid hex>`` for the writer GUID of a request over rclpy; ``None`` where the transport does
+not tell (callers then share one anonymous identity). The prefixes keep one transport's callers
+from posing as another's.
 """
 
 from __future__ import annotations
 
+import contextvars
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -28,7 +37,15 @@ from multiros.ros.task import Future
 if TYPE_CHECKING:
     from multiros.ros.node import Node
 
-__all__ = ["Service"]
+__all__ = ["Service", "current_caller"]
+
+_caller: contextvars.ContextVar[str | None] = contextvars.ContextVar("multiros_service_caller", default=None)
+
+
+def current_caller() -> str | None:
+    """The client whose request the running service callback serves (see the module docstring);
+    ``None`` outside a callback or where the transport does not know it."""
+    return _caller.get()
 
 
 class Service:
@@ -52,14 +69,16 @@ class Service:
     def service_name(self) -> str:
         return self.srv_name
 
-    def _call(self, request: Any) -> Any:
-        """Run the callback under the node lock; wrap its failures in ``ServiceCallError``.
+    def _call(self, request: Any, caller: str | None = None) -> Any:
+        """Run the callback under the node lock, with :func:`current_caller` answering ``caller``;
+        wrap its failures in ``ServiceCallError``.
 
         Returns the response, or a ``Future`` of it when the callback deferred its answer.
         """
         lock = self._lock
         if lock is not None:
             lock.acquire()
+        token = _caller.set(caller)
         try:
             response = self.callback(request, self._response_cls())
         except Exception as exc:
@@ -67,20 +86,21 @@ class Service:
                 self.srv_name, f"the service callback raised {type(exc).__name__}: {exc}"
             ) from exc
         finally:
+            _caller.reset(token)
             if lock is not None:
                 lock.release()
         if response is None:
             raise ServiceCallError(self.srv_name, "the service callback returned None; it must return the response")
         return response
 
-    def _call_wait(self, request: Any, timeout_sec: float) -> Any:
+    def _call_wait(self, request: Any, timeout_sec: float, caller: str | None = None) -> Any:
         """``_call`` that waits up to ``timeout_sec`` for a deferred response.
 
         Raises:
             ServiceTimeoutError: a deferred response did not come in time.
             ServiceCallError: the callback failed.
         """
-        response = self._call(request)
+        response = self._call(request, caller)
         if not isinstance(response, Future):
             return response
         if not response.wait(timeout_sec):

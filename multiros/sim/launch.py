@@ -453,6 +453,12 @@ def _parser() -> argparse.ArgumentParser:
                              "(default 100000); larger requests are refused")
     parser.add_argument("--max-robots", type=int, default=None, metavar="N",
                         help="most robots this node holds (default 256); SpawnEntity refuses more")
+    parser.add_argument("--max-entities", type=int, default=None, metavar="N",
+                        help="most entities (robots and objects, every client together) this node holds "
+                             "(default 4 per robot it accepts + 64); SpawnEntity refuses more")
+    parser.add_argument("--max-entities-per-client", type=int, default=None, metavar="N",
+                        help="entities one client may hold besides 4 per robot it holds (default 12, at least 1); "
+                             "SpawnEntity refuses more")
     parser.add_argument("--frame-prefix", default=None, metavar="PREFIX",
                         help="TF frame prefix of every entity's links: '' (default) the URDF's link names as "
                              "robot_state_publisher publishes them, '{entity}/' each entity's name first")
@@ -500,6 +506,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         if opts.max_robots < 1:
             parser.error("--max-robots must be a positive integer")
         node_options["max_robots"] = opts.max_robots
+    if opts.max_entities is not None:
+        if opts.max_entities < 1:
+            parser.error("--max-entities must be a positive integer")
+        node_options["max_entities"] = opts.max_entities
+    if opts.max_entities_per_client is not None:
+        if opts.max_entities_per_client < 1:
+            parser.error("--max-entities-per-client must be a positive integer")
+        node_options["max_entities_per_client"] = opts.max_entities_per_client
     if opts.frame_prefix is not None:
         from multiros.sim.tf_publisher import check_frame_prefix
 

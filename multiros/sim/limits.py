@@ -32,6 +32,10 @@ __all__ = [
     "MAX_STEPS_PER_CALL",
     "STEP_CHUNK",
     "MAX_ROBOTS",
+    "MAX_ENTITIES_PER_CLIENT",
+    "ENTITIES_PER_ROBOT",
+    "FREE_ENTITIES",
+    "default_max_entities",
     "SPAWN_TRIAL_STEPS",
     "MAX_SPAWN_PENETRATION",
     "MAX_LOAD_RATIO",
@@ -69,6 +73,29 @@ STEP_CHUNK = 1_000
 # per robot, and ~6,000 env steps/s in total for the node whatever the count, so 256 robots still
 # step at ~20 env steps/s each; beyond that a second node (another core) serves more than a bigger batch.
 MAX_ROBOTS = 256
+
+# Entities (robots and free objects) one client may hold in a shared world (multiros.sim.node_quota):
+# every entity costs every owner's steps. Measured (2 cores): a 4 cm box resting on the floor (4
+# contacts) adds ~15 us to every physics step of the world, whose RX200 alone takes 25 us; 200 boxes
+# from one neighbour made a victim's steps 43x slower, 32 boxes 3.9x (a victim's StepRobot(10) over
+# Zenoh, benchmarks/bench_hostile_neighbour.py --attacks boxes), 16 3.0x; 12 keep it within the 3x
+# that round 4 promises. A client may hold MAX_ENTITIES_PER_CLIENT entities plus ENTITIES_PER_ROBOT
+# for each robot it holds: a robot brings its scene (itself, a table, an object, a camera mount in
+# the shipped push, pick-and-place and camera tasks), so a vector env of N such robots on one client
+# fits whatever N, while a client without robots gets 12 objects (a bin of parts). Robots themselves
+# are bounded by max_robots.
+MAX_ENTITIES_PER_CLIENT = 12
+ENTITIES_PER_ROBOT = 4
+# Entities of a node, all clients together, beyond ENTITIES_PER_ROBOT per robot it accepts: the bound
+# for callers that escape their per-client quota by naming themselves anew (a wire identity is only a
+# claim). The default max_entities is ENTITIES_PER_ROBOT * max_robots + FREE_ENTITIES (1,088 at
+# max_robots=256, 96 at 8): every robot the node accepts still fits with its scene.
+FREE_ENTITIES = 64
+
+
+def default_max_entities(max_robots: int) -> int:
+    """The default node-wide ``max_entities`` of a node accepting ``max_robots`` robots."""
+    return ENTITIES_PER_ROBOT * int(max_robots) + FREE_ENTITIES
 
 # Admission of a spawned entity into a shared world (multiros.sim.world_admission). Physics steps of
 # a trial run of the whole world with the newcomer, on a scratch copy: an entity that diverges on

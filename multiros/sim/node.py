@@ -38,6 +38,7 @@ from multiros.ros.callback_groups import ReentrantCallbackGroup
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.logging import LogThrottle
 from multiros.ros.qos import qos_profile_clock
+from multiros.ros.service import current_caller
 from multiros.sim import convert
 from multiros.sim.actions import SimulateStepsAction
 from multiros.sim.camera_stream import DEFAULT_CAMERA_RATE, CameraStream
@@ -46,8 +47,16 @@ from multiros.sim.description import SourcePolicy
 from multiros.sim.distro_adapters import create_services, get_message, get_service
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError, RenderError, UnstableSimulationError
 from multiros.sim.fair_lock import FairLock
-from multiros.sim.limits import MAX_ROBOTS, MAX_STEPS_PER_CALL, STEP_CHUNK, DescriptionLimits
+from multiros.sim.limits import (
+    MAX_ENTITIES_PER_CLIENT,
+    MAX_ROBOTS,
+    MAX_STEPS_PER_CALL,
+    STEP_CHUNK,
+    DescriptionLimits,
+    default_max_entities,
+)
 from multiros.sim.node_load import LoadMeter, get_node_load
+from multiros.sim.node_quota import EntityQuota
 from multiros.sim.node_results import FAILED, NOT_FOUND, OK, Result, fail, guarded, ok
 from multiros.sim.node_spawn import spawn_entity
 from multiros.sim.node_stepping import FrameSetCache, step_robot, step_robots, step_simulation
@@ -118,6 +127,12 @@ class SimulationNode(Node):
             :class:`~multiros.sim.limits.DescriptionLimits`).
         max_robots: most robots the node holds (default :data:`multiros.sim.limits.MAX_ROBOTS`;
             also the read-only ROS parameter ``max_robots``); SpawnEntity refuses more.
+        max_entities: most entities (robots and objects, every client together) the node holds
+            (default :func:`multiros.sim.limits.default_max_entities` of ``max_robots``: 4 per robot
+            + 64; also the read-only ROS parameter ``max_entities``); SpawnEntity refuses more.
+        max_entities_per_client: entities one client may hold besides 4 per robot it holds
+            (default :data:`multiros.sim.limits.MAX_ENTITIES_PER_CLIENT`; read-only ROS parameter
+            ``max_entities_per_client``); see :mod:`multiros.sim.node_quota`.
         frame_prefix: TF frame prefix of every entity's links (read-only ROS parameter
             ``frame_prefix``): ``""`` (default) publishes the description's link names as they are,
             as robot_state_publisher does; ``"{entity}/"`` puts each entity's name first (never twice).
@@ -142,6 +157,8 @@ class SimulationNode(Node):
         max_steps_per_call: int = MAX_STEPS_PER_CALL,
         description_limits: DescriptionLimits | None = None,
         max_robots: int = MAX_ROBOTS,
+        max_entities: int | None = None,
+        max_entities_per_client: int = MAX_ENTITIES_PER_CLIENT,
         frame_prefix: str = "",
         camera_rate: float = DEFAULT_CAMERA_RATE,
         **node_kwargs: Any,
@@ -164,6 +181,20 @@ class SimulationNode(Node):
         if not isinstance(robots, int) or robots < 1:
             raise ValueError(f"max_robots must be an integer >= 1, got {robots!r}")
         self.max_robots = robots
+        entities = self.declare_parameter(
+            "max_entities", default_max_entities(robots) if max_entities is None else int(max_entities),
+            ParameterDescriptor(read_only=True, description="most entities (robots and objects) this node holds"),
+        ).value
+        if not isinstance(entities, int) or entities < 1:
+            raise ValueError(f"max_entities must be an integer >= 1, got {entities!r}")
+        per_client = self.declare_parameter(
+            "max_entities_per_client", int(max_entities_per_client),
+            ParameterDescriptor(read_only=True, description="most entities one client holds on this node, "
+                                                            "besides 4 per robot it holds"),
+        ).value
+        if not isinstance(per_client, int) or per_client < 1:
+            raise ValueError(f"max_entities_per_client must be an integer >= 1, got {per_client!r}")
+        self.entity_quota = EntityQuota(entities, per_client, robots)  # multiros.sim.node_quota
         prefix = check_frame_prefix(self.declare_parameter(
             "frame_prefix", str(frame_prefix),
             ParameterDescriptor(read_only=True, description="TF frame prefix of the entities' links ('{entity}/' "
@@ -391,16 +422,18 @@ class SimulationNode(Node):
 
     @guarded
     def _srv_spawn_entity(self, request: Any, response: Any) -> Any:
-        response = spawn_entity(self, request, response, self.source_policy)
-        if response.result.result == OK and len(self._robots) > self.max_robots:
-            with self.lock:
-                name = response.entity_name
-                if name in self._robots:
-                    self._detach_robot(name)
-                    self.world.delete(name)
-            fail(response.result, FAILED, f"this node already holds max_robots={self.max_robots} robots; "
-                 "spawn it on another node, or start this one with a larger max_robots (uniros-sim --max-robots)")
-        return response
+        # The limits and the caller's quota are checked before anything is loaded (multiros.sim.node_quota).
+        return spawn_entity(self, request, response, self.source_policy, caller=current_caller())
+
+    @property
+    def max_entities(self) -> int:
+        """Most entities (robots and objects) this node holds (read-only parameter ``max_entities``)."""
+        return self.entity_quota.max_entities
+
+    @property
+    def max_entities_per_client(self) -> int:
+        """Entities one client may hold besides 4 per robot (read-only parameter ``max_entities_per_client``)."""
+        return self.entity_quota.max_entities_per_client
 
     def _srv_delete_entity(self, request: Any, response: Any) -> Any:
         with self.lock:
@@ -685,7 +718,8 @@ class SimulationNode(Node):
         """Spawn ``NAME=URI`` from the command line through the SpawnEntity service logic.
 
         The command line is the node owner's: its URI may name any file the user can read and
-        xacro runs on it (the source policy applies to requests only); the limits still apply.
+        xacro runs on it (the source policy applies to requests only); the description limits still
+        apply, the entity limits and quotas do not (its entities belong to no client).
 
         Raises:
             RuntimeError: the spawn failed (the message is the service's error message).
@@ -693,7 +727,7 @@ class SimulationNode(Node):
         srv = _SRV["spawn_entity"]
         request = srv.Request(name=name)
         request.entity_resource.uri = uri
-        response = spawn_entity(self, request, srv.Response(), None)
+        response = spawn_entity(self, request, srv.Response(), None, limited=False)
         if response.result.result != OK:
             raise RuntimeError(f"cannot spawn {name!r} from {uri!r}: {response.result.error_message}")
         return response.entity_name

@@ -4,8 +4,9 @@
 query into xacro arguments and the node's own options (``__controllers``,
 ``__controllers_file``), loads the description outside the world under the node's
 :class:`~multiros.sim.description.SourcePolicy` and limits, and only then spawns it under the
-node's lock and attaches the robot's ROS interfaces. :func:`entity_name` picks the name
-(``allow_renaming``).
+node's lock and attaches the robot's ROS interfaces. The node's entity limits and the caller's
+quota (:mod:`multiros.sim.node_quota`) are checked before loading, after loading and under the lock
+before the world compiles anything. :func:`entity_name` picks the name (``allow_renaming``).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from multiros.sim.node_results import FAILED, fail, ok
 
 if TYPE_CHECKING:
     from multiros.sim.node import SimulationNode
+    from multiros.sim.node_quota import EntityQuota
     from multiros.sim.world import World
 
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -30,8 +32,10 @@ _NAMESPACE = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
 _MAX_URI = 8192  # characters of entity_resource.uri
 
 
-def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: SourcePolicy | None) -> Any:
-    """SpawnEntity on ``node``. ``policy`` None trusts the request (the node's own command line)."""
+def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: SourcePolicy | None, *,
+                 caller: str | None = None, limited: bool = True) -> Any:
+    """SpawnEntity on ``node`` for ``caller``. ``policy`` None trusts the request (the node's own
+    command line); ``limited`` False skips the entity limits and quotas (the node's owner)."""
     res = response.result
     uri, text = request.entity_resource.uri, request.entity_resource.resource_string
     if not uri and not text:
@@ -51,6 +55,9 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
     )
     if problem:
         fail(res, response.INVALID_POSE, problem)
+        return response
+    quota = node.entity_quota if limited else None
+    if quota is not None and _refused(node, quota, caller, None, res):
         return response
     limits = node.description_limits
     if len(uri) > _MAX_URI or len(text) > limits.max_chars:
@@ -89,7 +96,14 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
         fail(res, response.RESOURCE_PARSE_ERROR, f"the description is too large or too deep to load "
               f"({type(exc).__name__}); see the node's description limits")
         return response
+    robot = bool(desc.joints)  # the world's category rule: a description with joints is a robot
+    if quota is not None and _refused(node, quota, caller, robot, res):
+        return response
     with node.lock:
+        if quota is not None:
+            quota.prune(set(node.world.entity_names()))
+            if _refused(node, quota, caller, robot, res):
+                return response
         name = entity_name(node.world, request.name, request.allow_renaming, response)
         if name is None:
             return response
@@ -127,9 +141,20 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
             node.world.delete(info.name)
             fail(res, FAILED, f"spawned {info.name!r} but could not create its ROS interfaces: {exc}")
             return response
+        if quota is not None:
+            quota.record(info.name, caller, robot)
     response.entity_name = info.name
     ok(res)
     return response
+
+
+def _refused(node: SimulationNode, quota: EntityQuota, caller: str | None, robot: bool | None, res: Any) -> bool:
+    """Whether the node's limits or the caller's quota refuse the spawn (the result is then set)."""
+    problem = quota.refusal(caller, robot, set(node.world.entity_names()), len(node._robots))
+    if problem is not None:
+        fail(res, FAILED, problem)
+    return problem is not None
+
 
 def entity_name(world: World, name: str, allow_renaming: bool, response: Any) -> str | None:
     """The name to spawn under (renamed when allowed), or None with the reply's result set."""

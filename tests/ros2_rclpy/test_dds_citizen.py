@@ -1,7 +1,8 @@
 """``uniros-sim --transport rclpy`` as a good citizen of a DDS graph, seen by plain rclpy peers (no uniros
 import in what they call): a quick request answered while another client's long step runs, a burst of
 200 calls of one client all answered, the node's settings as ROS parameters (read-only ones refused
-with the reason), the rest of the controller manager's services, and no hidden node of uniros' own.
+with the reason), a quota of entities per client (each DDS client by its request writer's GUID), the
+rest of the controller manager's services, and no hidden node of uniros' own.
 """
 
 from __future__ import annotations
@@ -22,7 +23,13 @@ from rcl_interfaces.srv import DescribeParameters, GetParameters, ListParameters
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from rclpy_harness import Program, uniros_script  # noqa: E402
 from simulation_interfaces.msg import Result  # noqa: E402
-from simulation_interfaces.srv import GetEntities, GetSimulationState, StepSimulation  # noqa: E402
+from simulation_interfaces.srv import (  # noqa: E402
+    DeleteEntity,
+    GetEntities,
+    GetSimulationState,
+    SpawnEntity,
+    StepSimulation,
+)
 
 pytestmark = pytest.mark.slow
 
@@ -35,7 +42,8 @@ ARM = ["waist", "shoulder", "elbow", "wrist_angle", "wrist_rotate"]
 def sim(tmp_path_factory):
     """One ``uniros-sim`` with an RX200 for the module (stopped by PID at its end)."""
     log = tmp_path_factory.mktemp("citizen") / "uniros-sim.log"
-    prog = Program([uniros_script("uniros-sim"), "--transport", "rclpy", "--robot", RX200, "--max-robots", "4"],
+    prog = Program([uniros_script("uniros-sim"), "--transport", "rclpy", "--robot", RX200, "--max-robots", "4",
+                    "--max-entities-per-client", "2"],
                    str(log))
     try:
         prog.wait_ready("simulation node /mujoco_sim ready")
@@ -96,7 +104,8 @@ def test_the_node_s_settings_are_ros_parameters(sim) -> None:
     """What ``ros2 param list/get/describe/set`` calls."""
     with PlainPeer("param_user") as peer:
         names = peer.call(ListParameters, f"{SIM}/list_parameters", ListParameters.Request()).result.names
-        assert {"max_steps_per_call", "max_robots", "use_sim_time"} <= set(names)
+        assert {"max_steps_per_call", "max_robots", "max_entities", "max_entities_per_client",
+                "use_sim_time"} <= set(names)
         values = peer.call(GetParameters, f"{SIM}/get_parameters",
                            GetParameters.Request(names=["max_robots", "max_steps_per_call"])).values
         assert [(v.type, v.integer_value) for v in values] == [(ParameterType.PARAMETER_INTEGER, 4),
@@ -108,6 +117,39 @@ def test_the_node_s_settings_are_ros_parameters(sim) -> None:
                                                                 integer_value=1000))
         (result,) = peer.call(SetParameters, f"{SIM}/set_parameters", SetParameters.Request(parameters=[bad])).results
         assert not result.successful and "read-only" in result.reason
+
+
+BOX = """<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/>
+</body></worldbody></mujoco>"""
+
+
+def test_each_dds_client_has_its_own_entity_quota(sim) -> None:
+    """``--max-entities-per-client 2``: a third box of one client is refused naming the quota, another
+    client still spawns, and a deletion frees the owner's quota."""
+    with PlainPeer("owner_a") as a, PlainPeer("owner_b") as b:
+        spawn_a, spawn_b = _answered(a, SpawnEntity, f"{SIM}/spawn_entity"), _answered(b, SpawnEntity,
+                                                                                      f"{SIM}/spawn_entity")
+
+        def spawn(client, name: str, i: int):
+            req = SpawnEntity.Request(name=name, resource_string=BOX)
+            req.initial_pose.header.frame_id = "world"
+            req.initial_pose.pose.position.x, req.initial_pose.pose.position.y = 3.0 + 0.2 * i, 0.0
+            req.initial_pose.pose.position.z = 0.03
+            future = client.call_async(req)
+            wait_until(future.done, 60, f"the answer to SpawnEntity({name})")
+            return future.result().result
+
+        assert [spawn(spawn_a, f"a{i}", i).result for i in range(2)] == [Result.RESULT_OK] * 2
+        refused = spawn(spawn_a, "a2", 2)
+        assert refused.result == Result.RESULT_OPERATION_FAILED
+        assert "holds 2 entities" in refused.error_message and "max_entities_per_client=2" in refused.error_message
+        assert refused.error_message.split("'")[1].startswith("dds:")  # named by its GUID, not anonymous
+        assert [spawn(spawn_b, f"b{i}", 10 + i).result for i in range(2)] == [Result.RESULT_OK] * 2
+        deleted = b.call(DeleteEntity, f"{SIM}/delete_entity", DeleteEntity.Request(entity="a0")).result
+        assert deleted.result == Result.RESULT_OK
+        assert spawn(spawn_a, "a2", 2).result == Result.RESULT_OK
+        for name in ("a1", "a2", "b0", "b1"):
+            b.call(DeleteEntity, f"{SIM}/delete_entity", DeleteEntity.Request(entity=name))
 
 
 def test_ros2_control_s_hardware_and_type_services(sim) -> None:

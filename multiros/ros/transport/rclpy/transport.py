@@ -459,10 +459,10 @@ class _ServiceHandle(_Entity):
             if header is None:
                 return
             # The lane: the client (its request writer's GUID), whose requests stay in order.
-            self.transport.lanes.submit(client_of(header.request_id),
-                                        lambda r=request, h=header: self._take(r, h), self._what)
+            lane = client_of(header.request_id)
+            self.transport.lanes.submit(lane, lambda r=request, h=header, c=lane: self._take(r, h, c), self._what)
 
-    def _take(self, request: Any, header: Any) -> None:
+    def _take(self, request: Any, header: Any, lane: Hashable = None) -> None:
         name = self._srv_entity.srv_name
         try:
             req = self.transport.from_rclpy(request, self._request_type)
@@ -470,7 +470,9 @@ class _ServiceHandle(_Entity):
             _log.warning("service '%s': dropped a malformed request: %s: %s", name, type(exc).__name__, exc)
             return
         try:
-            response = self._srv_entity._call(req)
+            # The writer GUID names the caller for accounting only (current_caller); unknown: None.
+            caller = "dds:" + lane.hex() if isinstance(lane, bytes) else None
+            response = self._srv_entity._call(req, caller)
         except Exception as exc:  # noqa: BLE001 - DDS services have no error reply: log, send nothing
             _log.warning("%s (no reply sent: a ROS 2 service over DDS cannot answer with an error)", exc)
             return

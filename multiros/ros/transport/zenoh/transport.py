@@ -487,7 +487,8 @@ class _ServiceHandle(_Token):
             _reply_err(query, f"service '{name}': malformed request: {exc}")
             return False
         try:
-            response = self._srv._call(request)
+            # The GID names the caller for accounting only: any peer can put any GID there.
+            response = self._srv._call(request, "zenoh:" + att.source_gid.hex())
         except Exception as exc:  # noqa: BLE001
             _log.warning("%s", str(exc))
             _reply_err(query, getattr(exc, "detail", f"{type(exc).__name__}: {exc}"))
