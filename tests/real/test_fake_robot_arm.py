@@ -326,15 +326,26 @@ def test_an_arm_file_of_your_own_with_its_own_driver_names(graph: Context, tmp_p
         unregister_arm("NED2Mine")
 
 
+#: Arms written by ``uniros arm add`` from the suite's stand-ins of vendor descriptions: (URI, arguments,
+#: the gripper interface the file names): the OMX's from its ros2_control tag (a Dynamixel plugin), the
+#: Panda's (no tag) from ros2_control's conventions (a GripperActionController).
+WRITTEN = {
+    "OmxWritten": ("package://uniros_test_omx_description/urdf/omx.urdf.xacro", (), "gripper_action"),
+    "PandaWritten": ("package://uniros_test_panda_description/urdf/panda.urdf.xacro", ("--xacro-arg", "hand=true"),
+                     "gripper_action"),
+}
+
+
 @pytest.mark.multiprocess
 @pytest.mark.slow
+@pytest.mark.parametrize("name", list(WRITTEN))
 def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
-        tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
-    """An arm the project does not ship, from its description package alone: ``uniros arm add`` of the
-    OpenManipulator-X stand-in (tests/robots/arm_add_data, found through ``AMENT_PREFIX_PATH`` as a
-    sourced workspace gives it), then ``uniros-fake-robot --arm`` of the written file serves the driver
-    names the file took from the description's ros2_control tag, and the reach and push twins reset and
-    step against it with their simulated twins' spaces, the gripper through its GripperCommand action."""
+        name: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture) -> None:
+    """Arms the project does not ship, from their description packages alone: ``uniros arm add`` of the
+    OpenManipulator-X and Panda stand-ins (tests/robots/arm_add_data, found through ``AMENT_PREFIX_PATH``
+    as a sourced workspace gives it), then ``uniros-fake-robot --arm`` of the written file serves the
+    driver names the file took from the description, and the reach and push twins reset and step against
+    it with their simulated twins' spaces, the gripper through the interface the file names."""
     from rl_environments.arm_registry import unregister_arm
     from uniros.cli import main as cli
 
@@ -342,15 +353,14 @@ def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
 
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(Path(__file__).parents[1] / "robots" / "arm_add_data" / "install"))
     monkeypatch.setenv("UNIROS_ARMS", "")  # arm add registers the file for child processes; restored after
-    name = "OmxWritten"
-    code = cli(["arm", "add", "package://uniros_test_omx_description/urdf/omx.urdf.xacro", "--name", name,
-                "--output", str(tmp_path)])
+    uri, extra, interface = WRITTEN[name]
+    code = cli(["arm", "add", uri, "--name", name, "--output", str(tmp_path), *extra])
     assert code == 0, capsys.readouterr().err
     path = tmp_path / f"{name}.yaml"
     graph = private_context()  # a graph of its own: the module's holds the IRB120's fake robot on /joint_states
     try:
         arm = registered_arms()[name]
-        assert arm.real.gripper_interface == "gripper_action"
+        assert arm.real.gripper_interface == interface
         robot = FakeRobotProcess(None, context=graph, args=["--arm", str(path), "--log-level", "WARNING"],
                                  namespace=arm.real.namespace, timeout_sec=90.0, cwd=_CWD, module="uniros.fake_robot")
         tracker = Tracker(graph, arm.base_link)  # the push twin's object pose, from a stand-in tracker
