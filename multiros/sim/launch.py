@@ -498,22 +498,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     node_options: dict[str, Any] = dict(_trust_kwargs(opts.trust_path))
     if opts.allow_xacro_strings:
         node_options["allow_xacro_strings"] = True
-    if opts.max_steps_per_call is not None:
-        if opts.max_steps_per_call < 1:
-            parser.error("--max-steps-per-call must be a positive integer")
-        node_options["max_steps_per_call"] = opts.max_steps_per_call
-    if opts.max_robots is not None:
-        if opts.max_robots < 1:
-            parser.error("--max-robots must be a positive integer")
-        node_options["max_robots"] = opts.max_robots
-    if opts.max_entities is not None:
-        if opts.max_entities < 1:
-            parser.error("--max-entities must be a positive integer")
-        node_options["max_entities"] = opts.max_entities
-    if opts.max_entities_per_client is not None:
-        if opts.max_entities_per_client < 1:
-            parser.error("--max-entities-per-client must be a positive integer")
-        node_options["max_entities_per_client"] = opts.max_entities_per_client
+    for limit in ("max_steps_per_call", "max_robots", "max_entities", "max_entities_per_client"):
+        value = getattr(opts, limit)
+        if value is not None:
+            if value < 1:
+                parser.error(f"--{limit.replace('_', '-')} must be a positive integer")
+            node_options[limit] = value
     if opts.frame_prefix is not None:
         from multiros.sim.tf_publisher import check_frame_prefix
 

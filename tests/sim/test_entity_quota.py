@@ -56,6 +56,14 @@ def _spawn_box(client: SimulationClient, name: str, i: int) -> str:
     return client.spawn_entity(name, resource_string=BOX, position=_box_at(i))
 
 
+def _count_loads(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """A list that grows by one at each description the node loads from now on."""
+    loaded: list[str] = []
+    load = node_spawn.load_description
+    monkeypatch.setattr(node_spawn, "load_description", lambda *args, **kw: loaded.append("x") or load(*args, **kw))
+    return loaded
+
+
 def test_defaults_fit_every_robot_with_its_scene() -> None:
     """Every robot the node accepts fits with a table, an object and a camera mount, on one client."""
     assert default_max_entities(MAX_ROBOTS) >= ENTITIES_PER_ROBOT * MAX_ROBOTS
@@ -72,9 +80,7 @@ def test_quota_per_in_process_client(tmp_path, monkeypatch) -> None:
         a, b = _client(ctx, "a"), _client(ctx, "b")
         for i in range(3):
             _spawn_box(a, f"a{i}", i)
-        loaded: list[str] = []
-        load = node_spawn.load_description
-        monkeypatch.setattr(node_spawn, "load_description", lambda *args, **kw: loaded.append("x") or load(*args, **kw))
+        loaded = _count_loads(monkeypatch)
         with pytest.raises(SimulationServiceError) as refused:
             _spawn_box(a, "a3", 3)
         message = refused.value.message
@@ -115,9 +121,7 @@ def test_node_wide_limits_refuse_before_loading(tmp_path, monkeypatch) -> None:
         a.spawn_entity("arm", uri=ARM)
         _spawn_box(a, "a0", 0)
         _spawn_box(b, "b0", 1)
-        loaded: list[str] = []
-        load = node_spawn.load_description
-        monkeypatch.setattr(node_spawn, "load_description", lambda *args, **kw: loaded.append("x") or load(*args, **kw))
+        loaded = _count_loads(monkeypatch)
         with pytest.raises(SimulationServiceError) as refused:
             _spawn_box(b, "b1", 2)
         message = refused.value.message
