@@ -323,7 +323,7 @@ class ChainTopDownIK:
             j2 = approach.dot(jw)[None, :].dot(null1)
             p2 = _dls(j2, 0.05)
             dq = dq + null1.dot(p2.dot(np.array([e_yaw]) - approach.dot(jw).dot(dq)[None]))
-            # (3) toward home, in what is left
+            # (3) toward the rest pose (the start when solving from the current pose, else home), in what is left
             null2 = null1.dot(eye - np.linalg.pinv(j2, rcond=1e-4).dot(j2))
             dq = dq + null2.dot(0.1 * ((self.home if rest is None else rest) - q))
             step = float(np.max(np.abs(dq)))

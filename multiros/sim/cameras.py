@@ -110,6 +110,16 @@ class CameraSpec:
     baseline: float = 0.0
     rate: float = 0.0
 
+    @property
+    def topics(self) -> tuple[str, ...]:
+        """The topics it publishes: image and camera_info, RGB and (when it has one) depth."""
+        return tuple(t for t in (self.rgb_topic, self.rgb_info_topic, self.depth_topic, self.depth_info_topic) if t)
+
+    @property
+    def pixels(self) -> int:
+        """Pixels of one of its images."""
+        return self.width * self.height
+
 
 @dataclass(frozen=True)
 class CameraFrame:
@@ -221,9 +231,7 @@ def camera_specs(entity: str, namespace: str, description: str, model: mujoco.Mj
                                     f"{full}_optical_frame", _join(ns, f"{short}/image_raw"),
                                     _join(ns, f"{short}/camera_info")))
     known = {model.camera(i).name for i in range(model.ncam)}
-    return [s for s in specs if s.camera in known
-            and all(_NAME.match(t) for t in (s.rgb_topic, s.rgb_info_topic, s.depth_topic or "/x",
-                                             s.depth_info_topic or "/x"))]
+    return [s for s in specs if s.camera in known and all(_NAME.match(t) for t in s.topics)]
 
 
 def fill_image(msg: Any, image: np.ndarray, stamp: float, frame_id: str) -> Any:
@@ -322,7 +330,7 @@ class CameraHub:
         world = self._node.world
         pubs = []
         for spec in camera_specs(info.name, info.namespace, info.description, world.model):
-            trespass = self._trespass(info.name, spec, sum(e.spec.width * e.spec.height for e in pubs))
+            trespass = self._trespass(info.name, spec, sum(e.spec.pixels for e in pubs))
             if trespass:  # still an observation camera of its env (read), with its size: only not published
                 self._log_unpublished(f"entity {info.name!r}: camera {spec.camera!r} is not published: {trespass}")
                 self._unpublished.setdefault(info.name, []).append(spec)
@@ -345,18 +353,17 @@ class CameraHub:
         sensor plugin names its namespace, absolute ones included: a stranger's description must not
         publish images into another robot's camera topics), or more pixels than the node publishes in
         all (``max_pixels``; ``pending``: this entity's cameras accepted so far)."""
-        published = pending + sum(e.spec.width * e.spec.height for other, entries in self._entities.items()
+        published = pending + sum(e.spec.pixels for other, entries in self._entities.items()
                                   if other != name for e in entries)
-        if published + spec.width * spec.height > self.max_pixels:
+        if published + spec.pixels > self.max_pixels:
             return (f"the node publishes {published:,} pixels of camera images already, and {spec.width} x "
                     f"{spec.height} more would pass its limit of {self.max_pixels:,} (multiros.sim.limits."
                     "MAX_CAMERA_PIXELS)")
-        topics = [t for t in (spec.rgb_topic, spec.rgb_info_topic, spec.depth_topic, spec.depth_info_topic) if t]
+        topics = spec.topics
         for other, entries in self._entities.items():
             if other == name:
                 continue
-            taken = {t for e in entries for t in (e.spec.rgb_topic, e.spec.rgb_info_topic, e.spec.depth_topic,
-                                                   e.spec.depth_info_topic) if t}
+            taken = {t for e in entries for t in e.spec.topics}
             clash = [t for t in topics if t in taken]
             if clash:
                 return f"entity {other!r} publishes {clash[0]}"

@@ -167,33 +167,15 @@ class SimulationNode(Node):
         self._stopping = threading.Event()  # set first by destroy_node: long step calls stop at the next chunk
         self.source_policy = SourcePolicy.create(trusted_paths, allow_xacro_strings)
         self.description_limits = description_limits or DescriptionLimits()
-        steps = self.declare_parameter(
-            "max_steps_per_call", int(max_steps_per_call),
-            ParameterDescriptor(read_only=True, description="most physics steps per StepSimulation/StepRobot call"),
-        ).value
-        if not isinstance(steps, int) or steps < 1:
-            raise ValueError(f"max_steps_per_call must be an integer >= 1, got {steps!r}")
-        self.max_steps_per_call = steps
-        robots = self.declare_parameter(
-            "max_robots", int(max_robots),
-            ParameterDescriptor(read_only=True, description="most robots this node holds"),
-        ).value
-        if not isinstance(robots, int) or robots < 1:
-            raise ValueError(f"max_robots must be an integer >= 1, got {robots!r}")
-        self.max_robots = robots
-        entities = self.declare_parameter(
-            "max_entities", default_max_entities(robots) if max_entities is None else int(max_entities),
-            ParameterDescriptor(read_only=True, description="most entities (robots and objects) this node holds"),
-        ).value
-        if not isinstance(entities, int) or entities < 1:
-            raise ValueError(f"max_entities must be an integer >= 1, got {entities!r}")
-        per_client = self.declare_parameter(
-            "max_entities_per_client", int(max_entities_per_client),
-            ParameterDescriptor(read_only=True, description="most entities one client holds on this node, "
-                                                            "besides 4 per robot it holds"),
-        ).value
-        if not isinstance(per_client, int) or per_client < 1:
-            raise ValueError(f"max_entities_per_client must be an integer >= 1, got {per_client!r}")
+        self.max_steps_per_call = self._declare_limit(
+            "max_steps_per_call", max_steps_per_call, "most physics steps per StepSimulation/StepRobot call")
+        robots = self.max_robots = self._declare_limit("max_robots", max_robots, "most robots this node holds")
+        entities = self._declare_limit(
+            "max_entities", default_max_entities(robots) if max_entities is None else max_entities,
+            "most entities (robots and objects) this node holds")
+        per_client = self._declare_limit(
+            "max_entities_per_client", max_entities_per_client,
+            "most entities one client holds on this node, besides 4 per robot it holds")
         self.entity_quota = EntityQuota(entities, per_client, robots)  # multiros.sim.node_quota
         prefix = check_frame_prefix(self.declare_parameter(
             "frame_prefix", str(frame_prefix),
@@ -259,6 +241,18 @@ class SimulationNode(Node):
             self._executor.add_node(self)
             self._spin_thread = threading.Thread(target=self._executor.spin, name=f"{node_name}-topics", daemon=True)
             self._spin_thread.start()
+
+    def _declare_limit(self, name: str, value: int, description: str) -> int:
+        """Declare the read-only integer parameter ``name`` (a limit of the node) and return it.
+
+        Raises:
+            ValueError: it is not an integer >= 1.
+        """
+        declared = self.declare_parameter(name, int(value), ParameterDescriptor(read_only=True,
+                                                                                description=description)).value
+        if not isinstance(declared, int) or declared < 1:
+            raise ValueError(f"{name} must be an integer >= 1, got {declared!r}")
+        return declared
 
     def _log_for_the_graph(self, level: int, text: str) -> None:
         """A refusal that matters to ROS 2 tools looking at the node (a TF frame clash, a camera not

@@ -21,6 +21,7 @@ from multiros.sim import convert
 from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError, SpawnRefusedError
 from multiros.sim.node_results import FAILED, fail, ok
+from multiros.sim.world_types import EntityCategory, default_category
 
 if TYPE_CHECKING:
     from multiros.sim.node import SimulationNode
@@ -96,7 +97,7 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
         fail(res, response.RESOURCE_PARSE_ERROR, f"the description is too large or too deep to load "
               f"({type(exc).__name__}); see the node's description limits")
         return response
-    robot = bool(desc.joints)  # the world's category rule: a description with joints is a robot
+    robot = default_category(desc) == EntityCategory.ROBOT  # as the world will file it (no category asked)
     if quota is not None and _refused(node, quota, caller, robot, res):
         return response
     with node.lock:

@@ -69,6 +69,7 @@ from multiros.sim.world_types import (
     WorldOptions,
     check_pose,
     check_vec3,
+    default_category,
 )
 
 __all__ = [
@@ -200,10 +201,7 @@ class World(WorldStepping, WorldAdmission):
         desc = description if isinstance(description, RobotDescription) else load_description(
             description, args=xacro_args, index=self.index, mesh_cache=self.mesh_cache,
             default_armature=self.options.default_armature)
-        if category is None:
-            category = EntityCategory.ROBOT if desc.joints else (
-                EntityCategory.STATIC_OBJECT if floating is False else EntityCategory.DYNAMIC_OBJECT)
-        category = EntityCategory(category)
+        category = default_category(desc, floating) if category is None else EntityCategory(category)
         if floating is None:
             floating = desc.free_root or (
                 category in (EntityCategory.DYNAMIC_OBJECT, EntityCategory.OBJECT) and not desc.joints)
@@ -667,7 +665,7 @@ class World(WorldStepping, WorldAdmission):
         self._callbacks.append(callback)
 
     def close(self) -> None:
-        """Release the model, its data and spec, and the meshes read for it; the world is unusable
+        """Release the model, its data and spec, and the entities' records; the world is unusable
         afterwards. A node's objects refer to each other (services to their node, the node to its
         world), so the garbage collector, not reference counting, frees them, and only at a full
         collection: released here, the megabytes of MuJoCo memory go at once (a camera env's make and

@@ -19,6 +19,7 @@ from multiros.sim.description import RobotDescription
 __all__ = [
     "WorldOptions",
     "EntityCategory",
+    "default_category",
     "ResetScope",
     "EntityInfo",
     "EntityState",
@@ -59,6 +60,14 @@ class EntityCategory(enum.IntEnum):
     ROBOT = 1
     DYNAMIC_OBJECT = 4
     STATIC_OBJECT = 5
+
+
+def default_category(desc: RobotDescription, floating: bool | None = None) -> EntityCategory:
+    """The category of an entity spawned without one: a robot when its description has joints, else a
+    static object when it is fixed (``floating=False``), else a dynamic one."""
+    if desc.joints:
+        return EntityCategory.ROBOT
+    return EntityCategory.STATIC_OBJECT if floating is False else EntityCategory.DYNAMIC_OBJECT
 
 
 class ResetScope(enum.IntFlag):
