@@ -165,6 +165,9 @@ class WorkerVectorEnv(VectorEnv):
         self.metadata["autoreset_mode"] = self.autoreset_mode
         self.render_mode = render_mode
         self.max_episode_steps: int | None = max_steps  # the envs' truncation (``None``: never)
+        self.shared_memory_name: str = shared.name
+        """The POSIX shared-memory block the workers exchange through (``/dev/shm/<name>`` on Linux);
+        :meth:`close` unlinks it."""
 
     @property
     def pids(self) -> list[int]:
