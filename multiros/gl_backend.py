@@ -9,7 +9,11 @@ Linux machine without a display:
   envs and videos render at about 0.6 ms an 84 x 84 frame (H200) instead of tens of ms;
 * otherwise rendering is software, said in one log line at the first rendered image: ``egl`` when
   another EGL vendor is installed (Mesa's llvmpipe, the fastest software path), else ``osmesa``
-  when libOSMesa is found, else ``egl`` (whose error then names what to install).
+  when libOSMesa is found, else ``egl`` (whose error then names what to install);
+* a vendor file without glvnd's ``libEGL.so.1`` (a container given the NVIDIA driver's files but not
+  the ``libegl1`` package) is no EGL: with ``MUJOCO_GL=egl`` there, ``import mujoco`` itself fails
+  (PyOpenGL finds no EGL), so ``osmesa`` is chosen when found, else MuJoCo's own default, which
+  imports everywhere and renders nothing without a display; the log line names the package.
 
 With a display, MuJoCo's own default (GLFW) is left alone: the viewer needs it.
 """
@@ -38,7 +42,8 @@ class GLChoice:
 
     Attributes:
         backend: the ``MUJOCO_GL`` value (``None``: left to MuJoCo, a display's GLFW).
-        kind: ``user`` (``MUJOCO_GL`` was set), ``display``, ``gpu`` (NVIDIA EGL) or ``software``.
+        kind: ``user`` (``MUJOCO_GL`` was set), ``display``, ``gpu`` (NVIDIA EGL), ``software`` or
+            ``none`` (no GL library found: camera rendering fails until one is installed).
         reason: one line saying why.
         vendors: the EGL vendor libraries found (``library_path`` of each vendor file).
     """
@@ -81,9 +86,9 @@ def nvidia_gpu_present(dev: str = "/dev") -> bool:
 
 
 def choose(env: Mapping[str, str], *, platform: str = sys.platform, vendors: Iterable[str] = (),
-           osmesa: bool = False, gpu: bool = False) -> GLChoice:
+           osmesa: bool = False, gpu: bool = False, egl: bool = True) -> GLChoice:
     """The backend for ``env`` (see the module docstring); ``vendors``: :func:`egl_vendors`,
-    ``osmesa``: libOSMesa found, ``gpu``: :func:`nvidia_gpu_present`."""
+    ``osmesa``: libOSMesa found, ``gpu``: :func:`nvidia_gpu_present`, ``egl``: glvnd's libEGL found."""
     found = tuple(vendors)
     user = env.get("MUJOCO_GL", "").strip()
     if user:
@@ -93,17 +98,23 @@ def choose(env: Mapping[str, str], *, platform: str = sys.platform, vendors: Ite
     if env.get("DISPLAY") or env.get("WAYLAND_DISPLAY"):
         return GLChoice(None, "display", "a display is set: MuJoCo's default (GLFW)", found)
     nvidia = [v for v in found if "nvidia" in v.lower()]
-    if nvidia:
+    if nvidia and egl:
         return GLChoice("egl", "gpu", f"NVIDIA EGL vendor ({nvidia[0]}): rendering on the GPU", found)
-    if gpu:
+    if nvidia:
+        why = f"an NVIDIA EGL vendor ({nvidia[0]}) but no libEGL.so.1 (install libegl1)"
+    elif gpu:
         why = ("an NVIDIA GPU is present but no NVIDIA EGL vendor is installed (glvnd's egl_vendor.d has no "
                "10_nvidia.json; in a container add 'graphics' to NVIDIA_DRIVER_CAPABILITIES)")
     else:
         why = "no NVIDIA EGL vendor found"
-    if found:
+    if found and egl:
         return GLChoice("egl", "software", f"{why}: rendering in software with EGL ({', '.join(found)})", found)
     if osmesa:
-        return GLChoice("osmesa", "software", f"{why} and no EGL vendor: rendering in software with OSMesa", found)
+        return GLChoice("osmesa", "software", f"{why} and no usable EGL: rendering in software with OSMesa", found)
+    if not egl:
+        return GLChoice(None, "none", f"{why} and no OSMesa: MuJoCo's default backend, which renders nothing "
+                        "without a display; camera envs and videos fail until libegl1 (with the NVIDIA driver "
+                        "or libegl-mesa0) or libosmesa6 is installed", found)
     return GLChoice("egl", "software", f"{why}, no EGL vendor and no OSMesa: rendering will fail until one is "
                     "installed (libegl1 and libegl-mesa0, or libosmesa6)", found)
 
@@ -112,6 +123,13 @@ def _osmesa_found() -> bool:
     import ctypes.util
 
     return ctypes.util.find_library("OSMesa") is not None
+
+
+def _egl_found() -> bool:
+    """glvnd's ``libEGL.so.1``, which PyOpenGL loads for ``MUJOCO_GL=egl`` (a vendor file alone is not it)."""
+    import ctypes.util
+
+    return ctypes.util.find_library("EGL") is not None
 
 
 _CHOICE: list[GLChoice] = []
@@ -127,8 +145,9 @@ def apply(env: MutableMapping[str, str] | None = None) -> GLChoice:
         choice = choose(target)  # nothing to look up: the user's choice or a display
     else:
         vendors = egl_vendors(target)
-        osmesa = not vendors and _osmesa_found()  # find_library runs ldconfig: only when it matters
-        choice = choose(target, vendors=vendors, osmesa=osmesa, gpu=nvidia_gpu_present())
+        egl = _egl_found()  # find_library runs ldconfig: only when the user chose nothing
+        osmesa = (not vendors or not egl) and _osmesa_found()
+        choice = choose(target, vendors=vendors, osmesa=osmesa, gpu=nvidia_gpu_present(), egl=egl)
     if choice.backend is not None and choice.kind != "user" and "mujoco" not in sys.modules:
         target["MUJOCO_GL"] = choice.backend
     if env is None:
@@ -147,5 +166,6 @@ def log_choice_once(logger: logging.Logger) -> None:
     if _LOGGED or choice is None or choice.kind in ("user", "display"):
         return
     _LOGGED.append(True)
-    level = logging.WARNING if "GPU is present" in choice.reason else logging.INFO
+    unused_gpu = choice.kind != "gpu" and ("GPU is present" in choice.reason or "NVIDIA EGL vendor (" in choice.reason)
+    level = logging.WARNING if unused_gpu or choice.kind == "none" else logging.INFO
     logger.log(level, "MuJoCo renders with MUJOCO_GL=%s: %s (set MUJOCO_GL to choose)", choice.backend, choice.reason)

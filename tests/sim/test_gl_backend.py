@@ -49,6 +49,50 @@ def test_nvidia_egl_means_the_gpu_else_software():
     assert unused.kind == "software" and "NVIDIA_DRIVER_CAPABILITIES" in unused.reason
 
 
+def test_a_vendor_file_without_libegl_is_no_egl():
+    """A container given the NVIDIA driver's files but not glvnd's libEGL.so.1: MUJOCO_GL=egl would make
+    ``import mujoco`` fail (seen on a GPU machine), so OSMesa when found, else MuJoCo's default."""
+    nvidia = ["libEGL_nvidia.so.0"]
+    osmesa = choose(HEADLESS, platform="linux", vendors=nvidia, gpu=True, egl=False, osmesa=True)
+    assert (osmesa.backend, osmesa.kind) == ("osmesa", "software") and "install libegl1" in osmesa.reason
+    bare = choose(HEADLESS, platform="linux", vendors=nvidia, gpu=True, egl=False)
+    assert (bare.backend, bare.kind) == (None, "none") and "libegl1" in bare.reason and "libosmesa6" in bare.reason
+    mesa = choose(HEADLESS, platform="linux", vendors=["libEGL_mesa.so.0"], egl=False)
+    assert mesa.backend is None and "no NVIDIA EGL vendor found and no OSMesa" in mesa.reason
+
+
+def test_apply_leaves_mujoco_gl_unset_without_any_gl_library(monkeypatch, caplog):
+    monkeypatch.setattr(gl_backend, "egl_vendors", lambda env=None, dirs=None: ["libEGL_nvidia.so.0"])
+    monkeypatch.setattr(gl_backend, "_egl_found", lambda: False)
+    monkeypatch.setattr(gl_backend, "_osmesa_found", lambda: False)
+    monkeypatch.delitem(sys.modules, "mujoco", raising=False)
+    monkeypatch.setattr(sys, "platform", "linux")
+    env: dict[str, str] = {}
+    assert gl_backend.apply(env).kind == "none" and env == {}
+    monkeypatch.setattr(gl_backend, "_CHOICE", [gl_backend.apply({})])
+    monkeypatch.setattr(gl_backend, "_LOGGED", [])
+    with caplog.at_level(logging.INFO, logger="test.gl"):
+        gl_backend.log_choice_once(logging.getLogger("test.gl"))
+    assert caplog.records[-1].levelno == logging.WARNING and "libegl1" in caplog.records[-1].getMessage()
+
+
+def test_a_fresh_process_without_libegl_still_imports_mujoco(tmp_path):
+    """The GPU machine's case end to end: an NVIDIA vendor file, and no libEGL.so.1 or libOSMesa on the
+    library search path (ctypes' lookup answers None for them): MUJOCO_GL is left to MuJoCo, whose
+    import then works."""
+    _vendor(tmp_path, "10_nvidia.json", "libEGL_nvidia.so.0")
+    env = {k: v for k, v in os.environ.items() if k not in ("MUJOCO_GL", "DISPLAY", "WAYLAND_DISPLAY")}
+    env["__EGL_VENDOR_LIBRARY_DIRS"] = str(tmp_path)
+    probe = ("import ctypes.util, os; found = ctypes.util.find_library; "
+             "ctypes.util.find_library = lambda n: None if n in ('EGL', 'OSMesa') else found(n); "
+             "import multiros, mujoco; from multiros import gl_backend; "
+             "print(os.environ.get('MUJOCO_GL', '-'), gl_backend.current().kind)")
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, timeout=120,
+                         stdin=subprocess.DEVNULL)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["-", "none"]
+
+
 def test_the_user_and_a_display_decide_first():
     assert choose({"MUJOCO_GL": "osmesa"}, platform="linux", vendors=["libEGL_nvidia.so.0"]).backend == "osmesa"
     shown = choose({"DISPLAY": ":0"}, platform="linux", vendors=["libEGL_nvidia.so.0"])
