@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -410,6 +411,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with sigterm_as_interrupt():
             return int(args.func(args))
+    except BrokenPipeError:
+        # The reader went away (`uniros doctor | head`): quietly, as other command-line tools do.
+        # Python's own advice: point stdout at devnull so the flush at exit does not raise again.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except KeyboardInterrupt as exc:
         print(f"\nuniros {args.command}: interrupted", file=sys.stderr)
         return 128 + int(getattr(exc, "signum", 2))

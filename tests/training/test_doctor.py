@@ -61,3 +61,20 @@ def test_a_hanging_probe_is_bounded(monkeypatch, timeout):
     monkeypatch.setattr(doctor, "GL_PROBE", "import time; time.sleep(30)")
     rows = dict(doctor._gl(timeout))
     assert rows["GL works"].startswith(f"no: no frame within {timeout:g} s")
+
+
+def test_a_reader_that_goes_away_is_no_traceback():
+    """`uniros doctor | head -1`: the pipe closes after one line; no BrokenPipeError traceback."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import sys; from uniros.cli import main; import uniros.doctor as d; "
+            "d.findings = lambda gl_timeout=60.0: [(f'row {i}', 'x' * 200) for i in range(5000)]; "
+            "sys.exit(main(['doctor']))")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            stdin=subprocess.DEVNULL, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    assert proc.stdout is not None and proc.stdout.readline().startswith(b"row 0")
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1 and b"Traceback" not in err and b"BrokenPipe" not in err, err
