@@ -17,13 +17,18 @@ Each attack runs against a victim RX200 holding its initial pose and prints what
   ``StepRobot`` (10 steps): how many boxes the node admits (its per-client quota), and the victim's
   median / p95 latency alone, while the neighbour spawns, and after, with the ratios to alone.
   ``--unlimited-too`` runs it again on a node without quotas (the behaviour before them).
+* ``refused``: the same neighbour spawns a 100 kg box through the victim's forearm in a loop for
+  ``--seconds`` (each one compiled and tried under the node's lock, then refused at admission): how
+  many spawns the world refused, how many the node's cool-down refused before loading them
+  (``multiros.sim.node_quota``), and the victim's latency alone and meanwhile. ``--unlimited-too``
+  runs it again with the cool-down off.
 * ``intruder``: an owner's ``sim_mode="process"`` node; another local process finds the private
   router's port (and every port the owner and its child listen on, as ``ss -ltnp`` shows them)
   and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
   ``DeleteEntity(rx200)``: answered or refused?
 
     python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood boxes intruder]
-                                                 [--boxes 200] [--unlimited-too]
+                                                 [--boxes 200] [--seconds 10] [--unlimited-too]
 """
 
 from __future__ import annotations
@@ -212,9 +217,16 @@ def attack_flood(attackers: int = 4, seconds: float = 4.0) -> None:
 
 
 SMALL_BOX = BOX.format(h=0.02, m=0.05)
+HEAVY_BOX = BOX.format(h=0.05, m=100.0)
 
 
-def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0) -> None:
+def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0,
+                 refused_for: float | None = None) -> None:
+    """``boxes``, or with ``refused_for`` the ``refused`` attack for that many seconds."""
+    if refused_for is not None and unlimited:
+        from multiros.sim import node_quota
+
+        node_quota.REFUSALS_BEFORE_BACKOFF = 10**9  # the behaviour before the cool-down
     endpoint = free_loopback_endpoint()
     ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
     peer: _RawPeer | None = None
@@ -249,23 +261,31 @@ def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0
                 raise RuntimeError("the neighbour's session did not reach the node within 20 s")
         outcomes: list[int] = []
         refusals: list[str] = []
+        cooled: list[bool] = []  # per refusal: by the node's cool-down (True) or by the world
         done = threading.Event()
         spawn = get_service("simulation_interfaces/srv/SpawnEntity")
 
         def neighbour() -> None:
+            end = time.monotonic() + (refused_for or 0.0)
             try:
-                for i in range(boxes):
+                for i in range(boxes if refused_for is None else 10**9):
+                    if refused_for is not None and time.monotonic() >= end:
+                        break
                     req = spawn.Request(name=f"box{i}")
-                    req.entity_resource.resource_string = SMALL_BOX
+                    req.entity_resource.resource_string = SMALL_BOX if refused_for is None else HEAVY_BOX
                     p = req.initial_pose.pose.position
-                    p.x, p.y, p.z = 1.0 + 0.1 * (i % 20), -1.0 + 0.1 * (i // 20), 0.02
+                    p.x, p.y, p.z = ((1.0 + 0.1 * (i % 20), -1.0 + 0.1 * (i // 20), 0.02) if refused_for is None
+                                     else (0.03, 0.0, 0.25))
                     res: Any = neighbour_peer.call(
                         "mujoco_sim", "spawn_entity", "simulation_interfaces/srv/SpawnEntity", timeout=60.0,
                         name=req.name, entity_resource=req.entity_resource, initial_pose=req.initial_pose)
                     code = -1 if res is None else int(res.result.result)
                     outcomes.append(code)
-                    if code != 1 and not refusals:
-                        refusals.append("no answer" if res is None else res.result.error_message)
+                    if code != 1:
+                        message = "no answer" if res is None else res.result.error_message
+                        cooled.append("refused by the world" in message)
+                        if not refusals or (cooled[-1] and len(refusals) == 1):
+                            refusals.append(message)
             finally:
                 done.set()
 
@@ -285,6 +305,16 @@ def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0
             med, p95 = float(np.median(lat)), float(np.percentile(lat, 95))
             return f"median {med * 1e3:.2f} ms ({med / base:.1f}x), p95 {p95 * 1e3:.2f} ms, {len(lat)} calls"
 
+        if refused_for is not None:
+            print(f"refused ({'no cool-down' if unlimited else 'cool-down on'}): the neighbour sent {len(outcomes)} "
+                  f"spawns into the arm in {spawn_sec:.1f} s: {cooled.count(False)} refused by the world (a compile "
+                  f"and trial under the lock each), {cooled.count(True)} by the cool-down before loading; victim "
+                  f"StepRobot(10) alone: median {base * 1e3:.2f} ms, p95 {np.percentile(alone, 95) * 1e3:.2f} ms; "
+                  f"meanwhile: {figures(during)}")
+            for message in refusals:
+                print(f"  a refusal: {message}")
+            client.close()
+            return
         what = "no quotas" if unlimited else (f"max_entities_per_client={sim.max_entities_per_client}, "
                                               f"max_entities={sim.max_entities}")
         print(f"boxes ({what}): neighbour asked for {boxes} boxes in {spawn_sec:.1f} s, {admitted} admitted, "
@@ -351,21 +381,24 @@ def attack_intruder() -> None:
 
 
 ATTACKS = {"stiff": attack_stiff, "stiff_late": lambda: attack_stiff(late=True), "overlap": attack_overlap,
-           "drop": attack_drop, "flood": attack_flood, "boxes": attack_boxes, "intruder": attack_intruder}
+           "drop": attack_drop, "flood": attack_flood, "boxes": attack_boxes,
+           "refused": lambda: attack_boxes(refused_for=10.0), "intruder": attack_intruder}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--attacks", nargs="+", choices=sorted(ATTACKS), default=list(ATTACKS))
     parser.add_argument("--boxes", type=int, default=200, help="boxes the neighbour of the 'boxes' attack asks for")
+    parser.add_argument("--seconds", type=float, default=10.0, help="how long the 'refused' attack's neighbour loops")
     parser.add_argument("--unlimited-too", action="store_true",
                         help="run the 'boxes' attack also on a node without quotas, for comparison")
     args = parser.parse_args()
     for name in args.attacks:
-        if name == "boxes":
-            attack_boxes(args.boxes)
+        if name in ("boxes", "refused"):
+            refused_for = args.seconds if name == "refused" else None
+            attack_boxes(args.boxes, refused_for=refused_for)
             if args.unlimited_too:
-                attack_boxes(args.boxes, unlimited=True)
+                attack_boxes(args.boxes, unlimited=True, refused_for=refused_for)
         else:
             ATTACKS[name]()
 

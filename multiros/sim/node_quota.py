@@ -16,6 +16,13 @@ is (robot or object known), and all of them again under the node's lock just bef
 compiles it: a spawn refused by a quota costs a few dictionary lookups, not a load or a compile.
 Deleting an entity (or a reset removing it) frees its owner's quota.
 
+A spawn the world itself refuses (a model that does not compile, an admission refusal: overlap,
+landing, divergence, bad controllers) costs every owner a compile and a trial under the node's lock.
+So such refusals are counted per client: after :data:`REFUSALS_BEFORE_BACKOFF` in a row, that client's
+next spawns are refused before any load or lock for a cool-down (1 s, doubling with each further
+refusal, at most 60 s), with one warning in the node's log per cool-down; an admitted spawn ends the
+streak. A loop of refused spawns then costs the others a compile every few seconds, not back to back.
+
 The caller's identity comes from the wire and serves accounting only: a peer that names itself anew
 per request escapes its per-client quota, not ``max_entities``. Callers a transport cannot name
 (``None``) share one quota. Entities the node's owner spawned itself (its command line, a world
@@ -25,11 +32,29 @@ given at construction) belong to no client and count only towards the node's lim
 from __future__ import annotations
 
 import threading
-from collections.abc import Collection
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Collection
+from dataclasses import dataclass
 
 from multiros.sim.limits import ENTITIES_PER_ROBOT
 
-__all__ = ["EntityQuota", "describe_caller"]
+__all__ = ["BACKOFF_FIRST_S", "BACKOFF_MAX_S", "REFUSALS_BEFORE_BACKOFF", "EntityQuota", "describe_caller"]
+
+#: Spawns the world may refuse in a row for one client before it must wait.
+REFUSALS_BEFORE_BACKOFF = 3
+#: The first cool-down; each further refusal after one doubles it, up to :data:`BACKOFF_MAX_S`.
+BACKOFF_FIRST_S = 1.0
+BACKOFF_MAX_S = 60.0
+_MAX_TRACKED = 1024  # clients whose refusal streaks are remembered (the oldest forgotten first)
+
+
+@dataclass
+class _Streak:
+    refused: int = 0
+    until: float = 0.0  # monotonic time the cool-down ends
+    length: float = 0.0  # the last cool-down's length
+    last: str = ""  # the last refusal's reason
 
 
 def describe_caller(caller: str | None) -> str:
@@ -47,12 +72,53 @@ class EntityQuota:
         max_robots: most robots in the node.
     """
 
-    def __init__(self, max_entities: int, max_entities_per_client: int, max_robots: int) -> None:
+    def __init__(self, max_entities: int, max_entities_per_client: int, max_robots: int, *,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.max_entities = int(max_entities)
         self.max_entities_per_client = int(max_entities_per_client)
         self.max_robots = int(max_robots)
         self._owners: dict[str, tuple[str | None, bool]] = {}  # entity -> (caller, is a robot)
+        self._streaks: OrderedDict[str | None, _Streak] = OrderedDict()
+        self._clock = clock
         self._mutex = threading.Lock()
+
+    def cooling_down(self, caller: str | None) -> str | None:
+        """Why ``caller`` may not spawn now (its spawns were refused by the world too often), or ``None``."""
+        with self._mutex:
+            streak = self._streaks.get(caller)
+            left = streak.until - self._clock() if streak is not None else 0.0
+            if streak is None or left <= 0:
+                return None
+            return (f"SpawnEntity refused: {describe_caller(caller)} had {streak.refused} spawns in a row refused "
+                    f"by the world (the last: {streak.last}); each costs every owner of this node a compile "
+                    f"under its lock, so it may spawn again in {left:.1f} s. Fix the description first")
+
+    def note_refused(self, caller: str | None, reason: str) -> float | None:
+        """The world refused a spawn by ``caller`` (``reason``: its one line). Returns the cool-down it
+        starts, in seconds, or ``None`` (no cool-down yet)."""
+        with self._mutex:
+            streak = self._streaks.pop(caller, None) or _Streak()
+            self._streaks[caller] = streak  # most recent last
+            while len(self._streaks) > _MAX_TRACKED:
+                self._streaks.popitem(last=False)
+            streak.refused += 1
+            streak.last = reason.splitlines()[0][:200] if reason else "no reason given"
+            if streak.refused < REFUSALS_BEFORE_BACKOFF:
+                return None
+            streak.length = min(BACKOFF_MAX_S, streak.length * 2 if streak.length else BACKOFF_FIRST_S)
+            streak.until = self._clock() + streak.length
+            return streak.length
+
+    def refusals(self, caller: str | None) -> int:
+        """Spawns by ``caller`` the world refused in a row (0 after an admitted one)."""
+        with self._mutex:
+            streak = self._streaks.get(caller)
+        return 0 if streak is None else streak.refused
+
+    def note_admitted(self, caller: str | None) -> None:
+        """The world took a spawn by ``caller``: its streak of refusals ends."""
+        with self._mutex:
+            self._streaks.pop(caller, None)
 
     def held(self, caller: str | None, present: Collection[str]) -> tuple[int, int]:
         """``(entities, robots)`` that ``caller`` spawned and that are among ``present``."""

@@ -6,7 +6,8 @@ query into xacro arguments and the node's own options (``__controllers``,
 :class:`~multiros.sim.description.SourcePolicy` and limits, and only then spawns it under the
 node's lock and attaches the robot's ROS interfaces. The node's entity limits and the caller's
 quota (:mod:`multiros.sim.node_quota`) are checked before loading, after loading and under the lock
-before the world compiles anything. :func:`entity_name` picks the name (``allow_renaming``).
+before the world compiles anything; a client whose spawns the world keeps refusing waits out a
+cool-down before its next one is loaded. :func:`entity_name` picks the name (``allow_renaming``).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import numpy as np
 from multiros.sim import convert
 from multiros.sim.description import SourcePolicy, UnsupportedFormatError, load_description
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError, SpawnRefusedError
+from multiros.sim.node_quota import describe_caller
 from multiros.sim.node_results import FAILED, fail, ok
 from multiros.sim.world_types import EntityCategory, default_category
 
@@ -58,8 +60,13 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
         fail(res, response.INVALID_POSE, problem)
         return response
     quota = node.entity_quota if limited else None
-    if quota is not None and _refused(node, quota, caller, None, res):
-        return response
+    if quota is not None:
+        waiting = quota.cooling_down(caller)
+        if waiting is not None:
+            fail(res, FAILED, waiting)
+            return response
+        if _refused(node, quota, caller, None, res):
+            return response
     limits = node.description_limits
     if len(uri) > _MAX_URI or len(text) > limits.max_chars:
         what = "entity_resource.uri" if len(uri) > _MAX_URI else "entity_resource.resource_string"
@@ -120,22 +127,22 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
         except DescriptionError as exc:
             code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
             fail(res, code, str(exc))
-            return response
+            return _world_refused(node, quota, caller, response)
         except EntityError as exc:
             fail(res, response.NAME_INVALID, str(exc))
             return response
         except ControllerError as exc:
             fail(res, FAILED, f"controllers of {name!r}: {exc}")
-            return response
+            return _world_refused(node, quota, caller, response)
         except ValueError as exc:
             fail(res, response.INVALID_POSE, str(exc))
-            return response
+            return _world_refused(node, quota, caller, response)
         try:  # before any step: refused, it never touched the others
             node.world.admit(info.name, limits)
         except SpawnRefusedError as exc:
             node.world.delete(info.name)
             fail(res, response.RESOURCE_PARSE_ERROR if exc.reason == "unstable" else response.INVALID_POSE, str(exc))
-            return response
+            return _world_refused(node, quota, caller, response)
         try:
             node._attach_robot(info.name)
         except Exception as exc:
@@ -144,8 +151,21 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
             return response
         if quota is not None:
             quota.record(info.name, caller, robot)
+            quota.note_admitted(caller)
     response.entity_name = info.name
     ok(res)
+    return response
+
+
+def _world_refused(node: SimulationNode, quota: EntityQuota | None, caller: str | None, response: Any) -> Any:
+    """The world refused the spawn (``response``'s result set): count it against ``caller``; say so
+    once when that starts a cool-down."""
+    if quota is not None:
+        pause = quota.note_refused(caller, response.result.error_message)
+        if pause is not None:
+            node.get_logger().warning(
+                "%s: %s spawns refused by the world in a row; its spawns wait %.0f s (the last: %s)",
+                describe_caller(caller), quota.refusals(caller), pause, response.result.error_message[:200])
     return response
 
 

@@ -22,11 +22,12 @@ from raw_zenoh import open_peer_session
 
 from multiros.ros import Context, Node
 from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
-from multiros.sim import node_spawn
+from multiros.sim import node_quota, node_spawn
 from multiros.sim.client import SimulationClient, SimulationServiceError
 from multiros.sim.distro_adapters import get_service
 from multiros.sim.limits import ENTITIES_PER_ROBOT, MAX_ENTITIES_PER_CLIENT, MAX_ROBOTS, default_max_entities
 from multiros.sim.node import SimulationNode
+from multiros.sim.node_quota import BACKOFF_FIRST_S, BACKOFF_MAX_S, REFUSALS_BEFORE_BACKOFF, EntityQuota
 from multiros.sim.packages import PackageIndex
 from multiros.sim.world import World, WorldOptions
 
@@ -105,6 +106,69 @@ def test_quota_per_in_process_client(tmp_path, monkeypatch) -> None:
         assert a.get_entities() == []
         for i in range(3):
             _spawn_box(a, f"again{i}", i)
+    finally:
+        ctx.try_shutdown()
+
+
+def test_refusal_streak_backoff_with_a_clock() -> None:
+    """Refused by the world REFUSALS_BEFORE_BACKOFF times in a row: a cool-down of BACKOFF_FIRST_S,
+    doubling with each further refusal up to BACKOFF_MAX_S; an admitted spawn ends the streak."""
+    now = [100.0]
+    quota = EntityQuota(10, 5, 4, clock=lambda: now[0])
+    for _ in range(REFUSALS_BEFORE_BACKOFF - 1):
+        assert quota.note_refused("x", "overlaps 'y'") is None and quota.cooling_down("x") is None
+    assert quota.note_refused("x", "overlaps 'y'\nmore") == BACKOFF_FIRST_S
+    waiting = quota.cooling_down("x")
+    assert waiting is not None and f"had {REFUSALS_BEFORE_BACKOFF} spawns in a row" in waiting
+    assert "(the last: overlaps 'y')" in waiting and "again in 1.0 s" in waiting and "\n" not in waiting
+    assert quota.cooling_down("z") is None and quota.cooling_down(None) is None  # others unaffected
+    now[0] += BACKOFF_FIRST_S
+    assert quota.cooling_down("x") is None
+    lengths = [quota.note_refused("x", "again") for _ in range(10)]
+    assert lengths[:3] == [2 * BACKOFF_FIRST_S, 4 * BACKOFF_FIRST_S, 8 * BACKOFF_FIRST_S]
+    assert lengths[-1] == BACKOFF_MAX_S and quota.refusals("x") == REFUSALS_BEFORE_BACKOFF + 10
+    quota.note_admitted("x")
+    assert quota.cooling_down("x") is None and quota.refusals("x") == 0
+    for i in range(5000):  # forged identities: the memory of streaks stays bounded
+        quota.note_refused(f"forged{i}", "r")
+    assert quota.refusals("forged0") == 0 and quota.refusals("forged4999") == 1
+
+
+def test_spawns_the_world_keeps_refusing_wait_before_loading(tmp_path, monkeypatch) -> None:
+    """Boxes spawned into another entity (refused at admission, after a compile under the node's lock):
+    after REFUSALS_BEFORE_BACKOFF of them the client's next spawn is refused before it is loaded, with
+    one warning in the node's log; another client spawns on; after the cool-down the client may
+    spawn again."""
+    monkeypatch.setattr(node_quota, "BACKOFF_FIRST_S", 0.3)
+    ctx = Context(transport="inproc").init()
+    try:
+        node = _node(ctx, tmp_path)
+        warnings: list[str] = []
+        logger = node.get_logger()
+        monkeypatch.setattr(logger, "warning", lambda fmt, *args: warnings.append(fmt % args))
+        a, b = _client(ctx, "a"), _client(ctx, "b")
+        _spawn_box(b, "target", 0)
+        for i in range(REFUSALS_BEFORE_BACKOFF):
+            with pytest.raises(SimulationServiceError, match="reaches .* into entity .target."):
+                _spawn_box(a, f"into{i}", 0)
+        assert len(warnings) == 1 and warnings[0].startswith("client '"), warnings
+        assert f"{REFUSALS_BEFORE_BACKOFF} spawns refused by the world in a row" in warnings[0]
+        loaded = _count_loads(monkeypatch)
+        with pytest.raises(SimulationServiceError, match="spawns in a row refused by the world") as refused:
+            _spawn_box(a, "elsewhere", 5)
+        assert loaded == [] and "\n" not in refused.value.message
+        _spawn_box(b, "b_elsewhere", 6)  # the other client is not held back
+        deadline = time.monotonic() + 30.0
+        while True:
+            try:
+                _spawn_box(a, "elsewhere", 5)
+                break
+            except SimulationServiceError as exc:
+                assert "refused by the world" in exc.message and time.monotonic() < deadline, exc.message
+                time.sleep(0.05)
+        caller = node.entity_quota.owner("elsewhere")
+        assert caller is not None and caller != node.entity_quota.owner("target")
+        assert node.entity_quota.refusals(caller) == 0 and len(warnings) == 1  # admitted: the streak ended
     finally:
         ctx.try_shutdown()
 
