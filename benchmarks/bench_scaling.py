@@ -7,6 +7,9 @@ Prints (env steps/s, random actions, episodes autoreset as they end):
   env step; the fraction reached;
 * ``uniros.make_vec(ID, N)`` at its defaults (one worker process per core, shared memory) for
   N = 1, 8, 32, 128, with the time it took to make, to reset, and from reset to the first step;
+* for each make_vec(N) with workers, how much of the wall clock the workers spent stepping their envs
+  (``WorkerVectorEnv.worker_stats``): near 1 means they are the bound, well below 1 that they wait
+  for the exchange or for the slowest of them;
 * the same N on one composed node in this process (``vector_kwargs={"workers": 0, "num_nodes": 1}``),
   for N <= ``--inproc-max``;
 * the physics limit over all cores: ``mj_step`` alone in each worker's world (N/K robots), K
@@ -206,7 +209,16 @@ def main() -> None:
     for n in sizes:
         stepper, times = timed_make_vec(args.env, n)
         workers = getattr(stepper.env, "num_workers", 0)
+        stats = stepper.env.worker_stats() if workers else []
+        wall = time.perf_counter()
         rate = stepper.rate(args.seconds)
+        busy = ""
+        if workers:  # how much of the wall clock each worker stepped rather than waited
+            wall = time.perf_counter() - wall
+            fractions = [(b["busy_seconds"] - a["busy_seconds"]) / wall
+                         for a, b in zip(stats, stepper.env.worker_stats())]
+            busy = (f"  workers busy {np.mean(fractions):.2f} of the wall clock (min {min(fractions):.2f}, "
+                    f"max {max(fractions):.2f})")
         stepper.close()
         k = max(1, workers)
         limit = PhysicsLimit(args.env, -(-n // k), k)
@@ -221,7 +233,7 @@ def main() -> None:
         print(f"N={n:4d} workers={workers} make_vec {rate:9,.0f}/s  one node in-process "
               f"{'-' if inproc is None else f'{inproc:,.0f}/s'}  physics limit ({k} cores) {phys:9,.0f}/s  "
               f"fraction {rate / phys:.2f}  make {times['make']:.1f} s, reset {times['reset']:.2f} s, reset to "
-              f"first step {times['reset_to_first_step']:.2f} s", flush=True)
+              f"first step {times['reset_to_first_step']:.2f} s{busy}", flush=True)
     asyncs = {}
     for n in sorted({k_all, 8}):
         asyncs[n] = fetch_async(n, args.seconds)

@@ -372,6 +372,12 @@ class WorkerVectorEnv(VectorEnv):
         """Each env's render."""
         return self.call("render")
 
+    def worker_stats(self) -> list[dict[str, float]]:
+        """Per worker, since it started: ``steps`` (vector steps of its envs) and ``busy_seconds`` (time in
+        them, exchange excluded). Between two calls, busy seconds over wall seconds is how much of the
+        time a worker stepped rather than waited for its next step (benchmarks/bench_scaling.py)."""
+        return self._all([("stats",)] * self.num_workers, "stats")
+
     def node_loads(self) -> list[dict[str, Any]]:
         """Each worker's simulation nodes' loads (see ``GetNodeLoad``), in worker order."""
         return [load for loads in self._all([("loads",)] * self.num_workers, "node_loads()") for load in loads]
@@ -433,6 +439,7 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
             conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
             return
         start = stop = 0
+        steps, busy = 0, 0.0
         while True:
             try:
                 data = conn.recv_bytes()
@@ -441,11 +448,13 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
             if data == _STEP:
                 try:
                     assert shared is not None
+                    began = time.perf_counter()
                     a = shared.arrays
                     _, rew, term, trunc, info = vec.step(a["act"][start:stop].copy())
                     a["rew"][start:stop] = rew
                     a["term"][start:stop] = term
                     a["trunc"][start:stop] = trunc
+                    steps, busy = steps + 1, busy + time.perf_counter() - began
                     conn.send(("ok", info))
                 except Exception as exc:  # noqa: BLE001 - the parent raises it
                     _send_error(conn, exc)
@@ -476,6 +485,8 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
                     answer = None
                 elif cmd == "loads":
                     answer = vec.node_loads()
+                elif cmd == "stats":
+                    answer = {"steps": float(steps), "busy_seconds": busy}
                 else:
                     raise ValueError(f"unknown worker request {cmd!r}")
                 conn.send(("ok", answer))

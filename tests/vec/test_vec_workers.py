@@ -236,6 +236,22 @@ def test_make_close_cycles_do_not_grow() -> None:
     assert len(set(blocks)) == 4 and not [b for b in blocks if Path("/dev/shm", b).exists()]
 
 
+def test_worker_stats_count_the_steps_and_their_time() -> None:
+    vec = _workers_vec(ENV, 3, 2)
+    try:
+        vec.reset(seed=0)
+        assert [s["steps"] for s in vec.worker_stats()] == [0.0, 0.0]
+        began = time.perf_counter()
+        for _ in range(3):
+            vec.step(np.zeros((3, 5), np.float32))
+        wall = time.perf_counter() - began
+        stats = vec.worker_stats()
+        assert [s["steps"] for s in stats] == [3.0, 3.0]
+        assert all(0.0 < s["busy_seconds"] < wall for s in stats)
+    finally:
+        vec.close()
+
+
 def test_merge_infos_fills_what_a_worker_lacks() -> None:
     """As gymnasium's _add_info env by env: zeros / None and False masks where a worker has no key."""
     a = {"is_success": np.array([True, False]), "_is_success": np.array([True, True])}
