@@ -46,12 +46,14 @@ class GLChoice:
             ``none`` (no GL library found: camera rendering fails until one is installed).
         reason: one line saying why.
         vendors: the EGL vendor libraries found (``library_path`` of each vendor file).
+        gpu_unused: an NVIDIA GPU or its EGL vendor is there, yet rendering is not on it.
     """
 
     backend: str | None
     kind: str
     reason: str
     vendors: tuple[str, ...] = field(default=())
+    gpu_unused: bool = False
 
 
 def egl_vendors(env: Mapping[str, str] | None = None, dirs: Iterable[str] | None = None) -> list[str]:
@@ -107,16 +109,19 @@ def choose(env: Mapping[str, str], *, platform: str = sys.platform, vendors: Ite
                "10_nvidia.json; in a container add 'graphics' to NVIDIA_DRIVER_CAPABILITIES)")
     else:
         why = "no NVIDIA EGL vendor found"
+    unused = bool(nvidia) or gpu
     if found and egl:
-        return GLChoice("egl", "software", f"{why}: rendering in software with EGL ({', '.join(found)})", found)
+        return GLChoice("egl", "software", f"{why}: rendering in software with EGL ({', '.join(found)})", found,
+                        unused)
     if osmesa:
-        return GLChoice("osmesa", "software", f"{why} and no usable EGL: rendering in software with OSMesa", found)
+        return GLChoice("osmesa", "software", f"{why} and no usable EGL: rendering in software with OSMesa", found,
+                        unused)
     if not egl:
         return GLChoice(None, "none", f"{why} and no OSMesa: MuJoCo's default backend, which renders nothing "
                         "without a display; camera envs and videos fail until libegl1 (with the NVIDIA driver "
-                        "or libegl-mesa0) or libosmesa6 is installed", found)
+                        "or libegl-mesa0) or libosmesa6 is installed", found, unused)
     return GLChoice("egl", "software", f"{why}, no EGL vendor and no OSMesa: rendering will fail until one is "
-                    "installed (libegl1 and libegl-mesa0, or libosmesa6)", found)
+                    "installed (libegl1 and libegl-mesa0, or libosmesa6)", found, unused)
 
 
 def _osmesa_found() -> bool:
@@ -166,6 +171,5 @@ def log_choice_once(logger: logging.Logger) -> None:
     if _LOGGED or choice is None or choice.kind in ("user", "display"):
         return
     _LOGGED.append(True)
-    unused_gpu = choice.kind != "gpu" and ("GPU is present" in choice.reason or "NVIDIA EGL vendor (" in choice.reason)
-    level = logging.WARNING if unused_gpu or choice.kind == "none" else logging.INFO
+    level = logging.WARNING if choice.gpu_unused or choice.kind == "none" else logging.INFO
     logger.log(level, "MuJoCo renders with MUJOCO_GL=%s: %s (set MUJOCO_GL to choose)", choice.backend, choice.reason)

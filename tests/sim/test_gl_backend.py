@@ -38,7 +38,7 @@ def test_vendor_files_are_read_as_glvnd_reads_them(tmp_path):
 
 def test_nvidia_egl_means_the_gpu_else_software():
     gpu = choose(HEADLESS, platform="linux", vendors=["libEGL_mesa.so.0", "libEGL_nvidia.so.0"], gpu=True)
-    assert (gpu.backend, gpu.kind) == ("egl", "gpu") and "libEGL_nvidia.so.0" in gpu.reason
+    assert (gpu.backend, gpu.kind) == ("egl", "gpu") and "libEGL_nvidia.so.0" in gpu.reason and not gpu.gpu_unused
     mesa = choose(HEADLESS, platform="linux", vendors=["libEGL_mesa.so.0"], osmesa=True)
     assert (mesa.backend, mesa.kind) == ("egl", "software") and "no NVIDIA EGL vendor" in mesa.reason
     osmesa = choose(HEADLESS, platform="linux", vendors=[], osmesa=True)
@@ -55,6 +55,7 @@ def test_a_vendor_file_without_libegl_is_no_egl():
     nvidia = ["libEGL_nvidia.so.0"]
     osmesa = choose(HEADLESS, platform="linux", vendors=nvidia, gpu=True, egl=False, osmesa=True)
     assert (osmesa.backend, osmesa.kind) == ("osmesa", "software") and "install libegl1" in osmesa.reason
+    assert osmesa.gpu_unused  # logged as a warning
     bare = choose(HEADLESS, platform="linux", vendors=nvidia, gpu=True, egl=False)
     assert (bare.backend, bare.kind) == (None, "none") and "libegl1" in bare.reason and "libosmesa6" in bare.reason
     mesa = choose(HEADLESS, platform="linux", vendors=["libEGL_mesa.so.0"], egl=False)
