@@ -223,10 +223,18 @@ HEAVY_BOX = BOX.format(h=0.05, m=100.0)
 def attack_boxes(boxes: int = 200, unlimited: bool = False, seconds: float = 2.0,
                  refused_for: float | None = None) -> None:
     """``boxes``, or with ``refused_for`` the ``refused`` attack for that many seconds."""
-    if refused_for is not None and unlimited:
-        from multiros.sim import node_quota
+    from multiros.sim import node_quota
 
-        node_quota.REFUSALS_BEFORE_BACKOFF = 10**9  # the behaviour before the cool-down
+    threshold = node_quota.REFUSALS_BEFORE_BACKOFF
+    if refused_for is not None and unlimited:
+        node_quota.REFUSALS_BEFORE_BACKOFF = 10**9  # the behaviour before the cool-down, for this run only
+    try:
+        _attack_boxes(boxes, unlimited, seconds, refused_for)
+    finally:
+        node_quota.REFUSALS_BEFORE_BACKOFF = threshold
+
+
+def _attack_boxes(boxes: int, unlimited: bool, seconds: float, refused_for: float | None) -> None:
     endpoint = free_loopback_endpoint()
     ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
     peer: _RawPeer | None = None
