@@ -7,7 +7,7 @@ Each ID is made with ``uniros.make`` (a composed simulation node, its own) and d
 returns end-effector deltas plus a gripper command. Success is the task's: the cube within 5 cm of
 the goal at the episode's last step (Fetch's). The goal of issue 29: >= 0.8 for each arm and task.
 
-    MUJOCO_GL=egl .venv/bin/python benchmarks/bench_scripted_envs.py                 # 4 arms x 4 IDs x 30 seeds
+    MUJOCO_GL=egl .venv/bin/python benchmarks/bench_scripted_envs.py   # every arm with a gripper, 4 IDs, 30 seeds
     MUJOCO_GL=egl .venv/bin/python benchmarks/bench_scripted_envs.py --ids UR5ePushGoalSim-v0 --seeds 10
 
 The lean test of the same (``tests/tasks/test_arm_envs.py``) runs a few seeds per arm and task.
@@ -23,10 +23,13 @@ import time
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import uniros  # noqa: E402
-from rl_environments import ARMS  # noqa: E402
+from rl_environments import ARMS, ENV_IDS  # noqa: E402
 from rl_environments.manipulation_scripted import run_episode, scripted_policy  # noqa: E402
 
-DEFAULT_IDS = [f"{arm}{task}Sim-v0" for arm in ("RX200", *ARMS) for task in ("Push", "PushGoal", "PnP", "PnPGoal")]
+# every registered arm with a gripper (the shipped ones and those of UNIROS_ARMS): an arm without one has no
+# push or pick-and-place IDs
+DEFAULT_IDS = [env_id for arm in ARMS for task in ("Push", "PushGoal", "PnP", "PnPGoal")
+               if (env_id := f"{arm}{task}Sim-v0") in ENV_IDS]
 
 
 def main() -> None:

@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 
 Action = np.ndarray
+_CARRY_START = 0.3  # the first carry step's speed, a fraction of the action's full scale (carry_ramp)
+FAST_EE_STEP = 0.03  # m per step: arms whose end effector moves more than this get a carry ramp
+FAST_CARRY_RAMP = 10  # steps
 
 
 def _parts(obs: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -55,15 +58,22 @@ class ScriptedPickAndPlace:
         half: the object's half size.
         closed: the finger position of the closed gripper (the task's ``gripper_min``): fingers
             stopped short of it hold the object.
+        carry_ramp: steps over which the carry speeds up from 0.3 of its speed to all of it (0: none).
+            A held cube slips along the pads when the carry starts at full speed on an arm whose end
+            effector moves 4 cm a step (1 m/s): :func:`scripted_policy` sets it for such arms.
     """
 
-    def __init__(self, ee_delta_coeff: float = 0.02, half: float = 0.015, closed: float = 0.015) -> None:
-        self.coeff, self.half, self.closed = ee_delta_coeff, half, closed
+    def __init__(self, ee_delta_coeff: float = 0.02, half: float = 0.015, closed: float = 0.015,
+                 carry_ramp: int = 0) -> None:
+        if carry_ramp < 0:
+            raise ValueError(f"carry_ramp must be >= 0 steps, got {carry_ramp}")
+        self.coeff, self.half, self.closed, self.carry_ramp = ee_delta_coeff, half, closed, carry_ramp
         self.reset()
 
     def reset(self) -> None:
         """Forget the grasp state (call at each episode start)."""
         self._closing = 0
+        self._carried = 0  # steps of the current carry
 
     def __call__(self, obs: Any) -> Action:
         ee, obj, fingers, goal = _parts(obs)
@@ -74,7 +84,13 @@ class ScriptedPickAndPlace:
         if held:
             # carry: the object sits ~obj-ee below the EE; move so the object reaches the goal
             target = goal + (ee - obj)
-            return np.r_[_move(ee, target, self.coeff, gain=0.8), -1.0].astype(np.float32)
+            move = _move(ee, target, self.coeff, gain=0.8)
+            self._carried += 1
+            if self._carried <= self.carry_ramp:
+                cap = _CARRY_START + (1.0 - _CARRY_START) * (self._carried - 1) / self.carry_ramp
+                move *= min(1.0, cap / max(float(np.abs(move).max()), 1e-9))
+            return np.r_[move, -1.0].astype(np.float32)
+        self._carried = 0
         if self._closing > 0 or (xy_err < 0.006 and abs(ee[2] - grasp_z) < 0.006):
             self._closing += 1  # close on it and wait for the fingers to squeeze
             if self._closing > 12 and not held:  # missed: open and try again
@@ -128,7 +144,8 @@ def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace | ScriptedR
     if getattr(task, "task", None) not in ("push", "pnp"):
         return ScriptedReach(ee_delta_coeff=task.ee_delta_coeff)
     cls = ScriptedPush if task.task == "push" else ScriptedPickAndPlace
-    return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0])
+    ramp = FAST_CARRY_RAMP if task.ee_delta_coeff > FAST_EE_STEP else 0
+    return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0], carry_ramp=ramp)
 
 
 def run_episode(env: Any, policy: Callable[[Any], Action], seed: int | None = None,
