@@ -4,7 +4,9 @@ For robots of 100, 250 and 499 actuated joints (500 links: the node's limit, ``M
 base) beside an RX200-sized arm: ``World.spawn`` and ``World.delete`` (what SpawnEntity and
 DeleteEntity run under the node's lock), and, side by side, the deletion order the node used before
 (every actuator deleted one by one, then the body) on an ``MjSpec`` of the same size. Deleting the body
-first lets MuJoCo take the joints' actuators with it; one by one each deletion re-scans the spec.
+first lets MuJoCo take the joints' actuators with it; one by one each deletion re-scans the spec. And what the
+node's SpawnEntity holds the lock for now (``multiros.sim.world_prepare``: a snapshot of the world, then the
+commit) beside what it does without the lock (compile and admission trial), for the same robot.
 
     python benchmarks/bench_entity_delete.py [--joints 100 250 499] [--old-max 500]
 
@@ -20,6 +22,7 @@ from pathlib import Path
 
 import mujoco
 
+from multiros.sim.description import load_description
 from multiros.sim.world import World
 
 
@@ -62,17 +65,29 @@ def main() -> None:
     world = World()
     world.spawn("arm", "package://rx200_description/urdf/rx200.urdf.xacro", xacro_args={"robot_name": "rx200"})
     with tempfile.TemporaryDirectory() as tmp:
-        print("joints | World.spawn s | World.delete s | former order (actuators one by one) s")
+        print("joints | World.spawn s | World.delete s | former order (actuators one by one) s | "
+              "SpawnEntity's prepared spawn: under the lock s (snapshot + commit) | beside it s (compile, trial)")
         for n in opts.joints:
             path = Path(tmp) / f"wide{n}.urdf"
             path.write_text(wide_urdf(n))
+            pose = ([2, 0, 0], [1, 0, 0, 0])
             t0 = time.perf_counter()
-            world.spawn(f"wide{n}", str(path), pose=([2, 0, 0], [1, 0, 0, 0]))
+            world.spawn(f"wide{n}", str(path), pose=pose)
             t1 = time.perf_counter()
             world.delete(f"wide{n}")
             t2 = time.perf_counter()
             old = f"{old_order_seconds(n):.3f}" if n <= opts.old_max else "-"
-            print(f"{n} | {t1 - t0:.2f} | {t2 - t1:.3f} | {old}")
+            desc = load_description(str(path), index=world.index, mesh_cache=world.mesh_cache)
+            t3 = time.perf_counter()
+            snapshot = world.spawn_snapshot(f"wide{n}")
+            t4 = time.perf_counter()
+            prepared = world.prepare_spawn(snapshot, desc, pose=pose)
+            t5 = time.perf_counter()
+            if prepared is None or world.commit_spawn(prepared) is None:
+                raise RuntimeError("the prepared spawn did not commit")
+            t6 = time.perf_counter()
+            world.delete(f"wide{n}")
+            print(f"{n} | {t1 - t0:.2f} | {t2 - t1:.3f} | {old} | {(t4 - t3) + (t6 - t5):.3f} | {t5 - t4:.2f}")
     world.close()
 
 

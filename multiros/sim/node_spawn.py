@@ -3,10 +3,12 @@
 :func:`spawn_entity` validates the request (resource, namespace, pose, sizes), splits the URI's
 query into xacro arguments and the node's own options (``__controllers``,
 ``__controllers_file``), loads the description outside the world under the node's
-:class:`~multiros.sim.description.SourcePolicy` and limits, and only then spawns it under the
-node's lock and attaches the robot's ROS interfaces. The node's entity limits and the caller's
-quota (:mod:`multiros.sim.node_quota`) are checked before loading, after loading and under the lock
-before the world compiles anything; a client whose spawns the world keeps refusing waits out a
+:class:`~multiros.sim.description.SourcePolicy` and limits, compiles and admits it beside the world
+(:mod:`multiros.sim.world_prepare`: the others step meanwhile), commits it under the node's lock (or,
+when the world changed structure meanwhile, spawns and admits it under the lock as before) and
+attaches the robot's ROS interfaces. The node's entity limits and the caller's quota
+(:mod:`multiros.sim.node_quota`) are checked before loading, after loading, and under the lock before
+the compile and again at the commit; a client whose spawns the world keeps refusing waits out a
 cool-down before its next one is loaded. :func:`entity_name` picks the name (``allow_renaming``).
 """
 
@@ -115,34 +117,33 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
         name = entity_name(node.world, request.name, request.allow_renaming, response)
         if name is None:
             return response
-        try:
-            info = node.world.spawn(
-                name,
-                desc,
-                pose=(position, quat),
-                namespace=namespace or None,
-                controllers=controllers,
-                controllers_yaml=controllers_yaml,
-            )
-        except DescriptionError as exc:
-            code = response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR
-            fail(res, code, str(exc))
-            return _world_refused(node, quota, caller, response)
-        except EntityError as exc:
-            fail(res, response.NAME_INVALID, str(exc))
+        snapshot = node.world.spawn_snapshot(name)
+    spawn = {"pose": (position, quat), "namespace": namespace or None, "controllers": controllers,
+             "controllers_yaml": controllers_yaml}
+    try:  # compiled and admitted beside the world, the others stepping meanwhile (multiros.sim.world_prepare)
+        prepared = node.world.prepare_spawn(snapshot, desc, limits=limits, **spawn)
+    except (DescriptionError, EntityError, ControllerError, ValueError, SpawnRefusedError) as exc:
+        return _spawn_failed(node, quota, caller, response, name, exc)
+    with node.lock:
+        if quota is not None and _refused(node, quota, caller, robot, res):
             return response
-        except ControllerError as exc:
-            fail(res, FAILED, f"controllers of {name!r}: {exc}")
-            return _world_refused(node, quota, caller, response)
-        except ValueError as exc:
-            fail(res, response.INVALID_POSE, str(exc))
-            return _world_refused(node, quota, caller, response)
-        try:  # before any step: refused, it never touched the others
-            node.world.admit(info.name, limits)
-        except SpawnRefusedError as exc:
-            node.world.delete(info.name)
-            fail(res, response.RESOURCE_PARSE_ERROR if exc.reason == "unstable" else response.INVALID_POSE, str(exc))
-            return _world_refused(node, quota, caller, response)
+        try:
+            info = node.world.commit_spawn(prepared) if prepared is not None else None
+        except (DescriptionError, EntityError, ControllerError, ValueError) as exc:  # as in the trial: not seen
+            return _spawn_failed(node, quota, caller, response, name, exc)
+        if info is None:  # the world changed structure meanwhile: compile and admit under the lock
+            name = entity_name(node.world, request.name, request.allow_renaming, response)
+            if name is None:
+                return response
+            try:
+                info = node.world.spawn(name, desc, **spawn)
+            except (DescriptionError, EntityError, ControllerError, ValueError) as exc:
+                return _spawn_failed(node, quota, caller, response, name, exc)
+            try:  # before any step: refused, it never touched the others
+                node.world.admit(info.name, limits)
+            except SpawnRefusedError as exc:
+                node.world.delete(info.name)
+                return _spawn_failed(node, quota, caller, response, name, exc)
         try:
             node._attach_robot(info.name)
         except Exception as exc:
@@ -155,6 +156,25 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
     response.entity_name = info.name
     ok(res)
     return response
+
+
+def _spawn_failed(node: SimulationNode, quota: EntityQuota | None, caller: str | None, response: Any, name: str,
+                  exc: Exception) -> Any:
+    """The reply to a spawn the world could not take (the world is as before); all but a name
+    conflict count as refusals by the world against ``caller``."""
+    res = response.result
+    if isinstance(exc, EntityError):
+        fail(res, response.NAME_INVALID, str(exc))
+        return response
+    if isinstance(exc, DescriptionError):
+        fail(res, response.MISSING_ASSETS if exc.missing_assets else response.RESOURCE_PARSE_ERROR, str(exc))
+    elif isinstance(exc, ControllerError):
+        fail(res, FAILED, f"controllers of {name!r}: {exc}")
+    elif isinstance(exc, SpawnRefusedError):
+        fail(res, response.RESOURCE_PARSE_ERROR if exc.reason == "unstable" else response.INVALID_POSE, str(exc))
+    else:
+        fail(res, response.INVALID_POSE, str(exc))
+    return _world_refused(node, quota, caller, response)
 
 
 def _world_refused(node: SimulationNode, quota: EntityQuota | None, caller: str | None, response: Any) -> Any:

@@ -16,6 +16,8 @@ The world is split over a few modules, all re-exported here:
 * :mod:`multiros.sim.world_step`: ``time``, ``step`` and divergence recovery (a mixin of World);
 * :mod:`multiros.sim.world_admission`: ``admit``, the checks a spawned entity passes before it
   shares the world (a mixin of World);
+* :mod:`multiros.sim.world_prepare`: a spawn compiled and admitted beside the world and committed
+  under the caller's lock (``spawn_snapshot``, ``prepare_spawn``, ``commit_spawn``; a mixin of World);
 * :mod:`multiros.sim.frames`: :class:`FrameSet`;
 * :mod:`multiros.sim.realtime`: :class:`RealTimeRunner`.
 
@@ -58,6 +60,7 @@ from multiros.sim.world_model import (
     set_root_state,
     write_actuators,
 )
+from multiros.sim.world_prepare import WorldSpawnPreparation
 from multiros.sim.world_step import WorldStepping
 from multiros.sim.world_types import (
     EntityCategory,
@@ -87,7 +90,7 @@ __all__ = [
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
-class World(WorldStepping, WorldAdmission):
+class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
     """A MuJoCo world holding robots and objects, each an entity with a name and a namespace.
 
     ``time`` and ``step`` come from :class:`~multiros.sim.world_step.WorldStepping`, ``admit`` from
@@ -117,12 +120,14 @@ class World(WorldStepping, WorldAdmission):
         self._varying: tuple[EntityRecord, ...] = ()
         self._closed = False
         self.binding = 0  # counts the id bindings (one per compile): ids cached against it stay valid
+        self._generation = 0  # counts changes of the model's structure or options (see world_prepare)
         self._bind()
 
     # ------------------------------------------------------------------ binding (after each compile)
     def _bind(self) -> None:
         m = self._model
         self.binding += 1
+        self._generation += 1
         for ent in self._entities.values():
             self._bind_entity(ent)
         self._varying = tuple(e for e in self._entities.values() if e.cm is not None and e.cm.time_varying)
@@ -190,11 +195,31 @@ class World(WorldStepping, WorldAdmission):
                 joint positions outside limits.
             ControllerError: the controllers YAML or list is invalid.
         """
-        if not isinstance(name, str) or not _NAME_RE.match(name):
-            raise EntityError(f"entity name {name!r} is invalid; use letters, digits and '_', not starting "
-                              f"with a digit")
-        if name in self._entities:
-            raise EntityError(f"entity '{name}' already exists; delete it first or pick another name")
+        ent = self._new_record(name, description, pose=pose, namespace=namespace, category=category,
+                               xacro_args=xacro_args, floating=floating, joint_positions=joint_positions,
+                               initial=initial)
+        gravcomp = self.options.gravity_compensation if gravity_compensation is None else gravity_compensation
+        added = add_to_spec(self._spec, ent, self._gravcomp(ent, gravcomp))
+        self._entities[name] = ent
+        self._removed.pop(name, None)
+        try:
+            self._recompile()
+        except Exception as exc:
+            del self._entities[name]
+            remove_from_spec(self._spec, ent, added)
+            self._recompile()
+            raise DescriptionError(f"spawn '{name}': the model does not compile: {exc}",
+                                   source=ent.desc.source) from exc
+        return self._finish_spawn(ent, controllers, controllers_yaml, joint_positions, gravcomp)
+
+    def _new_record(self, name: str, description: str | Path | RobotDescription, *,
+                    pose: tuple[Sequence[float], Sequence[float]] | None, namespace: str | None,
+                    category: EntityCategory | None, xacro_args: Mapping[str, str] | None, floating: bool | None,
+                    joint_positions: Mapping[str, float] | None, initial: bool,
+                    taken: Mapping[str, object] | None = None) -> EntityRecord:
+        """The record of an entity to spawn (name, pose and description checked; nothing added yet);
+        ``taken``: the names in use (default: the world's entities)."""
+        self._check_new_name(name, taken)
         pos, quat = check_pose(*(pose if pose is not None else (None, None)), what=f"spawn '{name}' pose")
         pos = np.zeros(3) if pos is None else pos
         quat = np.array([1.0, 0.0, 0.0, 0.0]) if quat is None else quat
@@ -214,18 +239,26 @@ class World(WorldStepping, WorldAdmission):
                           frames=tuple(desc.links) + tuple(s.name for s in desc.spec.sites
                                                            if s.name not in desc.links),
                           controllers_yaml=desc.controllers_yaml, description=desc.text)
-        ent = EntityRecord(info, desc, (pos, quat), floating, initial_q)
-        gravcomp = self.options.gravity_compensation if gravity_compensation is None else gravity_compensation
-        added = add_to_spec(self._spec, ent, gravcomp and category == EntityCategory.ROBOT and not floating)
-        self._entities[name] = ent
-        self._removed.pop(name, None)
-        try:
-            self._recompile()
-        except Exception as exc:
-            del self._entities[name]
-            remove_from_spec(self._spec, ent, added)
-            self._recompile()
-            raise DescriptionError(f"spawn '{name}': the model does not compile: {exc}", source=desc.source) from exc
+        return EntityRecord(info, desc, (pos, quat), floating, initial_q)
+
+    def _check_new_name(self, name: str, taken: Mapping[str, object] | None = None) -> None:
+        if not isinstance(name, str) or not _NAME_RE.match(name):
+            raise EntityError(f"entity name {name!r} is invalid; use letters, digits and '_', not starting "
+                              f"with a digit")
+        if name in (self._entities if taken is None else taken):
+            raise EntityError(f"entity '{name}' already exists; delete it first or pick another name")
+
+    @staticmethod
+    def _gravcomp(ent: EntityRecord, requested: bool) -> bool:
+        """Whether the entity's bodies are gravity compensated: asked for, and a robot on a fixed base."""
+        return bool(requested and ent.info.category == EntityCategory.ROBOT and not ent.floating)
+
+    def _finish_spawn(self, ent: EntityRecord, controllers: Sequence[str] | None,
+                      controllers_yaml: str | Path | Mapping | None, joint_positions: Mapping[str, float] | None,
+                      gravcomp: bool) -> EntityInfo:
+        """After the model holding the new entity is the world's: its spawn state, its controllers,
+        its recipe (for a reset that spawns the launched world again)."""
+        name, category = ent.name, ent.info.category
         try:
             apply_initial(self._model, self._data, ent)
             if category == EntityCategory.ROBOT and ent.actuated:
@@ -235,15 +268,15 @@ class World(WorldStepping, WorldAdmission):
         except Exception:
             self.delete(name)
             raise
-        ent.recipe = {"description": desc, "pose": (pos.copy(), quat.copy()), "namespace": info.namespace,
-                      "category": category, "floating": floating,
+        ent.recipe = {"description": ent.desc, "pose": (ent.spawn_pos.copy(), ent.spawn_quat.copy()),
+                      "namespace": ent.info.namespace, "category": category, "floating": ent.floating,
                       "joint_positions": dict(joint_positions) if joint_positions else None,
                       "controllers": list(controllers) if controllers is not None else None,
                       "controllers_yaml": controllers_yaml, "gravity_compensation": bool(gravcomp)}
-        if initial:
+        if ent.info.initial:
             self._launched.pop(name, None)
             self._launched[name] = ent.recipe
-        return info
+        return ent.info
 
     def mark_launched(self, names: Sequence[str] | None = None) -> tuple[str, ...]:
         """Make entities part of the launched world (default: every entity present now).
@@ -270,6 +303,10 @@ class World(WorldStepping, WorldAdmission):
 
     def _recompile(self) -> None:
         self._model, self._data = self._spec.recompile(self._model, self._data)
+        self._rebind()
+
+    def _rebind(self) -> None:
+        """After the world's model was replaced: ids bound again, then the change callbacks."""
         self._bind()
         for callback in list(self._callbacks):
             callback()
@@ -635,6 +672,7 @@ class World(WorldStepping, WorldAdmission):
             raise ValueError(f"timestep must be a finite number > 0, got {value}")
         self._model.opt.timestep = value
         self._spec.option.timestep = value
+        self._generation += 1  # a spawn prepared before compiled the old one
         for ent in self._entities.values():
             self._update_period(ent)
 
@@ -648,6 +686,7 @@ class World(WorldStepping, WorldAdmission):
         g = check_vec3(value, "gravity")
         self._model.opt.gravity[:] = g
         self._spec.option.gravity = list(g)
+        self._generation += 1
 
     # ------------------------------------------------------------------ access for render/benchmarks
     @property
