@@ -22,12 +22,17 @@ Each attack runs against a victim RX200 holding its initial pose and prints what
   many spawns the world refused, how many the node's cool-down refused before loading them
   (``multiros.sim.node_quota``), and the victim's latency alone and meanwhile. ``--unlimited-too``
   runs it again with the cool-down off.
+* ``cameras``: a neighbour (its own Zenoh session) spawns a rig of 8 camera sensors of 1920 x 1080 (the
+  node's pixel limit, ``MAX_CAMERA_PIXELS``) above the victim and subscribes to every image topic: the
+  victim's ``StepRobot(10)`` latency alone and while the images are rendered and sent, and how many
+  images a second the neighbour gets (the node renders on a thread of its own, at a capped rate, holding
+  its lock only to copy each camera's scene). Needs a GL backend (``MUJOCO_GL=egl``).
 * ``intruder``: an owner's ``sim_mode="process"`` node; another local process finds the private
   router's port (and every port the owner and its child listen on, as ``ss -ltnp`` shows them)
   and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
   ``DeleteEntity(rx200)``: answered or refused?
 
-    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood boxes intruder]
+    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood boxes cameras intruder]
                                                  [--boxes 200] [--seconds 10] [--unlimited-too]
 """
 
@@ -388,9 +393,98 @@ def attack_intruder() -> None:
         conn.close()
 
 
+def _camera_rig(sensors: int, width: int, height: int) -> str:
+    """A fixed mount with ``sensors`` camera sensors of ``width`` x ``height``, looking down at the floor."""
+    cams = "".join(
+        f'<sensor type="camera" name="cam{i}"><pose>0 0 0 0 1.5708 0</pose><camera><horizontal_fov>1.2'
+        f"</horizontal_fov><image><width>{width}</width><height>{height}</height></image></camera></sensor>"
+        for i in range(sensors))
+    return ('<robot name="rig"><link name="world"/><link name="mount"/><joint name="fix" type="fixed">'
+            '<parent link="world"/><child link="mount"/><origin xyz="0 0 1.5"/></joint>'
+            f'<gazebo reference="mount">{cams}</gazebo></robot>')
+
+
+def attack_cameras(sensors: int = 8, width: int = 1920, height: int = 1080, seconds: float = 4.0) -> None:
+    """A neighbour (its own Zenoh session) spawns a rig of ``sensors`` 1080p cameras above the victim
+    and subscribes to every image topic: the victim's StepRobot(10) alone and while they are served."""
+    from multiros.ros.executors import SingleThreadedExecutor
+    from multiros.ros.interfaces import get_message
+
+    endpoint = free_loopback_endpoint()
+    ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
+    others: list[Context] = []
+    try:
+        sim = compose("mujoco_sim", context=ctx, spin_topics=False)
+        victim_ctx, neighbour_ctx = (Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none",
+                                             router_endpoint=endpoint).init() for _ in range(2))
+        others += [victim_ctx, neighbour_ctx]
+        client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
+        client.wait_until_ready(20.0)
+        client.spawn_entity("rx200", uri=RX200)
+        client.step_robot("rx200", {ARM: HOLD}, 200)
+
+        def victim_latencies(duration: float) -> np.ndarray:
+            lat, end = [], time.monotonic() + duration
+            while time.monotonic() < end:
+                t = time.perf_counter()
+                client.step_robot("rx200", {ARM: HOLD}, 10)
+                lat.append(time.perf_counter() - t)
+            return np.array(lat)
+
+        alone = victim_latencies(seconds)
+        neighbour = Node("neighbour", context=neighbour_ctx)
+        SimulationClient(neighbour, "/mujoco_sim", timeout_sec=120.0).spawn_entity(
+            "rig", resource_string=_camera_rig(sensors, width, height), position=(0.0, 0.0, 0.0))
+        published = {spec.camera for spec in sim.cameras.specs()}  # within the node's pixel limit
+        served = [i for i in range(sensors) if f"rig/cam{i}" in published]
+        image = get_message("sensor_msgs/msg/Image")
+        frames = [0] * sensors
+
+        def count(i: int) -> Callable[[Any], None]:
+            def received(_msg: Any) -> None:
+                frames[i] += 1
+            return received
+
+        subs = [neighbour.create_subscription(image, f"/rig/cam{i}/image_raw", count(i), 1) for i in range(sensors)]
+        executor = SingleThreadedExecutor(context=neighbour_ctx)
+        executor.add_node(neighbour)
+        stop = threading.Event()
+
+        def spin() -> None:  # the neighbour takes its images as they come
+            while not stop.is_set():
+                executor.spin_once(timeout_sec=0.1)
+
+        spinner = threading.Thread(target=spin, daemon=True)
+        spinner.start()
+        deadline = time.monotonic() + 180.0
+        while min(frames[i] for i in served) == 0:  # every published camera delivered (the victim steps)
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"not every camera delivered an image within 180 s: {frames}")
+            client.step_robot("rx200", {ARM: HOLD}, 10)
+        start = sum(frames)
+        busy = victim_latencies(seconds)
+        rate = (sum(frames) - start) / seconds
+        stop.set()
+        spinner.join(10.0)
+        executor.remove_node(neighbour)
+        for sub in subs:
+            neighbour.destroy_subscription(sub)
+        a, b = np.median(alone), np.median(busy)
+        print(f"cameras: {sensors} subscribed {width}x{height} sensors of a neighbour's rig, {len(served)} published "
+              f"(MAX_CAMERA_PIXELS counts the victim's cameras too), {rate:.1f} images/s delivered in all; "
+              f"victim StepRobot(10) alone: median {a * 1e3:.2f} ms, p95 "
+              f"{np.percentile(alone, 95) * 1e3:.2f} ms; while they are served: median {b * 1e3:.2f} ms "
+              f"({b / a:.1f}x), p95 {np.percentile(busy, 95) * 1e3:.2f} ms, {len(busy)} calls")
+        client.close()
+    finally:
+        for other in others:
+            other.try_shutdown()
+        ctx.try_shutdown()
+
+
 ATTACKS = {"stiff": attack_stiff, "stiff_late": lambda: attack_stiff(late=True), "overlap": attack_overlap,
            "drop": attack_drop, "flood": attack_flood, "boxes": attack_boxes,
-           "refused": lambda: attack_boxes(refused_for=10.0), "intruder": attack_intruder}
+           "refused": lambda: attack_boxes(refused_for=10.0), "intruder": attack_intruder, "cameras": attack_cameras}
 
 
 def main() -> None:
