@@ -46,14 +46,13 @@ from multiros.sim.packages import PackageIndex, default_index
 from multiros.sim.realtime import RealTimeRunner
 from multiros.sim.world_admission import WorldAdmission
 from multiros.sim.world_model import (
-    DEFAULT_CONTROLLERS,
     add_to_spec,
     apply_initial,
     base_spec,
     bind_entity_ids,
     geom_bounds,
     initial_joint_positions,
-    make_hardware,
+    make_controller_manager,
     read_state,
     remove_from_spec,
     root_state,
@@ -195,6 +194,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
                 joint positions outside limits.
             ControllerError: the controllers YAML or list is invalid.
         """
+        self._check_new_name(name)
         ent = self._new_record(name, description, pose=pose, namespace=namespace, category=category,
                                xacro_args=xacro_args, floating=floating, joint_positions=joint_positions,
                                initial=initial)
@@ -215,11 +215,9 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
     def _new_record(self, name: str, description: str | Path | RobotDescription, *,
                     pose: tuple[Sequence[float], Sequence[float]] | None, namespace: str | None,
                     category: EntityCategory | None, xacro_args: Mapping[str, str] | None, floating: bool | None,
-                    joint_positions: Mapping[str, float] | None, initial: bool,
-                    taken: Mapping[str, object] | None = None) -> EntityRecord:
-        """The record of an entity to spawn (name, pose and description checked; nothing added yet);
-        ``taken``: the names in use (default: the world's entities)."""
-        self._check_new_name(name, taken)
+                    joint_positions: Mapping[str, float] | None, initial: bool) -> EntityRecord:
+        """The record of an entity to spawn, its name already checked (pose and description checked
+        here; nothing added yet)."""
         pos, quat = check_pose(*(pose if pose is not None else (None, None)), what=f"spawn '{name}' pose")
         pos = np.zeros(3) if pos is None else pos
         quat = np.array([1.0, 0.0, 0.0, 0.0]) if quat is None else quat
@@ -241,11 +239,11 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
                           controllers_yaml=desc.controllers_yaml, description=desc.text)
         return EntityRecord(info, desc, (pos, quat), floating, initial_q)
 
-    def _check_new_name(self, name: str, taken: Mapping[str, object] | None = None) -> None:
+    def _check_new_name(self, name: str) -> None:
         if not isinstance(name, str) or not _NAME_RE.match(name):
             raise EntityError(f"entity name {name!r} is invalid; use letters, digits and '_', not starting "
                               f"with a digit")
-        if name in (self._entities if taken is None else taken):
+        if name in self._entities:
             raise EntityError(f"entity '{name}' already exists; delete it first or pick another name")
 
     @staticmethod
@@ -314,15 +312,11 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
     def _setup_controllers(self, ent: EntityRecord, controllers: Sequence[str] | None,
                            config: str | Path | Mapping | None) -> None:
         d = self._data
-        ent.hw = make_hardware(self._model, d, ent)
-        read_state(d, ent)
-        if config is None:
-            config = ent.desc.controllers_yaml if ent.desc.controllers_yaml is not None else DEFAULT_CONTROLLERS
-        ent.cm = ControllerManager(ent.hw, config)
-        ent.cm.refresh_state = lambda: read_state(self._data, ent)
-        ent.cm.on_change = lambda: self._controllers_changed(ent)
+        cm = make_controller_manager(self._model, d, ent, config)
+        cm.refresh_state = lambda: read_state(self._data, ent)
+        cm.on_change = lambda: self._controllers_changed(ent)
         self._update_period(ent)
-        ent.cm.spawn(controllers, time=d.time)
+        cm.spawn(controllers, time=d.time)
         ent.js = JointState(ent.info.joint_names, np.zeros(len(ent.info.joint_names)),
                             np.zeros(len(ent.info.joint_names)), np.zeros(len(ent.info.joint_names)))
         write_actuators(self._model, self._data, ent)

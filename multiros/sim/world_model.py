@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from multiros.sim.controllers import JointMode, RobotHardware
+from multiros.sim.controllers import ControllerManager, JointMode, RobotHardware
 from multiros.sim.description import RobotDescription
 from multiros.sim.errors import EntityError
 from multiros.sim.world_types import EntityCategory, EntityRecord, EntityState, WorldOptions, check_vec3
@@ -231,6 +232,19 @@ def make_hardware(m: mujoco.MjModel, d: mujoco.MjData, ent: EntityRecord) -> Rob
     kp, kd = mass * _SERVO_WN ** 2, 2.0 * mass * _SERVO_WN
     kv = mass * _VELOCITY_GAIN + 20.0 * damping  # stiff enough to dominate joint damping/friction
     return RobotHardware(ent.actuated, lower, upper, effort, velocity, kp, kd, kv=kv)
+
+
+def make_controller_manager(m: mujoco.MjModel, d: mujoco.MjData, ent: EntityRecord,
+                            config: str | Path | Mapping | None) -> ControllerManager:
+    """Give a robot its hardware view (at the current pose) and a controller manager over it (``config``:
+    a ros2_control YAML; default the description's, else :data:`DEFAULT_CONTROLLERS`), returned too;
+    no controller spawned yet."""
+    ent.hw = make_hardware(m, d, ent)
+    read_state(d, ent)
+    if config is None:
+        config = ent.desc.controllers_yaml if ent.desc.controllers_yaml is not None else DEFAULT_CONTROLLERS
+    ent.cm = ControllerManager(ent.hw, config)
+    return ent.cm
 
 
 def read_state(d: mujoco.MjData, ent: EntityRecord) -> None:

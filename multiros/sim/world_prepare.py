@@ -40,18 +40,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from multiros.sim.controllers import ControllerManager
 from multiros.sim.description import RobotDescription
 from multiros.sim.errors import DescriptionError
 from multiros.sim.limits import DescriptionLimits
 from multiros.sim.world_admission import WorldAdmission
 from multiros.sim.world_model import (
-    DEFAULT_CONTROLLERS,
     add_to_spec,
     apply_initial,
     bind_entity_ids,
-    make_hardware,
-    read_state,
+    make_controller_manager,
     write_actuators,
 )
 from multiros.sim.world_types import EntityCategory, EntityInfo, EntityRecord, WorldOptions
@@ -144,8 +141,7 @@ class PreparedSpawn:
     ent: EntityRecord
     controllers: Sequence[str] | None
     controllers_yaml: str | Path | Mapping | None
-    joint_positions: Mapping[str, float] | None
-    gravcomp: bool
+    gravcomp: bool  # gravity compensation as asked for (World.spawn's recipe)
 
 
 class _Candidate(WorldAdmission):
@@ -198,8 +194,8 @@ class WorldSpawnPreparation:
             what ``World.spawn`` and ``World.admit`` raise; the world is not touched.
         """
         ent = self._new_record(snapshot.name, description, pose=pose, namespace=namespace,
-                               category=None, xacro_args=None, floating=None, joint_positions=None, initial=False,
-                               taken=snapshot.entities)
+                               category=None, xacro_args=None, floating=None, joint_positions=None,
+                               initial=False)  # the name: checked by spawn_snapshot
         requested = bool(self.options.gravity_compensation)
         spec = snapshot.spec
         add_to_spec(spec, ent, self._gravcomp(ent, requested))
@@ -221,7 +217,7 @@ class WorldSpawnPreparation:
             _trial_controllers(model, data, ent, controllers, controllers_yaml)
         _Candidate(model, data, {**snapshot.entities, ent.name: ent}).admit(ent.name, limits)
         return PreparedSpawn(snapshot.generation, spec, model, data, before, ent, controllers,
-                             controllers_yaml, None, requested)
+                             controllers_yaml, requested)
 
     def commit_spawn(self, prepared: PreparedSpawn) -> EntityInfo | None:
         """Under the lock: the candidate becomes the world, the others' state as it is now. None
@@ -236,17 +232,12 @@ class WorldSpawnPreparation:
         self._removed.pop(ent.name, None)
         self._rebind()
         return self._finish_spawn(ent, prepared.controllers, prepared.controllers_yaml,
-                                  prepared.joint_positions, prepared.gravcomp)
+                                  None, prepared.gravcomp)
 
 
 def _trial_controllers(m: mujoco.MjModel, d: mujoco.MjData, ent: EntityRecord, controllers: Sequence[str] | None,
                        config: str | Path | Mapping | None) -> None:
-    """The newcomer's controllers in the candidate world, holding its spawn pose for the trial (as
-    ``World._setup_controllers`` makes them in the world at the commit)."""
-    ent.hw = make_hardware(m, d, ent)
-    read_state(d, ent)
-    if config is None:
-        config = ent.desc.controllers_yaml if ent.desc.controllers_yaml is not None else DEFAULT_CONTROLLERS
-    ent.cm = ControllerManager(ent.hw, config)
-    ent.cm.spawn(controllers, time=d.time)
+    """The newcomer's controllers in the candidate world, holding its spawn pose for the trial (the
+    world's are made again at the commit, by ``World._setup_controllers``)."""
+    make_controller_manager(m, d, ent, config).spawn(controllers, time=d.time)
     write_actuators(m, d, ent)
