@@ -18,7 +18,7 @@ Each attack runs against a victim RX200 holding its initial pose and prints what
   median / p95 latency alone, while the neighbour spawns, and after, with the ratios to alone.
   ``--unlimited-too`` runs it again on a node without quotas (the behaviour before them).
 * ``refused``: the same neighbour spawns a 100 kg box through the victim's forearm in a loop for
-  ``--seconds`` (each one compiled and tried under the node's lock, then refused at admission): how
+  ``--seconds`` (each one compiled and tried beside the node's lock, then refused at admission): how
   many spawns the world refused, how many the node's cool-down refused before loading them
   (``multiros.sim.node_quota``), and the victim's latency alone and meanwhile. ``--unlimited-too``
   runs it again with the cool-down off.
@@ -68,13 +68,37 @@ BOX = """<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="
 DOMAIN = 57
 
 
-def _victim(ctx: Context, **node_kwargs: object) -> tuple[object, SimulationClient]:
+def _victim(ctx: Context, client_ctx: Context | None = None, timeout: float = 60.0,
+            **node_kwargs: object) -> tuple[Any, SimulationClient]:
+    """A node composed on ``ctx`` and the victim's client (on ``client_ctx``, a session of its own, or
+    ``ctx``), its RX200 spawned and settled at its initial pose."""
     sim = compose("mujoco_sim", context=ctx, spin_topics=False, **node_kwargs)
-    client = SimulationClient(Node("victim", context=ctx), "/mujoco_sim", timeout_sec=60.0)
+    client = SimulationClient(Node("victim", context=client_ctx or ctx), "/mujoco_sim", timeout_sec=timeout)
     client.wait_until_ready(20.0)
     client.spawn_entity("rx200", uri=RX200)
     client.step_robot("rx200", {ARM: HOLD}, 200)
     return sim, client
+
+
+def _victim_latencies(client: SimulationClient, until: Callable[[], bool]) -> np.ndarray:
+    """Seconds per victim ``StepRobot(10)`` call (the arm held), called back to back until ``until()``."""
+    lat = []
+    while not until():
+        t = time.perf_counter()
+        client.step_robot("rx200", {ARM: HOLD}, 10)
+        lat.append(time.perf_counter() - t)
+    return np.array(lat)
+
+
+def _for_seconds(duration: float) -> Callable[[], bool]:
+    """``until`` for :func:`_victim_latencies`: true ``duration`` seconds from now."""
+    end = time.monotonic() + duration
+    return lambda: time.monotonic() >= end
+
+
+def _session(endpoint: str) -> Context:
+    """Another Zenoh session (a client process of its own) on the private router at ``endpoint``."""
+    return Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none", router_endpoint=endpoint).init()
 
 
 def _spawn(client: SimulationClient, name: str, text: str, position: tuple[float, float, float]) -> str:
@@ -176,21 +200,12 @@ def attack_flood(attackers: int = 4, seconds: float = 4.0) -> None:
     stop = threading.Event()
     try:
         sim = compose("mujoco_sim", context=ctx, spin_topics=False)
-        victim_ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none",
-                             router_endpoint=endpoint).init()
+        victim_ctx = _session(endpoint)
         client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
         client.wait_until_ready(20.0)
         client.spawn_entity("rx200", uri=RX200)
 
-        def victim_latencies(duration: float) -> np.ndarray:
-            lat, end = [], time.monotonic() + duration
-            while time.monotonic() < end:
-                t = time.perf_counter()
-                client.step_robot("rx200", {ARM: HOLD}, 10)
-                lat.append(time.perf_counter() - t)
-            return np.array(lat)
-
-        alone = victim_latencies(1.0)
+        alone = _victim_latencies(client, _for_seconds(1.0))
         peers = [_RawPeer(endpoint, DOMAIN) for _ in range(attackers)]
         answered = [0] * attackers
 
@@ -204,7 +219,7 @@ def attack_flood(attackers: int = 4, seconds: float = 4.0) -> None:
         for t in threads:
             t.start()
         time.sleep(0.5)  # the attackers' first calls are in
-        busy = victim_latencies(seconds)
+        busy = _victim_latencies(client, _for_seconds(seconds))
         stop.set()
         for t in threads:
             t.join(timeout=120)
@@ -246,27 +261,10 @@ def _attack_boxes(boxes: int, unlimited: bool, seconds: float, refused_for: floa
     victim_ctx = None
     try:
         limits = {"max_entities": 10**6, "max_entities_per_client": 10**6} if unlimited else {}
-        sim = compose("mujoco_sim", context=ctx, spin_topics=False, **limits)
-        victim_ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none",
-                             router_endpoint=endpoint).init()
-        client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
-        client.wait_until_ready(20.0)
-        client.spawn_entity("rx200", uri=RX200)
-        client.step_robot("rx200", {ARM: HOLD}, 200)
+        victim_ctx = _session(endpoint)
+        sim, client = _victim(ctx, victim_ctx, timeout=120.0, **limits)
 
-        def victim_latencies(until: Callable[[], bool]) -> np.ndarray:
-            lat = []
-            while not until():
-                t = time.perf_counter()
-                client.step_robot("rx200", {ARM: HOLD}, 10)
-                lat.append(time.perf_counter() - t)
-            return np.array(lat)
-
-        def for_seconds(duration: float) -> Callable[[], bool]:
-            end = time.monotonic() + duration
-            return lambda: time.monotonic() >= end
-
-        alone = victim_latencies(for_seconds(seconds))
+        alone = _victim_latencies(client, _for_seconds(seconds))
         peer = neighbour_peer = _RawPeer(endpoint, DOMAIN)
         deadline = time.monotonic() + 20.0  # the neighbour's session reaches the node's services first
         while peer.call("mujoco_sim", "get_entities", "simulation_interfaces/srv/GetEntities", timeout=0.5) is None:
@@ -305,10 +303,10 @@ def _attack_boxes(boxes: int, unlimited: bool, seconds: float, refused_for: floa
         thread = threading.Thread(target=neighbour, daemon=True)
         t0 = time.monotonic()
         thread.start()
-        during = victim_latencies(done.is_set)
+        during = _victim_latencies(client, done.is_set)
         spawn_sec = time.monotonic() - t0
         thread.join(timeout=600)
-        after = victim_latencies(for_seconds(seconds))
+        after = _victim_latencies(client, _for_seconds(seconds))
         admitted = outcomes.count(1)
         base = float(np.median(alone))
 
@@ -321,7 +319,8 @@ def _attack_boxes(boxes: int, unlimited: bool, seconds: float, refused_for: floa
         if refused_for is not None:
             print(f"refused ({'no cool-down' if unlimited else 'cool-down on'}): the neighbour sent {len(outcomes)} "
                   f"spawns into the arm in {spawn_sec:.1f} s: {cooled.count(False)} refused by the world (a compile "
-                  f"and trial under the lock each), {cooled.count(True)} by the cool-down before loading; victim "
+                  f"and trial each, beside the node's lock), {cooled.count(True)} by the cool-down before loading; "
+                  f"victim "
                   f"StepRobot(10) alone: median {base * 1e3:.2f} ms, p95 {np.percentile(alone, 95) * 1e3:.2f} ms; "
                   f"meanwhile: {figures(during)}")
             for message in refusals:
@@ -414,24 +413,10 @@ def attack_cameras(sensors: int = 8, width: int = 1920, height: int = 1080, seco
     ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
     others: list[Context] = []
     try:
-        sim = compose("mujoco_sim", context=ctx, spin_topics=False)
-        victim_ctx, neighbour_ctx = (Context(transport="zenoh", env={}, domain_id=DOMAIN, router="none",
-                                             router_endpoint=endpoint).init() for _ in range(2))
-        others += [victim_ctx, neighbour_ctx]
-        client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
-        client.wait_until_ready(20.0)
-        client.spawn_entity("rx200", uri=RX200)
-        client.step_robot("rx200", {ARM: HOLD}, 200)
-
-        def victim_latencies(duration: float) -> np.ndarray:
-            lat, end = [], time.monotonic() + duration
-            while time.monotonic() < end:
-                t = time.perf_counter()
-                client.step_robot("rx200", {ARM: HOLD}, 10)
-                lat.append(time.perf_counter() - t)
-            return np.array(lat)
-
-        alone = victim_latencies(seconds)
+        others += [_session(endpoint), _session(endpoint)]
+        victim_ctx, neighbour_ctx = others
+        sim, client = _victim(ctx, victim_ctx, timeout=120.0)
+        alone = _victim_latencies(client, _for_seconds(seconds))
         neighbour = Node("neighbour", context=neighbour_ctx)
         SimulationClient(neighbour, "/mujoco_sim", timeout_sec=120.0).spawn_entity(
             "rig", resource_string=_camera_rig(sensors, width, height), position=(0.0, 0.0, 0.0))
@@ -462,7 +447,7 @@ def attack_cameras(sensors: int = 8, width: int = 1920, height: int = 1080, seco
                 raise RuntimeError(f"not every camera delivered an image within 180 s: {frames}")
             client.step_robot("rx200", {ARM: HOLD}, 10)
         start = sum(frames)
-        busy = victim_latencies(seconds)
+        busy = _victim_latencies(client, _for_seconds(seconds))
         rate = (sum(frames) - start) / seconds
         stop.set()
         spinner.join(10.0)
