@@ -44,8 +44,9 @@ __all__ = [
 
 MAX_DESCRIPTION_CHARS = 4_000_000  # characters of URDF/MJCF text (after xacro); real robots: < 500 k
 # Links (URDF) or bodies (MJCF), and joints, of one description: a humanoid has ~70, a long cable ~100.
-# Spawning and deleting an entity happen under the node's lock, and their cost grows faster than its
-# size (measured, 2 cores: 500 joints spawn in 1.9 s and delete in 0.26 s; 1,000 in 3.4-4.1 s and 0.65 s).
+# Spawning and deleting an entity cost more than linearly in its size (measured, 2 cores: 500 joints
+# spawn in 1.9 s and delete in 0.26 s; 1,000 in 3.4-4.1 s and 0.65 s). A SpawnEntity compiles beside
+# the node's lock (multiros.sim.world_prepare: 499 joints hold it ~0.025 s); a deletion holds it throughout.
 MAX_BODIES = 500
 MAX_JOINTS = 500
 MAX_GEOMS = 5_000  # visual + collision geoms

@@ -12,12 +12,14 @@ limit, the count and the fix:
   its scene: a vector env of N pick-and-place robots on one client fits whatever N).
 
 The quotas and ``max_entities`` are checked before the description is loaded, ``max_robots`` once it
-is (robot or object known), and all of them again under the node's lock just before the world
-compiles it: a spawn refused by a quota costs a few dictionary lookups, not a load or a compile.
+is (robot or object known), and all of them again under the node's lock just before the newcomer
+is compiled and at its commit: a spawn refused by a quota costs a few dictionary lookups, not a load
+or a compile.
 Deleting an entity (or a reset removing it) frees its owner's quota.
 
 A spawn the world itself refuses (a model that does not compile, an admission refusal: overlap,
-landing, divergence, bad controllers) costs every owner a compile and a trial under the node's lock.
+landing, divergence, bad controllers) costs a compile and a trial on the cores every owner steps on
+(beside the node's lock: :mod:`multiros.sim.world_prepare`).
 So such refusals are counted per client: after :data:`REFUSALS_BEFORE_BACKOFF` in a row, that client's
 next spawns are refused before any load or lock for a cool-down (1 s, doubling with each further
 refusal, at most 60 s), with one warning in the node's log per cool-down; an admitted spawn ends the
@@ -91,7 +93,7 @@ class EntityQuota:
                 return None
             return (f"SpawnEntity refused: {describe_caller(caller)} had {streak.refused} spawns in a row refused "
                     f"by the world (the last: {streak.last}); each costs every owner of this node a compile "
-                    f"under its lock, so it may spawn again in {left:.1f} s. Fix the description first")
+                    f"and a trial on its cores, so it may spawn again in {left:.1f} s. Fix the description first")
 
     def note_refused(self, caller: str | None, reason: str) -> float | None:
         """The world refused a spawn by ``caller`` (``reason``: its one line). Returns the cool-down it

@@ -135,7 +135,7 @@ def test_refusal_streak_backoff_with_a_clock() -> None:
 
 
 def test_spawns_the_world_keeps_refusing_wait_before_loading(tmp_path, monkeypatch) -> None:
-    """Boxes spawned into another entity (refused at admission, after a compile under the node's lock):
+    """Boxes spawned into another entity (refused at admission, after a compile and a trial):
     after REFUSALS_BEFORE_BACKOFF of them the client's next spawn is refused before it is loaded, with
     one warning in the node's log; another client spawns on; after the cool-down the client may
     spawn again."""
