@@ -3,11 +3,16 @@ the time of its commit, bit for bit, and leaves the world untouched when refused
 
 from __future__ import annotations
 
+import threading
+import time
+
 import mujoco
 import numpy as np
 import pytest
-from conftest import ARM_XACRO, BALL
+from conftest import ARM_XACRO, BALL, DATA
 
+from multiros.ros import Context, Node
+from multiros.sim.client import SimulationClient
 from multiros.sim.errors import DescriptionError, SpawnRefusedError
 
 BOX = ('<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="0.05 0.05 0.05" '
@@ -109,113 +114,101 @@ def test_a_name_taken_by_the_snapshot_is_refused_at_once(make_world):
         world.spawn_snapshot("1bad")
 
 
-def test_the_node_compiles_and_admits_a_spawn_without_holding_its_lock(tmp_path):
-    """A client's step is served while another client's spawn is being compiled and admitted; the
-    spawn then lands, and one that a neighbour's spawn overtook lands too (under the lock)."""
-    import threading
-    from pathlib import Path
-
-    from multiros.ros import Context, Node
-    from multiros.sim.client import SimulationClient
+@pytest.fixture
+def node_and_clients(tmp_path):
+    """A simulation node on an in-process graph, and a maker of its clients (each a node of its own)."""
     from multiros.sim.node import SimulationNode
     from multiros.sim.packages import PackageIndex
     from multiros.sim.world import World, WorldOptions
 
-    data = Path(__file__).parent / "data"
     ctx = Context(transport="inproc").init()
     try:
-        world = World(WorldOptions(), package_index=PackageIndex([data], use_entry_points=False, environ={}),
+        world = World(WorldOptions(), package_index=PackageIndex([DATA], use_entry_points=False, environ={}),
                       mesh_cache=tmp_path / "meshes")
         node = SimulationNode("mujoco_sim", world=world, context=ctx, spin_topics=False)
-        spawner, stepper = (SimulationClient(Node(n, context=ctx), "/mujoco_sim", timeout_sec=30.0) for n in "ab")
-        stepper.spawn_entity("arm", uri=ARM_XACRO + "?__controllers=joint_state_broadcaster")
-        preparing, stepped = threading.Event(), threading.Event()
-        prepare = world.prepare_spawn
-
-        def held_prepare(*args, **kwargs):
-            preparing.set()
-            assert stepped.wait(30.0), "the other client's step was not served during the compile"
-            return prepare(*args, **kwargs)
-
-        world.prepare_spawn = held_prepare  # type: ignore[method-assign]
-        box = BOX.format(m=0.1)
-        result: list[object] = []
-        thread = threading.Thread(target=lambda: result.append(
-            spawner.spawn_entity("box", resource_string=box, position=(3.0, 0.0, 0.05))))
-        thread.start()
-        try:
-            assert preparing.wait(30.0)
-            before = world.time
-            stepper.step_simulation(10)  # the node's lock is free while the box compiles
-            assert world.time > before
-        finally:
-            stepped.set()
-            thread.join(60.0)
-        assert result == ["box"] and world.has_entity("box")
-
-        def overtaken(*args, **kwargs):  # a neighbour's spawn lands first: this one is spawned under the lock
-            prepared = prepare(*args, **kwargs)
-            with node.lock:
-                world.spawn("neighbour", box, pose=([3.0, 1.0, 0.05], [1, 0, 0, 0]))
-            return prepared
-
-        world.prepare_spawn = overtaken  # type: ignore[method-assign]
-        assert spawner.spawn_entity("late", resource_string=box, position=(3.0, 2.0, 0.05)) == "late"
-        assert {"box", "neighbour", "late"} <= set(world.entity_names())
-        stepper.step_simulation(5)
+        yield node, lambda name: SimulationClient(Node(name, context=ctx), "/mujoco_sim", timeout_sec=60.0)
     finally:
         ctx.try_shutdown()
 
 
-def test_concurrent_spawns_all_land_while_a_robot_steps(tmp_path):
+def test_the_node_compiles_and_admits_a_spawn_without_holding_its_lock(node_and_clients):
+    """A client's step is served while another client's spawn is being compiled and admitted; the
+    spawn then lands, and one that a neighbour's spawn overtook lands too (under the lock)."""
+    node, client = node_and_clients
+    world = node.world
+    spawner, stepper = client("a"), client("b")
+    stepper.spawn_entity("arm", uri=ARM_XACRO + "?__controllers=joint_state_broadcaster")
+    preparing, stepped = threading.Event(), threading.Event()
+    prepare = world.prepare_spawn
+
+    def held_prepare(*args, **kwargs):
+        preparing.set()
+        assert stepped.wait(30.0), "the other client's step was not served during the compile"
+        return prepare(*args, **kwargs)
+
+    world.prepare_spawn = held_prepare  # type: ignore[method-assign]
+    box = BOX.format(m=0.1)
+    result: list[object] = []
+    thread = threading.Thread(target=lambda: result.append(
+        spawner.spawn_entity("box", resource_string=box, position=(3.0, 0.0, 0.05))))
+    thread.start()
+    try:
+        assert preparing.wait(30.0)
+        before = world.time
+        stepper.step_simulation(10)  # the node's lock is free while the box compiles
+        assert world.time > before
+    finally:
+        stepped.set()
+        thread.join(60.0)
+    assert result == ["box"] and world.has_entity("box")
+
+    def overtaken(*args, **kwargs):  # a neighbour's spawn lands first: this one is spawned under the lock
+        prepared = prepare(*args, **kwargs)
+        with node.lock:
+            world.spawn("neighbour", box, pose=([3.0, 1.0, 0.05], [1, 0, 0, 0]))
+        return prepared
+
+    world.prepare_spawn = overtaken  # type: ignore[method-assign]
+    assert spawner.spawn_entity("late", resource_string=box, position=(3.0, 2.0, 0.05)) == "late"
+    assert {"box", "neighbour", "late"} <= set(world.entity_names())
+    stepper.step_simulation(5)
+
+
+def test_concurrent_spawns_all_land_while_a_robot_steps(node_and_clients):
     """Two clients spawn five boxes each at once while a third steps its arm: every spawn lands (a
     commit that another overtook is spawned under the lock), each box where it was asked for, and the
     arm's state goes on from where it was (never back to a snapshot's)."""
-    import threading
-    from pathlib import Path
+    node, client = node_and_clients
+    clients = [client(n) for n in ("a", "b", "c")]
+    clients[2].spawn_entity("arm", uri=ARM_XACRO)
+    box = BOX.format(m=0.1)
+    errors: list[BaseException] = []
+    spawning = [True, True]
+    times: list[float] = []
 
-    from multiros.ros import Context, Node
-    from multiros.sim.client import SimulationClient
-    from multiros.sim.node import SimulationNode
-    from multiros.sim.packages import PackageIndex
-    from multiros.sim.world import World, WorldOptions
-
-    data = Path(__file__).parent / "data"
-    ctx = Context(transport="inproc").init()
-    try:
-        world = World(WorldOptions(), package_index=PackageIndex([data], use_entry_points=False, environ={}),
-                      mesh_cache=tmp_path / "meshes")
-        SimulationNode("mujoco_sim", world=world, context=ctx, spin_topics=False)
-        clients = [SimulationClient(Node(n, context=ctx), "/mujoco_sim", timeout_sec=60.0) for n in ("a", "b", "c")]
-        clients[2].spawn_entity("arm", uri=ARM_XACRO)
-        box = BOX.format(m=0.1)
-        errors: list[BaseException] = []
-        spawning = [True, True]
-        times: list[float] = []
-
-        def spawn(k: int) -> None:
-            try:
-                for i in range(5):
-                    clients[k].spawn_entity(f"box{k}_{i}", resource_string=box, position=(3.0 + i, k, 0.05))
-            except BaseException as exc:  # noqa: BLE001 - reported below
-                errors.append(exc)
-            finally:
-                spawning[k] = False
-
-        threads = [threading.Thread(target=spawn, args=(k,)) for k in (0, 1)]
-        for thread in threads:
-            thread.start()
-        while any(spawning):
-            clients[2].step_simulation(5)
-            times.append(world.time)
-        for thread in threads:
-            thread.join(60.0)
-        assert not errors, errors
-        assert times == sorted(times)  # time only goes on
-        for k in (0, 1):
+    def spawn(k: int) -> None:
+        try:
             for i in range(5):
-                pos = clients[2].get_entity_state(f"box{k}_{i}").pose.position
-                assert abs(pos.x - (3.0 + i)) < 1e-3 and abs(pos.y - k) < 1e-3 and 0.04 < pos.z < 0.06
+                clients[k].spawn_entity(f"box{k}_{i}", resource_string=box, position=(3.0 + i, k, 0.05))
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+        finally:
+            spawning[k] = False
+
+    threads = [threading.Thread(target=spawn, args=(k,)) for k in (0, 1)]
+    for thread in threads:
+        thread.start()
+    deadline = time.monotonic() + 300.0  # ten spawns take a few seconds; a busy machine gets plenty more
+    while any(spawning):
+        assert time.monotonic() < deadline, "the spawns did not finish within 300 s"
         clients[2].step_simulation(5)
-    finally:
-        ctx.try_shutdown()
+        times.append(node.world.time)
+    for thread in threads:
+        thread.join(60.0)
+    assert not errors, errors
+    assert times == sorted(times)  # time only goes on
+    for k in (0, 1):
+        for i in range(5):
+            pos = clients[2].get_entity_state(f"box{k}_{i}").pose.position
+            assert abs(pos.x - (3.0 + i)) < 1e-3 and abs(pos.y - k) < 1e-3 and 0.04 < pos.z < 0.06
+    clients[2].step_simulation(5)
