@@ -5,15 +5,21 @@ from __future__ import annotations
 
 import threading
 import time
+from pathlib import Path
 
 import mujoco
 import numpy as np
 import pytest
-from conftest import ARM_XACRO, BALL, DATA
 
 from multiros.ros import Context, Node
 from multiros.sim.client import SimulationClient
 from multiros.sim.errors import DescriptionError, SpawnRefusedError
+
+# tests/sim/data's packages (as tests/sim/conftest.py's index finds them); not imported from conftest,
+# which another directory's conftest shadows when pytest collects both
+DATA = Path(__file__).parent / "data"
+ARM_XACRO = "package://test_arm_description/urdf/arm.urdf.xacro"
+BALL = "package://test_arm_description/urdf/ball.xml"
 
 BOX = ('<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="0.05 0.05 0.05" '
        'mass="{m}"/></body></worldbody></mujoco>')
