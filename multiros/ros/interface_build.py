@@ -11,7 +11,9 @@ venv (``sys.prefix``), where rclpy then finds them with nothing to set.
 It needs CMake, a C/C++ compiler, Python headers, and the generator wheels (listed by
 ``--print-requirements``; a ROS install has them). A whole package takes minutes (control_msgs:
 about 4.5 min on 2 cores); ``--only-used`` builds just the types uniros uses (the package is then
-partial). Packages without dependencies on each other build in parallel (``--jobs``).
+partial). ``--python-only`` leaves out rosidl's C++ generators (headers and type supports for rclcpp),
+which are a third of the build and which rclpy never loads. Packages without dependencies on each other
+build in parallel (``--jobs``).
 
 Done by hand instead of with colcon: the released definition folders carry no ``CMakeLists.txt``
 (an interface-only one is written here), and the PyPI wheels' exported CMake files name the
@@ -34,7 +36,7 @@ from collections.abc import Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-__all__ = ["UNIROS_PACKAGES", "USED_TYPES", "build_packages", "generator_requirements", "main"]
+__all__ = ["CPP_GENERATORS", "UNIROS_PACKAGES", "USED_TYPES", "build_packages", "generator_requirements", "main"]
 
 #: The interface packages uniros' nodes and envs use that a plain rclpy install may lack, in build order.
 UNIROS_PACKAGES: tuple[str, ...] = (
@@ -57,6 +59,13 @@ USED_TYPES: dict[str, tuple[str, ...]] = {
         "msg/HardwareInterface",
     ),
 }
+#: ``--python-only``: the generators rclpy does not need. rosidl runs every generator registered for the
+#: ``rosidl_generate_idl_interfaces`` extension point; finding any message package registers the C++ ones
+#: too, so they are filtered out of that list just before ``rosidl_generate_interfaces``.
+CPP_GENERATORS: tuple[str, ...] = (
+    "rosidl_generator_cpp", "rosidl_typesupport_cpp", "rosidl_typesupport_fastrtps_cpp",
+    "rosidl_typesupport_introspection_cpp",
+)
 _EXT = {"msg": ".msg", "srv": ".srv", "action": ".action"}
 _PRIMITIVES = frozenset({
     "bool", "byte", "char", "float32", "float64", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64",
@@ -124,13 +133,17 @@ def _selected_files(package_dir: Path, package: str, types: Sequence[str] | None
     return sorted(f"{item.split('/')[0]}/{item.split('/')[1]}{_EXT[item.split('/')[0]]}" for item in seen)
 
 
-def _cmakelists(package: str, files: Sequence[str], deps: Sequence[str]) -> str:
+def _cmakelists(package: str, files: Sequence[str], deps: Sequence[str], *, python_only: bool = False) -> str:
     find = "".join(f"find_package({d} REQUIRED)\n" for d in deps)
     listed = "\n".join(f'  "{f}"' for f in files)
     dep_clause = f"\n  DEPENDENCIES {' '.join(deps)}" if deps else ""
+    skip = ""
+    if python_only:
+        pattern = "|".join(CPP_GENERATORS)
+        skip = (f'list(FILTER AMENT_EXTENSIONS_rosidl_generate_idl_interfaces EXCLUDE REGEX "^({pattern}):")\n')
     return (f"cmake_minimum_required(VERSION 3.8)\nproject({package})\n"
             "find_package(ament_cmake REQUIRED)\nfind_package(rosidl_default_generators REQUIRED)\n"
-            f"{find}rosidl_generate_interfaces(${{PROJECT_NAME}}\n{listed}{dep_clause}\n)\n"
+            f"{find}{skip}rosidl_generate_interfaces(${{PROJECT_NAME}}\n{listed}{dep_clause}\n)\n"
             "ament_export_dependencies(rosidl_default_runtime)\nament_package()\n")
 
 
@@ -159,7 +172,7 @@ def fix_exported_paths(prefix: Path) -> int:
 
 
 def _build_one(package: str, distro: str, prefix: Path, work: Path, types: Sequence[str] | None,
-               known: Iterable[str], log: Path) -> float:
+               known: Iterable[str], log: Path, python_only: bool = False) -> float:
     start = time.monotonic()
     src_dir = _definition_dir(package, distro)
     stage = work / "src" / package
@@ -172,7 +185,7 @@ def _build_one(package: str, distro: str, prefix: Path, work: Path, types: Seque
         (stage / rel).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(src_dir / rel, stage / rel)
     deps = _dependencies(src_dir, known)
-    (stage / "CMakeLists.txt").write_text(_cmakelists(package, files, deps))
+    (stage / "CMakeLists.txt").write_text(_cmakelists(package, files, deps, python_only=python_only))
     build = work / "build" / package
     if build.exists():
         shutil.rmtree(build)
@@ -198,8 +211,10 @@ def _build_one(package: str, distro: str, prefix: Path, work: Path, types: Seque
 
 
 def build_packages(packages: Sequence[str], *, distro: str, prefix: Path, only_used: bool = False, jobs: int = 2,
-                   work: Path | None = None, echo: bool = True) -> dict[str, float]:
+                   work: Path | None = None, echo: bool = True, python_only: bool = False) -> dict[str, float]:
     """Build ``packages`` (dependencies first, independent ones in parallel) into ``prefix``.
+
+    ``only_used``: only the types uniros uses; ``python_only``: only what rclpy loads (no C++ generators).
 
     Returns each package's build seconds. Raises ``SystemExit`` with a one-line reason on failure.
     """
@@ -228,7 +243,7 @@ def build_packages(packages: Sequence[str], *, distro: str, prefix: Path, only_u
             print(f"building {', '.join(ready)} ({distro}) into {prefix} ...", flush=True)
         with ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
             futures = {p: pool.submit(_build_one, p, distro, prefix, work,
-                                      USED_TYPES.get(p) if only_used else None, known, work / f"{p}.log")
+                                      USED_TYPES.get(p) if only_used else None, known, work / f"{p}.log", python_only)
                        for p in ready}
             for p, fut in futures.items():
                 times[p] = fut.result()
@@ -255,6 +270,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="whose definitions (default: $ROS_DISTRO, else jazzy)")
     parser.add_argument("--prefix", default=sys.prefix, help="install prefix (default: this Python's, %(default)s)")
     parser.add_argument("--only-used", action="store_true", help="only the types uniros uses (a partial package)")
+    parser.add_argument("--python-only", action="store_true",
+                        help="only what rclpy loads: C type supports and Python bindings, no C++ (rclcpp cannot use "
+                             "the result)")
     parser.add_argument("--jobs", type=int, default=2, help="packages built at once (default: %(default)s)")
     parser.add_argument("--work-dir", help="build folder (default: a new temporary one)")
     parser.add_argument("--print-requirements", action="store_true",
@@ -272,7 +290,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     try:
         times = build_packages(packages, distro=opts.distro, prefix=Path(opts.prefix).resolve(),
-                               only_used=opts.only_used, jobs=opts.jobs,
+                               only_used=opts.only_used, jobs=opts.jobs, python_only=opts.python_only,
                                work=Path(opts.work_dir) if opts.work_dir else None)
     except SystemExit as exc:
         if isinstance(exc.code, str):

@@ -115,6 +115,28 @@ def test_only_used_covers_what_the_node_and_envs_use_with_their_nested_types() -
     text = _cmakelists("control_msgs", files, ["action_msgs", "trajectory_msgs"])
     assert 'rosidl_generate_interfaces(${PROJECT_NAME}\n  "action/FollowJointTrajectory.action"' in text
     assert "DEPENDENCIES action_msgs trajectory_msgs" in text
+    assert "AMENT_EXTENSIONS_rosidl_generate_idl_interfaces" not in text  # every generator by default
+
+
+def test_python_only_drops_the_cpp_generators_and_keeps_what_rclpy_loads() -> None:
+    import re
+
+    text = _cmakelists("tf2_msgs", ["msg/TFMessage.msg"], ["geometry_msgs"], python_only=True)
+    filters = [line for line in text.splitlines() if line.startswith("list(FILTER")]
+    assert len(filters) == 1
+    # The filter comes after every find_package (finding a message package registers the C++ generators
+    # again) and before the generation that runs the registered ones.
+    assert text.index(filters[0]) > text.rindex("find_package(")
+    assert text.index(filters[0]) < text.index("rosidl_generate_interfaces(")
+    regex = re.search(r'EXCLUDE REGEX "(.*)"', filters[0]).group(1)
+    registered = ["rosidl_generator_type_description:x.cmake", "rosidl_generator_c:x.cmake",
+                  "rosidl_generator_cpp:x.cmake", "rosidl_typesupport_fastrtps_c:x.cmake",
+                  "rosidl_typesupport_fastrtps_cpp:x.cmake", "rosidl_typesupport_introspection_c:x.cmake",
+                  "rosidl_typesupport_introspection_cpp:x.cmake", "rosidl_typesupport_c:x.cmake",
+                  "rosidl_typesupport_cpp:x.cmake", "rosidl_generator_py:x.cmake"]
+    kept = [r.split(":")[0] for r in registered if not re.search(regex, r)]  # CMake's regex here is also Python's
+    assert kept == ["rosidl_generator_type_description", "rosidl_generator_c", "rosidl_typesupport_fastrtps_c",
+                    "rosidl_typesupport_introspection_c", "rosidl_typesupport_c", "rosidl_generator_py"]
 
 
 def test_the_wheels_exported_python_paths_are_rewritten(tmp_path) -> None:
