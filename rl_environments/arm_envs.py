@@ -24,7 +24,7 @@ from rl_environments.arm_reach import REACH_NUM_SIM_STEPS, ArmGoalReachTask, Arm
 from rl_environments.arm_registry import chain_of, top_down_ik_of
 from rl_environments.arm_robot import ArmRobot
 from rl_environments.arm_robot_envs import ArmRobotEnv, ArmRobotGoalEnv, ArmRobotRealEnv, ArmRobotRealGoalEnv
-from rl_environments.real_arm_robot import RealArmRobot, TaskJointLimits
+from rl_environments.real_arm_kwargs import TaskJointLimits
 
 
 class ArmFileRobot(ArmRobot):
@@ -79,10 +79,10 @@ def _docstring(name: str, task: str, real: bool, source: str) -> str:
     if not real:
         return f"``{name}{task}Sim-v0``: {what} ({ref}). The arm: ``{source}``."
     extra = (" The object's pose comes from a tracker (``geometry_msgs/PoseStamped``) and the gripper is "
-             "commanded through its driver (:mod:`rl_environments.real_arm_robot`)." if module == "arm_manipulation"
+             "commanded through its driver (:mod:`rl_environments.real_arm_kwargs`)." if module == "arm_manipulation"
              else "")
     return (f"``{name}{task}Real-v0``: ``{name}{task}Sim-v0``'s task on a real {name}: {what} ({ref}; robot and "
-            f"loop knobs: :meth:`~rl_environments.real_arm_robot.RealArmRobot.real_robot_kwargs`).{extra} "
+            f"loop knobs: :func:`~rl_environments.real_arm_kwargs.real_robot_kwargs`).{extra} "
             f"The arm: ``{source}``.")
 
 
@@ -105,19 +105,10 @@ def _robot(name: str, real: bool) -> type:
                 "__doc__": f"The {name} arm's constants, from {spec.path.name}."})
         cls = sim
         if real:
-            cls = _ROBOTS[key] = type(f"{name}RealRobot", (sim, RealArmRobot), {
+            cls = _ROBOTS[key] = type(f"{name}RealRobot", (sim,), {
                 **real_constants(spec), "__module__": __name__,
-                "__doc__": f"The {name} arm's real-robot constants, from {spec.path.name}.",
-                "real_robot_kwargs": classmethod(_real_robot_kwargs)})
+                "__doc__": f"The {name} arm's real-robot constants, from {spec.path.name}."})
     return cls
-
-
-def _real_robot_kwargs(cls: Any, overrides: Any) -> dict[str, Any]:
-    opts = dict(overrides)
-    topic = getattr(cls, "REAL_JOINT_STATES_TOPIC", None)
-    if topic:
-        opts.setdefault("joint_states_topic", topic)
-    return RealArmRobot.real_robot_kwargs.__func__(cls, opts)  # type: ignore[attr-defined]
 
 
 def _build(class_name: str) -> type | None:

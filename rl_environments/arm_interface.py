@@ -3,7 +3,7 @@
 The task classes (:mod:`rl_environments.reach_task`, :mod:`rl_environments.manipulation_task` and the
 robots' task mixins) use only these members, so the same task composes with the simulated robot
 envs (:class:`~rl_environments.arm_robot.ArmRobot` on :class:`~multiros.envs.MujocoBaseEnv`) and the
-real ones (:class:`~rl_environments.real_arm_robot.RealArmRobot` on :class:`~multiros.envs.RealBaseEnv`).
+real ones (the same class on :class:`~multiros.envs.RealBaseEnv`).
 
 Tasks are written batch-first (:mod:`multiros.envs.batch_task`): the robot layer answers for N envs
 of one class at once (``arm_positions_of(states)`` and friends, on ``(N, ...)`` arrays) and for one

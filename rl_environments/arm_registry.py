@@ -102,7 +102,7 @@ def robot_constants(spec: ArmFile) -> dict[str, Any]:
 
 
 def real_constants(spec: ArmFile) -> dict[str, Any]:
-    """The :class:`~rl_environments.real_arm_robot.RealArmRobot` class attributes an arm file gives."""
+    """The Real twin's class attributes an arm file gives (:class:`~rl_environments.arm_robot.ArmRobot`'s REAL_*)."""
     real = spec.real
     attrs: dict[str, Any] = {
         "REAL_NAMESPACE": real.namespace,

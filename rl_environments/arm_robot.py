@@ -1,15 +1,15 @@
-"""The robot layer every arm shares, in simulation and on a robot: an arm of ``ARM_JOINTS`` under a
-group position controller, an end-effector frame, a kinematic chain for EE actions and goals, and for
-push and pick-and-place its gripper, its top-down IK and its scene (a table and a cube).
+"""The robot layer of an arm, one class for simulation and a robot: an arm of ``ARM_JOINTS`` under a
+position controller, an end-effector frame, a kinematic chain for EE actions and goals, and for push
+and pick-and-place its gripper, its top-down IK and its scene (a table and a cube).
 
 :class:`ArmRobot` reads states and sends commands only through the robot connection
-(:class:`~multiros.envs.connection.RobotConnection`: frames, the gripper as a controller command,
-cameras), so the same code serves both sides. What only a side can do is its own small class:
-:class:`SimArmRobot` spawns and teleports the scene on the simulation node (its connection is a
-:class:`~multiros.envs.sim_connection.SimConnection`); :class:`~rl_environments.real_arm_robot.RealArmRobot`
-adds a robot's safety rules, driver names and object tracker (a
-:class:`~multiros.envs.real.connection.RealConnection`). An arm's constants come from its arm file
-(:mod:`rl_environments.arm_envs`); the env cores below are mixed in by
+(:class:`~multiros.envs.connection.RobotConnection`), and asks it for whatever a side does its own way:
+where the base is, the scene (spawned and teleported in simulation; a tracker's object and fixed
+fixtures on a robot), the arm's command (with the next step; through a robot's safety rules), the
+gripper (a controller in simulation; its driver's interface on a robot) and the clock of the states.
+Only the constructor arguments differ: :meth:`ArmRobot.robot_kwargs` for the simulation node's env core,
+:meth:`ArmRobot.real_robot_kwargs` (:mod:`rl_environments.real_arm_kwargs`) for a robot's. An arm's
+constants come from its arm file (:mod:`rl_environments.arm_envs`); the env cores below are mixed in by
 :mod:`rl_environments.arm_robot_envs`.
 """
 
@@ -19,19 +19,16 @@ import functools
 from collections.abc import Mapping, Sequence
 from importlib import import_module
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from multiros.envs import EnvError
-from multiros.envs.config import SpawnPose
+from multiros.envs.connection import SceneEntity
 from multiros.robot_state import RobotStates
 from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_ik import TopDownIK
 from rl_environments.arm_interface import ArmInterface
-
-if TYPE_CHECKING:
-    from multiros.envs.sim_connection import SimConnection
 
 _ARM_INDEX: dict[tuple[type, tuple[str, ...]], np.ndarray | slice] = {}
 
@@ -82,6 +79,25 @@ class ArmRobot(ArmInterface):
             degrees), by default the view of the description's ``render_camera``.
         CAMERA_TOPICS: a described camera's ``(rgb, depth)`` topics, relative to the robot's
             namespace, when not ``<camera>/image_raw`` and ``<camera>/depth/image_raw``.
+
+    The Real twin's (its arm file's ``real`` section; :meth:`real_robot_kwargs`):
+
+    Attributes:
+        REAL_NAMESPACE: the driver's namespace.
+        REAL_ARM_CONTROLLER: the JointTrajectoryController over ``ARM_JOINTS``.
+        REAL_CONTROLLERS: other controllers that must be active.
+        WORKSPACE_MIN, WORKSPACE_MAX: the box (world frame) the end effector must stay in (reach;
+            push and pick-and-place keep it inside their scene's end-effector box, 5 cm around it).
+        FLOOR_Z: lowest allowed end-effector height (world frame; push and pick-and-place: 5 mm below
+            the scene's lowest end-effector target, above the table).
+        MAX_JOINT_DELTA: largest joint change per command (rad).
+        REAL_COMMAND_INTERFACE: ``"topic"`` or ``"action"`` (the driver offers only the action).
+        REAL_CHECK_CONTROLLERS: whether the driver has a ros2_control controller manager to ask.
+        REAL_GRIPPER_CONTROLLER, REAL_GRIPPER_INTERFACE: the driver's gripper controller and how it
+            takes commands (:data:`~multiros.envs.real.gripper.GRIPPER_INTERFACES`).
+        REAL_GRIPPER_JOINT: the joint a gripper trajectory commands (default the first finger joint).
+        REAL_GRIPPER_RANGE: the driver's values at the task's (closed, open) fingers (default: the same).
+        OBJECT_POSE_TOPIC: the object tracker's ``PoseStamped`` topic.
     """
 
     ROBOT_NAME: ClassVar[str]
@@ -109,6 +125,20 @@ class ArmRobot(ArmInterface):
     CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
                                                                                       -25.0)
     CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]] = {}
+    REAL_NAMESPACE: ClassVar[str]
+    REAL_ARM_CONTROLLER: ClassVar[str]
+    REAL_CONTROLLERS: ClassVar[tuple[str, ...]] = ()
+    WORKSPACE_MIN: ClassVar[tuple[float, float, float]]
+    WORKSPACE_MAX: ClassVar[tuple[float, float, float]]
+    FLOOR_Z: ClassVar[float] = 0.02
+    MAX_JOINT_DELTA: ClassVar[float] = 0.15
+    REAL_COMMAND_INTERFACE: ClassVar[str] = "topic"
+    REAL_CHECK_CONTROLLERS: ClassVar[bool] = True
+    REAL_GRIPPER_CONTROLLER: ClassVar[str] = "gripper_controller"
+    REAL_GRIPPER_INTERFACE: ClassVar[str] = "forward"
+    REAL_GRIPPER_JOINT: ClassVar[str | None] = None
+    REAL_GRIPPER_RANGE: ClassVar[tuple[float, float] | None] = None
+    OBJECT_POSE_TOPIC: ClassVar[str] = "/object_pose"
     # The scene of push and pick-and-place (set by the manipulation task: place_object uses them).
     table_entity: str
     table_frame: str
@@ -143,6 +173,14 @@ class ArmRobot(ArmInterface):
         if cls.RENDER_CAMERA and "render_camera" not in overrides and kwargs.get("spawn_robot", True):
             kwargs["render_camera"] = f"{kwargs['robot_name']}/{cls.RENDER_CAMERA}"
         return kwargs
+
+    @classmethod
+    def real_robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
+        """:class:`~multiros.envs.RealBaseEnv` arguments for this arm on a robot; ``overrides`` (user kwargs)
+        win (:func:`rl_environments.real_arm_kwargs.real_robot_kwargs` says which it takes)."""
+        from rl_environments.real_arm_kwargs import real_robot_kwargs
+
+        return real_robot_kwargs(cls, overrides)
 
     @classmethod
     def description_files(cls) -> tuple[str, dict[str, str], str]:
@@ -192,10 +230,11 @@ class ArmRobot(ArmInterface):
 
     @classmethod
     def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
-        """Queue each env's arm command (it travels with the next physics step)."""
+        """Each env's arm command: with the next physics step in simulation; on a robot through its safety
+        rules (``info["safety"]`` says what they did)."""
         controller = cls.ARM_CONTROLLER
         for env, row in zip(envs, targets):
-            env.connection.command(controller, row)
+            env.connection.command_arm(controller, row, env.info)
 
     # -- the same for one env (scripted policies, user code) -------------------------------------------
     def arm_positions(self) -> np.ndarray:
@@ -222,8 +261,9 @@ class ArmRobot(ArmInterface):
 
     @classmethod
     def observation_time(cls, envs: Sequence[Any], states: RobotStates) -> float:
-        """The clock of the states (finite-difference velocities): simulation time."""
-        return states.sim_time
+        """The clock of the states (finite-difference velocities): simulation time, or the local time a
+        robot's state arrived (the connection's)."""
+        return envs[0].connection.observation_time(states)
 
     @classmethod
     def command_grippers(cls, envs: Sequence[Any], targets: Sequence[float]) -> None:
@@ -231,6 +271,40 @@ class ArmRobot(ArmInterface):
         a robot, routed by the connection to the gripper driver's interface)."""
         for env, target in zip(envs, targets):
             env.connection.command(cls.GRIPPER_CONTROLLER, np.array([float(target)]))
+
+    # -- where the arm stands, its scene and its gripper (the connection's, whichever side) --------------
+    @property
+    def base_position(self) -> np.ndarray:
+        """World position of the robot base: its spawn position in simulation, ``base_position`` on a robot."""
+        return self.connection.base_position
+
+    def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
+        """The push / pick-and-place scene and the gripper: the connection reaches the gripper, then
+        spawns the table and the cube into the robot's namespace (a shared world's reset puts them back
+        with the robot) or, on a robot, serves the tracker's object and the standing table."""
+        if self.GRIPPER_CONTROLLER:
+            self.connection.use_gripper(self.GRIPPER_CONTROLLER, tuple(self.gripper_range))  # type: ignore[attr-defined]
+        self.connection.add_scene((
+            SceneEntity(table, self.scene_uri("table"), _point(table_position), f"{table}/table", movable=False),
+            SceneEntity(obj, self.scene_uri("cube"), _point(object_position), f"{obj}/object", movable=True)))
+
+    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
+        """Teleport the object (at rest) to its episode start; put the table back when knocked. On a robot
+        nothing moves (put it back by hand; ``reset_env_prompt=True`` asks before each reset)."""
+        table = self.connection.frame_positions(self.connection.states, self.table_frame)[0]
+        if np.linalg.norm(table - self.table_pose) > 1e-3:
+            self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
+        self.connection.place_entity(self.object_entity, position, quat)
+
+    def open_fingers_at_reset(self, opening: float) -> None:
+        """Put the fingers at ``opening`` for the episode start: in simulation a teleport, held (the second
+        finger at its mimic position, or left to follow through the mimic when ``RESET_MIMIC`` is false);
+        on a robot a command to the gripper's driver."""
+        if not self.RESET_MIMIC or len(self.FINGER_JOINTS) < 2:
+            joints, positions = self.FINGER_JOINTS[:1], [opening]
+        else:
+            joints, positions = self.FINGER_JOINTS, [opening, self.FINGER_MIMIC * opening]
+        self.connection.reset_gripper(self.GRIPPER_CONTROLLER, joints, positions)
 
     def _check_connection_and_readiness(self) -> bool:
         names = self.robot_state.names
@@ -240,38 +314,6 @@ class ArmRobot(ArmInterface):
         return True
 
 
-class SimArmRobot(ArmRobot):
-    """:class:`ArmRobot` on the simulation node: the base where it was spawned, the push /
-    pick-and-place scene spawned into the robot's namespace (a shared world's reset puts it back with
-    the robot), the object teleported to each episode's start and the fingers set at reset."""
-
-    if TYPE_CHECKING:  # the simulated env core's, below this layer
-        connection: SimConnection
-        spawn_pose: SpawnPose
-
-    @property
-    def base_position(self) -> np.ndarray:
-        """World position of the robot base (its spawn position)."""
-        return np.asarray(self.spawn_pose.position, dtype=np.float64)
-
-    def spawn_scene(self, table: str, table_position: np.ndarray, obj: str, object_position: np.ndarray) -> None:
-        """Spawn the table and the object into the robot's namespace (a shared world's reset puts them
-        back with the robot) and ask every step for their root bodies' poses too."""
-        self.connection.spawn_entity(table, self.scene_uri("table"), table_position)
-        self.connection.spawn_entity(obj, self.scene_uri("cube"), object_position)
-        self.connection.add_frames((f"{obj}/object", f"{table}/table"))
-        self.connection.refresh(0)
-
-    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
-        """Teleport the object (at rest) to its episode start; put the table back when knocked."""
-        if np.linalg.norm(self.frame_position(self.table_frame) - self.table_pose) > 1e-3:
-            self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
-        self.connection.place_entity(self.object_entity, position, quat)
-
-    def open_fingers_at_reset(self, opening: float) -> None:
-        """Put the fingers at ``opening`` for the episode start (a teleport, held; the second finger
-        at its mimic position, or left to follow through the mimic when ``RESET_MIMIC`` is false)."""
-        if not self.RESET_MIMIC or len(self.FINGER_JOINTS) < 2:
-            self.connection.set_joint_positions(self.FINGER_JOINTS[:1], [opening])
-            return
-        self.connection.set_joint_positions(self.FINGER_JOINTS, [opening, self.FINGER_MIMIC * opening])
+def _point(position: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
+    return x, y, z

@@ -1,12 +1,15 @@
 """The four robot envs of an arm, once for every arm: on the simulation node (plain and goal) and on a
-real robot (plain and goal). An arm's robot envs are its constants mixed in front of these::
+real robot (plain and goal). Each is the one robot layer, :class:`~rl_environments.arm_robot.ArmRobot`,
+over an env core; an arm's robot envs are its constants mixed in front of these::
 
     class UR5eRobotGoalEnv(UR5eRobot, ArmRobotGoalEnv): ...
     class UR5eRobotRealGoalEnv(UR5eRealRobot, ArmRobotRealGoalEnv): ...
 
-The arm's constants class comes first, so its class attributes win; the base env is given the
-keyword arguments the constants make of the user's (:meth:`ArmRobot.robot_kwargs`,
-:meth:`RealArmRobot.real_robot_kwargs`).
+The arm's constants class comes first, so its class attributes win; the env core is given the
+keyword arguments the constants make of the user's (:meth:`ArmRobot.robot_kwargs
+<rl_environments.arm_robot.ArmRobot.robot_kwargs>`, :meth:`ArmRobot.real_robot_kwargs
+<rl_environments.arm_robot.ArmRobot.real_robot_kwargs>`): that, and the connection the core builds, is all
+that differs between the sides.
 """
 
 from __future__ import annotations
@@ -15,47 +18,54 @@ from typing import TYPE_CHECKING, Any
 
 from multiros.envs import MujocoBaseEnv, MujocoGoalEnv
 from multiros.envs.real import RealBaseEnv, RealGoalEnv
-from rl_environments.arm_robot import SimArmRobot
-from rl_environments.real_arm_robot import RealArmRobot
+from rl_environments.arm_robot import ArmRobot
+from rl_environments.real_arm_kwargs import SETUP_KEY, RealArmSetup
 
 if TYPE_CHECKING:
     from multiros.envs.real.connection import RealConnection
     from multiros.envs.sim_connection import SimConnection
 
 
-class ArmRobotEnv(SimArmRobot, MujocoBaseEnv):
+class ArmRobotEnv(ArmRobot, MujocoBaseEnv):
     """An arm's robot layer for plain task envs on the simulation node."""
 
-    connection: SimConnection  # the robot layer's and the env core's, one type
+    connection: SimConnection  # the env core's
 
     def __init__(self, **kwargs: Any) -> None:
         MujocoBaseEnv.__init__(self, **self.robot_kwargs(kwargs))
 
 
-class ArmRobotGoalEnv(SimArmRobot, MujocoGoalEnv):
+class ArmRobotGoalEnv(ArmRobot, MujocoGoalEnv):
     """An arm's robot layer for goal-conditioned task envs on the simulation node."""
 
-    connection: SimConnection  # the robot layer's and the env core's, one type
+    connection: SimConnection  # the env core's
 
     def __init__(self, **kwargs: Any) -> None:
         MujocoGoalEnv.__init__(self, **self.robot_kwargs(kwargs))
 
 
-class ArmRobotRealEnv(RealArmRobot, RealBaseEnv):
+def _real_kwargs(cls: type[ArmRobot], kwargs: dict[str, Any]) -> tuple[dict[str, Any], RealArmSetup]:
+    opts = cls.real_robot_kwargs(kwargs)
+    return opts, opts.pop(SETUP_KEY)
+
+
+class ArmRobotRealEnv(ArmRobot, RealBaseEnv):
     """A real arm's robot layer for plain task envs."""
 
-    connection: RealConnection  # the robot layer's and the env core's, one type
+    connection: RealConnection  # the env core's
 
     def __init__(self, **kwargs: Any) -> None:
-        RealBaseEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
-        self.serve_frames()
+        opts, setup = _real_kwargs(type(self), kwargs)
+        RealBaseEnv.__init__(self, **opts)
+        setup.apply(self.connection)
 
 
-class ArmRobotRealGoalEnv(RealArmRobot, RealGoalEnv):
+class ArmRobotRealGoalEnv(ArmRobot, RealGoalEnv):
     """A real arm's robot layer for goal-conditioned task envs."""
 
-    connection: RealConnection  # the robot layer's and the env core's, one type
+    connection: RealConnection  # the env core's
 
     def __init__(self, **kwargs: Any) -> None:
-        RealGoalEnv.__init__(self, **self._take_base(self.real_robot_kwargs(kwargs)))
-        self.serve_frames()
+        opts, setup = _real_kwargs(type(self), kwargs)
+        RealGoalEnv.__init__(self, **opts)
+        setup.apply(self.connection)

@@ -225,7 +225,7 @@ class CameraObservations:
     CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = {}
     observation_space: spaces.Space[Any]  # the task's; the images join it in setup_cameras
 
-    if TYPE_CHECKING:  # the robot layer's members the cameras use (an arm's ArmRobot / RealArmRobot)
+    if TYPE_CHECKING:  # the robot layer's members the cameras use (an arm's ArmRobot)
         connection: Any
         robot_name: str
         node: Any

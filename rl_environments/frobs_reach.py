@@ -44,7 +44,7 @@ from multiros.robot_state import RobotStates
 from rl_environments.arm_envs import robot_env_class
 from rl_environments.reach import parse_reward_type
 from rl_environments.reach_task import GoalReachTask, ReachTask, stack_rows
-from rl_environments.real_arm_robot import TaskJointLimits
+from rl_environments.real_arm_kwargs import TaskJointLimits
 from rl_environments.task_config import load_task_config, vector
 
 __all__ = ["FROBS_REACHER_SCHEMA", "FrobsReachTask", "FrobsGoalReachTask", "load_frobs_reacher_config",

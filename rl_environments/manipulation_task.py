@@ -8,7 +8,7 @@ How the scene exists is the robot layer's too. In simulation the table and the o
 through the node's SpawnEntity, placed through SetEntityState, and their poses come back with every
 step's single StepRobot round trip (the robot env asks each step for its end-effector frame plus
 ``"<object entity>/object"`` and ``"<table entity>/table"``); on a real robot the object's pose
-comes from a tracker's topic (:class:`~rl_environments.real_arm_robot.RealArmRobot`). Velocities
+comes from a tracker's topic (:mod:`multiros.envs.real.scene`). Velocities
 are finite differences of consecutive poses over the time between them.
 
 Faults (each truncates the episode with ``info["truncated_reason"]``):

@@ -8,9 +8,12 @@ episode logic; below it a :class:`RobotConnection` moves the robot:
 * :class:`~multiros.envs.real.connection.RealConnection`: a real ros2_control robot (robot link,
   safety rules, control loop, watchdog): commands go out at once, through the safety rules.
 
-The core never asks which one it has. A vector env (:mod:`multiros.envs.batch`) steps the
-connections of many simulated envs with one request per node, through :meth:`SimConnection.step_spec
-<multiros.envs.sim_connection.SimConnection.step_spec>` and ``accept``.
+The core never asks which one it has, and neither does the robot layer above it: what a task's robot
+does differently on each side (where its base is, its scene, its arm's and gripper's commands, the
+clock of its states) is a method here that each connection implements its own way. A vector env
+(:mod:`multiros.envs.batch`) steps the connections of many simulated envs with one request per node,
+through :meth:`SimConnection.step_spec <multiros.envs.sim_connection.SimConnection.step_spec>` and
+``accept``.
 """
 
 from __future__ import annotations
@@ -26,7 +29,27 @@ import numpy.typing as npt
 from multiros.envs.errors import EnvError
 from multiros.robot_state import RobotState, RobotStates
 
-__all__ = ["RobotConnection", "StepStatus", "STEP_OK"]
+__all__ = ["RobotConnection", "SceneEntity", "StepStatus", "STEP_OK"]
+
+
+@dataclass(frozen=True)
+class SceneEntity:
+    """An entity of a task's scene (a table, an object to push), as the robot layer asks for it.
+
+    Attributes:
+        name: the entity's name (in a simulation: spawned under it, in the robot's namespace).
+        uri: its description (``package://`` URI of an MJCF or URDF; a simulation spawns it).
+        position: its world position, ``(3,)``.
+        frame: the frame of it the task reads (``"<name>/<body>"``).
+        movable: an object the robot moves (on a robot: its pose comes from a tracker), not a fixture
+            (on a robot: it stands where the task says).
+    """
+
+    name: str
+    uri: str
+    position: tuple[float, float, float]
+    frame: str
+    movable: bool
 
 
 @dataclass(frozen=True)
@@ -107,10 +130,54 @@ class RobotConnection(ABC):
         index = self.frame_index(frame)
         return states.frame_positions[:, index], states.frame_orientations[:, index]
 
+    @property
+    @abstractmethod
+    def base_position(self) -> np.ndarray:
+        """World position of the robot's base, ``(3,)`` (a copy): where a simulation spawned it, where a
+        real robot's env was told it stands."""
+
+    def observation_time(self, states: RobotStates) -> float:
+        """The clock of ``states`` in seconds (finite-difference velocities): simulation time, or on a
+        robot the local time its state arrived."""
+        return float(states.sim_time)
+
+    # -- a task's scene -------------------------------------------------------------------------
+    @abstractmethod
+    def add_scene(self, entities: Sequence[SceneEntity]) -> None:
+        """Make a task's scene ready and serve its entities' frames to :meth:`frame_positions` and
+        :meth:`frame_poses`: a simulation spawns them (in order) and returns their frames with each step;
+        on a robot the scene stands already, a movable object's frame is its tracker's pose and a
+        fixture's is where the task says it is."""
+
+    def place_entity(self, name: str, position: Sequence[float] | np.ndarray,  # noqa: B027 - optional
+                     orientation: Sequence[float] | np.ndarray = (1.0, 0.0, 0.0, 0.0)) -> None:
+        """Put a scene entity at an episode's start pose (a simulation teleports it, at rest). A robot
+        cannot: nothing moves (the object starts where it lies; ``reset_env_prompt`` asks to put it back)."""
+
+    def use_gripper(self, controller: str, task_range: tuple[float, float]) -> None:  # noqa: B027
+        """Commands for ``controller`` drive the gripper, the task's finger positions ``(closed, open)``
+        spanning ``task_range``. A simulation has that controller already; a robot's connection reaches the
+        gripper's driver (its interface and range are the connection's options) and waits for it."""
+
+    def reset_gripper(self, controller: str, joints: Sequence[str], positions: Sequence[float]) -> None:
+        """Put the gripper at an episode's start: its ``joints`` at ``positions`` (a simulation teleports
+        them and holds them), or on a robot ``positions[0]`` commanded to the gripper's driver."""
+        self.command(controller, np.asarray(positions[:1], dtype=np.float64))
+
+    def limit_joints(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:  # noqa: B027
+        """A task's own joint range for the arm. A robot's safety rules take the tighter of it and theirs; a
+        simulation has nothing to tighten (the task keeps its targets in range)."""
+
     # -- acting and stepping -----------------------------------------------------------------
     @abstractmethod
     def command(self, controller: str, values: np.ndarray) -> None:
         """Command a controller (a 1-D finite vector; ``ValueError`` otherwise, nothing sent)."""
+
+    def command_arm(self, controller: str, targets: np.ndarray, info: dict[str, Any]) -> None:
+        """Command the arm's position ``controller`` (``targets`` in its joints' order). A simulation sends it
+        with the next step; a robot's connection passes it through its safety rules to the driver's arm
+        controller and puts their decision in ``info["safety"]``."""
+        self.command(controller, targets)
 
     def before_act(self) -> None:  # noqa: B027 - optional hook
         """Checks before an action's commands go out (a real robot's watchdog)."""

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from multiros.envs.config import SpawnPose, StepConfig
-from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
+from multiros.envs.connection import STEP_OK, RobotConnection, SceneEntity, StepStatus
 from multiros.envs.errors import EnvError, ResetError
 from multiros.robot_state import RobotState, RobotStates
 from multiros.sim.cameras import CameraFrame
@@ -163,10 +163,27 @@ class SimConnection(RobotConnection):
                                      orientation=tuple(orientation), timeout_sec=max(self.timeout_sec, 30.0))
 
     def place_entity(self, name: str, position: Sequence[float] | np.ndarray,
-                     orientation: Sequence[float] | np.ndarray) -> None:
+                     orientation: Sequence[float] | np.ndarray = (1.0, 0.0, 0.0, 0.0)) -> None:
         """Teleport an entity (at rest) to a pose in the robot's frame of the world."""
         self.sim.set_entity_pose(name, tuple(self.to_world(np.asarray(position, dtype=np.float64))),
                                  tuple(orientation))
+
+    @property
+    def base_position(self) -> np.ndarray:
+        """Where the robot was spawned, in the env's frame of the world."""
+        return np.asarray(self.spawn_pose.position, dtype=np.float64).copy()
+
+    def add_scene(self, entities: Sequence[SceneEntity]) -> None:
+        """Spawn the entities in order into the robot's namespace (a shared world's reset puts them back
+        with the robot) and ask every step for their frames too."""
+        for entity in entities:
+            self.spawn_entity(entity.name, entity.uri, entity.position)
+        self.add_frames(tuple(entity.frame for entity in entities))
+        self.refresh(0)
+
+    def reset_gripper(self, controller: str, joints: Sequence[str], positions: Sequence[float]) -> None:
+        """Teleport the gripper's joints to ``positions`` and hold them there."""
+        self.set_joint_positions(joints, positions)
 
     def to_world(self, position: np.ndarray) -> np.ndarray:
         """A position in the env's own frame of the world as the shared world has it (slot added)."""

@@ -22,12 +22,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from multiros.envs.connection import STEP_OK, RobotConnection, StepStatus
+from multiros.envs.connection import STEP_OK, RobotConnection, SceneEntity, StepStatus
 from multiros.envs.errors import EnvError, ResetError
 from multiros.envs.real.control_loop import ControlLoop
 from multiros.envs.real.errors import RobotConnectionError, StaleStateError, UnsafeCommandError
 from multiros.envs.real.robot_link import RobotLink
 from multiros.envs.real.safety import SafetyDecision, SafetyRules
+from multiros.envs.real.scene import RealScene, RealSceneOptions
 from multiros.robot_state import RobotState, RobotStates
 
 __all__ = ["RealConnection"]
@@ -121,6 +122,8 @@ class RealConnection(RobotConnection):
         self._frame_sources: dict[str, Callable[[RobotStates], tuple[np.ndarray, np.ndarray | None]]] = {}
         self._routes: dict[str, Callable[[np.ndarray], None]] = {}
         self._cameras: dict[str, tuple[Any, Any]] = {}  # name -> (rgb, depth) ImageTopic
+        self._base = np.zeros(3)
+        self.scene = RealScene(self, RealSceneOptions())
         self.link = RobotLink(node, namespace, joint_states_topic=joint_states_topic, use_sim_time=use_sim_time,
                               timeout_sec=self.timeout_sec)
         self._connect(load_controllers)
@@ -456,6 +459,81 @@ class RealConnection(RobotConnection):
             if topic is not None:
                 topic.close()
 
+    # -- where the robot stands, its task's scene and joint range ---------------------------------------
+    @property
+    def base_position(self) -> np.ndarray:
+        """World position of the robot's base, as :meth:`set_base_position` was told (the origin by default)."""
+        return self._base.copy()
+
+    def set_base_position(self, position: npt.ArrayLike) -> None:
+        """Where the robot's base stands in the task's world (a simulated twin's spawn position), so that
+        frames, goals and observations are the twin's."""
+        base = np.asarray(position, dtype=np.float64).reshape(3)
+        if not np.all(np.isfinite(base)):
+            raise ValueError(f"base_position must be 3 finite numbers, got {base.tolist()}")
+        self._base = base
+
+    def add_kinematic_frame(self, frame: str, chain: Any) -> None:
+        """Serve ``frame`` as a simulation returns it with each step: forward kinematics of the observed
+        joints of ``chain`` (a :class:`~multiros.utils.kinematics.KinematicChain` from the base link to
+        ``frame``), in the task's world (a real robot offers no end-effector pose; the simulated frame is
+        the same link of the same description)."""
+        joints = tuple(chain.joint_names)
+        index: dict[tuple[str, ...], list[int]] = {}
+
+        def fk(states: RobotStates) -> tuple[np.ndarray, None]:
+            idx = index.get(states.names)
+            if idx is None:
+                where = {name: i for i, name in enumerate(states.names)}
+                missing = [j for j in joints if j not in where]
+                if missing:
+                    raise EnvError(f"frame {frame!r}: robot {self.robot_name!r} reports no joints {missing}")
+                idx = index[states.names] = [where[j] for j in joints]
+            return chain.fk_position(states.position[:, idx]) + self._base, None
+
+        self.add_frame_source(frame, fk)
+
+    def set_scene_options(self, options: RealSceneOptions) -> None:
+        """How this robot's scene is reached: its tracker and gripper driver (:mod:`~multiros.envs.real.scene`)."""
+        self.scene.close()
+        self.scene = RealScene(self, options)
+
+    def add_scene(self, entities: Sequence[SceneEntity]) -> None:
+        """Nothing to spawn: the scene stands. The movable object's frame is the tracker's pose (waiting
+        up to ``startup_timeout`` for the first), a fixture's where the task says it is."""
+        self.scene.add(entities)
+
+    def use_gripper(self, controller: str, task_range: tuple[float, float]) -> None:
+        """Reach the gripper's driver and route ``controller``'s commands to it (:mod:`~multiros.envs.real.scene`)."""
+        self.scene.use_gripper(controller, task_range)
+
+    def reset_gripper(self, controller: str, joints: Sequence[str], positions: Sequence[float]) -> None:
+        """Open (or close) the gripper for the episode's start: a command to its driver."""
+        self.scene.reset_gripper(controller, positions)
+
+    def observation_time(self, states: RobotStates) -> float:
+        """The local time the robot's state arrived (seconds, monotonic)."""
+        received = self.state.received
+        return float(received) if received is not None else 0.0
+
+    def limit_joints(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:
+        """Tighten the safety rules' joint limits to a task's (the tighter bound wins)."""
+        rules = self.safety
+        if rules is None:
+            raise EnvError(f"{self.owner} has no safety rules to tighten")
+        self.safety = SafetyRules(
+            rules.joint_names, lower=lower, upper=upper, description_lower=rules.lower, description_upper=rules.upper,
+            max_joint_delta=rules.max_joint_delta, max_velocity=rules.max_velocity, chain=rules.chain,
+            base_position=rules.base_position,
+            workspace_min=rules.workspace_min, workspace_max=rules.workspace_max, floor_z=rules.floor_z,
+            workspace_mode=rules.workspace_mode, path_samples=rules.path_samples,
+        )
+
+    def command_arm(self, controller: str, targets: np.ndarray, info: dict[str, Any]) -> None:
+        """The arm's command through the safety rules to the driver's arm controller (whatever the
+        simulation calls it); their decision goes to ``info["safety"]``."""
+        self.send_joint_targets(targets, info)
+
     def route_controller(self, controller: str, send: Callable[[np.ndarray], None]) -> None:
         """Commands for ``controller`` go to ``send`` (after the checks every command passes): a controller
         the simulation has whose driver on the robot takes another interface (a gripper's action)."""
@@ -598,6 +676,10 @@ class RealConnection(RobotConnection):
         self._closed = True
         if self.close_env_prompt:
             self.prompt("Closing the env: the robot holds its last command. Press Enter: ")
+        try:
+            self.scene.close()
+        except Exception:  # noqa: BLE001 - closing must go on
+            _logger.debug("the scene's tracker or gripper did not close cleanly", exc_info=True)
         for name in list(self._cameras):
             try:
                 self.close_camera(name)

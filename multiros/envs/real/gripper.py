@@ -1,6 +1,5 @@
-"""A real gripper, commanded the way its ROS 2 driver takes commands: the push and pick-and-place
-Real twins' finger target (the simulated finger joint's position, metres) mapped onto the driver's
-range and sent as
+"""A real gripper, commanded the way its ROS 2 driver takes commands: a task's finger target (the
+simulated finger joint's position, metres) mapped onto the driver's range and sent as
 
 * ``"trajectory"``: a one-point ``JointTrajectory`` on ``<controller>/joint_trajectory`` (a
   JointTrajectoryController on the gripper joint: Interbotix' ``gripper_controller``);
@@ -32,7 +31,7 @@ class RealGripper:
     """One env's gripper (see the module docstring).
 
     Args:
-        env: the Real env (its robot link, control loop and connection).
+        connection: the robot's connection (its node, robot link and control loop).
         interface: one of :data:`GRIPPER_INTERFACES`.
         controller: the driver's gripper controller (relative to the robot's namespace).
         joint: the gripper joint a trajectory commands.
@@ -41,7 +40,7 @@ class RealGripper:
         max_effort: a GripperCommand goal's effort limit (N; 0: the driver's default).
     """
 
-    def __init__(self, env: Any, interface: str, controller: str, joint: str, env_range: Sequence[float],
+    def __init__(self, connection: Any, interface: str, controller: str, joint: str, env_range: Sequence[float],
                  real_range: Sequence[float] | None = None, max_effort: float = 0.0) -> None:
         if interface not in GRIPPER_INTERFACES:
             raise ValueError(f"gripper_interface {interface!r} is not one of {list(GRIPPER_INTERFACES)}")
@@ -52,7 +51,7 @@ class RealGripper:
         rlo, rhi = (float(v) for v in (real_range if real_range is not None else env_range))
         if not all(map(math.isfinite, (lo, hi, rlo, rhi))) or hi == lo:
             raise ValueError(f"gripper ranges must be finite and not empty: env {env_range}, driver {real_range}")
-        self.env, self.interface, self.controller, self.joint = env, interface, controller, joint
+        self.connection, self.interface, self.controller, self.joint = connection, interface, controller, joint
         self.env_range, self.real_range = (lo, hi), (rlo, rhi)
         self.max_effort = float(max_effort)
         self.last: float | None = None
@@ -62,7 +61,8 @@ class RealGripper:
             from multiros.ros.interfaces import get_action
 
             self._goal_type = get_action("control_msgs/action/GripperCommand")
-            self._client = ActionClient(env.node, self._goal_type, env.link.resolve(f"{controller}/gripper_cmd"))
+            self._client = ActionClient(connection.node, self._goal_type,
+                                        connection.link.resolve(f"{controller}/gripper_cmd"))
 
     def to_driver(self, finger: float) -> float:
         """The driver's value for the task's finger position (linear, clipped into the driver's range)."""
@@ -75,14 +75,15 @@ class RealGripper:
         """Send the finger target ``finger`` (task units) to the driver."""
         if not math.isfinite(float(finger)):
             raise ValueError(f"gripper target {finger!r} is not finite; nothing was sent")
-        self.env.connection.ensure_commandable()
+        self.connection.ensure_commandable()
         value = self.to_driver(finger)
         if self.interface == "none":
             return
         if self.interface == "trajectory":
-            self.env.link.publish_trajectory(self.controller, [self.joint], np.array([value]), self.env.loop.cycle)
+            self.connection.link.publish_trajectory(self.controller, [self.joint], np.array([value]),
+                                                    self.connection.loop.cycle)
         elif self.interface == "forward":
-            self.env.link.publish_forward(self.controller, np.array([value]))
+            self.connection.link.publish_forward(self.controller, np.array([value]))
         else:
             span = abs(self.real_range[1] - self.real_range[0])
             if self.last is not None and abs(value - self.last) <= 0.01 * span:
@@ -99,7 +100,7 @@ class RealGripper:
             return True
         if self.interface == "gripper_action":
             return bool(self._client.wait_for_server(timeout_sec=timeout))
-        return bool(self.env.link.wait_for_subscriber(self.controller, self.interface, timeout))
+        return bool(self.connection.link.wait_for_subscriber(self.controller, self.interface, timeout))
 
     def close(self) -> None:
         if self._client is not None:
