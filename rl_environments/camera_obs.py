@@ -51,13 +51,12 @@ import numpy as np
 from gymnasium import spaces
 
 from multiros.envs.batch_task import StepResults
+from multiros.envs.connection import CameraRequest
+from multiros.sim.view_camera import VIEW_CAMERA, camera_entity_urdf, look_at_rpy
 
-__all__ = ["CAMERA_KEYWORDS", "CameraObservations", "CameraOptions", "MODES", "camera_entity_urdf"]
+__all__ = ["CAMERA_KEYWORDS", "CameraObservations", "CameraOptions", "MODES", "camera_entity_urdf", "look_at_rpy"]
 
 _logger = logging.getLogger(__name__)
-#: An observation camera whose first image spans at most this many levels (of 255) sees nothing of use:
-#: the inside of a body, a patch of floor, the sky. The shipped views span well over 100.
-_FLAT_IMAGE_LEVELS = 8
 
 MODES = ("rgb_obs_only", "rgb_plus_normal_obs", "rgb_plus_depth_plus_normal_obs")
 _SIM_ONLY = ("camera_position", "camera_lookat", "camera_fovy")
@@ -68,7 +67,7 @@ CAMERA_KEYWORDS = (*MODES, "normal_obs_only", "camera_name", "image_width", "ima
 MAX_WIDTH, MAX_HEIGHT = 1920, 1080  # the simulation node's offscreen buffer (multiros.sim.world_model)
 MIN_SIDE = 8
 DEFAULT_SIZE = 84  # DQN's 84 x 84: cheap to render and to learn from
-CAMERA_ENTITY = "camera"  # the observation camera's sensor name (its topics: <namespace>/camera/...)
+CAMERA_ENTITY = VIEW_CAMERA  # the observation camera's sensor name (its topics: <namespace>/camera/...)
 
 
 @dataclass(frozen=True)
@@ -174,42 +173,6 @@ def parse_camera_options(kwargs: dict[str, Any], owner: str, *, real: bool,
                          float(max_depth), opts.get("rgb_topic"), opts.get("depth_topic"), float(timeout))
 
 
-def look_at_rpy(position: Sequence[float], lookat: Sequence[float]) -> tuple[float, float]:
-    """Pitch and yaw (rad) of a Gazebo camera (looking along +x, +z up) at ``position`` aimed at ``lookat``."""
-    d = np.subtract(lookat, position)
-    return float(math.atan2(-d[2], math.hypot(d[0], d[1]))), float(math.atan2(d[1], d[0]))
-
-
-def camera_entity_urdf(position: Sequence[float], lookat: Sequence[float], width: int, height: int,
-                       fovy_deg: float, namespace: str) -> str:
-    """A URDF holding one depth camera sensor (``camera``) at the entity's origin, aimed at ``lookat``
-    (the entity is spawned at ``position``), publishing as gazebo_ros_camera does in ``namespace``:
-    ``<namespace>/camera/image_raw``, ``.../camera_info``, ``.../depth/image_raw``.
-
-    The mount is a prismatic joint of zero travel (horizontal): a description without a joint would be a
-    free-floating object and fall, one with a joint is a fixed-base entity."""
-    pitch, yaw = look_at_rpy(position, lookat)
-    hfov = 2.0 * math.atan(math.tan(math.radians(fovy_deg) / 2.0) * width / height)
-    return (
-        '<robot name="observation_camera">\n'
-        '  <link name="world"/>\n'
-        '  <link name="camera_link"><inertial><mass value="0.01"/>'
-        '<inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial></link>\n'
-        '  <joint name="camera_mount" type="prismatic"><parent link="world"/><child link="camera_link"/>'
-        '<axis xyz="1 0 0"/><limit lower="0" upper="0" effort="1" velocity="1"/></joint>\n'
-        '  <gazebo reference="camera_link">\n'
-        f'    <sensor type="depth" name="{CAMERA_ENTITY}">\n'
-        f'      <pose>0 0 0 0 {pitch!r} {yaw!r}</pose>\n'
-        f'      <camera><horizontal_fov>{hfov!r}</horizontal_fov>'
-        f'<image><width>{width}</width><height>{height}</height></image></camera>\n'
-        f'      <plugin name="{CAMERA_ENTITY}" filename="libgazebo_ros_camera.so">'
-        f'<ros><namespace>{namespace}</namespace></ros><camera_name>{CAMERA_ENTITY}</camera_name></plugin>\n'
-        '    </sensor>\n'
-        '  </gazebo>\n'
-        '</robot>\n'
-    )
-
-
 class CameraObservations:
     """Camera observations for a task class (see the module docstring): mix it in before the task.
 
@@ -229,22 +192,21 @@ class CameraObservations:
         connection: Any
         robot_name: str
         node: Any
-        sim: Any
-        link: Any
+        ON_ROBOT: ClassVar[bool]
         CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]]
         CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]]
 
         @property
         def base_position(self) -> np.ndarray: ...
     camera: CameraOptions | None = None
-    camera_source: Any = None  # the world's camera name (simulation) or the image topics (real)
-    _camera_real: bool = False
+    camera_source: str = ""  # the camera as the connection names it (opened by setup_cameras)
     image_size: tuple[int, int] = (0, 0)  # (height, width)
 
     # -- construction ---------------------------------------------------------------------------
     def take_camera_options(self, kwargs: dict[str, Any]) -> CameraOptions | None:
-        """Pop and check the camera keywords (before the robot env's constructor sees the rest)."""
-        return parse_camera_options(kwargs, type(self).__name__, real=self._is_real(),
+        """Pop and check the camera keywords (before the robot env's constructor sees the rest; which
+        keywords apply depends on the env core's side, ``ON_ROBOT``)."""
+        return parse_camera_options(kwargs, type(self).__name__, real=bool(getattr(type(self), "ON_ROBOT", False)),
                                     defaults=type(self).CAMERA_DEFAULTS)
 
     @classmethod
@@ -254,18 +216,16 @@ class CameraObservations:
         return issubclass(cls, RealEnvCore)
 
     def setup_cameras(self, options: CameraOptions | None) -> None:
-        """Make the observation space hold the images and the camera ready (a first image is read
-        here: a camera that cannot render, or a topic that never publishes, fails now)."""
+        """Make the observation space hold the images and the camera ready: the connection opens it (a
+        simulation renders a camera of the world, spawning the view camera first; a robot's connection
+        subscribes to its driver's topics) and reads a first image (a camera that cannot render, or a topic
+        that never publishes, fails now)."""
         self.camera = options
         if options is None:
             return
         state = self.observation_space
         self._state_space = state
-        self._camera_real = self._is_real()
-        if self._camera_real:
-            self._setup_real_camera(options)
-        else:
-            self._setup_sim_camera(options)
+        self.camera_source, self.image_size = self.connection.open_camera(self.camera_request(options))
         h, w = self.image_size
         rgb = spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         depth = spaces.Box(0.0, options.max_depth, (h, w), dtype=np.float32)
@@ -283,65 +243,30 @@ class CameraObservations:
                 parts["depth"] = depth
         self.observation_space = spaces.Dict(parts)
 
-    def _setup_sim_camera(self, options: CameraOptions) -> None:
-        from multiros.sim.errors import RenderError
-
-        conn = self.connection
-        if options.camera_name is not None:
-            name = options.camera_name.strip("/")
-            self.camera_source = name if "/" in name else f"{self.robot_name}/{name}"
+    def camera_request(self, options: CameraOptions) -> CameraRequest:
+        """The camera the options ask for, as the connection opens it: a described camera by name, or the
+        view camera placed by the arm's ``CAMERA_VIEW`` around its base (unless placed by the options), of
+        the observation's size; on a robot, the driver's topics (``CAMERA_TOPICS``, or the simulated
+        camera's ``<camera>/image_raw`` and ``<camera>/depth/image_raw``)."""
+        name = options.camera_name
+        short = (name or CAMERA_ENTITY).strip("/").rsplit("/", 1)[-1]
+        rgb_default, depth_default = self.CAMERA_TOPICS.get(short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
+        rgb_topic = options.rgb_topic or rgb_default
+        depth_topic = (options.depth_topic or depth_default) if options.depth else None
+        if name is not None:
+            return CameraRequest(name, None, None, options.fovy, options.width, options.height, rgb_topic, depth_topic)
+        base = np.asarray(self.base_position, dtype=np.float64)
+        (lx, ly, lz), dist, az, el = self.CAMERA_VIEW
+        lookat = options.lookat if options.lookat is not None else tuple(float(v) for v in base + (lx, ly, lz))
+        if options.position is not None:
+            position = options.position
         else:
-            base = np.asarray(self.base_position, dtype=np.float64)
-            (lx, ly, lz), dist, az, el = self.CAMERA_VIEW
-            lookat = options.lookat if options.lookat is not None else tuple(base + (lx, ly, lz))
-            if options.position is not None:
-                position = options.position
-            else:
-                a, e = math.radians(az), math.radians(el)
-                position = (lookat[0] - dist * math.cos(e) * math.cos(a), lookat[1] - dist * math.cos(e) * math.sin(a),
-                            lookat[2] - dist * math.sin(e))
-            w, h = options.width or DEFAULT_SIZE, options.height or DEFAULT_SIZE
-            entity = f"{self.robot_name}_{CAMERA_ENTITY}"
-            text = camera_entity_urdf(position, lookat, w, h, options.fovy, conn.namespace)
-            entity = self.sim.spawn_entity(
-                entity, uri="", resource_string=text, namespace=f"{conn.namespace.rstrip('/')}/{CAMERA_ENTITY}_mount",
-                position=tuple(conn.to_world(np.asarray(position, dtype=np.float64))),
-                timeout_sec=max(conn.timeout_sec, 30.0))
-            self.camera_source = f"{entity}/{CAMERA_ENTITY}"
-        try:
-            frame = conn.read_camera(self.camera_source, rgb=True, depth=False, width=options.width,
-                                     height=options.height)
-        except RenderError as exc:
-            raise RenderError(f"{type(self).__name__}: the observation camera {self.camera_source!r} cannot render: "
-                              f"{exc}") from exc
-        assert frame.rgb is not None
-        if frame.rgb.size and int(frame.rgb.max()) - int(frame.rgb.min()) <= _FLAT_IMAGE_LEVELS:
-            _logger.warning("%s: the observation camera %r sees almost one colour in its first image (levels %d-%d): "
-                            "is it inside a body, or looking away from the robot? (camera_position=, "
-                            "camera_lookat=, camera_fovy=)", type(self).__name__, self.camera_source,
-                            int(frame.rgb.min()), int(frame.rgb.max()))
-        if options.camera_name is not None and (options.width is None) != (options.height is None):
-            raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither (the "
-                             "camera's own size)")
-        self.image_size = (int(frame.rgb.shape[0]), int(frame.rgb.shape[1]))
-
-    def _setup_real_camera(self, options: CameraOptions) -> None:
-        name = (options.camera_name or CAMERA_ENTITY).strip("/")
-        short = name.rsplit("/", 1)[-1]
-        rgb_default, depth_default = self.CAMERA_TOPICS.get(
-            short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
-        self.connection.add_camera(short, options.rgb_topic or rgb_default,
-                                   (options.depth_topic or depth_default) if options.depth else None)
-        self.camera_source = short
-        if options.width is None or options.height is None:
-            if options.width is not None or options.height is not None:
-                raise ValueError(f"{type(self).__name__}: give both image_width and image_height, or neither")
-            h = w = DEFAULT_SIZE
-            if options.camera_name is not None:  # the camera's own size: its first image says
-                h, w = self.connection.camera_size(short, self.connection.startup_timeout)
-            self.image_size = (int(h), int(w))
-        else:
-            self.image_size = (options.height, options.width)
+            a, e = math.radians(az), math.radians(el)
+            position = (lookat[0] - dist * math.cos(e) * math.cos(a), lookat[1] - dist * math.cos(e) * math.sin(a),
+                        lookat[2] - dist * math.sin(e))
+        return CameraRequest(None, (float(position[0]), float(position[1]), float(position[2])),
+                             (float(lookat[0]), float(lookat[1]), float(lookat[2])), options.fovy,
+                             options.width or DEFAULT_SIZE, options.height or DEFAULT_SIZE, rgb_topic, depth_topic)
 
     # -- images ---------------------------------------------------------------------------------
     def read_images(self) -> tuple[np.ndarray, np.ndarray | None]:

@@ -29,7 +29,32 @@ import numpy.typing as npt
 from multiros.envs.errors import EnvError
 from multiros.robot_state import RobotState, RobotStates
 
-__all__ = ["RobotConnection", "SceneEntity", "StepStatus", "STEP_OK"]
+__all__ = ["CameraRequest", "RobotConnection", "SceneEntity", "StepStatus", "STEP_OK"]
+
+
+@dataclass(frozen=True)
+class CameraRequest:
+    """The camera a task observes through, as the robot layer asks its connection to open it.
+
+    Attributes:
+        name: a camera of the robot's description (``"render_camera"``; in a simulation also a world
+            camera by its full name, ``"<entity>/<camera>"``), or ``None`` for the task's own view camera.
+        position, lookat: the view camera's place (world frame of the task, metres): a simulation spawns
+            it there; a robot's camera is where it is mounted.
+        fovy: the view camera's vertical field of view (degrees).
+        width, height: the images' size; ``None`` (both) for a named camera's own.
+        rgb_topic, depth_topic: on a robot, its camera driver's image topics (relative names: in the
+            robot's namespace); ``depth_topic`` ``None``: no depth.
+    """
+
+    name: str | None
+    position: tuple[float, float, float] | None
+    lookat: tuple[float, float, float] | None
+    fovy: float
+    width: int | None
+    height: int | None
+    rgb_topic: str
+    depth_topic: str | None
 
 
 @dataclass(frozen=True)
@@ -167,6 +192,18 @@ class RobotConnection(ABC):
     def limit_joints(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:  # noqa: B027
         """A task's own joint range for the arm. A robot's safety rules take the tighter of it and theirs; a
         simulation has nothing to tighten (the task keeps its targets in range)."""
+
+    # -- cameras --------------------------------------------------------------------------------
+    def open_camera(self, request: CameraRequest) -> tuple[str, tuple[int, int]]:
+        """Open the camera a task observes through and read a first image: a simulation renders a camera
+        of its world (spawning the view camera first), a robot's connection subscribes to the driver's
+        image topics. Returns the name :meth:`read_camera` takes and the images' ``(height, width)``."""
+        raise EnvError(f"robot {self.robot_name!r}: this connection has no cameras")
+
+    def read_camera(self, name: str, *, rgb: bool = True, depth: bool = False, width: int | None = None,
+                    height: int | None = None, max_age: float = 1.0) -> Any:
+        """Camera ``name``'s images now (``.rgb``, ``.depth``), at ``height`` x ``width`` when given."""
+        raise EnvError(f"robot {self.robot_name!r}: this connection has no cameras")
 
     # -- acting and stepping -----------------------------------------------------------------
     @abstractmethod

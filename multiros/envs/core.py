@@ -113,6 +113,9 @@ class EnvCore(JointStateAccess):
     out_of_range_action: str = "clip"
     #: The exception a refused action raises (a real robot's says nothing was sent).
     action_error: ClassVar[type[Exception]] = ValueError
+    #: Whether the core drives a real robot: which construction options apply (a camera's topics or its
+    #: place in a world). Behaviour never asks: it is the connection's.
+    ON_ROBOT: ClassVar[bool] = False
     #: The concrete template class below which hooks are looked up (set by base_env and real.envs).
     _template: ClassVar[type]
     _pending_seed: int | None = None

@@ -26,7 +26,7 @@ import numpy as np
 import numpy.typing as npt
 
 from multiros.envs.config import SpawnPose, StepConfig
-from multiros.envs.connection import STEP_OK, RobotConnection, SceneEntity, StepStatus
+from multiros.envs.connection import STEP_OK, CameraRequest, RobotConnection, SceneEntity, StepStatus
 from multiros.envs.errors import EnvError, ResetError
 from multiros.robot_state import RobotState, RobotStates
 from multiros.sim.cameras import CameraFrame
@@ -37,6 +37,9 @@ from multiros.sim.stepper import RobotStepper, StepReply
 __all__ = ["SimConnection", "RobotModel"]
 
 _logger = logging.getLogger(__name__)
+#: An observation camera whose first image spans at most this many levels (of 255) sees nothing of use:
+#: the inside of a body, a patch of floor, the sky. The shipped views span well over 100.
+_FLAT_IMAGE_LEVELS = 8
 
 # ResetSimulation scopes (simulation_interfaces/srv/ResetSimulation).
 _SCOPE_TIME, _SCOPE_STATE = 1, 2
@@ -355,6 +358,48 @@ class SimConnection(RobotConnection):
         """
         frame: CameraFrame = self.link.read_camera(camera, rgb=rgb, depth=depth, width=width, height=height)
         return frame
+
+    def open_camera(self, request: CameraRequest) -> tuple[str, tuple[int, int]]:
+        """A camera of the world to observe through: the named one (``"<camera>"`` of the robot, or
+        ``"<entity>/<camera>"``), or the view camera spawned into the robot's namespace at the request's
+        place (``<namespace>/camera/...`` topics); a first image is rendered now.
+
+        Raises:
+            multiros.sim.errors.RenderError: the camera cannot render (unknown, bad size, no offscreen GL).
+            ValueError: a named camera given one side of its size only.
+        """
+        from multiros.sim.errors import RenderError
+        from multiros.sim.view_camera import VIEW_CAMERA, camera_entity_urdf
+
+        if request.name is not None:
+            name = request.name.strip("/")
+            source = name if "/" in name else f"{self.robot_name}/{name}"
+        else:
+            if request.position is None or request.lookat is None or request.width is None or request.height is None:
+                raise ValueError("the view camera needs its position, lookat, width and height")
+            text = camera_entity_urdf(request.position, request.lookat, request.width, request.height, request.fovy,
+                                      self.namespace)
+            entity = self.sim.spawn_entity(
+                f"{self.robot_name}_{VIEW_CAMERA}", uri="", resource_string=text,
+                namespace=f"{self.namespace.rstrip('/')}/{VIEW_CAMERA}_mount",
+                position=tuple(self.to_world(np.asarray(request.position, dtype=np.float64))),
+                timeout_sec=max(self.timeout_sec, 30.0))
+            source = f"{entity}/{VIEW_CAMERA}"
+        try:
+            frame = self.read_camera(source, rgb=True, depth=False, width=request.width, height=request.height)
+        except RenderError as exc:
+            raise RenderError(f"robot {self.robot_name!r}: the observation camera {source!r} cannot render: "
+                              f"{exc}") from exc
+        assert frame.rgb is not None
+        if frame.rgb.size and int(frame.rgb.max()) - int(frame.rgb.min()) <= _FLAT_IMAGE_LEVELS:
+            _logger.warning("robot %r: the observation camera %r sees almost one colour in its first image (levels "
+                            "%d-%d): is it inside a body, or looking away from the robot? (camera_position=, "
+                            "camera_lookat=, camera_fovy=)", self.robot_name, source,
+                            int(frame.rgb.min()), int(frame.rgb.max()))
+        if request.name is not None and (request.width is None) != (request.height is None):
+            raise ValueError(f"robot {self.robot_name!r}: give both image_width and image_height, or neither (the "
+                             "camera's own size)")
+        return source, (int(frame.rgb.shape[0]), int(frame.rgb.shape[1]))
 
     def show_viewer(self) -> None:
         self.link.show_viewer()

@@ -28,7 +28,7 @@ SIDED = ("base_position", "spawn_scene", "place_object", "open_fingers_at_reset"
          "observation_time", "ee_positions_of", "object_poses_of", "command_grippers")
 #: The connection's methods those reach, abstract or with a default, each implemented on both sides.
 SEAM = ("base_position", "add_scene", "place_entity", "use_gripper", "reset_gripper", "limit_joints",
-        "command_arm", "observation_time")
+        "command_arm", "observation_time", "open_camera", "read_camera")
 
 
 def _entry(env_id: str) -> type:
@@ -69,7 +69,7 @@ def test_both_connections_implement_the_seam_the_robot_layer_asks() -> None:
         assert not getattr(cls, "__abstractmethods__", ()), (cls, cls.__abstractmethods__)
     # Where the sides differ, each has its own: a simulation spawns, teleports and sets fingers; a robot
     # serves a tracker, reaches a gripper's driver and passes the arm's command through its safety rules.
-    for name in ("add_scene", "reset_gripper", "base_position"):
+    for name in ("add_scene", "reset_gripper", "base_position", "open_camera", "read_camera"):
         assert name in SimConnection.__dict__ and name in RealConnection.__dict__, name
     for name in ("use_gripper", "limit_joints", "command_arm", "observation_time"):
         assert name in RealConnection.__dict__, name

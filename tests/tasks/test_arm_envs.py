@@ -167,7 +167,7 @@ def test_bad_camera_options_are_clear_errors(kwargs, match):
 
 def test_a_camera_that_sees_almost_one_colour_is_named(make, caplog):
     """A 1-degree view of a patch of floor (levels 204-209): a warning at make; the default view: none."""
-    with caplog.at_level("WARNING", logger="rl_environments.camera_obs"):
+    with caplog.at_level("WARNING", logger="multiros.envs.sim_connection"):
         make("RX200ReacherSim-v0", rgb_obs_only=True, image_width=16, image_height=16)
         assert "sees almost one colour" not in caplog.text
         make("RX200ReacherSim-v0", rgb_obs_only=True, image_width=16, image_height=16,

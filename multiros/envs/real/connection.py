@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from multiros.envs.connection import STEP_OK, RobotConnection, SceneEntity, StepStatus
+from multiros.envs.connection import STEP_OK, CameraRequest, RobotConnection, SceneEntity, StepStatus
 from multiros.envs.errors import EnvError, ResetError
 from multiros.envs.real.control_loop import ControlLoop
 from multiros.envs.real.errors import RobotConnectionError, StaleStateError, UnsafeCommandError
@@ -419,6 +419,19 @@ class RealConnection(RobotConnection):
         rgb = ImageTopic(self.node, self.link.resolve(rgb_topic), "rgb")
         depth = ImageTopic(self.node, self.link.resolve(depth_topic), "depth") if depth_topic else None
         self._cameras[name] = (rgb, depth)
+
+    def open_camera(self, request: CameraRequest) -> tuple[str, tuple[int, int]]:
+        """The camera driver's image topics (the request's ``rgb_topic`` and ``depth_topic``), served as
+        camera ``<camera>`` (the last part of the request's name; ``"camera"`` for the view camera, which
+        on a robot is the one mounted where its simulated twin has it). The size is the request's; a named
+        camera without one takes its first image's (waiting up to ``startup_timeout``)."""
+        short = (request.name or "camera").strip("/").rsplit("/", 1)[-1]
+        self.add_camera(short, request.rgb_topic, request.depth_topic)
+        if request.width is not None and request.height is not None:
+            return short, (int(request.height), int(request.width))
+        if request.width is not None or request.height is not None:
+            raise ValueError(f"robot {self.robot_name!r}: give both image_width and image_height, or neither")
+        return short, self.camera_size(short, self.startup_timeout)
 
     def _camera(self, name: str) -> tuple[Any, Any]:
         try:

@@ -78,6 +78,7 @@ class RealEnvCore(EnvCore):
     metadata: dict[str, Any] = {"render_modes": []}
     connection: RealConnection
     action_error = UnsafeCommandError
+    ON_ROBOT = True
 
     def _init_real(
         self,
