@@ -64,7 +64,7 @@ class ArmInterface:
     if TYPE_CHECKING:  # provided by the env core below the robot layer; declared for type checkers only
         node: Any
         robot_name: str
-        connection: RobotConnection  # the sim and real robot layers narrow it, as their env cores do
+        connection: RobotConnection  # the env classes narrow it (SimConnection, RealConnection), as their cores do
 
         @property
         def robot_state(self) -> RobotState: ...
