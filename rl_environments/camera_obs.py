@@ -209,12 +209,6 @@ class CameraObservations:
         return parse_camera_options(kwargs, type(self).__name__, real=bool(getattr(type(self), "ON_ROBOT", False)),
                                     defaults=type(self).CAMERA_DEFAULTS)
 
-    @classmethod
-    def _is_real(cls) -> bool:
-        from multiros.envs.real.core import RealEnvCore
-
-        return issubclass(cls, RealEnvCore)
-
     def setup_cameras(self, options: CameraOptions | None) -> None:
         """Make the observation space hold the images and the camera ready: the connection opens it (a
         simulation renders a camera of the world, spawning the view camera first; a robot's connection
