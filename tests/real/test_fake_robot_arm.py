@@ -194,6 +194,8 @@ def test_the_reach_twin_resets_and_steps_against_the_fake_robot(graph: Context, 
         obs_space, act_space = _sim_spaces(f"{arm.name}ReacherGoalSim-v0")
         assert env.observation_space == obs_space and env.action_space == act_space
         assert u.robot_driver.startswith(f"{robot.namespace}/controller_manager")
+        # The task's joint range tightened the description's in the safety rules.
+        assert np.all(u.safety.lower >= u.min_joint_pos) and np.all(u.safety.upper <= u.max_joint_pos)
         obs, _ = env.reset(seed=0)
         assert obs_space.contains(obs)
         # The fake robot started at arm.home; the reset moved it to the task's start pose.

@@ -38,6 +38,22 @@ def test_targets_are_clamped_to_the_tighter_of_task_and_description_limits() -> 
     assert d.as_info()["joint_limits"] is True and d.as_info()["refused"] is False
 
 
+def test_a_tasks_joint_range_tightens_the_rules_and_keeps_the_others() -> None:
+    r = rules(max_joint_delta=0.1, workspace_min=(-1, -1, 0), workspace_max=(1, 1, 1), floor_z=0.02,
+              workspace_mode="refuse", path_samples=7, base_position=(0.1, 0.0, 0.2))
+    task_lo = np.array([-1.0, -5.0, -1.0, -1.0, -1.0])
+    task_hi = np.array([1.0, 1.0, 5.0, 1.0, 1.0])
+    t = r.with_joint_limits(task_lo, task_hi)
+    np.testing.assert_array_equal(t.lower, np.maximum(task_lo, CHAIN.lower))  # the tighter bound wins
+    np.testing.assert_array_equal(t.upper, np.minimum(task_hi, CHAIN.upper))
+    np.testing.assert_array_equal(r.lower, CHAIN.lower)  # the original rules are unchanged
+    for name in ("joint_names", "max_joint_delta", "max_velocity", "base_position", "workspace_min",
+                 "workspace_max", "floor_z", "workspace_mode", "path_samples", "chain"):
+        assert repr(getattr(t, name)) == repr(getattr(r, name)), name
+    d = t.check([2.0, 0.0, 0.0, 0.0, 0.0], HOME)
+    assert JOINT_LIMITS in d.events
+
+
 def test_per_command_change_is_capped_from_the_measured_position() -> None:
     r = rules(max_joint_delta=0.1)
     current = np.array([0.2, 0.0, 0.0, 0.0, 0.0])

@@ -531,16 +531,9 @@ class RealConnection(RobotConnection):
 
     def limit_joints(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> None:
         """Tighten the safety rules' joint limits to a task's (the tighter bound wins)."""
-        rules = self.safety
-        if rules is None:
+        if self.safety is None:
             raise EnvError(f"{self.owner} has no safety rules to tighten")
-        self.safety = SafetyRules(
-            rules.joint_names, lower=lower, upper=upper, description_lower=rules.lower, description_upper=rules.upper,
-            max_joint_delta=rules.max_joint_delta, max_velocity=rules.max_velocity, chain=rules.chain,
-            base_position=rules.base_position,
-            workspace_min=rules.workspace_min, workspace_max=rules.workspace_max, floor_z=rules.floor_z,
-            workspace_mode=rules.workspace_mode, path_samples=rules.path_samples,
-        )
+        self.safety = self.safety.with_joint_limits(lower, upper)
 
     def command_arm(self, controller: str, targets: np.ndarray, info: dict[str, Any]) -> None:
         """The arm's command through the safety rules to the driver's arm controller (whatever the

@@ -202,6 +202,16 @@ class SafetyRules:
         self.workspace_mode: WorkspaceMode = workspace_mode
         self.path_samples = max(1, int(path_samples))
 
+    def with_joint_limits(self, lower: npt.ArrayLike, upper: npt.ArrayLike) -> SafetyRules:
+        """These rules with a task's joint range as well: the tighter of it and the present limits wins
+        (the present ones act as the description's); every other rule is the same."""
+        return SafetyRules(
+            self.joint_names, lower=lower, upper=upper, description_lower=self.lower, description_upper=self.upper,
+            max_joint_delta=self.max_joint_delta, max_velocity=self.max_velocity, chain=self.chain,
+            base_position=self.base_position, workspace_min=self.workspace_min, workspace_max=self.workspace_max,
+            floor_z=self.floor_z, workspace_mode=self.workspace_mode, path_samples=self.path_samples,
+        )
+
     # -- the checks ---------------------------------------------------------------------------
     def ee_position(self, q: np.ndarray) -> np.ndarray:
         """End-effector position(s) in the workspace frame for joint configuration(s) ``q``."""
