@@ -22,7 +22,10 @@ from typing import Any
 import pytest
 
 from multiros.ros import Context, Node
+from multiros.ros.interfaces import get_message
 from multiros.ros.processes import child_environment, private_context, stop_process
+
+PoseStamped = get_message("geometry_msgs/msg/PoseStamped")
 
 RX200_URI = "package://rx200_description/urdf/rx200.urdf.xacro?robot_name=rx200"
 STANDINS = ("sim", "fake")
@@ -153,5 +156,31 @@ class TopicRecorder:
 
     def close(self) -> None:
         self._executor.shutdown()
+        self._thread.join(timeout=2.0)
+        self.node.destroy_node()
+
+
+class Tracker:
+    """A stand-in object tracker: publishes a PoseStamped at 20 Hz until stopped."""
+
+    def __init__(self, ctx: Context, frame: str, topic: str = "/object_pose") -> None:
+        self.node = Node(f"tracker_{time.monotonic_ns()}", context=ctx)
+        self.pub = self.node.create_publisher(PoseStamped, topic, 10)
+        self.frame, self.position, self.quat = frame, [0.3, 0.02, 0.02], [1.0, 0.0, 0.0, 0.0]
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._stop.wait(0.05):
+            msg = PoseStamped()
+            msg.header.frame_id = self.frame
+            msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = self.position
+            (msg.pose.orientation.w, msg.pose.orientation.x, msg.pose.orientation.y,
+             msg.pose.orientation.z) = self.quat
+            self.pub.publish(msg)
+
+    def stop(self) -> None:
+        self._stop.set()
         self._thread.join(timeout=2.0)
         self.node.destroy_node()

@@ -22,7 +22,7 @@ from multiros.ros import Context, Node
 from multiros.ros.interfaces import get_message
 from rl_environments import ARM_TASKS
 
-from .conftest import TopicRecorder, make_real
+from .conftest import TopicRecorder, Tracker, make_real
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
@@ -53,32 +53,6 @@ def _sim_spaces(env_id: str, **kwargs: Any) -> tuple[Any, Any]:
         return env.observation_space, env.action_space
     finally:
         env.close()
-
-
-class Tracker:
-    """A stand-in object tracker: publishes a PoseStamped at 20 Hz until stopped."""
-
-    def __init__(self, ctx: Context, frame: str, topic: str = "/object_pose") -> None:
-        self.node = Node(f"tracker_{time.monotonic_ns()}", context=ctx)
-        self.pub = self.node.create_publisher(PoseStamped, topic, 10)
-        self.frame, self.position, self.quat = frame, [0.3, 0.02, 0.02], [1.0, 0.0, 0.0, 0.0]
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._stop.wait(0.05):
-            msg = PoseStamped()
-            msg.header.frame_id = self.frame
-            msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = self.position
-            (msg.pose.orientation.w, msg.pose.orientation.x, msg.pose.orientation.y,
-             msg.pose.orientation.z) = self.quat
-            self.pub.publish(msg)
-
-    def stop(self) -> None:
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        self.node.destroy_node()
 
 
 @pytest.fixture(scope="module", params=list(ARMS))

@@ -38,7 +38,7 @@ from rl_environments.arm_file import ArmFile
 from rl_environments.arm_registry import registered_arms
 from uniros.fake_robot import ArmRobotError, arm_robot_spec, vendor_controllers
 
-from .conftest import TopicRecorder, make_real
+from .conftest import TopicRecorder, Tracker, make_real
 
 JTC = "joint_trajectory_controller/JointTrajectoryController"
 FORWARD = "position_controllers/JointGroupPositionController"
@@ -167,8 +167,6 @@ def _sim_spaces(env_id: str) -> tuple[Any, Any]:
 @pytest.fixture(scope="module", params=ARMS)
 def fake(request: pytest.FixtureRequest, graph: Context) -> Iterator[tuple[ArmFile, FakeRobotProcess]]:
     """``uniros-fake-robot --arm <file>`` in a child process; nothing else tells it a name."""
-    from .test_arm_twins import Tracker
-
     arm = _arm(request.param)
     robot = FakeRobotProcess(None, context=graph, args=["--arm", str(arm.path), "--log-level", "WARNING"],
                              namespace=arm.real.namespace, timeout_sec=90.0, cwd=_CWD, module="uniros.fake_robot")
@@ -350,8 +348,6 @@ def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
     it with their simulated twins' spaces, the gripper through the interface the file names."""
     from rl_environments.arm_registry import unregister_arm
     from uniros.cli import main as cli
-
-    from .test_arm_twins import Tracker
 
     monkeypatch.setenv("AMENT_PREFIX_PATH", str(Path(__file__).parents[1] / "robots" / "arm_add_data" / "install"))
     monkeypatch.setenv("UNIROS_ARMS", "")  # arm add registers the file for child processes; restored after

@@ -20,8 +20,9 @@ from multiros.envs.real.scene import RealScene, RealSceneOptions
 from multiros.robot_state import RobotStates
 from multiros.ros import Context, Node
 from multiros.ros.executors import SingleThreadedExecutor
-from multiros.ros.interfaces import get_message
 from rl_environments.arm_robot import ArmRobot
+
+from .conftest import Tracker
 
 #: What the robot layer does that differs between the sides: each is ArmRobot's, asked of the connection.
 SIDED = ("base_position", "spawn_scene", "place_object", "open_fingers_at_reset", "set_arm_targets_of",
@@ -132,28 +133,13 @@ def _states(n: int = 1) -> RobotStates:
 
 
 def test_a_real_scene_serves_the_tracked_object_and_the_standing_fixture(graph: Node) -> None:
-    pose_type = get_message("geometry_msgs/msg/PoseStamped")
-    tracker = Node("tracker", context=graph.context)  # another node, as a tracker is
-    pub = tracker.create_publisher(pose_type, "/object_pose", 10)
     conn = _StubConnection(graph)
     scene = RealScene(conn, RealSceneOptions(object_pose_frame="base_link", object_pose_timeout=5.0))  # type: ignore[arg-type]
-    msg = pose_type()
-    msg.header.frame_id = "base_link"
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = 0.3, -0.1, 0.02
-    msg.pose.orientation.w = 1.0
-    wait_for = graph.context.wait_for
-    done = threading.Event()  # the tracker publishes until the test ends
-
-    def publish() -> None:
-        while not done.wait(0.02):
-            pub.publish(msg)
-
-    thread = threading.Thread(target=publish, daemon=True)
-    thread.start()
+    tracker = Tracker(graph.context, "base_link")
+    tracker.position = [0.3, -0.1, 0.02]
     try:
         scene.add([SceneEntity("t", "package://x/mjcf/table.xml", (0.4, 0.0, 0.3), "t/table", movable=False),
                    SceneEntity("o", "package://x/mjcf/cube.xml", (0.3, 0.0, 0.5), "o/object", movable=True)])
-        assert wait_for(lambda: "o/object" in conn.sources, 5.0)
         states = _states()
         table, table_q = conn.sources["t/table"](states)
         np.testing.assert_array_equal(table, [[0.4, 0.0, 0.3]])  # where the task says it stands
@@ -162,8 +148,7 @@ def test_a_real_scene_serves_the_tracked_object_and_the_standing_fixture(graph: 
         np.testing.assert_allclose(where, [[0.3, -0.1, 0.52]])  # the tracker's pose, in the task's world
         np.testing.assert_allclose(quat, [[1.0, 0.0, 0.0, 0.0]])
     finally:
-        done.set()
-        thread.join(timeout=2.0)
+        tracker.stop()
         scene.close()
 
 
