@@ -147,6 +147,9 @@ def test_a_real_scene_serves_the_tracked_object_and_the_standing_fixture(graph: 
         where, quat = conn.sources["o/object"](states)
         np.testing.assert_allclose(where, [[0.3, -0.1, 0.52]])  # the tracker's pose, in the task's world
         np.testing.assert_allclose(quat, [[1.0, 0.0, 0.0, 0.0]])
+        # Added again (a task set up anew): one tracker subscription, not two.
+        scene.add([SceneEntity("o", "package://x/mjcf/cube.xml", (0.3, 0.0, 0.5), "o/object", movable=True)])
+        assert graph.context.wait_for(lambda: graph.count_subscribers("/object_pose") == 1, 5.0)
     finally:
         tracker.stop()
         scene.close()

@@ -92,6 +92,8 @@ class RealScene:
                 connection.add_frame_source(entity.frame, _standing(entity.position))
         if not movable:
             return
+        if self.object_pose is not None:  # a scene added again: the earlier tracker subscription goes
+            self.object_pose.close()
         self.object_pose = PoseTopic(connection.node, connection.link.resolve(opts.object_pose_topic),
                                      opts.object_pose_frame)
         self.object_pose.wait_first(connection.startup_timeout)
