@@ -267,3 +267,36 @@ def test_a_frame_clash_on_an_in_process_graph_is_info_not_a_warning(caplog):
         node.destroy_node()
     finally:
         ctx.try_shutdown()
+
+
+def test_a_move_nobody_heard_reaches_the_listener_that_comes_later():
+    """With nobody on /tf or /tf_static, a move outside a step (a teleport, a reset: every episode of
+    lockstep training) leaves the heartbeat asleep, so the client does not wait for it; the static tree
+    a listener gets when it comes is the moved one all the same."""
+    ctx = Context(transport="inproc").init()
+    try:
+        sim = SimulationNode("mujoco_sim", context=ctx)
+        user = Node("tf_user", context=ctx)
+        client = SimulationClient(user, "/mujoco_sim", timeout_sec=60.0)
+        client.spawn_entity("rx200", uri=RX200, position=SPAWN_AT)
+        first = Listener(Node("tf_first", context=ctx))
+        first.spin_until(lambda: first.lookup("rx200/base_link") is not None, "the tree for a first listener")
+        first.executor.shutdown()
+        first.node.destroy_node()  # nobody listens from here
+        moved_to = (0.4, -0.3, 0.0)
+        for _ in range(3):  # resets of the state and teleports, as episodes do
+            client.reset_simulation(2)  # SCOPE_STATE: the spawned robot stays
+            client.set_entity_pose("rx200", moved_to)
+        with sim.lock:
+            truth = sim.world.frame_pose("rx200/base_link", "rx200")
+        assert np.allclose(truth[0], moved_to, atol=1e-9)
+        sim.tf.changed()
+        assert not sim.tf._wake.is_set(), "the heartbeat was woken with nobody listening"
+        late = Listener(Node("tf_late", context=ctx))
+        late.spin_until(lambda: late.lookup("rx200/base_link") is not None
+                        and _same_pose(late.lookup("rx200/base_link"), truth), "the moved base for a late listener")
+        late.executor.shutdown()
+        client.close()
+        sim.destroy_node()
+    finally:
+        ctx.shutdown()
