@@ -48,6 +48,24 @@ def test_unknown_name_suggests_close_matches() -> None:
         get_message("nonexistent_msgs/msg/Zzzzzz")
 
 
+def test_the_hint_is_searched_only_when_the_message_is_read(monkeypatch) -> None:
+    """A miss that is caught (another distribution without the type, a name tried as each kind) costs
+    no search of every known name; the message, read or pickled to another process, has the hint."""
+    import difflib
+    import pickle
+
+    searches: list[str] = []
+    real = difflib.get_close_matches
+    monkeypatch.setattr(difflib, "get_close_matches", lambda word, *a, **k: searches.append(word) or real(word, *a, **k))
+    with pytest.raises(UnknownTypeError) as info:
+        get_message("sensor_msgs/msg/JointStat")
+    assert searches == []
+    copy = pickle.loads(pickle.dumps(info.value))
+    assert "did you mean sensor_msgs/msg/JointState" in str(copy) and searches == ["sensor_msgs/msg/JointStat"]
+    assert str(info.value) == str(copy) and info.value.args == (str(copy),)
+    assert type_hash(get_message("sensor_msgs/msg/JointState")) and len(searches) == 1  # hits search nothing
+
+
 @pytest.mark.parametrize("kwargs, exc, field", [
     ({"data": 300}, FieldValueError, "data"),
     ({"data": -1}, FieldValueError, "data"),

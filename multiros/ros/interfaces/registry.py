@@ -122,13 +122,17 @@ class TypeRegistry:
         return sorted(n for n in self._files if kind is None or n.split("/")[1] == kind)
 
     def _unknown(self, name: str, kind: str | None) -> UnknownTypeError:
-        candidates = self.list_types(kind)
-        close = difflib.get_close_matches(name, candidates, n=5, cutoff=0.6)
-        short = [c for c in candidates if c.rsplit("/", 1)[-1].lower() == name.rsplit("/", 1)[-1].lower()]
-        close = list(dict.fromkeys(short + close))[:5]
-        hint = f"did you mean {', '.join(close)}?" if close else f"known packages: {', '.join(self.packages())}"
-        what = {"msg": "message", "srv": "service", "action": "action"}.get(kind or "", "interface")
-        return UnknownTypeError(f"unknown {what} type {name!r}; {hint}")
+        """The error for an unknown ``name``; its "did you mean" hint is searched when the message is read."""
+        def message() -> str:
+            candidates = self.list_types(kind)
+            close = difflib.get_close_matches(name, candidates, n=5, cutoff=0.6)
+            short = [c for c in candidates if c.rsplit("/", 1)[-1].lower() == name.rsplit("/", 1)[-1].lower()]
+            close = list(dict.fromkeys(short + close))[:5]
+            hint = f"did you mean {', '.join(close)}?" if close else f"known packages: {', '.join(self.packages())}"
+            what = {"msg": "message", "srv": "service", "action": "action"}.get(kind or "", "interface")
+            return f"unknown {what} type {name!r}; {hint}"
+
+        return UnknownTypeError(message)
 
     def resolve(self, name: str, kind: str | None = None) -> str:
         """Full canonical name of a type; ``kind`` restricts the search (``msg``/``srv``/``action``).
