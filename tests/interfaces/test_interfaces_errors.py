@@ -56,7 +56,8 @@ def test_the_hint_is_searched_only_when_the_message_is_read(monkeypatch) -> None
 
     searches: list[str] = []
     real = difflib.get_close_matches
-    monkeypatch.setattr(difflib, "get_close_matches", lambda word, *a, **k: searches.append(word) or real(word, *a, **k))
+    monkeypatch.setattr(difflib, "get_close_matches",
+                        lambda word, *a, **k: searches.append(word) or real(word, *a, **k))
     with pytest.raises(UnknownTypeError) as info:
         get_message("sensor_msgs/msg/JointStat")
     assert searches == []
