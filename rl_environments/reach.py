@@ -73,14 +73,16 @@ def reward_from_distance(
     sparse_values: tuple[float, float] = (0.0, -1.0),
 ) -> np.ndarray | float:
     """:func:`goal_reward` from the goal distance(s) ``d`` (:func:`goal_distance`)."""
-    if np.ndim(d) == 0:
+    if not isinstance(d, np.ndarray) or d.ndim == 0:
         value = -d if reward_type == "dense" else sparse_values[0] if d <= tolerance else sparse_values[1]
         return float(np.float32(value))
     if reward_type == "dense":
-        reward = -d
-    else:
-        reward = np.where(d <= tolerance, sparse_values[0], sparse_values[1])
-    return np.asarray(reward, dtype=np.float32)
+        return (-d).astype(np.float32)
+    if d.ndim == 1 and len(d) <= 16 and not isinstance(tolerance, np.ndarray):
+        # a few goals (every env step): chosen as plain floats, a fifth of numpy's per-call time
+        reached, missed = sparse_values
+        return np.array([reached if x <= tolerance else missed for x in d.tolist()], dtype=np.float32)
+    return np.asarray(np.where(d <= tolerance, sparse_values[0], sparse_values[1]), dtype=np.float32)
 
 
 def parse_reward_type(value: str) -> RewardType:

@@ -149,20 +149,24 @@ class ReachTask(BatchTask, ArmInterface):
         clipped into each env's joint range, sent to each arm; ``prev_action`` and ``joint_targets`` kept."""
         current = cls.arm_positions_of(states)
         e0 = envs[0]
-        kind = (e0.ee_action_type, e0.delta_action)
-        kinds = {kind} if len(envs) == 1 else {(env.ee_action_type, env.delta_action) for env in envs}
-        if kinds == {(False, True)}:  # joint deltas, every env: one pass
+        kind: tuple[Any, Any] | None = (e0.ee_action_type, e0.delta_action)
+        if len(envs) > 1 and any((env.ee_action_type, env.delta_action) != kind for env in envs):
+            kind = None  # envs of several kinds: row by row
+        if kind == (False, True):  # joint deltas, every env: one pass
             targets = current + actions * column(envs, "delta_coeff")
-        elif kinds == {(False, False)}:
+        elif kind == (False, False):
             targets = actions
         else:
             targets = np.array([cls._row_targets(env, current[j], actions[j], states, j)
                                 for j, env in enumerate(envs)])
-        targets = np.minimum(np.maximum(targets, stack_rows(envs, "min_joint_pos")),
-                             stack_rows(envs, "max_joint_pos"))  # np.clip, faster
-        for j, env in enumerate(envs):
-            env.joint_targets = targets[j]
-            env.prev_action = actions[j]
+        if len(envs) == 1:
+            targets = np.minimum(np.maximum(targets, e0.min_joint_pos), e0.max_joint_pos)  # np.clip, faster
+        else:
+            targets = np.minimum(np.maximum(targets, stack_rows(envs, "min_joint_pos")),
+                                 stack_rows(envs, "max_joint_pos"))
+        for env, target, action in zip(envs, targets, actions):
+            env.joint_targets = target
+            env.prev_action = action
         cls.set_arm_targets_of(envs, targets)
 
     @classmethod
@@ -233,16 +237,18 @@ class GoalReachTask(ReachTask):
                 if name not in OBS_PARTS:
                     raise ValueError(f"{cls.__name__}.OBS_PARTS names {name!r}; parts: {list(OBS_PARTS)}")
             _CHECKED_PARTS.add(cls)
-        raw = np.concatenate([cls._obs_part(name, envs, states) for name in cls.OBS_PARTS], axis=1)
+        # cast to float32 as they are joined (the bits of a cast after), then clipped in place
+        obs = np.concatenate([cls._obs_part(name, envs, states) for name in cls.OBS_PARTS], axis=1,
+                             dtype=np.float32)
         if len(envs) == 1:
-            box = envs[0].state_space["observation"]
+            box = envs[0].state_space.spaces["observation"]
             low, high = box.low, box.high
         else:
-            boxes = [env.state_space["observation"] for env in envs]
+            boxes = [env.state_space.spaces["observation"] for env in envs]
             low, high = np.array([b.low for b in boxes]), np.array([b.high for b in boxes])
-        obs = np.minimum(np.maximum(raw.astype(np.float32), low), high)
+        np.minimum(np.maximum(obs, low, out=obs), high, out=obs)
         return {"observation": obs, "achieved_goal": obs[:, :3].copy(),
-                "desired_goal": stack_rows(envs, "goal").astype(np.float32)}
+                "desired_goal": np.array([env.goal for env in envs], dtype=np.float32)}
 
     @classmethod
     def _obs_part(cls, name: str, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
@@ -261,18 +267,18 @@ class GoalReachTask(ReachTask):
         distance = goal_distance(obs["achieved_goal"], obs["desired_goal"])  # what is_success and goal_reward compute
         tolerance = numbers(envs, "tolerance")
         success = distance <= tolerance
-        types = {env.reward_type for env in envs}
+        types = {envs[0].reward_type} if len(envs) == 1 else {env.reward_type for env in envs}
         if len(types) == 1:
-            reward = np.asarray(reward_from_distance(distance, tolerance, types.pop()), dtype=np.float64)
+            reward = reward_from_distance(distance, tolerance, types.pop()).astype(np.float64)  # type: ignore[union-attr]
         else:
             reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], env.tolerance, env.reward_type))[0]
                                for j, env in enumerate(envs)], dtype=np.float64)
         infos = []
-        for j, env in enumerate(envs):
+        for env, reached in zip(envs, success.tolist()):
             info = env.info
-            info.setdefault("is_success", bool(success[j]))
+            info.setdefault("is_success", reached)
             infos.append(info)
-        return StepResults(obs, reward, success.copy(), np.zeros(len(envs), dtype=bool), infos)
+        return StepResults(obs, reward, success, np.zeros(len(envs), dtype=bool), infos)
 
     # -- the hooks of one env (MultiROS names), through the batch functions --------------------------
     def _get_obs(self) -> dict[str, np.ndarray]:

@@ -214,7 +214,10 @@ class ResolvedRobots:
         if key != self.key or node.world.binding != self.binding:
             return False
         robots = node._robots
-        return all(robots.get(robot.name) is robot and (fs is None or not fs.stale) for robot, fs in self.prepared)
+        for robot, fs in self.prepared:
+            if robots.get(robot.name) is not robot or (fs is not None and fs.stale):
+                return False
+        return True
 
     def keep(self, node: SimulationNode, key: tuple[tuple[str, tuple[str, ...]], ...],
              prepared: list[tuple[Any, FrameSet | None]]) -> None:
@@ -246,7 +249,7 @@ class StepRobotsCall:
                  cache: ResolvedRobots | None = None, *, stop_on_refusal: bool = False) -> None:
         if steps > node.max_steps_per_call:
             raise StepRobotsRefused(FAILED, too_many_steps_message(node, steps))
-        key = tuple((item.entity, tuple(item.frames)) for item in items)
+        key = tuple([(item.entity, tuple(item.frames)) for item in items])
         if cache is None or cache.key != key:  # a robot list a cache already holds was checked then
             _check_items(node, items)
         if steps > 0 and node.simulation_state != SimulationState.STATE_PAUSED:

@@ -65,6 +65,7 @@ class StateGather:
     def clear(self) -> None:
         """Forget every robot list's indices (and the frame sets they hold)."""
         self._indices.clear()
+        self._last = None
 
     def read(self, names: Sequence[str], frame_sets: Sequence[FrameSet | None], sim_time: float) -> RobotStates | None:
         """The robots' states stacked, or ``None`` when they cannot be (robots with different joint
@@ -73,6 +74,28 @@ class StateGather:
         ``frame_sets[j]`` holds the frames named for robot ``names[j]`` (``None``: no frames).
         Raises EntityError for an unknown robot or a frame set whose entity was deleted.
         """
+        world = self._world
+        last = self._last  # a client stepping one robot list calls again with the same sequences
+        if last is not None and last[0] is names and last[1] is frame_sets and last[2] == world.binding:
+            idx = last[3]
+        else:
+            idx = self._lookup(names, frame_sets)
+            self._last = (names, frame_sets, world.binding, idx)
+        if not idx.valid:
+            return None
+        d = world.data
+        effort = np.zeros(idx.effort_shape)
+        if idx.act_ids.size:
+            effort.flat[idx.effort_slot] = d.actuator_force[idx.act_ids]
+        if idx.frames:
+            world.sync_kinematics()
+        return RobotStates(sim_time, idx.joint_names, d.qpos[idx.qadr], d.qvel[idx.dadr], effort,
+                           d.xpos[idx.body_ids], d.xquat[idx.body_ids])
+
+    _last: tuple[Sequence[str], Sequence[FrameSet | None], int, _Indices] | None = None
+
+    def _lookup(self, names: Sequence[str], frame_sets: Sequence[FrameSet | None]) -> _Indices:
+        """The indices of a robot list in the world's current binding (built when new)."""
         world = self._world
         key = (world.binding, tuple(names))
         idx = self._indices.get(key)
@@ -85,13 +108,4 @@ class StateGather:
             if len(self._indices) >= 16:  # ids of older bindings, lists no longer stepped
                 self._indices.clear()
             idx = self._indices[key] = _Indices(world, key[1], frame_sets)
-        if not idx.valid:
-            return None
-        d = world.data
-        effort = np.zeros(idx.effort_shape)
-        if idx.act_ids.size:
-            effort.flat[idx.effort_slot] = d.actuator_force[idx.act_ids]
-        if idx.frames:
-            world.sync_kinematics()
-        return RobotStates(sim_time, idx.joint_names, d.qpos[idx.qadr], d.qvel[idx.dadr], effort,
-                           d.xpos[idx.body_ids], d.xquat[idx.body_ids])
+        return idx

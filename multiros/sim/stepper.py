@@ -129,14 +129,39 @@ class ComposedStepper(RobotStepper):
     def __init__(self, node: SimulationNode) -> None:
         self.node = node
         self._resolved = ResolvedRobots()
+        # the robot names and frame sets of the last robot list read, as the state gather's key (the
+        # same objects while the list stands, so the gather finds its indices at once)
+        self._gather_key: tuple[Any, tuple[str, ...], tuple[FrameSet | None, ...]] | None = None
 
     def begin(self, robots: Sequence[RobotStepSpec], steps: int) -> PendingStep:
         try:  # the specs are the call's items: they have its fields (entity, reset, commands, frames)
-            call = _ComposedCall(self.node, StepRobotsCall(self.node, robots, int(steps), self._resolved))
+            call = _ComposedCall(self, StepRobotsCall(self.node, robots, int(steps), self._resolved))
         except StepRobotsRefused as exc:
             raise _refused(self.node, exc) from exc
         call.prepare()
         return call
+
+    def step(self, robots: Sequence[RobotStepSpec], steps: int) -> StepReply:
+        """The call's phases in a row on this thread (:meth:`StepRobotsCall.run`), with no pending
+        call between them: what :meth:`begin`, ``advance`` and ``finish`` do, with less on the way."""
+        try:
+            call = StepRobotsCall(self.node, robots, int(steps), self._resolved)
+        except StepRobotsRefused as exc:
+            raise _refused(self.node, exc) from exc
+        reader = _ComposedCall(self, call)
+        try:
+            return reader.reply(call.run(reader._read)[0])
+        except StepRobotsRefused as exc:
+            raise _refused(self.node, exc) from exc
+
+    def gather_key(self, prepared: Sequence[tuple[Any, FrameSet | None]]) -> tuple[tuple[str, ...],
+                                                                                tuple[FrameSet | None, ...]]:
+        """The names and frame sets of ``prepared`` robots (all known), kept while ``prepared`` is the same list."""
+        key = self._gather_key
+        if key is None or key[0] is not prepared:
+            key = self._gather_key = (prepared, tuple(robot.name for robot, _ in prepared),
+                                      tuple(frame_set for _, frame_set in prepared))
+        return key[1], key[2]
 
 
 def _refused(node: SimulationNode, exc: StepRobotsRefused) -> SimulationServiceError:
@@ -144,8 +169,9 @@ def _refused(node: SimulationNode, exc: StepRobotsRefused) -> SimulationServiceE
 
 
 class _ComposedCall(PendingStep):
-    def __init__(self, node: SimulationNode, call: StepRobotsCall) -> None:
-        self.node = node
+    def __init__(self, stepper: ComposedStepper, call: StepRobotsCall) -> None:
+        self.stepper = stepper
+        self.node = stepper.node
         self.call = call
         self.stacked: RobotStates | None = None
         self.time = 0.0
@@ -165,13 +191,18 @@ class _ComposedCall(PendingStep):
             parts, _ = self.call.finish(self._read)
         except StepRobotsRefused as exc:
             raise _refused(self.node, exc) from exc
+        return self.reply(parts)
+
+    def reply(self, parts: list[tuple[int, str, Any]]) -> StepReply:
+        """The reply from the call's parts (and what :meth:`_read` kept)."""
         t = self.time
         status = [int(code) for code, _, _ in parts]
         message = [msg for _, msg, _ in parts]
         stacked = self.stacked
-        states = None if stacked is not None else [None if part is None else RobotState(t, *part)
-                                                   for _, _, part in parts]
-        return StepReply(t, status, message, states, stacked)
+        if stacked is not None:
+            return StepReply(t, status, message, None, stacked)
+        return StepReply(t, status, message, [None if part is None else RobotState(t, *part) for _, _, part in parts],
+                         None)
 
     def close(self) -> None:
         self.call.close()
@@ -184,8 +215,7 @@ class _ComposedCall(PendingStep):
         self.time = t = convert.time_seconds(world.time)  # the time the service's message would carry
         self.stacked = None
         if prepared and all(robot is not None for robot, _ in prepared):
-            stacked = node.state_gather.read([robot.name for robot, _ in prepared],
-                                             [frame_set for _, frame_set in prepared], t)
+            stacked = node.state_gather.read(*self.stepper.gather_key(prepared), t)
             if stacked is not None:
                 self.stacked = stacked
                 return [() for _ in prepared]  # the rows come from ``stacked`` (see finish)
