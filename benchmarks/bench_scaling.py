@@ -86,23 +86,26 @@ class Stepper:
 
 class PhysicsLimit:
     """``mj_step`` alone in the world of ``n`` robots of ``env_id`` (on one in-process node), on
-    ``threads`` threads at once, each with its own ``MjData``: env steps/s of ``n * threads`` envs."""
+    ``threads`` threads at once, each with its own ``MjData``: env steps/s of ``n * threads`` envs.
+
+    Each ``mj_step`` starts from the state one of the env's own step calls started from, its new
+    commands written (``World.step_start_state``), so the physics timed is the physics the env runs.
+    A state read after a step holds the previous commands instead; the arm then coasts to targets it
+    has nearly reached, and its step costs about 3 % less than the env's own (RX200: 643 us vs 665 us)."""
 
     def __init__(self, env_id: str, n: int, threads: int, **kwargs) -> None:
         vec = uniros.make_vec(env_id, n, vectorization_mode="batched", vector_kwargs={"num_nodes": 1}, **kwargs)
         try:
             world = vec.batch.connections[0].sim_node.world
             self.model, self.steps = world.model, vec.batch.num_sim_steps
-            kind = mujoco.mjtState.mjSTATE_INTEGRATION
             rng = np.random.default_rng(1)
             space = vec.action_space
             vec.reset(seed=0)
             self.states = []
-            for _ in range(64):
+            for i in range(256):  # four episodes of the reach; every fourth step call's start kept
                 vec.step(rng.uniform(space.low, space.high).astype(space.dtype))
-                state = np.empty(mujoco.mj_stateSize(self.model, kind))
-                mujoco.mj_getState(self.model, world.data, state, kind)
-                self.states.append(state)
+                if i % 4 == 0:
+                    self.states.append(world.step_start_state())
         finally:
             vec.close()
         self.n: float = n  # envs each world stands for

@@ -102,6 +102,12 @@ class WorldStepping:
         if self._warnings_changed():
             self._recover(n)
 
+    def step_start_state(self) -> np.ndarray:
+        """The integration state (``mjSTATE_INTEGRATION``) the last step call started from, commands
+        written (a copy). ``mj_setState`` of it and ``mj_step`` of that call's steps repeat its physics:
+        how benchmarks time the physics alone on the states a run actually steps from."""
+        return self._snap.copy()
+
     def sync_kinematics(self) -> None:
         """Bring frame poses (bodies, sites, geoms, cameras) up to the joint positions, once per step call.
 

@@ -289,6 +289,29 @@ def test_step_is_deterministic(make_world):
     assert first[0].tobytes() == again[0].tobytes() and first[1].tobytes() == again[1].tobytes()
 
 
+def test_a_step_call_replays_from_its_start_state(arm_world):
+    """``step_start_state`` is where the last step call began, commands written: ``mj_step`` from it
+    repeats that call's physics bit for bit (what benchmarks time as the physics limit)."""
+    import mujoco
+
+    arm_world.step(20)
+    arm_world.set_command("arm", "arm_controller", [0.7, -0.4, 0.9])
+    arm_world.step(25)
+    start = arm_world.step_start_state()
+    kind = mujoco.mjtState.mjSTATE_INTEGRATION
+    after = np.empty(mujoco.mj_stateSize(arm_world.model, kind))
+    mujoco.mj_getState(arm_world.model, arm_world.data, after, kind)
+    data = mujoco.MjData(arm_world.model)
+    mujoco.mj_setState(arm_world.model, data, start, kind)
+    assert np.array_equal(data.ctrl, arm_world.data.ctrl)  # the call's commands, not the ones before
+    mujoco.mj_step(arm_world.model, data, 25)
+    replayed = np.empty_like(after)
+    mujoco.mj_getState(arm_world.model, data, replayed, kind)
+    assert replayed.tobytes() == after.tobytes()
+    start[:] = 0.0  # a copy: the world's own snapshot is untouched
+    assert arm_world.step_start_state().any()
+
+
 def test_time_and_step(arm_world):
     arm_world.step(0)
     assert arm_world.time == 0.0
