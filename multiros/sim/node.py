@@ -579,13 +579,18 @@ class SimulationNode(Node):
     def _step_world(self, steps: int) -> None:
         """Step (lock held by the caller); a long call runs in chunks of about
         :data:`_TURN_SEC` of work, between which it stops when the node shuts down and lets every
-        request that arrived meanwhile have its turn. Robots the world removed lose their interfaces.
+        request that arrived meanwhile have its turn. A call shorter than two such chunks runs as
+        one: a turn taken inside it would save the others less than a turn's length, and each chunk
+        costs a snapshot and the actuator writes of every robot (a vector env's step of 25 physics
+        steps on a node of four RX200s was cut in two). Robots the world removed lose their interfaces.
 
         Raises:
             UnstableSimulationError, StepInterruptedError: as ``World.step``.
         """
         start = time.perf_counter()
         chunk = max(_MIN_CHUNK, min(STEP_CHUNK, int(_TURN_SEC / self._step_cost)))
+        if steps < 2 * chunk:
+            chunk = steps
         try:
             self.world.step(steps, should_stop=self._between_chunks, chunk=chunk)
         except UnstableSimulationError as exc:

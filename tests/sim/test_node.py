@@ -404,3 +404,23 @@ def test_destroying_the_node_releases_the_world_it_made_and_keeps_one_it_was_giv
         given.step(1)
     finally:
         ctx.try_shutdown()
+
+
+def test_a_long_call_gives_way_between_chunks_and_a_short_one_runs_whole(sim, monkeypatch):
+    """A step call longer than two turns' work asks between its chunks whether to stop and lets the
+    others have their turn; a shorter one runs as one call (chunking it cost a snapshot and every
+    robot's actuator writes per chunk, for a wait saved shorter than a turn)."""
+    node, client, _ = sim
+    _spawn_arm(client)
+    client.pause()
+    asked: list[float] = []
+    real = node._between_chunks
+    monkeypatch.setattr(node, "_between_chunks", lambda: asked.append(node.world.time) or real())
+    node._step_cost = 1.0  # as if a physics step took a second: the smallest chunk, 10 steps
+    dt = node.world.model.opt.timestep
+    client.step_simulation(19)
+    assert asked == []
+    node._step_cost = 1.0
+    start = node.world.time
+    client.step_simulation(25)  # chunks of 10, 10, 5: asked before each
+    assert [round((t - start) / dt) for t in asked] == [0, 10, 20]
