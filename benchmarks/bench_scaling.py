@@ -3,11 +3,12 @@
 Prints (env steps/s, random actions, episodes autoreset as they end):
 
 * one env (``uniros.make``) at its default step, and its physics limit: ``mj_step`` alone in the
-  same world, replayed from states of a random-action rollout, with the env's physics steps per
-  env step; the fraction reached;
-* ``uniros.make_vec(ID, N)`` at its defaults (one worker process per core, shared memory) for
-  N = 1, 8, 32, 128, with the time it took to make, to reset, and from reset to the first step;
-* for each make_vec(N) with workers, how much of the wall clock the workers spent stepping their envs
+  same world, replayed from the states its step calls start from (``PhysicsLimit``), with the env's
+  physics steps per env step; the fraction reached;
+* ``uniros.make_vec(ID, N)`` at its defaults (a share of the envs per core: this process steps one,
+  a worker process each of the others, shared memory) for N = 1, 8, 32, 128, with the time it took
+  to make, to reset, and from reset to the first step;
+* for each make_vec(N) with workers, how much of the wall clock each share spent stepping its envs
   (``WorkerVectorEnv.worker_stats``): near 1 means they are the bound, well below 1 that they wait
   for the exchange or for the slowest of them;
 * the same N on one composed node in this process (``vector_kwargs={"workers": 0, "num_nodes": 1}``),
@@ -149,6 +150,14 @@ def timed_make_vec(env_id: str, n: int, **kwargs) -> tuple[Stepper, dict[str, fl
     return Stepper(vec), {"make": t1 - t0, "reset": t2 - t1, "reset_to_first_step": t3 - t1}
 
 
+def layout(vec) -> str:
+    """Where a vector env's shares run: worker processes, and this process."""
+    workers = getattr(vec, "num_workers", 0)
+    if not workers:
+        return "this process"
+    return f"{workers} worker process{'es' if workers > 1 else ''}" + (" + this process" if vec.local_rows else "")
+
+
 def fetch_async(n: int, seconds: float) -> float:
     from gymnasium.vector import AsyncVectorEnv
 
@@ -198,7 +207,7 @@ def main() -> None:
     print(f"\nInterleaved, {args.rounds} rounds of {args.seconds:g} s each (medians of the ratios within a round):")
     print(f"  one env: {med['one env']:,.0f}/s; mj_step alone in its world: {med['one env physics']:,.0f}/s; "
           f"fraction {ratio('one env', 'one env physics'):.2f} (goal >= 0.75)")
-    print(f"  make_vec(8) defaults [{vec8.env.num_workers if hasattr(vec8.env, 'num_workers') else 0} workers]: "
+    print(f"  make_vec(8) defaults [{layout(vec8.env)}]: "
           f"{med['make_vec(8)']:,.0f}/s; same 8 on one node in-process: {med['make_vec(8) one node']:,.0f}/s; "
           f"ratio {ratio('make_vec(8)', 'make_vec(8) one node'):.2f}x (goal >= 1.7x on 2 cores)")
     print(f"  physics limit of 8 envs on {k_all} cores: {med['physics(8) all cores']:,.0f}/s; make_vec(8) reaches "
@@ -211,7 +220,7 @@ def main() -> None:
     rows = []
     for n in sizes:
         stepper, times = timed_make_vec(args.env, n)
-        workers = getattr(stepper.env, "num_workers", 0)
+        workers = getattr(stepper.env, "num_shares", 0)  # cores at work: the workers and this process's share
         stats = stepper.env.worker_stats() if workers else []
         wall = time.perf_counter()
         rate = stepper.rate(args.seconds)
@@ -220,8 +229,8 @@ def main() -> None:
             wall = time.perf_counter() - wall
             fractions = [(b["busy_seconds"] - a["busy_seconds"]) / wall
                          for a, b in zip(stats, stepper.env.worker_stats())]
-            busy = (f"  workers busy {np.mean(fractions):.2f} of the wall clock (min {min(fractions):.2f}, "
-                    f"max {max(fractions):.2f})")
+            busy = (f"  shares busy {np.mean(fractions):.2f} of the wall clock (min {min(fractions):.2f}, "
+                    f"max {max(fractions):.2f}) [{layout(stepper.env)}]")
         stepper.close()
         k = max(1, workers)
         limit = PhysicsLimit(args.env, -(-n // k), k)
@@ -233,7 +242,7 @@ def main() -> None:
             inproc = one.rate(args.seconds)
             one.close()
         rows.append((n, workers, rate, inproc, phys, times))
-        print(f"N={n:4d} workers={workers} make_vec {rate:9,.0f}/s  one node in-process "
+        print(f"N={n:4d} shares={workers} make_vec {rate:9,.0f}/s  one node in-process "
               f"{'-' if inproc is None else f'{inproc:,.0f}/s'}  physics limit ({k} cores) {phys:9,.0f}/s  "
               f"fraction {rate / phys:.2f}  make {times['make']:.1f} s, reset {times['reset']:.2f} s, reset to "
               f"first step {times['reset_to_first_step']:.2f} s{busy}", flush=True)

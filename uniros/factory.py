@@ -158,7 +158,8 @@ def make_vec(
     ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and ``"async"`` (Gymnasium's, one node
     per env) work as before. The default (``None``) picks the fastest form: ``"batched"`` for an ID
     whose env is a uniros simulated env (the shipped IDs, and yours built on
-    ``MujocoBaseEnv``/``MujocoGoalEnv``), with one worker process per core (in this process where
+    ``MujocoBaseEnv``/``MujocoGoalEnv``), with a share of the envs per core: this process steps one and a
+    worker process each other (all in this process where
     that is one, or where ``num_nodes`` or ``sim_mode`` place the nodes); else Gymnasium's default
     (the ID's ``vector_entry_point``, or ``"sync"``). An explicit ``"batched"`` runs in this process
     unless ``vector_kwargs`` names ``workers``. See ``docs/vector_envs.md``.

@@ -7,11 +7,11 @@ options given by :meth:`seed`/``set_options`` apply at the next :meth:`reset`), 
 the sub-envs, so SB3's ``HerReplayBuffer`` works with it.
 
 :class:`WorkerVecEnv` is the same contract over a
-:class:`~multiros.envs.worker_vector.WorkerVectorEnv` (the envs in worker processes, one per core,
-through shared memory), what :func:`make_batched_vec_env` builds by default.
+:class:`~multiros.envs.worker_vector.WorkerVectorEnv` (a share of the envs per core: this process's and
+worker processes', through shared memory), what :func:`make_batched_vec_env` builds by default.
 
     from uniros.vec_env import make_batched_vec_env
-    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", n_envs=8)          # a worker process per core
+    venv = make_batched_vec_env("RX200ReacherGoalSim-v0", n_envs=8)          # a share per core
     venv = make_batched_vec_env("RX200ReacherGoalSim-v0", 8, workers=0)      # one node, this process
     venv = make_batched_vec_env("RX200ReacherGoalSim-v0", 8, sim_mode="process", num_nodes=2)
 """
@@ -211,20 +211,22 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
                          **env_kwargs: Any) -> VecEnv:
     """An SB3 ``VecEnv`` of ``n_envs`` envs ``env_id``.
 
-    By default (``workers=None``) in one worker process per core (at most one per env; a composed
-    node each, actions and observations through shared memory: :class:`WorkerVecEnv`), or in this
+    By default (``workers=None``) a share of the envs per core (at most one per env; a composed node
+    each): this process steps one and a worker process each of the others, actions and observations
+    through shared memory (:class:`WorkerVecEnv`); or all in this
     process (:class:`BatchedVecEnv`) where that is one core, with ``workers=0``, with ``num_nodes``
     (composed nodes in this process, stepped on threads) or with ``sim_mode`` ``"process"`` /
     ``"existing"``. ``env_kwargs`` go to each env (``reward_type``, ``max_episode_steps``, ...).
     """
-    from multiros.envs.worker_vector import WorkerVectorEnv, default_workers
+    from multiros.envs.worker_vector import WorkerVectorEnv, default_layout
     from uniros.factory import make, make_batch
 
     options: dict[str, Any] = {"spacing": spacing, "timeout_sec": timeout_sec}
     if num_nodes is not None:
         options["num_nodes"] = num_nodes
+    in_parent = False
     if workers is None:
-        workers = default_workers(n_envs, sim_mode, options)
+        workers, in_parent = default_layout(n_envs, sim_mode, options)
     if workers >= 1:
         if sim_mode != "composed":
             raise ValueError(f"workers={workers} run composed nodes; sim_mode={sim_mode!r} needs workers=0")
@@ -232,8 +234,9 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
             make(env_id)  # raises the helpful error
         from gymnasium.vector import AutoresetMode
 
-        return WorkerVecEnv(WorkerVectorEnv(env_id, n_envs, workers=workers, autoreset_mode=AutoresetMode.SAME_STEP,
-                                            batch_options=options, env_kwargs=env_kwargs))
+        return WorkerVecEnv(WorkerVectorEnv(env_id, n_envs, workers=workers, in_parent=in_parent,
+                                            autoreset_mode=AutoresetMode.SAME_STEP, batch_options=options,
+                                            env_kwargs=env_kwargs))
     options.setdefault("num_nodes", 1)
     batch = make_batch(env_id, n_envs, options, sim_mode=sim_mode, **env_kwargs)
     return BatchedVecEnv(batch)

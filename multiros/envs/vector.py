@@ -300,18 +300,21 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     (``num_nodes``, ``spacing``, ``timeout_sec``, ``node_name``, ``connect_kwargs``); ``kwargs`` go to
     each env. ``workers=K`` (K >= 1) steps the envs in K worker processes, one composed node each,
     exchanging actions and observations through shared memory
-    (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`); ``workers=0`` (the default here) keeps
-    them in this process (:class:`BatchedVectorEnv`). This is what ``uniros.make_vec`` (which picks
-    one worker per core by default) and the IDs' Gymnasium ``vector_entry_point`` build.
+    (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`), and ``in_parent=True`` makes this process
+    step one more share itself meanwhile; ``workers=0`` (the default here) keeps them all in this
+    process (:class:`BatchedVectorEnv`). This is what ``uniros.make_vec`` (which by default puts a share
+    on each core: this process and a worker per other core, :func:`~multiros.envs.worker_vector.default_layout`)
+    and the IDs' Gymnasium ``vector_entry_point`` build.
     """
     options = dict(vector_options or {})
     autoreset = options.pop("autoreset_mode", AutoresetMode.NEXT_STEP)
     copy = options.pop("copy", True)
     workers = options.pop("workers", 0)
+    in_parent = bool(options.pop("in_parent", False))
     if workers is None:
-        from multiros.envs.worker_vector import default_workers
+        from multiros.envs.worker_vector import default_layout
 
-        workers = default_workers(num_envs, kwargs.get("sim_mode", "composed"), options)
+        workers, in_parent = default_layout(num_envs, kwargs.get("sim_mode", "composed"), options)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
         raise ValueError(f"workers must be 0 (this process) or a number of worker processes, got {workers!r}")
     if workers >= 1:
@@ -321,9 +324,9 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
         unknown = sorted(set(options) - set(BATCH_OPTIONS))
         if unknown:
             raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(BATCH_OPTIONS)} "
-                            "and autoreset_mode, copy, workers")
+                            "and autoreset_mode, copy, workers, in_parent")
         if kwargs.get("sim_mode", "composed") != "composed":
             raise ValueError(f"workers={workers} run composed nodes; sim_mode={kwargs['sim_mode']!r} needs workers=0")
-        return WorkerVectorEnv(env_id, num_envs, workers=workers, autoreset_mode=autoreset, copy=copy,
-                               batch_options=options, env_kwargs=kwargs)
+        return WorkerVectorEnv(env_id, num_envs, workers=workers, in_parent=in_parent, autoreset_mode=autoreset,
+                               copy=copy, batch_options=options, env_kwargs=kwargs)
     return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)

@@ -7,6 +7,9 @@ processes runs a :class:`~multiros.envs.vector.BatchedVectorEnv` of its share of
 actions, observations, rewards, terminations and truncations with them through shared memory
 (:mod:`multiros.envs.shm_exchange`): a vector step writes the actions, wakes every worker with a
 byte on its pipe, and waits for each worker's answer, which carries that step's info dict only.
+With ``in_parent`` the parent steps one more share itself (rows first) while the workers step
+theirs, with no pipe between: K cores then run K shares (:func:`default_layout`, ``uniros.make_vec``'s
+default), where a worker per core left the parent's exchange taking turns with their physics.
 
 Semantics are the in-process batched env's: the same spaces, seeds (an int seed gives env ``i``
 ``seed + i`` whatever K is, so env ``i`` runs the same trajectory), autoreset modes and infos.
@@ -37,7 +40,7 @@ from gymnasium.vector.utils import batch_space
 from multiros.envs.batch import default_num_nodes
 from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
 
-__all__ = ["WorkerVectorEnv", "WorkerError", "default_workers", "worker_rows"]
+__all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "worker_rows"]
 
 _STEP = b"s"
 
@@ -59,6 +62,16 @@ def default_workers(num_envs: int, sim_mode: str = "composed", options: Mapping[
     return k if k >= 2 else 0
 
 
+def default_layout(num_envs: int, sim_mode: str = "composed",
+                   options: Mapping[str, Any] | None = None) -> tuple[int, bool]:
+    """``(workers, in_parent)`` of ``uniros.make_vec`` unless told: a share of the envs per core, one
+    of them stepped by this process while the workers step theirs (:func:`default_workers` cores: one
+    worker process fewer; a worker per core besides the parent left three processes on two cores, the
+    parent's exchange taking turns with the workers' physics). ``(0, False)``: all in this process."""
+    k = default_workers(num_envs, sim_mode, options)
+    return (k - 1, True) if k >= 2 else (0, False)
+
+
 def worker_rows(num_envs: int, workers: int) -> list[tuple[int, int]]:
     """Rows ``[start, stop)`` of each of ``workers`` workers (the batch's node split: ``i * K // N``)."""
     return [(k * num_envs // workers, (k + 1) * num_envs // workers) for k in range(workers)]
@@ -72,9 +85,14 @@ class _Workers:
         self.procs: list[Any] = []
         self.conns: list[Connection] = []
         self.shared: SharedArrays | None = None
+        self.local: _Share | None = None  # the share this process steps itself
 
     def stop(self, timeout: float = 5.0) -> None:
-        """Ask each worker to close, then stop any that is still running by its PID; free the block."""
+        """Ask each worker to close, then stop any that is still running by its PID; close the share
+        stepped here; free the block."""
+        if self.local is not None:
+            self.local.close()
+            self.local = None
         for conn in self.conns:
             try:
                 conn.send(("close",))
@@ -100,7 +118,9 @@ class WorkerVectorEnv(VectorEnv):
     Args:
         env_id: a registered ID whose envs batch (a uniros simulated env).
         num_envs: N.
-        workers: K, from 1 to N (default: :func:`default_workers`, at least 1).
+        workers: K worker processes, at least 1 and at most N (one fewer with ``in_parent``); default:
+            one per core (:func:`default_workers`), less this process's share with ``in_parent``.
+        in_parent: this process steps a share of the envs too (the first rows, :attr:`local_rows`).
         autoreset_mode: as :class:`~multiros.envs.vector.BatchedVectorEnv`'s.
         copy: return copies of the observations; ``False`` returns views of shared memory, overwritten
             by the next step.
@@ -115,21 +135,26 @@ class WorkerVectorEnv(VectorEnv):
         ValueError: bad counts, or spaces that shared memory cannot carry.
     """
 
-    def __init__(self, env_id: str, num_envs: int, *, workers: int | None = None,
+    def __init__(self, env_id: str, num_envs: int, *, workers: int | None = None, in_parent: bool = False,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = True,
                  batch_options: Mapping[str, Any] | None = None, env_kwargs: Mapping[str, Any] | None = None,
                  start_timeout_sec: float | None = None) -> None:
         if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if workers is None:
-            workers = max(1, default_num_nodes(num_envs))
-        if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= num_envs:
-            raise ValueError(f"workers must be an integer from 1 to num_envs ({num_envs}), got {workers!r}")
+            workers = max(1, default_num_nodes(num_envs) - int(bool(in_parent)))
+        shares = workers + int(bool(in_parent))
+        if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= shares <= num_envs or workers < 1:
+            raise ValueError(f"workers must be an integer from 1 to num_envs ({num_envs}"
+                             f"{', less one with in_parent' if in_parent else ''}), got {workers!r}")
         self.num_envs = num_envs
         self.num_workers = workers
         self.autoreset_mode = AutoresetMode(autoreset_mode)
         self.copy = copy
-        self.rows = worker_rows(num_envs, workers)
+        rows = worker_rows(num_envs, shares)
+        self.local_rows: tuple[int, int] | None = rows[0] if in_parent else None
+        """The envs this process steps itself (``in_parent``), ``[start, stop)``; ``None``: none."""
+        self.rows = rows[1:] if in_parent else rows
         options = dict(batch_options or {})
         self.timeout_sec = float(options.get("timeout_sec", 10.0)) + 5.0  # the worker's own bound fires first
         self._workers = _Workers()
@@ -140,8 +165,14 @@ class WorkerVectorEnv(VectorEnv):
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker()
                 self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, dict(env_kwargs or {})))
+            if self.local_rows is not None:  # made while the workers make theirs
+                start, stop = self.local_rows
+                self._workers.local = _Share(env_id, spec, stop - start, self.autoreset_mode.value, options,
+                                             dict(env_kwargs or {}))
             answers = [self._recv(k, start_timeout_sec or 120.0 + 4.0 * (stop - start), "start")
                        for k, (start, stop) in enumerate(self.rows)]  # an error here closes them all
+            if self._workers.local is not None:
+                answers.insert(0, self._workers.local.spaces())
             obs_space, act_space, metadata, render_mode, max_steps = answers[0]
             for k, answer in enumerate(answers[1:], 1):
                 if answer[0] != obs_space or answer[1] != act_space:
@@ -150,6 +181,8 @@ class WorkerVectorEnv(VectorEnv):
             self._workers.shared = shared = SharedArrays.create(layout_for(num_envs, obs_space, act_space))
             for k, (start, stop) in enumerate(self.rows):
                 self._send(k, ("bind", shared.name, shared.layout, start, stop))
+            if self._workers.local is not None:
+                self._workers.local.bind(shared, *self.local_rows)  # type: ignore[misc]
             for k in range(workers):
                 self._recv(k, self.timeout_sec, "bind")
         except BaseException:
@@ -168,6 +201,11 @@ class WorkerVectorEnv(VectorEnv):
         self.shared_memory_name: str = shared.name
         """The POSIX shared-memory block the workers exchange through (``/dev/shm/<name>`` on Linux);
         :meth:`close` unlinks it."""
+
+    @property
+    def num_shares(self) -> int:
+        """The shares the envs are split into: one per worker, and this process's (``in_parent``)."""
+        return self.num_workers + int(self.local_rows is not None)
 
     @property
     def pids(self) -> list[int]:
@@ -254,15 +292,37 @@ class WorkerVectorEnv(VectorEnv):
         if not self._workers.procs:
             raise WorkerError("this vector env is closed")
 
-    def _all(self, messages: Sequence[Any | None], what: str) -> list[Any]:
-        """Send each worker its message (``None``: none), then gather the answers in worker order."""
+    def _all(self, messages: Sequence[Any | None], what: str, local: Any | None = None) -> list[Any]:
+        """Send each worker its message (``None``: none); the share stepped here answers ``local``
+        meanwhile; then gather the answers in worker order (that share's first, when it has one).
+        An error of that share is raised once the workers have answered."""
         self._check()
         for k, message in enumerate(messages):
             if message is not None:
                 self._send(k, message)
         sent = [k for k, message in enumerate(messages) if message is not None]
+        share = self._workers.local
+        mine, error = None, None
+        if share is not None and local is not None:
+            try:
+                mine = share.answer(local)
+            except Exception as exc:  # noqa: BLE001 - raised once the workers have answered
+                error = exc
         answers = dict(zip(sent, self._gather(sent, self.timeout_sec, what)))
-        return [answers.get(k) for k in range(len(messages))]
+        if error is not None:
+            raise error
+        found = [answers.get(k) for k in range(len(messages))]
+        return [mine, *found] if share is not None else found
+
+    def _each(self, messages: Sequence[Any | None], what: str) -> list[Any]:
+        """One message per share (:meth:`_shares` order; ``None``: none) and the answers in that order."""
+        if self.local_rows is not None:
+            return self._all(messages[1:], what, local=messages[0])
+        return self._all(messages, what)
+
+    def _shares(self) -> list[tuple[int, int]]:
+        """Every share's rows, in the order :meth:`_all` answers: this process's first, then the workers'."""
+        return ([self.local_rows] if self.local_rows is not None else []) + list(self.rows)
 
     def _observations(self) -> Any:
         obs = self._obs
@@ -291,7 +351,7 @@ class WorkerVectorEnv(VectorEnv):
             if not mask.any():
                 raise ValueError("options['reset_mask'] must hold at least one True value")
         messages: list[Any] = []
-        for start, stop in self.rows:
+        for start, stop in self._shares():
             sub = dict(options)
             if mask is not None:
                 if not mask[start:stop].any():
@@ -299,8 +359,8 @@ class WorkerVectorEnv(VectorEnv):
                     continue
                 sub["reset_mask"] = mask[start:stop].copy()
             messages.append(("reset", seeds[start:stop], sub or None))
-        infos = self._all(messages, "a reset")
-        parts = [(start, info) for (start, _), info in zip(self.rows, infos) if info is not None]
+        infos = self._each(messages, "a reset")
+        parts = [(start, info) for (start, _), info in zip(self._shares(), infos) if info is not None]
         return self._observations(), merge_infos(parts, n) if parts else {}
 
     def step(self, actions: Any) -> tuple[Any, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
@@ -318,8 +378,20 @@ class WorkerVectorEnv(VectorEnv):
                 conns[k].send_bytes(_STEP)
             except (OSError, ValueError) as exc:
                 raise self._dead(k, "a step") from exc
+        share = self._workers.local
+        if share is not None:  # this process's share, while the workers step theirs
+            try:
+                mine = share.step()
+            except Exception as exc:
+                try:  # the workers' answers are read, so the next request's answers are the next request's
+                    self._gather(range(self.num_workers), self.timeout_sec, "a step")
+                except Exception:  # noqa: BLE001 - this share's error is the one raised
+                    pass
+                raise exc from None
         infos = self._gather(range(self.num_workers), self.timeout_sec, "a step")
         parts = [(start, info) for (start, _), info in zip(self.rows, infos)]
+        if share is not None:
+            parts.insert(0, (self.local_rows[0], mine))  # type: ignore[index]
         a = self._arrays
         return (self._observations(), a["rew"].copy(), a["term"].copy(), a["trunc"].copy(),
                 merge_infos(parts, self.num_envs))
@@ -332,12 +404,12 @@ class WorkerVectorEnv(VectorEnv):
             if not 0 <= i < self.num_envs:
                 raise IndexError(f"env index {i} out of range for num_envs={self.num_envs}")
         messages: list[Any] = []
-        for start, stop in self.rows:
+        for start, stop in self._shares():
             local = [i - start for i in wanted if start <= i < stop]
             messages.append(("call", local, name, args, kwargs) if local else None)
-        answers = self._all(messages, f"call({name!r})")
+        answers = self._each(messages, f"call({name!r})")
         by_env: dict[int, Any] = {}
-        for (start, stop), answer in zip(self.rows, answers):
+        for (start, stop), answer in zip(self._shares(), answers):
             if answer is not None:
                 local = [i - start for i in wanted if start <= i < stop]
                 by_env.update({start + j: value for j, value in zip(local, answer)})
@@ -363,24 +435,25 @@ class WorkerVectorEnv(VectorEnv):
         if len(values) != len(wanted):
             raise ValueError(f"{len(values)} values for {len(wanted)} envs")
         messages: list[Any] = []
-        for start, stop in self.rows:
+        for start, stop in self._shares():
             pairs = [(i - start, v) for i, v in zip(wanted, values) if start <= i < stop]
             messages.append(("set", pairs, name) if pairs else None)
-        self._all(messages, f"set_attr({name!r})")
+        self._each(messages, f"set_attr({name!r})")
 
     def render(self) -> tuple[Any, ...] | None:
         """Each env's render."""
         return self.call("render")
 
     def worker_stats(self) -> list[dict[str, float]]:
-        """Per worker, since it started: ``steps`` (vector steps of its envs) and ``busy_seconds`` (time in
-        them, exchange excluded). Between two calls, busy seconds over wall seconds is how much of the
-        time a worker stepped rather than waited for its next step (benchmarks/bench_scaling.py)."""
-        return self._all([("stats",)] * self.num_workers, "stats")
+        """Per share (this process's first, with ``in_parent``; then each worker's), since it started:
+        ``steps`` (vector steps of its envs) and ``busy_seconds`` (time in them, exchange excluded).
+        Between two calls, busy seconds over wall seconds is how much of the time a share stepped
+        rather than waited for its next step (benchmarks/bench_scaling.py)."""
+        return self._each([("stats",)] * len(self._shares()), "stats")
 
     def node_loads(self) -> list[dict[str, Any]]:
         """Each worker's simulation nodes' loads (see ``GetNodeLoad``), in worker order."""
-        return [load for loads in self._all([("loads",)] * self.num_workers, "node_loads()") for load in loads]
+        return [load for loads in self._each([("loads",)] * len(self._shares()), "node_loads()") for load in loads]
 
     def close_extras(self, **kwargs: Any) -> None:
         """Stop the workers (asked first, then by PID) and free the shared memory."""
@@ -412,34 +485,105 @@ def _serve(fd: int) -> None:
     _worker_main(conn, *args)
 
 
+class _Share:
+    """One share of the N envs: its batched vector env on its own composed node, stepped on rows
+    ``[start, stop)`` of the shared arrays, and its answers to the parent's requests. A worker process
+    runs one (:func:`_worker_main`); with ``in_parent`` the parent runs one too, with no pipe between.
+
+    Raises (constructor): what making the envs raises; ValueError for an observation space shared
+    memory cannot carry.
+    """
+
+    def __init__(self, env_id: str, spec: Any, num_envs: int, autoreset_mode: str, options: dict[str, Any],
+                 env_kwargs: dict[str, Any]) -> None:
+        import gymnasium as gym
+
+        import rl_environments  # noqa: F401 - registers the shipped IDs
+        from multiros.envs.vector import make_batched_vector_env
+
+        if env_id not in gym.registry and spec is not None:
+            gym.registry[env_id] = spec
+        self.vec: Any = make_batched_vector_env(env_id, num_envs, vector_options={
+            **options, "num_nodes": options.get("num_nodes", 1), "autoreset_mode": autoreset_mode,
+            "copy": False}, **env_kwargs)
+        self.shared: SharedArrays | None = None
+        self.owns_shared = False
+        self.start = self.stop = 0
+        self.steps, self.busy = 0, 0.0
+        if not shareable(self.vec.single_observation_space):
+            self.close()
+            raise ValueError(f"observation space {self.vec.single_observation_space} cannot go through shared "
+                             "memory: use workers=0 (in-process)")
+
+    def spaces(self) -> tuple[Any, ...]:
+        """What a worker answers once its envs are made: spaces, metadata, render mode, episode length."""
+        vec = self.vec
+        return (vec.single_observation_space, vec.single_action_space, dict(vec.metadata), vec.render_mode,
+                vec.batch.max_episode_steps)
+
+    def bind(self, shared: SharedArrays, start: int, stop: int, owns: bool = False) -> None:
+        """Step rows ``[start, stop)`` of ``shared`` from now on (``owns``: close it with this share)."""
+        self.shared, self.owns_shared, self.start, self.stop = shared, owns, start, stop
+        self.vec.bind_observations(shared.observations(slice(start, stop)))
+
+    def step(self) -> dict[str, Any]:
+        """Step with the actions in the shared arrays; rewards and episode ends written there; the info back."""
+        began = time.perf_counter()
+        assert self.shared is not None, "a share steps once bound"
+        a, start, stop = self.shared.arrays, self.start, self.stop
+        _, rew, term, trunc, info = self.vec.step(a["act"][start:stop].copy())
+        a["rew"][start:stop] = rew
+        a["term"][start:stop] = term
+        a["trunc"][start:stop] = trunc
+        self.steps, self.busy = self.steps + 1, self.busy + time.perf_counter() - began
+        return info
+
+    def answer(self, message: tuple[Any, ...]) -> Any:
+        """The answer to a request other than a step or a bind (``reset``, ``call``, ``set``, ``loads``, ``stats``)."""
+        cmd, vec = message[0], self.vec
+        if cmd == "reset":
+            _, seeds, reset_options = message
+            return vec.reset(seed=seeds, options=reset_options)[1]
+        if cmd == "call":
+            _, local, name, args, kwargs = message
+            answer = []
+            for j in local:
+                value = getattr(vec.envs[j], name)
+                answer.append(value(*args, **kwargs) if callable(value) else value)
+            return answer
+        if cmd == "set":
+            _, pairs, name = message
+            for j, value in pairs:
+                setattr(vec.envs[j], name, value)
+            return None
+        if cmd == "loads":
+            return vec.node_loads()
+        if cmd == "stats":
+            return {"steps": float(self.steps), "busy_seconds": self.busy}
+        raise ValueError(f"unknown worker request {cmd!r}")
+
+    def close(self) -> None:
+        """Close the envs (and the shared block when this share attached it)."""
+        vec, self.vec = self.vec, None
+        if vec is not None:
+            vec.close()
+        if self.owns_shared and self.shared is not None:
+            self.shared.close()
+        self.shared = None
+
+
 def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autoreset_mode: str,
                  options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
-    """A worker: make the batch, bind the shared arrays, then answer requests until told to close
+    """A worker: make its share, bind the shared arrays, then answer requests until told to close
     or until the parent's end of the pipe closes."""
-    vec: Any = None
-    shared: SharedArrays | None = None
+    share: _Share | None = None
     try:
         try:
-            import gymnasium as gym
-
-            import rl_environments  # noqa: F401 - registers the shipped IDs
-            from multiros.envs.vector import make_batched_vector_env
-
-            if env_id not in gym.registry and spec is not None:
-                gym.registry[env_id] = spec
-            vec = make_batched_vector_env(env_id, num_envs, vector_options={
-                **options, "num_nodes": options.get("num_nodes", 1), "autoreset_mode": autoreset_mode,
-                "copy": False}, **env_kwargs)
-            if not shareable(vec.single_observation_space):
-                raise ValueError(f"observation space {vec.single_observation_space} cannot go through shared "
-                                 "memory: use workers=0 (in-process)")
-            conn.send(("ok", (vec.single_observation_space, vec.single_action_space, dict(vec.metadata),
-                              vec.render_mode, vec.batch.max_episode_steps)))
+            share = _Share(env_id, spec, num_envs, autoreset_mode, options, env_kwargs)
+            conn.send(("ok", share.spaces()))
         except Exception as exc:  # noqa: BLE001 - the parent reports it
             conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
             return
-        start = stop = 0
-        steps, busy = 0, 0.0
         while True:
             try:
                 data = conn.recv_bytes()
@@ -447,56 +591,26 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
                 return  # the parent is gone
             if data == _STEP:
                 try:
-                    assert shared is not None
-                    began = time.perf_counter()
-                    a = shared.arrays
-                    _, rew, term, trunc, info = vec.step(a["act"][start:stop].copy())
-                    a["rew"][start:stop] = rew
-                    a["term"][start:stop] = term
-                    a["trunc"][start:stop] = trunc
-                    steps, busy = steps + 1, busy + time.perf_counter() - began
-                    conn.send(("ok", info))
+                    conn.send(("ok", share.step()))
                 except Exception as exc:  # noqa: BLE001 - the parent raises it
                     _send_error(conn, exc)
                 continue
             message = pickle.loads(data)
-            cmd = message[0]
-            if cmd == "close":
+            if message[0] == "close":
                 return
             try:
-                if cmd == "bind":
+                if message[0] == "bind":
                     _, name, layout, start, stop = message
-                    shared = SharedArrays.attach(name, layout)
-                    vec.bind_observations(shared.observations(slice(start, stop)))
+                    share.bind(SharedArrays.attach(name, layout), start, stop, owns=True)
                     answer: Any = None
-                elif cmd == "reset":
-                    _, seeds, reset_options = message
-                    _, answer = vec.reset(seed=seeds, options=reset_options)
-                elif cmd == "call":
-                    _, local, name, args, kwargs = message
-                    answer = []
-                    for j in local:
-                        value = getattr(vec.envs[j], name)
-                        answer.append(value(*args, **kwargs) if callable(value) else value)
-                elif cmd == "set":
-                    _, pairs, name = message
-                    for j, value in pairs:
-                        setattr(vec.envs[j], name, value)
-                    answer = None
-                elif cmd == "loads":
-                    answer = vec.node_loads()
-                elif cmd == "stats":
-                    answer = {"steps": float(steps), "busy_seconds": busy}
                 else:
-                    raise ValueError(f"unknown worker request {cmd!r}")
+                    answer = share.answer(message)
                 conn.send(("ok", answer))
             except Exception as exc:  # noqa: BLE001 - the parent raises it
                 _send_error(conn, exc)
     finally:
-        if vec is not None:
-            vec.close()
-        if shared is not None:
-            shared.close()
+        if share is not None:
+            share.close()
         conn.close()
 
 

@@ -60,9 +60,14 @@ def _record(vec, case: str, seeds: tuple[int, ...]) -> list[dict[str, np.ndarray
     return [{k: np.asarray(v) for k, v in o.items()} for o in outs]
 
 
-def _workers_vec(env_id: str, n: int, workers: int, **kwargs):
+def _workers_vec(env_id: str, n: int, workers: int, in_parent: bool = False, **kwargs):
     return uniros.make_vec(env_id, n, max_episode_steps=HORIZON, vector_kwargs={
-        "autoreset_mode": AutoresetMode.SAME_STEP, "workers": workers}, **kwargs)
+        "autoreset_mode": AutoresetMode.SAME_STEP, "workers": workers, "in_parent": in_parent}, **kwargs)
+
+
+#: The two layouts of the shares: worker processes only, and one worker plus this process's share.
+LAYOUTS = [pytest.param({"workers": 2}, id="2-workers"),
+           pytest.param({"workers": 1, "in_parent": True}, id="1-worker+parent")]
 
 
 def _check_golden(case: str, got: dict[str, np.ndarray], seed: int) -> None:
@@ -116,10 +121,13 @@ def test_env_i_is_the_same_whatever_the_number_of_workers() -> None:
         expected = _record(vec, case, seeds)
     finally:
         vec.close()
-    for workers in (2, 5):
-        vec = _workers_vec(ENV, 5, workers)
+    for workers in (2, 5, "1+parent"):
+        vec = _workers_vec(ENV, 5, 1, in_parent=True) if workers == "1+parent" else _workers_vec(ENV, 5, workers)
         try:
-            assert vec.rows == ([(0, 2), (2, 5)] if workers == 2 else [(i, i + 1) for i in range(5)])
+            if workers == "1+parent":  # this process steps the first share
+                assert vec.local_rows == (0, 2) and vec.rows == [(2, 5)] and len(vec.pids) == 1
+            else:
+                assert vec.rows == ([(0, 2), (2, 5)] if workers == 2 else [(i, i + 1) for i in range(5)])
             for i, (got, want) in enumerate(zip(_record(vec, case, seeds), expected)):
                 for key in want:
                     np.testing.assert_array_equal(got[key], want[key], err_msg=f"workers={workers} env {i} {key}")
@@ -128,10 +136,11 @@ def test_env_i_is_the_same_whatever_the_number_of_workers() -> None:
             vec.close()
 
 
-def test_next_step_autoreset_reset_mask_and_sub_env_access() -> None:
-    """NEXT_STEP autoreset, ``reset_mask`` split over the workers, int seeds, ``call``/``get_attr``/
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_next_step_autoreset_reset_mask_and_sub_env_access(layout: dict) -> None:
+    """NEXT_STEP autoreset, ``reset_mask`` split over the shares, int seeds, ``call``/``get_attr``/
     ``set_attr``, errors of a worker raised here with their type: as the in-process batch does."""
-    ours = uniros.make_vec(ENV, 3, max_episode_steps=4, vector_kwargs={"workers": 2})
+    ours = uniros.make_vec(ENV, 3, max_episode_steps=4, vector_kwargs=layout)
     theirs = uniros.make_vec(ENV, 3, vectorization_mode="batched", max_episode_steps=4,
                              vector_kwargs={"num_nodes": 1})
     try:
@@ -174,13 +183,16 @@ def _gone(pid: int) -> bool:
     return False
 
 
-def test_close_stops_the_workers_by_pid_and_frees_the_shared_memory() -> None:
-    vec = _workers_vec(ENV, 2, 2)
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_close_stops_the_workers_by_pid_and_frees_the_shared_memory(layout: dict) -> None:
+    vec = uniros.make_vec(ENV, 2, vector_kwargs=layout)
     pids, shm = vec.pids, Path("/dev/shm") / vec._workers.shared.name.lstrip("/")
-    assert len(set(pids)) == 2 and os.getpid() not in pids and shm.exists()
+    assert len(set(pids)) == layout["workers"] and os.getpid() not in pids and shm.exists()
+    local = vec._workers.local
     vec.close()
     assert all(_gone(pid) for pid in pids)  # exited and reaped
     assert not shm.exists() and vec.pids == []
+    assert local is None or local.vec is None  # the share stepped here is closed too
     with pytest.raises(WorkerError, match="closed"):
         vec.step(np.zeros((2, 5), np.float32))
 
@@ -215,11 +227,12 @@ def _census() -> tuple[int, int]:
     return fds, children
 
 
-def test_make_close_cycles_do_not_grow() -> None:
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_make_close_cycles_do_not_grow(layout: dict) -> None:
     blocks: list[str] = []
 
     def cycle() -> None:
-        vec = _workers_vec(ENV, 2, 2)
+        vec = _workers_vec(ENV, 2, layout["workers"], layout.get("in_parent", False))
         blocks.append(vec.shared_memory_name)
         assert Path("/dev/shm", vec.shared_memory_name).exists()
         vec.reset(seed=1)
@@ -236,8 +249,9 @@ def test_make_close_cycles_do_not_grow() -> None:
     assert len(set(blocks)) == 4 and not [b for b in blocks if Path("/dev/shm", b).exists()]
 
 
-def test_worker_stats_count_the_steps_and_their_time() -> None:
-    vec = _workers_vec(ENV, 3, 2)
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_worker_stats_count_the_steps_and_their_time(layout: dict) -> None:
+    vec = _workers_vec(ENV, 3, layout["workers"], layout.get("in_parent", False))
     try:
         vec.reset(seed=0)
         assert [s["steps"] for s in vec.worker_stats()] == [0.0, 0.0]
@@ -248,6 +262,39 @@ def test_worker_stats_count_the_steps_and_their_time() -> None:
         stats = vec.worker_stats()
         assert [s["steps"] for s in stats] == [3.0, 3.0]
         assert all(0.0 < s["busy_seconds"] < wall for s in stats)
+    finally:
+        vec.close()
+
+
+def test_by_default_this_process_steps_a_share_and_a_worker_each_other_core(monkeypatch) -> None:
+    """A share per core: K cores, K - 1 worker processes and this process's share; one core, or nodes
+    placed by hand, all in this process."""
+    import multiros.envs.worker_vector as wv
+
+    monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 2))
+    assert wv.default_layout(8) == (1, True)
+    assert wv.default_layout(1) == (0, False)
+    assert wv.default_layout(8, options={"num_nodes": 2}) == (0, False)
+    assert wv.default_layout(8, "process") == (0, False)
+    monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 16))
+    assert wv.default_layout(128) == (15, True)
+
+
+def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
+    """A bad action in this process's share raises here once the worker has answered that step: the
+    next steps' answers are their own, and the envs go on."""
+    vec = uniros.make_vec(ENV, 2, vector_kwargs={"workers": 1, "in_parent": True, "timeout_sec": 5.0})
+    try:
+        vec.reset(seed=0)
+        bad = np.zeros((2, 5), np.float32)
+        bad[0, 0] = np.nan  # env 0: this process's share
+        with pytest.raises(Exception, match="NaN"):
+            vec.step(bad)
+        for _ in range(3):
+            obs, reward, terminated, truncated, info = vec.step(np.zeros((2, 5), np.float32))
+        assert obs["observation"].shape == (2, 18) and np.isfinite(obs["observation"]).all()
+        assert info["_is_success"].all()
+        assert [s["steps"] for s in vec.worker_stats()] == [3.0, 4.0]  # the worker stepped the bad one too
     finally:
         vec.close()
 
