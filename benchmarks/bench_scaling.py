@@ -266,9 +266,9 @@ def plot(path: str, env_id: str, k: int, rows: list, asyncs: dict[int, float], f
     import matplotlib.pyplot as plt
 
     ns = [r[0] for r in rows]
-    fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)
+    fig, ax = plt.subplots(figsize=(8.4, 4.0), dpi=120)
     ax.plot(ns, [r[4] for r in rows], "k--", marker="o", label=f"physics limit (mj_step alone, {k} cores)")
-    ax.plot(ns, [r[2] for r in rows], marker="o", label="make_vec(N) defaults (worker processes)")
+    ax.plot(ns, [r[2] for r in rows], marker="o", label="make_vec(N) defaults (a share per core)")
     inproc = [(r[0], r[3]) for r in rows if r[3] is not None]
     if inproc:
         ax.plot(*zip(*inproc), marker="s", label="one node in this process")
@@ -278,8 +278,8 @@ def plot(path: str, env_id: str, k: int, rows: list, asyncs: dict[int, float], f
     ax.set_xscale("log", base=2)
     ax.set_xlabel("N envs")
     ax.set_ylabel("env steps / s")
-    ax.set_title(f"{env_id}, {k} cores (shared, loaded machine)", fontsize=10)
-    ax.legend(fontsize=7)
+    ax.set_title(f"{env_id}, {k} cores, load average {os.getloadavg()[0]:.1f}", fontsize=10)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # beside the data
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path)

@@ -143,10 +143,12 @@ class WorkerVectorEnv(VectorEnv):
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         if workers is None:
             workers = max(1, default_num_nodes(num_envs) - int(bool(in_parent)))
+        most = num_envs - int(bool(in_parent))
+        if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= most:
+            raise ValueError(f"workers must be an integer from 1 to num_envs ({num_envs})"
+                             f"{' less one (this process steps a share: in_parent)' if in_parent else ''}, "
+                             f"got {workers!r}")
         shares = workers + int(bool(in_parent))
-        if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= shares <= num_envs or workers < 1:
-            raise ValueError(f"workers must be an integer from 1 to num_envs ({num_envs}"
-                             f"{', less one with in_parent' if in_parent else ''}), got {workers!r}")
         self.num_envs = num_envs
         self.num_workers = workers
         self.autoreset_mode = AutoresetMode(autoreset_mode)

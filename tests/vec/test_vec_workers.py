@@ -280,6 +280,18 @@ def test_by_default_this_process_steps_a_share_and_a_worker_each_other_core(monk
     assert wv.default_layout(128) == (15, True)
 
 
+@pytest.mark.parametrize(("workers", "in_parent", "match"), [
+    (2, True, r"from 1 to num_envs \(2\) less one \(this process steps a share: in_parent\), got 2"),
+    (0, False, r"from 1 to num_envs \(2\), got 0"),
+    ("1", True, r"got '1'"),
+])
+def test_worker_counts_that_do_not_fit_are_refused_before_any_process_starts(workers, in_parent, match) -> None:
+    before = _census()
+    with pytest.raises(ValueError, match=match):
+        WorkerVectorEnv(ENV, 2, workers=workers, in_parent=in_parent)
+    assert _census() == before
+
+
 def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
     """A bad action in this process's share raises here once the worker has answered that step: the
     next steps' answers are their own, and the envs go on."""
