@@ -156,6 +156,10 @@ def parse_camera_options(kwargs: dict[str, Any], owner: str, *, real: bool,
                          "place a new one: pass one or the other")
     if position is not None and lookat is not None and np.linalg.norm(np.subtract(position, lookat)) < 1e-3:
         raise ValueError(f"{owner}: camera_position and camera_lookat must be apart, got {position} and {lookat}")
+    width = _side(opts.get("image_width"), "image_width", MAX_WIDTH)
+    height = _side(opts.get("image_height"), "image_height", MAX_HEIGHT)
+    if name is not None and (width is None) != (height is None):
+        raise ValueError(f"{owner}: give both image_width and image_height, or neither (camera {name!r}'s own size)")
     fovy = opts.get("camera_fovy", 45.0)
     if isinstance(fovy, bool) or not isinstance(fovy, (int, float)) or not 1.0 <= float(fovy) <= 170.0:
         raise ValueError(f"{owner}: camera_fovy must be a number of degrees in [1, 170], got {fovy!r}")
@@ -168,8 +172,7 @@ def parse_camera_options(kwargs: dict[str, Any], owner: str, *, real: bool,
     for key in ("rgb_topic", "depth_topic"):
         if opts.get(key) is not None and (not isinstance(opts[key], str) or not opts[key].strip("/")):
             raise ValueError(f"{owner}: {key} must be a topic name, got {opts[key]!r}")
-    return CameraOptions(modes[0], name, _side(opts.get("image_width"), "image_width", MAX_WIDTH),
-                         _side(opts.get("image_height"), "image_height", MAX_HEIGHT), position, lookat, float(fovy),
+    return CameraOptions(modes[0], name, width, height, position, lookat, float(fovy),
                          float(max_depth), opts.get("rgb_topic"), opts.get("depth_topic"), float(timeout))
 
 

@@ -56,6 +56,11 @@ class CameraRequest:
     rgb_topic: str
     depth_topic: str | None
 
+    def __post_init__(self) -> None:
+        if (self.width is None) != (self.height is None):
+            raise ValueError(f"camera {self.name or 'view camera'!r}: give both image_width and image_height, or "
+                             "neither (the camera's own size)")
+
 
 @dataclass(frozen=True)
 class SceneEntity:

@@ -366,7 +366,6 @@ class SimConnection(RobotConnection):
 
         Raises:
             multiros.sim.errors.RenderError: the camera cannot render (unknown, bad size, no offscreen GL).
-            ValueError: a named camera given one side of its size only.
         """
         from multiros.sim.errors import RenderError
         from multiros.sim.view_camera import VIEW_CAMERA, camera_entity_urdf
@@ -396,9 +395,6 @@ class SimConnection(RobotConnection):
                             "%d-%d): is it inside a body, or looking away from the robot? (camera_position=, "
                             "camera_lookat=, camera_fovy=)", self.robot_name, source,
                             int(frame.rgb.min()), int(frame.rgb.max()))
-        if request.name is not None and (request.width is None) != (request.height is None):
-            raise ValueError(f"robot {self.robot_name!r}: give both image_width and image_height, or neither (the "
-                             "camera's own size)")
         return source, (int(frame.rgb.shape[0]), int(frame.rgb.shape[1]))
 
     def show_viewer(self) -> None:

@@ -159,10 +159,21 @@ def test_goal_env_keeps_its_keys_and_her_still_relabels(make):
     ({"rgb_obs_only": True, "camera_name": "render_camera", "camera_position": (1, 0, 1)}, "one or the other"),
     ({"rgb_obs_only": True, "camera_position": (1, 0, float("nan"))}, "camera_position must be 3 finite"),
     ({"rgb_obs_only": True, "camera_fovy": 200}, "camera_fovy"),
+    ({"rgb_obs_only": True, "camera_name": "render_camera", "image_width": 64},
+     "give both image_width and image_height"),
 ])
 def test_bad_camera_options_are_clear_errors(kwargs, match):
     with pytest.raises(ValueError, match=match):
         uniros.make("VX300SReacherSim-v0", **kwargs)
+
+
+def test_a_camera_request_has_both_sides_of_its_size_or_neither():
+    """The seam's own check, for code that opens a connection's camera without the env's options."""
+    from multiros.envs.connection import CameraRequest
+
+    with pytest.raises(ValueError, match="give both image_width and image_height"):
+        CameraRequest("render_camera", None, None, 45.0, 64, None, "render_camera/image_raw", None)
+    assert CameraRequest("render_camera", None, None, 45.0, None, None, "render_camera/image_raw", None).width is None
 
 
 def test_a_camera_that_sees_almost_one_colour_is_named(make, caplog):

@@ -429,8 +429,6 @@ class RealConnection(RobotConnection):
         self.add_camera(short, request.rgb_topic, request.depth_topic)
         if request.width is not None and request.height is not None:
             return short, (int(request.height), int(request.width))
-        if request.width is not None or request.height is not None:
-            raise ValueError(f"robot {self.robot_name!r}: give both image_width and image_height, or neither")
         return short, self.camera_size(short, self.startup_timeout)
 
     def _camera(self, name: str) -> tuple[Any, Any]:
