@@ -29,7 +29,7 @@ import sys
 import time
 import traceback
 import weakref
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from multiprocessing.connection import Connection, wait
 from typing import Any
 
@@ -304,17 +304,32 @@ class WorkerVectorEnv(VectorEnv):
                 self._send(k, message)
         sent = [k for k, message in enumerate(messages) if message is not None]
         share = self._workers.local
-        mine, error = None, None
-        if share is not None and local is not None:
-            try:
-                mine = share.answer(local)
-            except Exception as exc:  # noqa: BLE001 - raised once the workers have answered
-                error = exc
-        answers = dict(zip(sent, self._gather(sent, self.timeout_sec, what)))
-        if error is not None:
-            raise error
+        mine, gathered = self._beside(sent, what, None if share is None or local is None else
+                                      lambda: share.answer(local))
+        answers = dict(zip(sent, gathered))
         found = [answers.get(k) for k in range(len(messages))]
         return [mine, *found] if share is not None else found
+
+    def _beside(self, ks: Sequence[int], what: str, mine: Callable[[], Any] | None) -> tuple[Any, list[Any]]:
+        """This process's part (``mine``, if any) while workers ``ks`` do theirs, then their answers
+        (:meth:`_gather`). An error of this process's part is raised once they have all answered, so the
+        next request's answers are the next request's; a worker's error then goes unraised (a dead worker
+        is still named by the next call)."""
+        result, error = None, None
+        if mine is not None:
+            try:
+                result = mine()
+            except Exception as exc:  # noqa: BLE001 - raised below, once the workers have answered
+                error = exc
+        try:
+            answers = self._gather(ks, self.timeout_sec, what)
+        except Exception:
+            if error is None:
+                raise
+            answers = []
+        if error is not None:
+            raise error
+        return result, answers
 
     def _each(self, messages: Sequence[Any | None], what: str) -> list[Any]:
         """One message per share (:meth:`_shares` order; ``None``: none) and the answers in that order."""
@@ -380,20 +395,9 @@ class WorkerVectorEnv(VectorEnv):
                 conns[k].send_bytes(_STEP)
             except (OSError, ValueError) as exc:
                 raise self._dead(k, "a step") from exc
-        share = self._workers.local
-        if share is not None:  # this process's share, while the workers step theirs
-            try:
-                mine = share.step()
-            except Exception as exc:
-                try:  # the workers' answers are read, so the next request's answers are the next request's
-                    self._gather(range(self.num_workers), self.timeout_sec, "a step")
-                except Exception:  # noqa: BLE001 - this share's error is the one raised
-                    pass
-                raise exc from None
-        infos = self._gather(range(self.num_workers), self.timeout_sec, "a step")
-        parts = [(start, info) for (start, _), info in zip(self.rows, infos)]
-        if share is not None:
-            parts.insert(0, (self.local_rows[0], mine))  # type: ignore[index]
+        share = self._workers.local  # steps its envs while the workers step theirs
+        mine, infos = self._beside(range(self.num_workers), "a step", None if share is None else share.step)
+        parts = [(start, info) for (start, _), info in zip(self._shares(), [mine, *infos] if share else infos)]
         a = self._arrays
         return (self._observations(), a["rew"].copy(), a["term"].copy(), a["trunc"].copy(),
                 merge_infos(parts, self.num_envs))
@@ -454,7 +458,8 @@ class WorkerVectorEnv(VectorEnv):
         return self._each([("stats",)] * len(self._shares()), "stats")
 
     def node_loads(self) -> list[dict[str, Any]]:
-        """Each worker's simulation nodes' loads (see ``GetNodeLoad``), in worker order."""
+        """Each share's simulation nodes' loads (see ``GetNodeLoad``): this process's first
+        (``in_parent``), then the workers'."""
         return [load for loads in self._each([("loads",)] * len(self._shares()), "node_loads()") for load in loads]
 
     def close_extras(self, **kwargs: Any) -> None:
