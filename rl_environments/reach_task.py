@@ -159,11 +159,8 @@ class ReachTask(BatchTask, ArmInterface):
         else:
             targets = np.array([cls._row_targets(env, current[j], actions[j], states, j)
                                 for j, env in enumerate(envs)])
-        if len(envs) == 1:
-            targets = np.minimum(np.maximum(targets, e0.min_joint_pos), e0.max_joint_pos)  # np.clip, faster
-        else:
-            targets = np.minimum(np.maximum(targets, stack_rows(envs, "min_joint_pos")),
-                                 stack_rows(envs, "max_joint_pos"))
+        targets = np.minimum(np.maximum(targets, stack_rows(envs, "min_joint_pos")),
+                             stack_rows(envs, "max_joint_pos"))  # np.clip, faster
         for env, target, action in zip(envs, targets, actions):
             env.joint_targets = target
             env.prev_action = action
@@ -267,7 +264,7 @@ class GoalReachTask(ReachTask):
         distance = goal_distance(obs["achieved_goal"], obs["desired_goal"])  # what is_success and goal_reward compute
         tolerance = numbers(envs, "tolerance")
         success = distance <= tolerance
-        types = {envs[0].reward_type} if len(envs) == 1 else {env.reward_type for env in envs}
+        types = {env.reward_type for env in envs}
         if len(types) == 1:
             reward = reward_from_distance(distance, tolerance, types.pop()).astype(np.float64)  # type: ignore[union-attr]
         else:
