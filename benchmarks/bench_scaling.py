@@ -11,6 +11,9 @@ Prints (env steps/s, random actions, episodes autoreset as they end):
 * for each make_vec(N) with workers, how much of the wall clock each share spent stepping its envs
   (``WorkerVectorEnv.worker_stats``): near 1 means they are the bound, well below 1 that they wait
   for the exchange or for the slowest of them;
+* ``make_vec(ID, 8, sim_mode="process")`` (a worker process per node, shared memory) against the same
+  K nodes composed on threads of this process and against K process-mode nodes called over Zenoh
+  from this process (``workers=0``), interleaved;
 * the same N on one composed node in this process (``vector_kwargs={"workers": 0, "num_nodes": 1}``),
   for N <= ``--inproc-max``;
 * the physics limit over all cores: ``mj_step`` alone in each worker's world (N/K robots), K
@@ -197,10 +200,17 @@ def main() -> None:
     one_node8 = Stepper(uniros.make_vec(args.env, 8, vector_kwargs={"workers": 0, "num_nodes": 1}))
     limit8 = PhysicsLimit(args.env, -(-8 // k_all), k_all)
     limit8.n = 8 / k_all  # the 8 envs' share per core
+    # process mode (a worker process per node) against the same K nodes on threads of this process,
+    # and against process-mode nodes called over Zenoh from this process (workers=0)
+    k8 = min(8, k_all)
+    process8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process"))
+    threads8 = Stepper(uniros.make_vec(args.env, 8, vector_kwargs={"workers": 0, "num_nodes": k8}))
+    zenoh8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process", vector_kwargs={"workers": 0, "num_nodes": k8}))
     got = interleaved({"one env": single.rate, "one env physics": single_limit.rate, "make_vec(8)": vec8.rate,
-                       "make_vec(8) one node": one_node8.rate, "physics(8) all cores": limit8.rate},
+                       "make_vec(8) one node": one_node8.rate, "physics(8) all cores": limit8.rate,
+                       "process(8)": process8.rate, "threads(8)": threads8.rate, "process(8) zenoh": zenoh8.rate},
                       args.rounds, args.seconds)
-    for s in (single, vec8, one_node8):
+    for s in (single, vec8, one_node8, process8, threads8, zenoh8):
         s.close()
     med = {name: float(np.median(v)) for name, v in got.items()}
     ratio = lambda a, b: float(np.median(np.array(got[a]) / np.array(got[b])))  # noqa: E731
@@ -211,7 +221,12 @@ def main() -> None:
           f"{med['make_vec(8)']:,.0f}/s; same 8 on one node in-process: {med['make_vec(8) one node']:,.0f}/s; "
           f"ratio {ratio('make_vec(8)', 'make_vec(8) one node'):.2f}x (goal >= 1.7x on 2 cores)")
     print(f"  physics limit of 8 envs on {k_all} cores: {med['physics(8) all cores']:,.0f}/s; make_vec(8) reaches "
-          f"{ratio('make_vec(8)', 'physics(8) all cores'):.2f} of it (goal >= 0.80)", flush=True)
+          f"{ratio('make_vec(8)', 'physics(8) all cores'):.2f} of it (goal >= 0.80)")
+    print(f"  make_vec(8, sim_mode='process') [{k8} node processes, shared memory]: {med['process(8)']:,.0f}/s; "
+          f"the same {k8} nodes on threads of this process: {med['threads(8)']:,.0f}/s; ratio "
+          f"{ratio('process(8)', 'threads(8)'):.2f}x (goal >= 1: not slower than threads); {k8} process-mode nodes "
+          f"called over Zenoh (workers=0): {med['process(8) zenoh']:,.0f}/s (shared memory "
+          f"{ratio('process(8)', 'process(8) zenoh'):.2f}x that)", flush=True)
 
     # The curve: make_vec(N) at defaults, one node in-process, physics limit on all cores.
     fetch = Stepper(make_fetch_reach(), single=True)

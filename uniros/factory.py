@@ -149,7 +149,7 @@ def make_vec(
 
     ``vectorization_mode="batched"`` returns a :class:`~multiros.envs.vector.BatchedVectorEnv`: one
     simulation node holds all ``num_envs`` robots (each in its own namespace and world slot) and one
-    request steps them all. ``sim_mode="process"`` puts the node in a child process;
+    request steps them all. ``sim_mode="process"`` puts the nodes in child processes;
     ``vector_kwargs`` takes ``workers`` (K worker processes, N/K envs each on a composed node of
     their own, actions and observations through shared memory:
     :class:`~multiros.envs.worker_vector.WorkerVectorEnv`; ``0``: this process), ``num_nodes`` (K
@@ -159,10 +159,13 @@ def make_vec(
     per env) work as before. The default (``None``) picks the fastest form: ``"batched"`` for an ID
     whose env is a uniros simulated env (the shipped IDs, and yours built on
     ``MujocoBaseEnv``/``MujocoGoalEnv``), with a share of the envs per core: this process steps one and a
-    worker process each other (all in this process where
-    that is one, or where ``num_nodes`` or ``sim_mode`` place the nodes); else Gymnasium's default
-    (the ID's ``vector_entry_point``, or ``"sync"``). An explicit ``"batched"`` runs in this process
-    unless ``vector_kwargs`` names ``workers``. See ``docs/vector_envs.md``.
+    worker process each other (all in this process where that is one, or where ``num_nodes`` or
+    ``sim_mode="existing"`` place the nodes). With ``sim_mode="process"`` each of the K nodes (default:
+    one per core) is a worker process stepping its envs beside it, through the same shared memory
+    (no Zenoh call per step; ``workers=0``, or a ``transport`` or ``gui`` of the node's, keeps the
+    envs here and calls the nodes over their private router). Else Gymnasium's default (the ID's
+    ``vector_entry_point``, or ``"sync"``). An explicit ``"batched"`` runs in this process unless
+    ``vector_kwargs`` names ``workers``. See ``docs/vector_envs.md``.
 
     Raises:
         ValueError: ``num_envs`` beyond the node's ``max_robots`` or bad batch options.
@@ -174,7 +177,7 @@ def make_vec(
     if vectorization_mode is None:
         if isinstance(vector_entry, str) and vector_entry.startswith(rl_environments.VECTOR_ENTRY_MODULE + ":"):
             vectorization_mode = "batched"  # the ID's own vector entry point (see rl_environments.vector_entry)
-        elif vector_entry is None and _simulated(env_id) and kwargs.get("sim_mode", "composed") == "composed":
+        elif vector_entry is None and _simulated(env_id) and kwargs.get("sim_mode", "composed") != "existing":
             vectorization_mode = "batched"  # a uniros simulated env of the user's: its robots share nodes
     if vectorization_mode != "batched":
         return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode=vectorization_mode,

@@ -215,8 +215,11 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
     each): this process steps one and a worker process each of the others, actions and observations
     through shared memory (:class:`WorkerVecEnv`); or all in this
     process (:class:`BatchedVecEnv`) where that is one core, with ``workers=0``, with ``num_nodes``
-    (composed nodes in this process, stepped on threads) or with ``sim_mode`` ``"process"`` /
-    ``"existing"``. ``env_kwargs`` go to each env (``reward_type``, ``max_episode_steps``, ...).
+    (composed nodes in this process, stepped on threads) or with ``sim_mode="existing"``.
+    ``sim_mode="process"``: ``num_nodes`` nodes (default: one per core) in as many child processes,
+    each stepping its envs beside its node, through the same shared memory; ``workers=0`` puts the
+    envs here and calls each node over its private Zenoh router instead. ``env_kwargs`` go to each env
+    (``reward_type``, ``max_episode_steps``, ...).
     """
     from multiros.envs.worker_vector import WorkerVectorEnv, default_layout
     from uniros.factory import make, make_batch
@@ -226,17 +229,15 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
         options["num_nodes"] = num_nodes
     in_parent = False
     if workers is None:
-        workers, in_parent = default_layout(n_envs, sim_mode, options)
+        workers, in_parent = default_layout(n_envs, sim_mode, options, env_kwargs)
     if workers >= 1:
-        if sim_mode != "composed":
-            raise ValueError(f"workers={workers} run composed nodes; sim_mode={sim_mode!r} needs workers=0")
         if env_id not in gym.registry:
             make(env_id)  # raises the helpful error
         from gymnasium.vector import AutoresetMode
 
         return WorkerVecEnv(WorkerVectorEnv(env_id, n_envs, workers=workers, in_parent=in_parent,
                                             autoreset_mode=AutoresetMode.SAME_STEP, batch_options=options,
-                                            env_kwargs=env_kwargs))
+                                            env_kwargs={**env_kwargs, "sim_mode": sim_mode}))
     options.setdefault("num_nodes", 1)
     batch = make_batch(env_id, n_envs, options, sim_mode=sim_mode, **env_kwargs)
     return BatchedVecEnv(batch)

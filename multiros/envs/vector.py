@@ -301,8 +301,9 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     each env. ``workers=K`` (K >= 1) steps the envs in K worker processes, one composed node each,
     exchanging actions and observations through shared memory
     (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`), and ``in_parent=True`` makes this process
-    step one more share itself meanwhile; ``workers=0`` (the default here) keeps them all in this
-    process (:class:`BatchedVectorEnv`). This is what ``uniros.make_vec`` (which by default puts a share
+    step one more share itself meanwhile; with ``sim_mode="process"`` those workers are the nodes' child
+    processes. ``workers=0`` (the default here) keeps the envs in this process (:class:`BatchedVectorEnv`),
+    process-mode nodes called over Zenoh. This is what ``uniros.make_vec`` (which by default puts a share
     on each core: this process and a worker per other core, :func:`~multiros.envs.worker_vector.default_layout`)
     and the IDs' Gymnasium ``vector_entry_point`` build.
     """
@@ -314,7 +315,7 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     if workers is None:
         from multiros.envs.worker_vector import default_layout
 
-        workers, in_parent = default_layout(num_envs, kwargs.get("sim_mode", "composed"), options)
+        workers, in_parent = default_layout(num_envs, kwargs.get("sim_mode", "composed"), options, kwargs)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
         raise ValueError(f"workers must be 0 (this process) or a number of worker processes, got {workers!r}")
     if workers >= 1:
@@ -325,8 +326,6 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
         if unknown:
             raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(BATCH_OPTIONS)} "
                             "and autoreset_mode, copy, workers, in_parent")
-        if kwargs.get("sim_mode", "composed") != "composed":
-            raise ValueError(f"workers={workers} run composed nodes; sim_mode={kwargs['sim_mode']!r} needs workers=0")
         return WorkerVectorEnv(env_id, num_envs, workers=workers, in_parent=in_parent, autoreset_mode=autoreset,
                                copy=copy, batch_options=options, env_kwargs=kwargs)
     return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)

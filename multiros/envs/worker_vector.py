@@ -11,6 +11,11 @@ With ``in_parent`` the parent steps one more share itself (rows first) while the
 theirs, with no pipe between: K cores then run K shares (:func:`default_layout`, ``uniros.make_vec``'s
 default), where a worker per core left the parent's exchange taking turns with their physics.
 
+``sim_mode="process"`` (nodes in child processes) is this form with no share in the parent: each
+worker is its node's child process, running the node composed beside its envs, so process mode
+exchanges through the same shared memory instead of a Zenoh service call per node and step
+(:func:`process_mode_workers`; ``workers=0`` keeps those calls, for a node on a wire of the caller's).
+
 Semantics are the in-process batched env's: the same spaces, seeds (an int seed gives env ``i``
 ``seed + i`` whatever K is, so env ``i`` runs the same trajectory), autoreset modes and infos.
 Every wait has a timeout and watches the worker's process: a worker that dies or hangs raises
@@ -40,7 +45,7 @@ from gymnasium.vector.utils import batch_space
 from multiros.envs.batch import default_num_nodes
 from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
 
-__all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "worker_rows"]
+__all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "process_mode_workers", "worker_rows"]
 
 _STEP = b"s"
 
@@ -49,27 +54,89 @@ class WorkerError(RuntimeError):
     """A worker process of a :class:`WorkerVectorEnv` exited or did not answer in time."""
 
 
-def default_workers(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None) -> int:
-    """The number of worker processes ``uniros.make_vec`` uses unless told: one per core this process
-    may run on (``os.sched_getaffinity``), at most one per env, for composed nodes with the batch's
-    node layout left to the default; ``0`` (in this process) where that is one, or where the nodes
-    are in other processes already (``sim_mode="process"`` or ``"existing"``) or placed by hand
-    (``num_nodes``, ``node_name`` or ``connect_kwargs`` given)."""
+def default_workers(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None,
+                    env_kwargs: Mapping[str, Any] | None = None) -> int:
+    """The number of worker processes ``uniros.make_vec`` uses unless told.
+
+    * Composed nodes, their layout left to the default: one per core this process may run on
+      (``os.sched_getaffinity``), at most one per env; ``0`` (in this process) where that is one.
+    * ``sim_mode="process"``: a worker per node, each node in a child process with its envs
+      (:func:`process_mode_workers`): ``num_nodes`` of them, else one per core.
+    * ``0`` where the nodes are elsewhere already (``"existing"``), placed by hand (``num_nodes`` of
+      composed nodes, ``node_name``, ``connect_kwargs``), or where a process-mode node must be on a wire
+      or show a viewer (``transport``, ``gui``).
+    """
     options = options or {}
+    if sim_mode == "process":
+        return process_mode_workers(num_envs, options, env_kwargs)
     if sim_mode != "composed" or any(key in options for key in ("num_nodes", "node_name", "connect_kwargs")):
         return 0
     k = default_num_nodes(num_envs)
     return k if k >= 2 else 0
 
 
-def default_layout(num_envs: int, sim_mode: str = "composed",
-                   options: Mapping[str, Any] | None = None) -> tuple[int, bool]:
+def process_mode_workers(num_envs: int, options: Mapping[str, Any], env_kwargs: Mapping[str, Any] | None = None) -> int:
+    """Worker processes for ``sim_mode="process"``: each node in a child process, as the mode says, and
+    its envs' task code with it, the actions and observations through shared memory (no message per
+    step). ``num_nodes`` nodes, else one per core (at most one per env). ``0`` (nodes in child processes
+    reached over their private Zenoh router, one service call per node and step, the envs' code in
+    this process) where the node must be on a wire of the caller's choice (``transport``) or show a
+    viewer (``gui``), where it is placed by hand (``node_name``, ``connect_kwargs``), or where
+    ``num_nodes`` is not a count of nodes (the batch then says why)."""
+    if _wired(env_kwargs or {}) or any(key in options for key in ("node_name", "connect_kwargs")):
+        return 0
+    k = options.get("num_nodes")
+    if k is None:
+        return default_num_nodes(num_envs)
+    return k if isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= num_envs else 0
+
+
+def _wired(env_kwargs: Mapping[str, Any]) -> str | None:
+    """The env keyword that asks for a node of its own process (a wire, a viewer), if any: a worker's
+    node is composed in it, on no wire and with no viewer."""
+    return next((key for key in ("transport", "gui") if env_kwargs.get(key) not in (None, False)), None)
+
+
+def default_layout(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None,
+                   env_kwargs: Mapping[str, Any] | None = None) -> tuple[int, bool]:
     """``(workers, in_parent)`` of ``uniros.make_vec`` unless told: a share of the envs per core, one
     of them stepped by this process while the workers step theirs (:func:`default_workers` cores: one
     worker process fewer; a worker per core besides the parent left three processes on two cores, the
-    parent's exchange taking turns with the workers' physics). ``(0, False)``: all in this process."""
-    k = default_workers(num_envs, sim_mode, options)
+    parent's exchange taking turns with the workers' physics). ``(0, False)``: all in this process.
+    ``sim_mode="process"``: every node in a worker process, none in this one."""
+    k = default_workers(num_envs, sim_mode, options, env_kwargs)
+    if sim_mode == "process":
+        return k, False
     return (k - 1, True) if k >= 2 else (0, False)
+
+
+def _nodes_in_workers(num_envs: int, workers: int | None, in_parent: bool, options: dict[str, Any],
+                      env_kwargs: dict[str, Any]) -> int | None:
+    """``sim_mode="process"`` with workers: each worker is the child process of its node, which it
+    runs composed beside its envs (one node a worker). Rewrites ``options`` and ``env_kwargs`` for the
+    workers (``num_nodes`` becomes the worker count, the mode ``"composed"`` inside them) and returns
+    the number of workers. Other modes reach nodes elsewhere: refused."""
+    mode = env_kwargs.get("sim_mode")
+    if mode != "process":
+        raise ValueError(f"worker processes run their envs' nodes in themselves; sim_mode={mode!r} reaches nodes "
+                         "elsewhere: use workers=0")
+    if in_parent:
+        raise ValueError("sim_mode='process' puts every node in a child process; in_parent would step a share "
+                         "(and its node) in this process")
+    key = _wired(env_kwargs)
+    if key is not None:
+        raise ValueError(f"a worker runs its node composed, on no wire and with no viewer; {key}="
+                         f"{env_kwargs[key]!r} needs workers=0 (each node a process of its own)")
+    nodes = options.pop("num_nodes", None)
+    if nodes is not None and (not isinstance(nodes, int) or isinstance(nodes, bool) or not 1 <= nodes <= num_envs):
+        raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {nodes!r}")
+    if workers is None:
+        workers = nodes
+    elif nodes is not None and nodes != workers:
+        raise ValueError(f"sim_mode='process' with workers puts one node in each: num_nodes={nodes} and "
+                         f"workers={workers} differ")
+    env_kwargs["sim_mode"] = "composed"
+    return workers
 
 
 def worker_rows(num_envs: int, workers: int) -> list[tuple[int, int]]:
@@ -141,6 +208,10 @@ class WorkerVectorEnv(VectorEnv):
                  start_timeout_sec: float | None = None) -> None:
         if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        options = dict(batch_options or {})
+        env_kwargs = dict(env_kwargs or {})
+        if env_kwargs.get("sim_mode", "composed") != "composed":
+            workers = _nodes_in_workers(num_envs, workers, in_parent, options, env_kwargs)
         if workers is None:
             workers = max(1, default_num_nodes(num_envs) - int(bool(in_parent)))
         most = num_envs - int(bool(in_parent))
@@ -157,7 +228,6 @@ class WorkerVectorEnv(VectorEnv):
         self.local_rows: tuple[int, int] | None = rows[0] if in_parent else None
         """The envs this process steps itself (``in_parent``), ``[start, stop)``; ``None``: none."""
         self.rows = rows[1:] if in_parent else rows
-        options = dict(batch_options or {})
         self.timeout_sec = float(options.get("timeout_sec", 10.0)) + 5.0  # the worker's own bound fires first
         self._workers = _Workers()
         self._finalizer = weakref.finalize(self, self._workers.stop)
@@ -166,11 +236,11 @@ class WorkerVectorEnv(VectorEnv):
         try:
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker()
-                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, dict(env_kwargs or {})))
+                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs))
             if self.local_rows is not None:  # made while the workers make theirs
                 start, stop = self.local_rows
                 self._workers.local = _Share(env_id, spec, stop - start, self.autoreset_mode.value, options,
-                                             dict(env_kwargs or {}))
+                                             env_kwargs)
             answers = [self._recv(k, start_timeout_sec or 120.0 + 4.0 * (stop - start), "start")
                        for k, (start, stop) in enumerate(self.rows)]  # an error here closes them all
             if self._workers.local is not None:

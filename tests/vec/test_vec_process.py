@@ -1,5 +1,5 @@
-"""Batched vector envs over nodes in other processes: one node (private router), K nodes, a node
-that dies, and two clients sharing one node."""
+"""Batched vector envs over nodes in other processes: make_vec's process mode (a worker process per
+node), one node behind a private router, K nodes, a node that dies, and two clients sharing one node."""
 
 from __future__ import annotations
 
@@ -11,7 +11,10 @@ import numpy as np
 import pytest
 
 import uniros
+from multiros.envs.vector import BatchedVectorEnv
+from multiros.envs.worker_vector import WorkerVectorEnv
 from multiros.sim.client import SimulationNodeError
+from uniros.vec_env import WorkerVecEnv, make_batched_vec_env
 
 ENV = "RX200ReacherGoalSim-v0"
 
@@ -51,6 +54,50 @@ def test_process_and_k_process_forms_equal_composed() -> None:
         finally:
             vec.close()
         assert all(p.poll() is not None for p in procs)  # stopped (and reaped) by close()
+
+
+def test_process_mode_nodes_step_their_envs_in_their_own_processes() -> None:
+    """make_vec's ``sim_mode="process"``: each of K nodes is a child process stepping its envs beside
+    it, actions and observations through shared memory, none in this process; the observations are
+    the composed node's; close stops the processes by PID. The SB3 form does the same."""
+    composed = uniros.make_vec(ENV, 4, vectorization_mode="batched", vector_kwargs={"num_nodes": 1})
+    try:
+        expected = _rollout(composed)
+    finally:
+        composed.close()
+    vec = uniros.make_vec(ENV, 4, sim_mode="process", vector_kwargs={"num_nodes": 2})
+    try:
+        assert isinstance(vec, WorkerVectorEnv) and vec.num_workers == 2 and vec.local_rows is None
+        procs, pids = list(vec._workers.procs), vec.pids
+        assert len(set(pids)) == 2 and os.getpid() not in pids
+        for a, b in zip(_rollout(vec), expected):
+            for key in a:
+                np.testing.assert_array_equal(a[key], b[key])
+        assert [load["robots"] for load in vec.node_loads()] == [2, 2]
+    finally:
+        vec.close()
+    assert all(p.poll() is not None for p in procs)  # stopped (and reaped) by close()
+    venv = make_batched_vec_env(ENV, 2, sim_mode="process", num_nodes=2)
+    try:
+        assert isinstance(venv, WorkerVecEnv) and venv.venv.num_workers == 2 and venv.venv.local_rows is None
+        assert venv.reset()["observation"].shape == (2, *venv.observation_space["observation"].shape)
+    finally:
+        venv.close()
+
+
+def test_process_mode_with_a_transport_calls_its_node_from_this_process() -> None:
+    """A node on a wire of the caller's (``transport``) stays a process of its own, reached over that
+    wire: the envs stay here (the form of ``workers=0``)."""
+    vec = uniros.make_vec(ENV, 2, sim_mode="process", transport="zenoh")
+    try:
+        assert isinstance(vec, BatchedVectorEnv)
+        child = vec.batch.connections[0].process
+        assert child.pid != os.getpid()
+        vec.reset(seed=0)
+        vec.step(np.zeros((2, 5), np.float32))
+    finally:
+        vec.close()
+    assert child.poll() is not None
 
 
 @pytest.mark.slow

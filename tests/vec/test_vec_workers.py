@@ -275,9 +275,45 @@ def test_by_default_this_process_steps_a_share_and_a_worker_each_other_core(monk
     assert wv.default_layout(8) == (1, True)
     assert wv.default_layout(1) == (0, False)
     assert wv.default_layout(8, options={"num_nodes": 2}) == (0, False)
-    assert wv.default_layout(8, "process") == (0, False)
+    assert wv.default_layout(8, "existing") == (0, False)
     monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 16))
     assert wv.default_layout(128) == (15, True)
+
+
+def test_process_mode_by_default_is_a_worker_per_node_and_none_in_this_process(monkeypatch) -> None:
+    """``sim_mode="process"``: the nodes (one per core, or ``num_nodes``) are worker processes, none in
+    this one; a node on a wire of the caller's or with a viewer, placed by hand, or a ``num_nodes``
+    that is no count of nodes: this process calls them over Zenoh (``workers=0``)."""
+    import multiros.envs.worker_vector as wv
+
+    monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 2))
+    assert wv.default_layout(8, "process") == (2, False)
+    assert wv.default_layout(1, "process") == (1, False)  # one core or one env: still a child process
+    assert wv.default_layout(8, "process", {"num_nodes": 4}) == (4, False)
+    for options, env_kwargs in [({}, {"transport": "zenoh"}), ({}, {"transport": "rclpy"}), ({}, {"gui": True}),
+                                ({"node_name": "sim"}, {}), ({"num_nodes": 9}, {}), ({"num_nodes": "2"}, {}),
+                                ({"num_nodes": 0}, {})]:
+        assert wv.default_layout(8, "process", options, env_kwargs) == (0, False), (options, env_kwargs)
+    assert wv.default_layout(8, "process", {}, {"transport": None, "gui": False}) == (2, False)
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"workers": 1, "in_parent": True, "env_kwargs": {"sim_mode": "process"}},
+     r"puts every node in a child process; in_parent would step a share"),
+    ({"workers": 1, "env_kwargs": {"sim_mode": "existing"}}, r"sim_mode='existing' reaches nodes elsewhere"),
+    ({"workers": 1, "env_kwargs": {"sim_mode": "process", "transport": "zenoh"}},
+     r"transport='zenoh' needs workers=0"),
+    ({"workers": 1, "env_kwargs": {"sim_mode": "process", "gui": True}}, r"gui=True needs workers=0"),
+    ({"workers": 1, "batch_options": {"num_nodes": 2}, "env_kwargs": {"sim_mode": "process"}},
+     r"one node in each: num_nodes=2 and workers=1 differ"),
+    ({"batch_options": {"num_nodes": 3}, "env_kwargs": {"sim_mode": "process"}},
+     r"num_nodes must be an integer from 1 to num_envs \(2\), got 3"),
+])
+def test_process_mode_layouts_that_do_not_fit_are_refused_before_any_process_starts(kwargs: dict, match: str) -> None:
+    before = _census()
+    with pytest.raises(ValueError, match=match):
+        WorkerVectorEnv(ENV, 2, **kwargs)
+    assert _census() == before
 
 
 @pytest.mark.parametrize(("workers", "in_parent", "match"), [
