@@ -61,6 +61,9 @@ __all__ = [
     "private_environment",
     "private_graph_credentials",
     "start_child_program",
+    "owner_log_level",
+    "is_private_graph",
+    "OWN_LOGGERS",
     "stop_event",
     "stop_process",
     "track_child",
@@ -198,6 +201,14 @@ def private_context(attempts: int = 5) -> Context:
     raise TransportError(f"could not start a private Zenoh router on loopback after {attempts} tries: {last}")
 
 
+def is_private_graph(ctx: Context) -> bool:
+    """Whether only its owner's processes can join ``ctx``'s graph: an in-process one, or a private
+    Zenoh graph (:func:`private_context`, and the children it starts): no ROS tool looks at it."""
+    if ctx.transport_name == "inproc":
+        return True
+    return ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE and bool(private_graph_credentials(ctx))
+
+
 def private_graph_credentials(ctx: Context) -> dict[str, str]:
     """The Zenoh credentials ``ctx``'s graph requires (``user``, ``password``, ``auth_dictionary``;
     empty for a graph without authentication)."""
@@ -318,14 +329,32 @@ def add_child_options(parser: argparse.ArgumentParser) -> None:
     (read back by :func:`start_child_program`)."""
     parser.add_argument("--owner-pid", type=int, default=None,
                         help="exit when this process is gone (set by the env or test that starts this program)")
-    parser.add_argument("--log-level", default="INFO")
+    parser.add_argument("--log-level", default="INFO",
+                        help="level of uniros' own log lines (other libraries': warnings and errors)")
+
+
+#: The loggers of uniros' own code (``ros.<node>`` are the nodes'): a program's ``--log-level``
+#: sets theirs; other libraries log warnings and errors only (PyOpenGL's INFO lines are no news).
+OWN_LOGGERS = ("__main__", "ros", "multiros", "uniros", "rl_environments")
 
 
 def start_child_program(opts: argparse.Namespace) -> threading.Event:
-    """Configure logging from ``--log-level`` and return the :func:`stop_event` for ``--owner-pid``
-    (call from the main thread, after parsing the options of :func:`add_child_options`)."""
-    logging.basicConfig(level=opts.log_level.upper(), format="[%(levelname)s] [%(name)s]: %(message)s")
+    """Configure logging from ``--log-level`` (:data:`OWN_LOGGERS`) and return the :func:`stop_event`
+    for ``--owner-pid`` (call from the main thread, after parsing the options of
+    :func:`add_child_options`)."""
+    level = opts.log_level.upper()
+    if not isinstance(logging.getLevelName(level), int):
+        raise ValueError(f"unknown --log-level {opts.log_level!r}; levels: DEBUG, INFO, WARNING, ERROR, CRITICAL")
+    logging.basicConfig(level=logging.WARNING, format="[%(levelname)s] [%(name)s]: %(message)s")
+    for name in OWN_LOGGERS:
+        logging.getLogger(name).setLevel(level)
     return stop_event(opts.owner_pid)
+
+
+def owner_log_level() -> str:
+    """The ``--log-level`` of a child an owner starts for itself (a node of its env): what the owner's
+    own node loggers would show (``logging.getLogger("ros")``; WARNING where nothing is configured)."""
+    return logging.getLevelName(logging.getLogger("ros").getEffectiveLevel())
 
 
 def stop_event(owner_pid: int | None = None) -> threading.Event:

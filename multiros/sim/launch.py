@@ -48,6 +48,7 @@ from multiros.ros.processes import (
     child_environment,
     discovery_environment,
     free_loopback_endpoint,
+    owner_log_level,
     private_context,
     private_dds_context,
     private_environment,
@@ -339,7 +340,8 @@ def _spawn_child(
 ) -> subprocess.Popen:
     argv = [sys.executable, "-m", "multiros.sim.launch", "--name", node_name.lstrip("/"), "--transport",
             ctx.transport_name,
-            "--real-time-factor", str(real_time_factor), "--owner-pid", str(os.getpid())]
+            "--real-time-factor", str(real_time_factor), "--owner-pid", str(os.getpid()),
+            "--log-level", owner_log_level()]
     if not paused:
         argv.append("--play")
     if gui:

@@ -37,6 +37,7 @@ from multiros.ros import Node, ParameterDescriptor
 from multiros.ros.callback_groups import ReentrantCallbackGroup
 from multiros.ros.executors import SingleThreadedExecutor
 from multiros.ros.logging import LogThrottle
+from multiros.ros.processes import is_private_graph
 from multiros.ros.qos import qos_profile_clock
 from multiros.ros.service import current_caller
 from multiros.sim import convert
@@ -256,9 +257,10 @@ class SimulationNode(Node):
 
     def _log_for_the_graph(self, level: int, text: str) -> None:
         """A refusal that matters to ROS 2 tools looking at the node (a TF frame clash, a camera not
-        published): at ``level`` where they may look; on an in-process graph (an env's own node, the
-        robots of a vector env) nobody outside can, so it is only logged at INFO."""
-        self.get_logger().log(logging.INFO if self.context.transport_name == "inproc" else level, "%s", text)
+        published): at ``level`` where they may look; on a graph of its owner's only (in-process: an env's
+        own node, the robots of a vector env; a process-mode node's private graph) nobody else can, so it
+        is only logged at INFO."""
+        self.get_logger().log(logging.INFO if is_private_graph(self.context) else level, "%s", text)
 
     def start_serving(self) -> None:
         """Create the simulation services (once); until then the node answers no service call."""

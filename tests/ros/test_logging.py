@@ -98,3 +98,55 @@ def test_a_flood_of_malformed_samples_logs_a_few_lines(caplog, router_endpoint: 
             assert 1 <= len(dropped) <= 6, [r.getMessage() for r in dropped]
         finally:
             peer.close()
+
+
+@pytest.mark.parametrize(("level", "shown", "hidden"), [
+    ("INFO", ["[ros.sim]: ready", "[__main__]: own info", "[multiros.x]: own info"],
+     ["[OpenGL.accel]: no module", "[ros.sim]: debug"]),
+    ("DEBUG", ["[ros.sim]: debug", "[ros.sim]: ready", "[OpenGL.accel]: library warning"],
+     ["[OpenGL.accel]: no module"]),
+    ("WARNING", ["[OpenGL.accel]: library warning"], ["[ros.sim]: ready", "[__main__]: own info"]),
+])
+def test_a_child_programs_log_level_is_its_own_code_s_other_libraries_say_warnings(level, shown, hidden) -> None:
+    """``--log-level`` sets uniros' own loggers (the node's, the program's); another library's INFO
+    lines (PyOpenGL's 'No OpenGL_accelerate module') stay out whatever the level."""
+    import subprocess
+    import sys
+
+    code = ("import argparse, logging; from multiros.ros.processes import add_child_options, start_child_program\n"
+            "p = argparse.ArgumentParser(); add_child_options(p); start_child_program(p.parse_args())\n"
+            "library = logging.getLogger('OpenGL.accel')\n"
+            "library.info('no module'); library.warning('library warning')\n"
+            "logging.getLogger('ros.sim').info('ready'); logging.getLogger('ros.sim').debug('debug')\n"
+            "logging.getLogger('__main__').info('own info'); logging.getLogger('multiros.x').info('own info')\n")
+    out = subprocess.run([sys.executable, "-c", code, "--log-level", level], capture_output=True, text=True,
+                         timeout=60, check=True).stderr
+    for line in shown:
+        assert line in out, (line, out)
+    for line in hidden:
+        assert line not in out, (line, out)
+
+
+def test_an_unknown_log_level_is_refused_by_name() -> None:
+    import argparse
+
+    from multiros.ros.processes import start_child_program
+
+    with pytest.raises(ValueError, match="unknown --log-level 'LOUD'"):
+        start_child_program(argparse.Namespace(log_level="LOUD", owner_pid=None))
+
+
+def test_a_child_an_owner_starts_logs_what_the_owners_node_loggers_would() -> None:
+    from multiros.ros.processes import owner_log_level
+
+    ours = logging.getLogger("ros")
+    before = ours.level
+    try:
+        ours.setLevel(logging.NOTSET)
+        assert owner_log_level() == logging.getLevelName(logging.getLogger().getEffectiveLevel())
+        ours.setLevel(logging.DEBUG)
+        assert owner_log_level() == "DEBUG"
+        ours.setLevel(logging.ERROR)
+        assert owner_log_level() == "ERROR"
+    finally:
+        ours.setLevel(before)

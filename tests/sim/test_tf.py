@@ -252,10 +252,14 @@ def test_frame_prefix_is_applied_once_and_clashing_robots_fall_back_to_their_nam
         ctx.shutdown()
 
 
-def test_a_frame_clash_on_an_in_process_graph_is_info_not_a_warning(caplog):
-    """Nobody outside the process sees an in-process node's /tf (an env's own node, a vector env's robots):
-    the fallback is logged at INFO there (on a wire transport, a warning; its text: the test above)."""
-    ctx = Context(transport="inproc").init()
+@pytest.mark.parametrize("graph", ["inproc", "private"])
+def test_a_frame_clash_on_a_graph_of_the_owners_only_is_info_not_a_warning(caplog, graph):
+    """Nobody outside the process sees an in-process node's /tf (an env's own node, a vector env's robots),
+    nor anybody but its owner a process-mode node's private graph: the fallback is logged at INFO there
+    (on a shared graph, a warning; its text: the test above)."""
+    from multiros.ros.processes import private_context
+
+    ctx = Context(transport="inproc").init() if graph == "inproc" else private_context()
     try:
         node = SimulationNode("clash", context=ctx)
         with caplog.at_level("INFO"), node.lock:
