@@ -88,7 +88,12 @@ def process_mode_workers(num_envs: int, options: Mapping[str, Any], env_kwargs: 
     k = options.get("num_nodes")
     if k is None:
         return default_num_nodes(num_envs)
-    return k if isinstance(k, int) and not isinstance(k, bool) and 1 <= k <= num_envs else 0
+    return k if _count_up_to(k, num_envs) else 0
+
+
+def _count_up_to(value: Any, most: int) -> bool:
+    """Whether ``value`` is a count from 1 to ``most`` (an int, not a bool)."""
+    return isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= most
 
 
 def _wired(env_kwargs: Mapping[str, Any]) -> str | None:
@@ -128,7 +133,7 @@ def _nodes_in_workers(num_envs: int, workers: int | None, in_parent: bool, optio
         raise ValueError(f"a worker runs its node composed, on no wire and with no viewer; {key}="
                          f"{env_kwargs[key]!r} needs workers=0 (each node a process of its own)")
     nodes = options.pop("num_nodes", None)
-    if nodes is not None and (not isinstance(nodes, int) or isinstance(nodes, bool) or not 1 <= nodes <= num_envs):
+    if nodes is not None and not _count_up_to(nodes, num_envs):
         raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {nodes!r}")
     if workers is None:
         workers = nodes
@@ -215,7 +220,7 @@ class WorkerVectorEnv(VectorEnv):
         if workers is None:
             workers = max(1, default_num_nodes(num_envs) - int(bool(in_parent)))
         most = num_envs - int(bool(in_parent))
-        if not isinstance(workers, int) or isinstance(workers, bool) or not 1 <= workers <= most:
+        if not _count_up_to(workers, most):
             raise ValueError(f"workers must be an integer from 1 to num_envs ({num_envs})"
                              f"{' less one (this process steps a share: in_parent)' if in_parent else ''}, "
                              f"got {workers!r}")
