@@ -26,6 +26,7 @@ garbage-collected and at interpreter exit; they also exit when the parent's end 
 from __future__ import annotations
 
 import json
+import os
 import pickle
 import signal
 import socket
@@ -98,8 +99,12 @@ def _count_up_to(value: Any, most: int) -> bool:
 
 def _wired(env_kwargs: Mapping[str, Any]) -> str | None:
     """The env keyword that asks for a node of its own process (a wire, a viewer), if any: a worker's
-    node is composed in it, on no wire and with no viewer."""
-    return next((key for key in ("transport", "gui") if env_kwargs.get(key) not in (None, False)), None)
+    node is composed in it, on no wire and with no viewer. ``$UNIROS_TRANSPORT`` naming a wire other
+    than the private router's Zenoh counts as ``transport`` (process mode's node would take it)."""
+    chosen = next((key for key in ("transport", "gui") if env_kwargs.get(key) not in (None, False)), None)
+    if chosen is None and os.environ.get("UNIROS_TRANSPORT", "") not in ("", "zenoh", "inproc"):
+        return "UNIROS_TRANSPORT"
+    return chosen
 
 
 def default_layout(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None,
@@ -130,16 +135,20 @@ def _nodes_in_workers(num_envs: int, workers: int | None, in_parent: bool, optio
                          "(and its node) in this process")
     key = _wired(env_kwargs)
     if key is not None:
-        raise ValueError(f"a worker runs its node composed, on no wire and with no viewer; {key}="
-                         f"{env_kwargs[key]!r} needs workers=0 (each node a process of its own)")
-    nodes = options.pop("num_nodes", None)
+        value = env_kwargs.get(key, os.environ.get(key))
+        raise ValueError(f"a worker runs its node composed, on no wire and with no viewer; {key}={value!r} "
+                         "needs workers=0 (each node a process of its own)")
+    placed = [key for key in ("node_name", "connect_kwargs") if key in options]
+    if placed:
+        raise ValueError(f"a worker makes its own node, composed; {placed} place nodes by hand: use workers=0")
+    nodes = options.pop("num_nodes", None)  # in process mode: all the nodes, one a worker
     if nodes is not None and not _count_up_to(nodes, num_envs):
         raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {nodes!r}")
     if workers is None:
         workers = nodes
     elif nodes is not None and nodes != workers:
-        raise ValueError(f"sim_mode='process' with workers puts one node in each: num_nodes={nodes} and "
-                         f"workers={workers} differ")
+        raise ValueError(f"sim_mode='process' with workers puts one node in each, so num_nodes counts all the "
+                         f"nodes (composed workers take it per worker): num_nodes={nodes} and workers={workers} differ")
     env_kwargs["sim_mode"] = "composed"
     return workers
 
@@ -563,6 +572,9 @@ def _serve(fd: int) -> None:
     try:
         args = conn.recv()
     except (EOFError, OSError):
+        return
+    except Exception:  # noqa: BLE001 - an order that does not unpickle here (a class of the parent's __main__)
+        conn.send(("error", (None, traceback.format_exc())))
         return
     _worker_main(conn, *args)
 

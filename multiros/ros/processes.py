@@ -206,7 +206,8 @@ def is_private_graph(ctx: Context) -> bool:
     Zenoh graph (:func:`private_context`, and the children it starts): no ROS tool looks at it."""
     if ctx.transport_name == "inproc":
         return True
-    return ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE and bool(private_graph_credentials(ctx))
+    return (ctx.transport_name == "zenoh" and ctx.env.get("ZENOH_CONFIG_OVERRIDE") == PRIVATE_GRAPH_OVERRIDE
+            and bool(private_graph_credentials(ctx)))
 
 
 def private_graph_credentials(ctx: Context) -> dict[str, str]:
@@ -333,7 +334,8 @@ def add_child_options(parser: argparse.ArgumentParser) -> None:
                         help="level of uniros' own log lines (other libraries': warnings and errors)")
 
 
-#: The loggers of uniros' own code (``ros.<node>`` are the nodes'): a program's ``--log-level``
+#: The loggers of uniros' own code (``ros.<node>`` are the nodes'; the upper layers' packages by name
+#: only, nothing imported): a program's ``--log-level``
 #: sets theirs; other libraries log warnings and errors only (PyOpenGL's INFO lines are no news).
 OWN_LOGGERS = ("__main__", "ros", "multiros", "uniros", "rl_environments")
 
@@ -353,8 +355,13 @@ def start_child_program(opts: argparse.Namespace) -> threading.Event:
 
 def owner_log_level() -> str:
     """The ``--log-level`` of a child an owner starts for itself (a node of its env): what the owner's
-    own node loggers would show (``logging.getLogger("ros")``; WARNING where nothing is configured)."""
-    return logging.getLevelName(logging.getLogger("ros").getEffectiveLevel())
+    own node loggers would show (``logging.getLogger("ros")``; WARNING where nothing is configured), as
+    the standard level at or below it (a custom level 15 shows what DEBUG shows; the child knows no
+    custom names)."""
+    level = logging.getLogger("ros").getEffectiveLevel()
+    standard = [lvl for lvl in (logging.DEBUG, logging.INFO, logging.WARNING, logging.ERROR, logging.CRITICAL)
+                if lvl <= level]
+    return logging.getLevelName(standard[-1] if standard else logging.DEBUG)
 
 
 def stop_event(owner_pid: int | None = None) -> threading.Event:

@@ -148,5 +148,26 @@ def test_a_child_an_owner_starts_logs_what_the_owners_node_loggers_would() -> No
         assert owner_log_level() == "DEBUG"
         ours.setLevel(logging.ERROR)
         assert owner_log_level() == "ERROR"
+        ours.setLevel(15)  # a custom level: the standard one below it (a child knows no custom names)
+        assert owner_log_level() == "DEBUG"
+        ours.setLevel(25)
+        assert owner_log_level() == "INFO"
     finally:
         ours.setLevel(before)
+
+
+def test_only_private_graphs_are_the_owners_alone() -> None:
+    """In-process, a private Zenoh graph and a child joined to it (the environment
+    ``child_environment`` hands it) are the owner's alone; a plain Zenoh graph is not."""
+    from multiros.ros.processes import child_environment, is_private_graph, private_context, private_environment
+
+    inproc = ros.Context(transport="inproc")
+    assert is_private_graph(inproc)
+    owner = private_context()
+    try:
+        assert is_private_graph(owner)
+        child = ros.Context(transport="zenoh", env={**private_environment(), **child_environment(owner)})
+        assert is_private_graph(child)
+    finally:
+        owner.shutdown()
+    assert not is_private_graph(ros.Context(transport="zenoh", env={"UNIROS_ZENOH_ROUTER": "tcp/127.0.0.1:1"}))

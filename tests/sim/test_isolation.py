@@ -239,7 +239,8 @@ def test_four_processes_make_process_mode_envs_at_once():
 def test_make_vec_and_subproc_vec_env_with_process_mode():
     import uniros
 
-    vec = uniros.make_vec("RX200ReacherSim-v0", num_envs=2, sim_mode="process")
+    vec = uniros.make_vec("RX200ReacherSim-v0", num_envs=2, sim_mode="process",
+                          vector_kwargs={"workers": 0})  # the nodes behind their private router
     try:
         vec.reset(seed=0)
         for _ in range(5):

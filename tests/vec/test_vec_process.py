@@ -68,8 +68,8 @@ def test_process_mode_nodes_step_their_envs_in_their_own_processes() -> None:
     vec = uniros.make_vec(ENV, 4, sim_mode="process", vector_kwargs={"num_nodes": 2})
     try:
         assert isinstance(vec, WorkerVectorEnv) and vec.num_workers == 2 and vec.local_rows is None
-        procs, pids = list(vec._workers.procs), vec.pids
-        assert len(set(pids)) == 2 and os.getpid() not in pids
+        procs = list(vec._workers.procs)
+        assert len({p.pid for p in procs}) == 2 and all(p.poll() is None for p in procs)
         for a, b in zip(_rollout(vec), expected):
             for key in a:
                 np.testing.assert_array_equal(a[key], b[key])

@@ -295,6 +295,8 @@ def test_process_mode_by_default_is_a_worker_per_node_and_none_in_this_process(m
                                 ({"num_nodes": 0}, {})]:
         assert wv.default_layout(8, "process", options, env_kwargs) == (0, False), (options, env_kwargs)
     assert wv.default_layout(8, "process", {}, {"transport": None, "gui": False}) == (2, False)
+    monkeypatch.setenv("UNIROS_TRANSPORT", "rclpy")  # the wire a process-mode node would take
+    assert wv.default_layout(8, "process") == (0, False)
 
 
 @pytest.mark.parametrize(("kwargs", "match"), [
@@ -305,7 +307,9 @@ def test_process_mode_by_default_is_a_worker_per_node_and_none_in_this_process(m
      r"transport='zenoh' needs workers=0"),
     ({"workers": 1, "env_kwargs": {"sim_mode": "process", "gui": True}}, r"gui=True needs workers=0"),
     ({"workers": 1, "batch_options": {"num_nodes": 2}, "env_kwargs": {"sim_mode": "process"}},
-     r"one node in each: num_nodes=2 and workers=1 differ"),
+     r"one node in each, so num_nodes counts all the nodes .*: num_nodes=2 and workers=1 differ"),
+    ({"workers": 1, "batch_options": {"connect_kwargs": {"transport": "zenoh"}}, "env_kwargs": {"sim_mode": "process"}},
+     r"\['connect_kwargs'\] place nodes by hand: use workers=0"),
     ({"batch_options": {"num_nodes": 3}, "env_kwargs": {"sim_mode": "process"}},
      r"num_nodes must be an integer from 1 to num_envs \(2\), got 3"),
 ])
