@@ -49,6 +49,8 @@ from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, sh
 __all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "process_mode_workers", "worker_rows"]
 
 _STEP = b"s"
+#: Batch options that place nodes by hand (a worker makes its own node)
+_PLACING = ("node_name", "connect_kwargs")
 
 
 class WorkerError(RuntimeError):
@@ -70,7 +72,7 @@ def default_workers(num_envs: int, sim_mode: str = "composed", options: Mapping[
     options = options or {}
     if sim_mode == "process":
         return process_mode_workers(num_envs, options, env_kwargs)
-    if sim_mode != "composed" or any(key in options for key in ("num_nodes", "node_name", "connect_kwargs")):
+    if sim_mode != "composed" or any(key in options for key in ("num_nodes", *_PLACING)):
         return 0
     k = default_num_nodes(num_envs)
     return k if k >= 2 else 0
@@ -84,7 +86,7 @@ def process_mode_workers(num_envs: int, options: Mapping[str, Any], env_kwargs: 
     this process) where the node must be on a wire of the caller's choice (``transport``) or show a
     viewer (``gui``), where it is placed by hand (``node_name``, ``connect_kwargs``), or where
     ``num_nodes`` is not a count of nodes (the batch then says why)."""
-    if _wired(env_kwargs or {}) or any(key in options for key in ("node_name", "connect_kwargs")):
+    if _wired(env_kwargs or {}) or any(key in options for key in _PLACING):
         return 0
     k = options.get("num_nodes")
     if k is None:
@@ -138,7 +140,7 @@ def _nodes_in_workers(num_envs: int, workers: int | None, in_parent: bool, optio
         value = env_kwargs.get(key, os.environ.get(key))
         raise ValueError(f"a worker runs its node composed, on no wire and with no viewer; {key}={value!r} "
                          "needs workers=0 (each node a process of its own)")
-    placed = [key for key in ("node_name", "connect_kwargs") if key in options]
+    placed = [key for key in _PLACING if key in options]
     if placed:
         raise ValueError(f"a worker makes its own node, composed; {placed} place nodes by hand: use workers=0")
     nodes = options.pop("num_nodes", None)  # in process mode: all the nodes, one a worker
