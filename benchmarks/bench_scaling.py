@@ -14,6 +14,8 @@ Prints (env steps/s, random actions, episodes autoreset as they end):
 * ``make_vec(ID, 8, sim_mode="process")`` (a worker process per node, shared memory) against the same
   K nodes composed on threads of this process and against K process-mode nodes called over Zenoh
   from this process (``workers=0``), interleaved;
+* ``make_vec(ID, 8)`` and process mode again with ``pin_workers=True`` (each worker process on a core
+  of its own), interleaved with the rest;
 * the same N on one composed node in this process (``vector_kwargs={"workers": 0, "num_nodes": 1}``),
   for N <= ``--inproc-max``;
 * the physics limit over all cores: ``mj_step`` alone in each worker's world (N/K robots), K
@@ -206,11 +208,15 @@ def main() -> None:
     process8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process"))
     threads8 = Stepper(uniros.make_vec(args.env, 8, vector_kwargs={"workers": 0, "num_nodes": k8}))
     zenoh8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process", vector_kwargs={"workers": 0, "num_nodes": k8}))
+    # the same layouts with each worker pinned to a core of its own (pin_workers)
+    pinned8 = Stepper(uniros.make_vec(args.env, 8, vector_kwargs={"pin_workers": True}))
+    pinned_process8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process", vector_kwargs={"pin_workers": True}))
     got = interleaved({"one env": single.rate, "one env physics": single_limit.rate, "make_vec(8)": vec8.rate,
                        "make_vec(8) one node": one_node8.rate, "physics(8) all cores": limit8.rate,
-                       "process(8)": process8.rate, "threads(8)": threads8.rate, "process(8) zenoh": zenoh8.rate},
+                       "process(8)": process8.rate, "threads(8)": threads8.rate, "process(8) zenoh": zenoh8.rate,
+                       "make_vec(8) pinned": pinned8.rate, "process(8) pinned": pinned_process8.rate},
                       args.rounds, args.seconds)
-    for s in (single, vec8, one_node8, process8, threads8, zenoh8):
+    for s in (single, vec8, one_node8, process8, threads8, zenoh8, pinned8, pinned_process8):
         s.close()
     med = {name: float(np.median(v)) for name, v in got.items()}
     ratio = lambda a, b: float(np.median(np.array(got[a]) / np.array(got[b])))  # noqa: E731
@@ -226,7 +232,12 @@ def main() -> None:
           f"the same {k8} nodes on threads of this process: {med['threads(8)']:,.0f}/s; ratio "
           f"{ratio('process(8)', 'threads(8)'):.2f}x (goal >= 1: not slower than threads); {k8} process-mode nodes "
           f"called over Zenoh (workers=0): {med['process(8) zenoh']:,.0f}/s (shared memory "
-          f"{ratio('process(8)', 'process(8) zenoh'):.2f}x that)", flush=True)
+          f"{ratio('process(8)', 'process(8) zenoh'):.2f}x that)")
+    print(f"  pin_workers=True (a core per worker): make_vec(8) defaults {med['make_vec(8) pinned']:,.0f}/s "
+          f"({ratio('make_vec(8) pinned', 'make_vec(8)'):.2f}x unpinned, "
+          f"{ratio('make_vec(8) pinned', 'physics(8) all cores'):.2f} of the physics limit); process mode "
+          f"{med['process(8) pinned']:,.0f}/s ({ratio('process(8) pinned', 'process(8)'):.2f}x unpinned, "
+          f"{ratio('process(8) pinned', 'threads(8)'):.2f}x threads)", flush=True)
 
     # The curve: make_vec(N) at defaults, one node in-process, physics limit on all cores.
     fetch = Stepper(make_fetch_reach(), single=True)

@@ -155,7 +155,8 @@ def make_vec(
     :class:`~multiros.envs.worker_vector.WorkerVectorEnv`; ``0``: this process), ``num_nodes`` (K
     nodes, N/K robots each: composed in this process and stepped at once on threads, or in K
     processes with ``sim_mode="process"``), ``spacing`` (metres between world slots),
-    ``autoreset_mode``, ``timeout_sec``, ``copy``. ``"sync"`` and ``"async"`` (Gymnasium's, one node
+    ``autoreset_mode``, ``timeout_sec``, ``copy``, ``pin_workers`` (each worker process on a core of its
+    own: for a machine the run has to itself). ``"sync"`` and ``"async"`` (Gymnasium's, one node
     per env) work as before. The default (``None``) picks the fastest form: ``"batched"`` for an ID
     whose env is a uniros simulated env (the shipped IDs, and yours built on
     ``MujocoBaseEnv``/``MujocoGoalEnv``), with a share of the envs per core: this process steps one and a

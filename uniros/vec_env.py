@@ -208,7 +208,7 @@ def split_infos(infos: dict[str, Any], num_envs: int) -> list[dict[str, Any]]:
 
 def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "composed", num_nodes: int | None = None,
                          spacing: float = 2.0, timeout_sec: float = 10.0, workers: int | None = None,
-                         **env_kwargs: Any) -> VecEnv:
+                         pin_workers: bool = False, **env_kwargs: Any) -> VecEnv:
     """An SB3 ``VecEnv`` of ``n_envs`` envs ``env_id``.
 
     By default (``workers=None``) a share of the envs per core (at most one per env; a composed node
@@ -219,11 +219,13 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
     ``sim_mode="process"``: ``num_nodes`` nodes (default: one per core) in as many child processes,
     each stepping its envs beside its node, through the same shared memory; ``workers=0`` puts the
     envs here and calls each node over its private Zenoh router instead. ``env_kwargs`` go to each env
-    (``reward_type``, ``max_episode_steps``, ...).
+    (``reward_type``, ``max_episode_steps``, ...). ``pin_workers=True`` pins each worker process to a core
+    of its own (for a machine the run has to itself; no effect without workers).
     """
-    from multiros.envs.worker_vector import WorkerVectorEnv, default_layout
+    from multiros.envs.worker_vector import WorkerVectorEnv, default_layout, pin_option
     from uniros.factory import make, make_batch
 
+    pin = pin_option(pin_workers)
     options: dict[str, Any] = {"spacing": spacing, "timeout_sec": timeout_sec}
     if num_nodes is not None:
         options["num_nodes"] = num_nodes
@@ -237,7 +239,8 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
 
         return WorkerVecEnv(WorkerVectorEnv(env_id, n_envs, workers=workers, in_parent=in_parent,
                                             autoreset_mode=AutoresetMode.SAME_STEP, batch_options=options,
-                                            env_kwargs={**env_kwargs, "sim_mode": sim_mode}))
+                                            env_kwargs={**env_kwargs, "sim_mode": sim_mode},
+                                            pin_workers=pin))
     options.setdefault("num_nodes", 1)
     batch = make_batch(env_id, n_envs, options, sim_mode=sim_mode, **env_kwargs)
     return BatchedVecEnv(batch)

@@ -302,7 +302,8 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     exchanging actions and observations through shared memory
     (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`), and ``in_parent=True`` makes this process
     step one more share itself meanwhile; with ``sim_mode="process"`` those workers are the nodes' child
-    processes. ``workers=0`` (the default here) keeps the envs in this process (:class:`BatchedVectorEnv`),
+    processes. ``pin_workers=True`` pins each worker process to a core of its own (none with no workers).
+    ``workers=0`` (the default here) keeps the envs in this process (:class:`BatchedVectorEnv`),
     process-mode nodes called over Zenoh. This is what ``uniros.make_vec`` (which by default puts a share
     on each core: this process and a worker per other core, :func:`~multiros.envs.worker_vector.default_layout`)
     and the IDs' Gymnasium ``vector_entry_point`` build.
@@ -312,6 +313,9 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     copy = options.pop("copy", True)
     workers = options.pop("workers", 0)
     in_parent = bool(options.pop("in_parent", False))
+    from multiros.envs.worker_vector import pin_option
+
+    pin_workers = pin_option(options.pop("pin_workers", False))
     if workers is None:
         from multiros.envs.worker_vector import default_layout
 
@@ -325,7 +329,7 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
         unknown = sorted(set(options) - set(BATCH_OPTIONS))
         if unknown:
             raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(BATCH_OPTIONS)} "
-                            "and autoreset_mode, copy, workers, in_parent")
+                            "and autoreset_mode, copy, workers, in_parent, pin_workers")
         return WorkerVectorEnv(env_id, num_envs, workers=workers, in_parent=in_parent, autoreset_mode=autoreset,
-                               copy=copy, batch_options=options, env_kwargs=kwargs)
+                               copy=copy, batch_options=options, env_kwargs=kwargs, pin_workers=pin_workers)
     return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)

@@ -46,7 +46,8 @@ from gymnasium.vector.utils import batch_space
 from multiros.envs.batch import default_num_nodes
 from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
 
-__all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "process_mode_workers", "worker_rows"]
+__all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "pin_option", "process_mode_workers",
+           "worker_cores", "worker_rows"]
 
 _STEP = b"s"
 #: Batch options that place nodes by hand (a worker makes its own node)
@@ -160,6 +161,37 @@ def worker_rows(num_envs: int, workers: int) -> list[tuple[int, int]]:
     return [(k * num_envs // workers, (k + 1) * num_envs // workers) for k in range(workers)]
 
 
+def pin_option(value: Any) -> bool:
+    """The ``pin_workers`` option checked: a bool (a YAML ``true``/``false``).
+
+    Raises:
+        ValueError: anything else.
+    """
+    if not isinstance(value, bool):
+        raise ValueError(f"pin_workers must be true or false, got {value!r}")
+    return value
+
+
+def worker_cores(workers: int, in_parent: bool = False) -> list[int]:
+    """The core each of ``workers`` pinned workers runs on: the cores this process may use
+    (``os.sched_getaffinity``), in order, one a worker; with ``in_parent`` the first is left to this
+    process's share (it is not pinned: it still moves where the scheduler finds room).
+
+    Raises:
+        ValueError: more shares than cores (two pinned workers would take turns on one), or a platform
+            without CPU affinity.
+    """
+    if not hasattr(os, "sched_setaffinity"):
+        raise ValueError("pin_workers needs CPU affinity (os.sched_setaffinity), which this platform lacks")
+    cores = sorted(os.sched_getaffinity(0))
+    first = int(bool(in_parent))
+    if first + workers > len(cores):
+        raise ValueError(f"pin_workers gives each worker a core of its own: {workers} workers"
+                         f"{' and this process' if in_parent else ''} need {first + workers} cores, and this process "
+                         f"may use {len(cores)} ({cores}); use fewer workers or leave pin_workers off")
+    return cores[first:first + workers]
+
+
 class _Workers:
     """The worker processes, their pipes and the shared block: what :meth:`stop` must end, kept apart
     from the env so a finalizer can stop them without holding the env alive."""
@@ -212,16 +244,20 @@ class WorkerVectorEnv(VectorEnv):
         env_kwargs: keyword arguments of each env.
         start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
             loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
+        pin_workers: pin each worker process to a core of its own (:func:`worker_cores`), as Sample
+            Factory does with its workers; this process stays free to move. Off by default: on a machine
+            of its own it steadies the lockstep, beside other programs that pin theirs it costs.
 
     Raises:
         WorkerError: a worker that failed to start (its error is in the message).
-        ValueError: bad counts, or spaces that shared memory cannot carry.
+        ValueError: bad counts, spaces that shared memory cannot carry, or ``pin_workers`` with more
+            shares than cores.
     """
 
     def __init__(self, env_id: str, num_envs: int, *, workers: int | None = None, in_parent: bool = False,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = True,
                  batch_options: Mapping[str, Any] | None = None, env_kwargs: Mapping[str, Any] | None = None,
-                 start_timeout_sec: float | None = None) -> None:
+                 start_timeout_sec: float | None = None, pin_workers: bool = False) -> None:
         if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         options = dict(batch_options or {})
@@ -236,6 +272,9 @@ class WorkerVectorEnv(VectorEnv):
                              f"{' less one (this process steps a share: in_parent)' if in_parent else ''}, "
                              f"got {workers!r}")
         shares = workers + int(bool(in_parent))
+        cores: list[int | None] = list(worker_cores(workers, bool(in_parent))) if pin_workers else [None] * workers
+        self.worker_cores = cores
+        """The core each worker is pinned to (``pin_workers``), in worker order; ``None``: not pinned."""
         self.num_envs = num_envs
         self.num_workers = workers
         self.autoreset_mode = AutoresetMode(autoreset_mode)
@@ -252,7 +291,7 @@ class WorkerVectorEnv(VectorEnv):
         try:
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker()
-                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs))
+                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs, cores[k]))
             if self.local_rows is not None:  # made while the workers make theirs
                 start, stop = self.local_rows
                 self._workers.local = _Share(env_id, spec, stop - start, self.autoreset_mode.value, options,
@@ -669,12 +708,14 @@ class _Share:
 
 
 def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autoreset_mode: str,
-                 options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
-    """A worker: make its share, bind the shared arrays, then answer requests until told to close
-    or until the parent's end of the pipe closes."""
+                 options: dict[str, Any], env_kwargs: dict[str, Any], core: int | None = None) -> None:
+    """A worker: pinned to ``core`` (if given) before it starts a thread, make its share, bind the
+    shared arrays, then answer requests until told to close or until the parent's end of the pipe closes."""
     share: _Share | None = None
     try:
         try:
+            if core is not None:
+                os.sched_setaffinity(0, {core})  # this thread; the node's threads, started later, inherit it
             share = _Share(env_id, spec, num_envs, autoreset_mode, options, env_kwargs)
             conn.send(("ok", share.spaces()))
         except Exception as exc:  # noqa: BLE001 - the parent reports it

@@ -332,6 +332,58 @@ def test_worker_counts_that_do_not_fit_are_refused_before_any_process_starts(wor
     assert _census() == before
 
 
+def _thread_cores(pid: int) -> set[frozenset[int]]:
+    """The CPU affinity of every thread of process ``pid``."""
+    return {frozenset(os.sched_getaffinity(int(tid))) for tid in os.listdir(f"/proc/{pid}/task")}
+
+
+@pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
+                    reason="needs CPU affinity and two cores")
+@pytest.mark.parametrize("layout", [{"workers": 1, "in_parent": True}, {"workers": 2}])
+def test_pinned_workers_each_run_on_a_core_of_their_own(layout: dict) -> None:
+    """``pin_workers``: worker k and every thread it starts on one core (the first left to this process's
+    share with ``in_parent``), this process not pinned; the envs step alike pinned or not."""
+    cores = sorted(os.sched_getaffinity(0))
+    vec = WorkerVectorEnv(ENV, 4, pin_workers=True, **layout)
+    free = WorkerVectorEnv(ENV, 4, **layout)
+    try:
+        first = 1 if layout.get("in_parent") else 0
+        assert vec.worker_cores == cores[first:first + layout["workers"]]
+        for pid, core in zip(vec.pids, vec.worker_cores):
+            assert _thread_cores(pid) == {frozenset({core})}
+        assert free.worker_cores == [None] * layout["workers"]
+        assert all(_thread_cores(pid) == {frozenset(cores)} for pid in free.pids)
+        assert sorted(os.sched_getaffinity(0)) == cores
+        a, b = vec.reset(seed=3)[0], free.reset(seed=3)[0]
+        for _ in range(5):
+            act = np.full(vec.action_space.shape, 0.3, np.float32)
+            a, b = vec.step(act)[0], free.step(act)[0]
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+    finally:
+        vec.close()
+        free.close()
+
+
+def test_pinning_more_shares_than_cores_or_a_non_bool_is_refused_before_any_process_starts(monkeypatch) -> None:
+    import multiros.envs.worker_vector as wv
+
+    before = _census()
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
+    with pytest.raises(ValueError, match=rf"{cores} workers and this process need {cores + 1} cores"):
+        WorkerVectorEnv(ENV, cores + 1, workers=cores, in_parent=True, pin_workers=True)
+    with pytest.raises(ValueError, match=r"pin_workers must be true or false, got 'yes'"):
+        uniros.make_vec(ENV, 2, vector_kwargs={"pin_workers": "yes"})
+    from uniros.vec_env import make_batched_vec_env
+
+    with pytest.raises(ValueError, match=r"pin_workers must be true or false, got 1"):
+        make_batched_vec_env(ENV, 2, pin_workers=1)
+    monkeypatch.delattr(wv.os, "sched_setaffinity")
+    with pytest.raises(ValueError, match=r"needs CPU affinity"):
+        wv.worker_cores(1)
+    assert _census() == before
+
+
 def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
     """A bad action in this process's share raises here once the worker has answered that step: the
     next steps' answers are their own, and the envs go on."""
