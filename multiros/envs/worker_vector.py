@@ -45,6 +45,7 @@ from gymnasium.vector.utils import batch_space
 
 from multiros.envs.batch import default_num_nodes
 from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
+from multiros.ros.processes import configure_child_logging, owner_log_level
 
 __all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "pin_option", "process_mode_workers",
            "worker_cores", "worker_rows"]
@@ -347,9 +348,9 @@ class WorkerVectorEnv(VectorEnv):
         try:
             fd = theirs.fileno()
             boot = ("import json, sys; sys.path[:0] = json.loads(sys.argv[2]); "
-                    "from multiros.envs.worker_vector import _serve; _serve(int(sys.argv[1]))")
-            proc = subprocess.Popen([sys.executable, "-c", boot, str(fd), json.dumps([p for p in sys.path if p])],
-                                    pass_fds=(fd,), stdin=subprocess.DEVNULL)
+                    "from multiros.envs.worker_vector import _serve; _serve(int(sys.argv[1]), sys.argv[3])")
+            proc = subprocess.Popen([sys.executable, "-c", boot, str(fd), json.dumps([p for p in sys.path if p]),
+                                     owner_log_level()], pass_fds=(fd,), stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
         self._workers.procs.append(proc)
@@ -606,9 +607,11 @@ def _picklable_spec(env_id: str) -> Any:
     return spec
 
 
-def _serve(fd: int) -> None:
-    """A worker process's life: its orders from the parent on socket ``fd``, then :func:`_worker_main`."""
+def _serve(fd: int, log_level: str = "WARNING") -> None:
+    """A worker process's life: its logging at the parent's level (:func:`owner_log_level`, as a node
+    the parent's env starts gets it), its orders from the parent on socket ``fd``, then :func:`_worker_main`."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle (it closes us)
+    configure_child_logging(log_level)
     conn = Connection(fd)
     try:
         args = conn.recv()

@@ -64,6 +64,7 @@ __all__ = [
     "owner_log_level",
     "is_private_graph",
     "OWN_LOGGERS",
+    "configure_child_logging",
     "stop_event",
     "stop_process",
     "track_child",
@@ -344,13 +345,23 @@ def start_child_program(opts: argparse.Namespace) -> threading.Event:
     """Configure logging from ``--log-level`` (:data:`OWN_LOGGERS`) and return the :func:`stop_event`
     for ``--owner-pid`` (call from the main thread, after parsing the options of
     :func:`add_child_options`)."""
-    level = opts.log_level.upper()
-    if not isinstance(logging.getLevelName(level), int):
-        raise ValueError(f"unknown --log-level {opts.log_level!r}; levels: DEBUG, INFO, WARNING, ERROR, CRITICAL")
-    logging.basicConfig(level=logging.WARNING, format="[%(levelname)s] [%(name)s]: %(message)s")
-    for name in OWN_LOGGERS:
-        logging.getLogger(name).setLevel(level)
+    configure_child_logging(opts.log_level)
     return stop_event(opts.owner_pid)
+
+
+def configure_child_logging(level: str) -> None:
+    """A child process's logging: ``level`` (a standard name) for uniros' own loggers
+    (:data:`OWN_LOGGERS`), warnings and errors of other libraries, one line a record on stderr.
+
+    Raises:
+        ValueError: an unknown level.
+    """
+    name = level.upper()
+    if not isinstance(logging.getLevelName(name), int):
+        raise ValueError(f"unknown --log-level {level!r}; levels: DEBUG, INFO, WARNING, ERROR, CRITICAL")
+    logging.basicConfig(level=logging.WARNING, format="[%(levelname)s] [%(name)s]: %(message)s")
+    for logger in OWN_LOGGERS:
+        logging.getLogger(logger).setLevel(name)
 
 
 def owner_log_level() -> str:

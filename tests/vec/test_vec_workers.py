@@ -4,6 +4,7 @@ stopped by PID, a killed worker named in an error, no growth per make/close, the
 
 from __future__ import annotations
 
+import logging
 import os
 import signal
 import sys
@@ -382,6 +383,21 @@ def test_pinning_more_shares_than_cores_or_a_non_bool_is_refused_before_any_proc
     with pytest.raises(ValueError, match=r"needs CPU affinity"):
         wv.worker_cores(1)
     assert _census() == before
+
+
+@pytest.mark.parametrize(("level", "shown"), [(logging.INFO, True), (logging.WARNING, False)])
+def test_workers_log_at_the_level_of_this_process_node_loggers(capfd, level: int, shown: bool) -> None:
+    """A worker's node logs what this process's node loggers would (its level passed as a node started
+    for an env gets it): the INFO line of two robots on one node sharing TF frames, or nothing."""
+    ros = logging.getLogger("ros")
+    old = ros.level
+    ros.setLevel(level)
+    try:
+        WorkerVectorEnv(ENV, 2, workers=1).close()
+    finally:
+        ros.setLevel(old)
+    err = capfd.readouterr().err
+    assert ("[INFO] [ros.mujoco_sim]: entity " in err and "are already published by entity" in err) is shown, err
 
 
 def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
