@@ -66,8 +66,10 @@ def _accepted_kwargs(env_id: str) -> list[str]:
 
 
 def _unknown_keywords(exc: TypeError, given: dict[str, Any]) -> list[str]:
-    """The keywords of ``given`` that ``exc`` (an env constructor's TypeError) names."""
-    text = str(exc)
+    """The keywords of ``given`` that ``exc`` (an env constructor's TypeError) names. Gymnasium adds
+    every keyword given to the message (``... was raised from the environment creator for ID with
+    kwargs ({...})``): that part names them all, taken or not, so it is left out."""
+    text = str(exc).split(" was raised from the environment creator", 1)[0]
     return [k for k in given if f"'{k}'" in text]
 
 

@@ -47,6 +47,7 @@ _TOP: dict[str, tuple[Any, Any]] = {
     "seed": (int, 0),
     "torch_threads": (int, 1),
     "n_envs": (int, 1),
+    "pin_workers": (bool, False),
     "normalize": (bool, False),
     "eval_freq": (int, 1000),
     "eval_episodes": (int, 20),
@@ -115,6 +116,8 @@ class TrainingConfig:
             simulation node, one request per step: :class:`uniros.vec_env.BatchedVecEnv`). Each
             vector step is ``n_envs`` env steps; ``train_freq`` and ``gradient_steps`` count vector
             steps, as in SB3.
+        pin_workers: with ``n_envs`` > 1, each worker process of the vector env on a core of its own
+            (for a machine the run has to itself; see docs/vector_envs.md).
         eval_freq, eval_episodes: evaluation schedule (env steps; 0 disables evaluation). With
             ``n_envs`` N, every ``eval_freq // N`` vector steps.
         stop_at_success: stop once this eval success rate is reached (``None``: never).
@@ -154,6 +157,7 @@ class TrainingConfig:
     seed: int | None = 0
     torch_threads: int = 1
     n_envs: int = 1
+    pin_workers: bool = False
     save_freq: int = 1000
     save_prefix: str = "model"
     trained_model_name: str = "trained_model"
@@ -184,7 +188,8 @@ class TrainingConfig:
             params["train_freq"] = {"freq": freq, "unit": unit}
         out: dict[str, Any] = {
             "algorithm": self.algorithm, "training_steps": self.training_steps, "seed": self.seed,
-            "torch_threads": self.torch_threads, "n_envs": self.n_envs, "normalize": self.normalize,
+            "torch_threads": self.torch_threads, "n_envs": self.n_envs, "pin_workers": self.pin_workers,
+            "normalize": self.normalize,
             "eval_freq": self.eval_freq,
             "eval_episodes": self.eval_episodes, "stop_at_success": self.stop_at_success,
             "save_freq": self.save_freq, "save_prefix": self.save_prefix,
@@ -409,6 +414,7 @@ def parse_training_config(
         seed=seed,
         torch_threads=_typed(data, "torch_threads", source),
         n_envs=positive["n_envs"],
+        pin_workers=bool(_typed(data, "pin_workers", source)),
         save_freq=_typed(data, "save_freq", source),
         save_prefix=save_prefix,
         keep_checkpoints=keep["keep_checkpoints"],

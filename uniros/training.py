@@ -150,7 +150,7 @@ def make_train_env(env_id: str, config: TrainingConfig, factory: Callable[[], An
     from uniros.vec_env import make_batched_vec_env
 
     check_n_envs(env_id, config)
-    return make_batched_vec_env(resolve_env_id(env_id), n, **config.env_kwargs)
+    return make_batched_vec_env(resolve_env_id(env_id), n, pin_workers=config.pin_workers, **config.env_kwargs)
 
 
 def check_n_envs(env_id: str, config: TrainingConfig, origin: str | None = None) -> None:

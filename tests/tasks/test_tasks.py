@@ -222,6 +222,15 @@ def test_a_kwarg_typo_names_the_nearest_of_every_accepted_one(typo, meant):
     assert "args" not in err.value.accepted  # *args is no keyword
 
 
+def test_a_bad_kwarg_beside_good_ones_is_the_only_one_named():
+    """Gymnasium's message repeats every keyword given; only the one the env does not take is named."""
+    with pytest.raises(uniros.factory.EnvKeywordError) as err:
+        uniros.make("RX200ReacherGoalSim-v0", ee_action_type=True, reward_type="dense", rewrd_scale=2.0)
+    assert err.value.unknown == ["rewrd_scale"]
+    assert "unexpected keyword argument(s) ['rewrd_scale']" in str(err.value)
+    assert "ee_action_type" not in err.value.suggestions
+
+
 def test_bad_task_config_names_key_and_file(tmp_path):
     good = load_task_config("irb120_reacher_task_config.yaml", {"tolerance_goal_pos": float}, section="irb120")
     assert good["tolerance_goal_pos"] == 0.05

@@ -36,6 +36,31 @@ def test_n_envs_round_trips_through_the_resolved_config():
     assert parse_training_config({"training_steps": 10}, "cfg.yaml").n_envs == 1
 
 
+@pytest.mark.multiprocess
+def test_pin_workers_reaches_the_vector_env_from_the_yaml_and_the_command_line(tmp_path):
+    """``pin_workers`` (YAML key, ``--pin-workers``): the train env's workers pinned, the resolved config
+    keeps it, off by default; with one env nothing to pin."""
+    import os
+
+    config = parse_training_config({"training_steps": 10, "n_envs": 2, "pin_workers": True}, "cfg.yaml")
+    assert config.pin_workers and parse_training_config(config.to_dict(), "again.yaml").pin_workers
+    assert not parse_training_config({"training_steps": 10}, "cfg.yaml").pin_workers
+    cores = sorted(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else []
+    if len(cores) >= 2:
+        venv = make_train_env("RX200ReacherGoalSim-v0", config)
+        try:
+            assert venv.venv.worker_cores == [cores[1]]
+            assert os.sched_getaffinity(venv.venv.pids[0]) == {cores[1]}
+        finally:
+            venv.close()
+    cfg = tmp_path / "cfg.yaml"
+    cfg.write_text(TINY.replace("training_steps: 800", "training_steps: 20").replace("eval_freq: 200", "eval_freq: 0"))
+    assert cli_main(["train", "RX200ReacherGoalSim-v0", "--config", str(cfg), "--n-envs", "2", "--pin-workers",
+                     "--eval-episodes", "0", "--no-video", "--no-progress", "--output", str(tmp_path / "runs"),
+                     "--name", "pinned"]) == 0
+    assert yaml.safe_load((tmp_path / "runs" / "pinned" / "config.yaml").read_text())["model_params"]["pin_workers"]
+
+
 def test_learning_starts_waits_for_an_ended_episode_of_n_envs():
     her = parse_training_config({"training_steps": 10, "use_HER": True, "n_envs": 8,
                                  "sac_params": {"learning_starts": 500}}, "cfg.yaml")

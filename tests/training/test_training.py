@@ -83,6 +83,7 @@ def test_frobs_style_yaml_parses(tmp_path):
         ({"training_steps": 10, "n_envs": "four"}, "'n_envs' must be int"),
         ({"training_steps": 10, "n_envs": True}, "'n_envs' must be int"),
         ({"training_steps": 10, "n_envs": 2.5}, "'n_envs' must be int"),
+        ({"training_steps": 10, "pin_workers": "yes"}, "'pin_workers' must be bool"),
         ({"training_steps": 10, "n_envs": None}, "n_envs must be at least 1, got None"),
         ({"training_steps": None}, "training_steps must be at least 1, got None"),
         ({"training_steps": 10, "eval_freq": None}, "eval_freq must be 0 .off. or positive, got None"),
