@@ -135,8 +135,8 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
                                 "(an off-policy algorithm's replay buffer holds that many envs' transitions); "
                                 "drop --n-envs")
         config.n_envs = args.n_envs
-    if args.pin_workers:
-        config.pin_workers = True
+    if args.pin_workers is not None:
+        config.pin_workers = args.pin_workers
     config.env_kwargs.update(_env_overrides(args))
     check_before_run(env_id, config, None if args.n_envs is None else f"--n-envs {args.n_envs}")
     for text in (note_updates_per_env_step(config), fit_learning_starts(env_id, config),
@@ -349,9 +349,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--steps", type=int, help="override training_steps")
     p.add_argument("--seed", type=int, help="override the seed")
     p.add_argument("--n-envs", type=int, help="override n_envs: envs trained on at once, in one batched vector env")
-    p.add_argument("--pin-workers", action="store_true",
-                   help="with --n-envs N > 1, each worker process of the vector env on a core of its own (for a "
-                        "machine the run has to itself)")
+    p.add_argument("--pin-workers", action=argparse.BooleanOptionalAction, default=None,
+                   help="override pin_workers: with n_envs > 1, each worker process of the vector env on a core of "
+                        "its own (for a machine the run has to itself)")
     p.add_argument("--target", type=float, default=0.9, help="success rate that counts as solved")
     p.add_argument("--eval-episodes", type=int, default=50,
                    help="episodes of the final evaluation (the ones `uniros eval` plays; 0: none)")

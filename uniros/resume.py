@@ -46,7 +46,7 @@ RESUMABLE_KEYS = frozenset({"training_steps", "seed", "torch_threads", "eval_fre
                             "save_freq", "keep_checkpoints", "keep_replay_buffers", "log_interval", "video",
                             "video_episodes", "progress_bar", "trained_model_name", "save_replay_buffer",
                             "load_model", "model_name", "log_folder", "reset_num_timesteps", "use_wandb",
-                            "wandb_params"})
+                            "wandb_params", "pin_workers"})
 
 
 def resume_overrides(started: TrainingConfig, now: TrainingConfig) -> dict[str, Any]:

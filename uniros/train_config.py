@@ -116,8 +116,9 @@ class TrainingConfig:
             simulation node, one request per step: :class:`uniros.vec_env.BatchedVecEnv`). Each
             vector step is ``n_envs`` env steps; ``train_freq`` and ``gradient_steps`` count vector
             steps, as in SB3.
-        pin_workers: with ``n_envs`` > 1, each worker process of the vector env on a core of its own
-            (for a machine the run has to itself; see docs/vector_envs.md).
+        pin_workers: with ``n_envs`` > 1, each worker process of the vector env ``uniros train`` (and
+            :func:`uniros.training.train`) builds on a core of its own (for a machine the run has to
+            itself; see docs/vector_envs.md). The trainer classes train the env they are given.
         eval_freq, eval_episodes: evaluation schedule (env steps; 0 disables evaluation). With
             ``n_envs`` N, every ``eval_freq // N`` vector steps.
         stop_at_success: stop once this eval success rate is reached (``None``: never).
@@ -216,6 +217,19 @@ def _check_keys(mapping: Mapping[str, Any], valid: Any, where: str) -> None:
     for key in mapping:
         if key not in valid:
             raise TrainingConfigError(f"{where}: unknown key {key!r}{_nearest(str(key), valid)}")
+
+
+def _pin_workers(data: Mapping[str, Any], source: str) -> bool:
+    """The ``pin_workers`` key: a bool, and not an env keyword (each env would get it, the evaluation
+    env too)."""
+    env_kwargs = data.get("env_kwargs")
+    if isinstance(env_kwargs, Mapping) and "pin_workers" in env_kwargs:
+        raise TrainingConfigError(f"{source}: pin_workers is a key of the run, not of each env: move it out of "
+                                  "env_kwargs (pin_workers: true beside n_envs)")
+    value = _typed(data, "pin_workers", source)
+    if not isinstance(value, bool):
+        raise TrainingConfigError(f"{source}: pin_workers must be true or false, got {value!r}")
+    return value
 
 
 def _typed(mapping: Mapping[str, Any], key: str, source: str, stand_in: Any = None) -> Any:
@@ -414,7 +428,7 @@ def parse_training_config(
         seed=seed,
         torch_threads=_typed(data, "torch_threads", source),
         n_envs=positive["n_envs"],
-        pin_workers=bool(_typed(data, "pin_workers", source)),
+        pin_workers=_pin_workers(data, source),
         save_freq=_typed(data, "save_freq", source),
         save_prefix=save_prefix,
         keep_checkpoints=keep["keep_checkpoints"],

@@ -187,7 +187,7 @@ def worker_cores(workers: int, in_parent: bool = False) -> list[int]:
     cores = sorted(os.sched_getaffinity(0))
     first = int(bool(in_parent))
     if first + workers > len(cores):
-        raise ValueError(f"pin_workers gives each worker a core of its own: {workers} workers"
+        raise ValueError(f"pin_workers gives each worker a core of its own: {workers} worker(s)"
                          f"{' and this process' if in_parent else ''} need {first + workers} cores, and this process "
                          f"may use {len(cores)} ({cores}); use fewer workers or leave pin_workers off")
     return cores[first:first + workers]
@@ -245,9 +245,11 @@ class WorkerVectorEnv(VectorEnv):
         env_kwargs: keyword arguments of each env.
         start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
             loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
-        pin_workers: pin each worker process to a core of its own (:func:`worker_cores`), as Sample
-            Factory does with its workers; this process stays free to move. Off by default: on a machine
-            of its own it steadies the lockstep, beside other programs that pin theirs it costs.
+        pin_workers: pin each worker process (every thread of it) to a core of its own
+            (:func:`worker_cores`), as Sample Factory does with its workers; this process stays free to
+            move. Off by default: on a machine of its own it steadies the lockstep, beside other programs
+            that pin theirs it costs. A worker of several composed nodes (``num_nodes``) then steps
+            their physics on its one core.
 
     Raises:
         WorkerError: a worker that failed to start (its error is in the message).
@@ -273,7 +275,8 @@ class WorkerVectorEnv(VectorEnv):
                              f"{' less one (this process steps a share: in_parent)' if in_parent else ''}, "
                              f"got {workers!r}")
         shares = workers + int(bool(in_parent))
-        cores: list[int | None] = list(worker_cores(workers, bool(in_parent))) if pin_workers else [None] * workers
+        pinned = pin_option(pin_workers)
+        cores: list[int | None] = list(worker_cores(workers, bool(in_parent))) if pinned else [None] * workers
         self.worker_cores = cores
         """The core each worker is pinned to (``pin_workers``), in worker order; ``None``: not pinned."""
         self.num_envs = num_envs
@@ -291,8 +294,8 @@ class WorkerVectorEnv(VectorEnv):
         spec = _picklable_spec(env_id)
         try:
             for k, (start, stop) in enumerate(self.rows):
-                self._start_worker()
-                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs, cores[k]))
+                self._start_worker(cores[k])
+                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs))
             if self.local_rows is not None:  # made while the workers make theirs
                 start, stop = self.local_rows
                 self._workers.local = _Share(env_id, spec, stop - start, self.autoreset_mode.value, options,
@@ -340,17 +343,21 @@ class WorkerVectorEnv(VectorEnv):
         """The worker processes' PIDs, in worker order (empty once closed)."""
         return [int(proc.pid) for proc in self._workers.procs]
 
-    def _start_worker(self) -> None:
-        """A fresh Python running :func:`_serve` on one end of a socket pair. Not ``multiprocessing``'s
-        spawn: that runs the parent's main script again in the child (a script without a
-        ``__main__`` guard would make envs there), and fork copies a process that may run threads."""
+    def _start_worker(self, core: int | None = None) -> None:
+        """A fresh Python running :func:`_serve` on one end of a socket pair, pinned to ``core`` (if
+        given) before it imports anything: numpy's BLAS starts its threads at import, and a thread
+        inherits the affinity of the thread that starts it. Not ``multiprocessing``'s spawn: that runs
+        the parent's main script again in the child (a script without a ``__main__`` guard would make
+        envs there), and fork copies a process that may run threads."""
         ours, theirs = socket.socketpair()
         try:
             fd = theirs.fileno()
-            boot = ("import json, sys; sys.path[:0] = json.loads(sys.argv[2]); "
+            boot = ("import os, sys; sys.argv[4] and os.sched_setaffinity(0, {int(sys.argv[4])}); "
+                    "import json; sys.path[:0] = json.loads(sys.argv[2]); "
                     "from multiros.envs.worker_vector import _serve; _serve(int(sys.argv[1]), sys.argv[3])")
             proc = subprocess.Popen([sys.executable, "-c", boot, str(fd), json.dumps([p for p in sys.path if p]),
-                                     owner_log_level()], pass_fds=(fd,), stdin=subprocess.DEVNULL)
+                                     owner_log_level(), "" if core is None else str(core)],
+                                    pass_fds=(fd,), stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
         self._workers.procs.append(proc)
@@ -711,14 +718,12 @@ class _Share:
 
 
 def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autoreset_mode: str,
-                 options: dict[str, Any], env_kwargs: dict[str, Any], core: int | None = None) -> None:
-    """A worker: pinned to ``core`` (if given) before it starts a thread, make its share, bind the
-    shared arrays, then answer requests until told to close or until the parent's end of the pipe closes."""
+                 options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
+    """A worker: make its share, bind the shared arrays, then answer requests until told to close
+    or until the parent's end of the pipe closes."""
     share: _Share | None = None
     try:
         try:
-            if core is not None:
-                os.sched_setaffinity(0, {core})  # this thread; the node's threads, started later, inherit it
             share = _Share(env_id, spec, num_envs, autoreset_mode, options, env_kwargs)
             conn.send(("ok", share.spaces()))
         except Exception as exc:  # noqa: BLE001 - the parent reports it

@@ -246,6 +246,21 @@ def test_config_edits_a_resumed_run_cannot_honour_are_refused(run, capsys, edit,
     assert (run / "run.json").read_text() == before  # refused: nothing written
 
 
+def test_pinning_the_workers_or_not_is_an_edit_a_resumed_run_takes(run, capsys):
+    """``pin_workers`` changes where the workers run, not the model, env or buffer: a resume takes the
+    edited file, and ``--no-pin-workers`` for one session."""
+    data = yaml.safe_load((run / "config.yaml").read_text())
+    data["model_params"]["pin_workers"] = True
+    (run / "config.yaml").write_text(yaml.safe_dump(data))
+    code, text = _resume(run, capsys)
+    assert code == 0, text
+    assert "cannot take this edit" not in text
+    assert yaml.safe_load((run / "config.yaml").read_text())["model_params"]["pin_workers"] is True
+    code, text = resume(run, capsys, "--steps", "300", "--no-pin-workers")
+    assert code == 0, text  # a flag holds for that session (as --device does); config.yaml keeps the file's
+    assert yaml.safe_load((run / "config.yaml").read_text())["model_params"]["pin_workers"] is True
+
+
 def test_a_mistyped_hyperparameter_is_a_config_error(run, capsys):
     data = yaml.safe_load((run / "config.yaml").read_text())
     data["model_params"]["sac_params"]["learning_rate"] = "fast"

@@ -84,6 +84,8 @@ def test_frobs_style_yaml_parses(tmp_path):
         ({"training_steps": 10, "n_envs": True}, "'n_envs' must be int"),
         ({"training_steps": 10, "n_envs": 2.5}, "'n_envs' must be int"),
         ({"training_steps": 10, "pin_workers": "yes"}, "'pin_workers' must be bool"),
+        ({"training_steps": 10, "pin_workers": None}, "pin_workers must be true or false, got None"),
+        ({"training_steps": 10, "env_kwargs": {"pin_workers": True}}, "pin_workers is a key of the run, not of each"),
         ({"training_steps": 10, "n_envs": None}, "n_envs must be at least 1, got None"),
         ({"training_steps": None}, "training_steps must be at least 1, got None"),
         ({"training_steps": 10, "eval_freq": None}, "eval_freq must be 0 .off. or positive, got None"),

@@ -334,16 +334,25 @@ def test_worker_counts_that_do_not_fit_are_refused_before_any_process_starts(wor
 
 
 def _thread_cores(pid: int) -> set[frozenset[int]]:
-    """The CPU affinity of every thread of process ``pid``."""
-    return {frozenset(os.sched_getaffinity(int(tid))) for tid in os.listdir(f"/proc/{pid}/task")}
+    """The CPU affinity of every thread of process ``pid`` (one that ends meanwhile left out)."""
+    out = set()
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            out.add(frozenset(os.sched_getaffinity(int(tid))))
+        except ProcessLookupError:
+            pass
+    return out
 
 
 @pytest.mark.skipif(not hasattr(os, "sched_getaffinity") or len(os.sched_getaffinity(0)) < 2,
                     reason="needs CPU affinity and two cores")
 @pytest.mark.parametrize("layout", [{"workers": 1, "in_parent": True}, {"workers": 2}])
-def test_pinned_workers_each_run_on_a_core_of_their_own(layout: dict) -> None:
-    """``pin_workers``: worker k and every thread it starts on one core (the first left to this process's
-    share with ``in_parent``), this process not pinned; the envs step alike pinned or not."""
+def test_pinned_workers_each_run_on_a_core_of_their_own(layout: dict, monkeypatch) -> None:
+    """``pin_workers``: worker k and every thread it has on one core (the first left to this process's
+    share with ``in_parent``), numpy's BLAS threads included (started at import: the suite's
+    OMP_NUM_THREADS=1 is lifted for these workers), this process not pinned; the envs step alike."""
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
     cores = sorted(os.sched_getaffinity(0))
     vec = WorkerVectorEnv(ENV, 4, pin_workers=True, **layout)
     free = WorkerVectorEnv(ENV, 4, **layout)
@@ -366,13 +375,16 @@ def test_pinned_workers_each_run_on_a_core_of_their_own(layout: dict) -> None:
         free.close()
 
 
+@pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs CPU affinity")
 def test_pinning_more_shares_than_cores_or_a_non_bool_is_refused_before_any_process_starts(monkeypatch) -> None:
     import multiros.envs.worker_vector as wv
 
     before = _census()
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
-    with pytest.raises(ValueError, match=rf"{cores} workers and this process need {cores + 1} cores"):
+    cores = len(os.sched_getaffinity(0))
+    with pytest.raises(ValueError, match=rf"{cores} worker\(s\) and this process need {cores + 1} cores"):
         WorkerVectorEnv(ENV, cores + 1, workers=cores, in_parent=True, pin_workers=True)
+    with pytest.raises(ValueError, match=r"pin_workers must be true or false, got 'no'"):
+        WorkerVectorEnv(ENV, 2, workers=1, pin_workers="no")
     with pytest.raises(ValueError, match=r"pin_workers must be true or false, got 'yes'"):
         uniros.make_vec(ENV, 2, vector_kwargs={"pin_workers": "yes"})
     from uniros.vec_env import make_batched_vec_env
