@@ -379,8 +379,12 @@ def check_checkpoint(ckpt: Checkpoint, *, observation_space: Any, action_space: 
 
     ``needs_buffer``: an off-policy algorithm resumes with its replay buffer; ``needs_stats``:
     observations are normalised. The replay buffer, when it loads, is kept in the result (it is
-    the largest file: read once).
+    the largest file: read once). ``observation_space`` is the env's: a model and its statistics
+    hold camera images channel-first (SB3 transposes them), and are compared with it so.
     """
+    from uniros.image_spaces import channel_first_space
+
+    observation_space = channel_first_space(observation_space)
     checked = CheckedCheckpoint(ckpt)
     problem = _check_model(ckpt.model, (observation_space, action_space), algorithm)
     if problem:

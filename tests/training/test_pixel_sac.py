@@ -153,6 +153,7 @@ use_custom_policy: True
 policy_params:
   net_arch: [16, 16]
   features_extractor_kwargs: {ignore_keys: [achieved_goal], image_features: 16}
+save_freq: 30
 drq_sac_params: {learning_starts: 30, batch_size: 8, buffer_size: 100, image_shift: 2}
 env_kwargs: {rgb_obs_only: True, image_width: 48, image_height: 48, ee_action_type: True, max_episode_steps: 10}
 """)
@@ -171,6 +172,15 @@ env_kwargs: {rgb_obs_only: True, image_width: 48, image_height: 48, ee_action_ty
     assert data["observation_space"]["observation"].shape == (3, 48, 48)  # channel-first below the normaliser
     assert cli_main(["eval", str(out / "r"), "--episodes", "1"]) == 0
     assert "RX200ReacherGoalSim-v0: success rate " in capsys.readouterr().out
+    # A resume goes on from the checkpoint: the model and its statistics hold the image channel-first,
+    # the env gives it channel-last (a resume once found every checkpoint unusable and began at step 0).
+    assert cli_main(["train", "--resume", str(out / "r"), "--steps", "90", "--eval-episodes", "0", "--no-video",
+                     "--no-progress"]) == 0
+    captured = capsys.readouterr()
+    text = captured.out + captured.err
+    assert "resuming from checkpoint model_60_steps.zip (60 steps, with its replay buffer and normalisation " \
+           "statistics)" in text, text
+    assert "skipped checkpoint" not in text and "starting the run again from step 0" not in text
 
 
 def _doc_block(start: str, end: str) -> str:
