@@ -137,6 +137,23 @@ def test_the_shipped_pixel_config_is_the_documented_recipe():
     assert config.env_kwargs == documented.env_kwargs and config.training_steps == documented.training_steps
 
 
+def test_the_vx300s_pixel_config_is_the_rx200_recipe_at_64_pixels():
+    """config/training/pixels/VX300SReacherGoalSim-v0.yaml: the RX200's file but a 64 x 64 image and
+    60,000 steps (docs/tasks.md: what the run that reached 0.95 used)."""
+    from importlib import resources
+
+    pixels = resources.files("rl_environments.config").joinpath("training", "pixels")
+    rx200 = load_training_config(str(pixels.joinpath("RX200ReacherGoalSim-v0.yaml")))
+    vx300s = load_training_config(str(pixels.joinpath("VX300SReacherGoalSim-v0.yaml")))
+    assert vx300s.env_kwargs == {**rx200.env_kwargs, "image_width": 64, "image_height": 64}
+    assert vx300s.training_steps == 60_000 and rx200.training_steps == 40_000
+    assert vx300s.algo_params == rx200.algo_params  # buffer_size 40,000 in both
+    assert (vx300s.algorithm, vx300s.use_her, vx300s.her_params, vx300s.policy_params, vx300s.normalize,
+            vx300s.eval_freq, vx300s.eval_episodes, vx300s.stop_at_success, vx300s.seed) == \
+           (rx200.algorithm, rx200.use_her, rx200.her_params, rx200.policy_params, rx200.normalize,
+            rx200.eval_freq, rx200.eval_episodes, rx200.stop_at_success, rx200.seed)
+
+
 @pytest.mark.slow
 def test_uniros_train_and_eval_a_drq_sac_model_on_a_camera_env(tmp_path, capsys):
     from uniros.cli import main as cli_main
