@@ -253,10 +253,16 @@ def main() -> None:
         busy = ""
         if workers:  # how much of the wall clock each worker stepped rather than waited
             wall = time.perf_counter() - wall
-            fractions = [(b["busy_seconds"] - a["busy_seconds"]) / wall
-                         for a, b in zip(stats, stepper.env.worker_stats())]
+            after = stepper.env.worker_stats()
+            share = lambda key, ks, a=after, b=stats, w=wall: [(a[k][key] - b[k][key]) / w for k in ks]  # noqa: E731
+            fractions = share("busy_seconds", range(len(after)))
+            ks = range(1 if stepper.env.local_rows is not None else 0, len(after))  # the worker processes
             busy = (f"  shares busy {np.mean(fractions):.2f} of the wall clock (min {min(fractions):.2f}, "
-                    f"max {max(fractions):.2f}) [{layout(stepper.env)}]")
+                    f"max {max(fractions):.2f}); workers answering {np.mean(share('answer_seconds', ks)):.2f}, "
+                    f"waiting for orders {np.mean(share('wait_seconds', ks)):.2f}")
+            if stepper.env.local_rows is not None:
+                busy += f"; this process waiting for their answers {share('wait_seconds', [0])[0]:.2f}"
+            busy += f" [{layout(stepper.env)}]"
         stepper.close()
         k = max(1, workers)
         limit = PhysicsLimit(args.env, -(-n // k), k)

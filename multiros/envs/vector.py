@@ -302,7 +302,9 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     exchanging actions and observations through shared memory
     (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`), and ``in_parent=True`` makes this process
     step one more share itself meanwhile; with ``sim_mode="process"`` those workers are the nodes' child
-    processes. ``pin_workers=True`` pins each worker process to a core of its own (none with no workers).
+    processes. ``pin_workers=True`` pins each worker process to a core of its own (none with no workers);
+    ``spin_wait_sec`` is how long both sides poll for each other's message before they sleep
+    (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`).
     ``workers=0`` (the default here) keeps the envs in this process (:class:`BatchedVectorEnv`),
     process-mode nodes called over Zenoh. This is what ``uniros.make_vec`` (which by default puts a share
     on each core: this process and a worker per other core, :func:`~multiros.envs.worker_vector.default_layout`)
@@ -316,6 +318,7 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     from multiros.envs.worker_vector import pin_option
 
     pin_workers = pin_option(options.pop("pin_workers", False))
+    spin_wait_sec = options.pop("spin_wait_sec", None)
     if workers is None:
         from multiros.envs.worker_vector import default_layout
 
@@ -329,7 +332,8 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
         unknown = sorted(set(options) - set(BATCH_OPTIONS))
         if unknown:
             raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(BATCH_OPTIONS)} "
-                            "and autoreset_mode, copy, workers, in_parent, pin_workers")
+                            "and autoreset_mode, copy, workers, in_parent, pin_workers, spin_wait_sec")
         return WorkerVectorEnv(env_id, num_envs, workers=workers, in_parent=in_parent, autoreset_mode=autoreset,
-                               copy=copy, batch_options=options, env_kwargs=kwargs, pin_workers=pin_workers)
+                               copy=copy, batch_options=options, env_kwargs=kwargs, pin_workers=pin_workers,
+                               spin_wait_sec=spin_wait_sec)
     return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)

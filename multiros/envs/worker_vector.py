@@ -28,6 +28,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import select
 import signal
 import socket
 import subprocess
@@ -51,6 +52,9 @@ __all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers"
            "worker_cores", "worker_rows"]
 
 _STEP = b"s"
+#: How long a process with a core of its own polls for the other side's message before it sleeps
+#: (spin, then block): a sleeping process's wake-up costs more than the answer's usual wait.
+SPIN_WAIT_SEC = 200e-6
 #: Batch options that place nodes by hand (a worker makes its own node)
 _PLACING = ("node_name", "connect_kwargs")
 
@@ -245,6 +249,10 @@ class WorkerVectorEnv(VectorEnv):
         env_kwargs: keyword arguments of each env.
         start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
             loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
+        spin_wait_sec: how long this process and each worker poll for the other's next message before
+            they sleep (:data:`SPIN_WAIT_SEC` by default where each share has a core of its own: this
+            process steps one and the shares are no more than the cores; else 0, sleep at once). On 2
+            cores it gains about 7 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
         pin_workers: pin each worker process (every thread of it) to a core of its own
             (:func:`worker_cores`), as Sample Factory does with its workers; this process stays free to
             move. Off by default: on a machine of its own it steadies the lockstep, beside other programs
@@ -260,7 +268,8 @@ class WorkerVectorEnv(VectorEnv):
     def __init__(self, env_id: str, num_envs: int, *, workers: int | None = None, in_parent: bool = False,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, copy: bool = True,
                  batch_options: Mapping[str, Any] | None = None, env_kwargs: Mapping[str, Any] | None = None,
-                 start_timeout_sec: float | None = None, pin_workers: bool = False) -> None:
+                 start_timeout_sec: float | None = None, pin_workers: bool = False,
+                 spin_wait_sec: float | None = None) -> None:
         if not isinstance(num_envs, int) or isinstance(num_envs, bool) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         options = dict(batch_options or {})
@@ -278,6 +287,8 @@ class WorkerVectorEnv(VectorEnv):
         pinned = pin_option(pin_workers)
         cores: list[int | None] = list(worker_cores(workers, bool(in_parent))) if pinned else [None] * workers
         self.worker_cores = cores
+        self.spin_wait_sec = _spin_wait(spin_wait_sec, shares, bool(in_parent))
+        """Seconds each side polls for the other's message before it sleeps (see the constructor)."""
         """The core each worker is pinned to (``pin_workers``), in worker order; ``None``: not pinned."""
         self.num_envs = num_envs
         self.num_workers = workers
@@ -291,11 +302,13 @@ class WorkerVectorEnv(VectorEnv):
         self._workers = _Workers()
         self._finalizer = weakref.finalize(self, self._workers.stop)
         self._broken: str | None = None
+        self._pollers: dict[int, Any] = {}
         spec = _picklable_spec(env_id)
         try:
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker(cores[k])
-                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs))
+                self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs,
+                               self.spin_wait_sec))
             if self.local_rows is not None:  # made while the workers make theirs
                 start, stop = self.local_rows
                 self._workers.local = _Share(env_id, spec, stop - start, self.autoreset_mode.value, options,
@@ -389,6 +402,11 @@ class WorkerVectorEnv(VectorEnv):
     def _recv(self, k: int, timeout: float, what: str) -> Any:
         """Worker ``k``'s answer to ``what``, within ``timeout`` seconds; its error re-raised here."""
         conn, proc = self._workers.conns[k], self._workers.procs[k]
+        if self.spin_wait_sec > 0:
+            poller = self._pollers.get(k)
+            if poller is None:
+                poller = self._pollers[k] = _poller(conn)
+            _spin(poller, self.spin_wait_sec)
         if wait([conn], timeout):  # an answer, or the end of the socket: the worker exited
             try:
                 status, payload = conn.recv()
@@ -529,7 +547,10 @@ class WorkerVectorEnv(VectorEnv):
             except (OSError, ValueError) as exc:
                 raise self._dead(k, "a step") from exc
         share = self._workers.local  # steps its envs while the workers step theirs
+        began, busy = time.perf_counter(), 0.0 if share is None else share.busy
         mine, infos = self._beside(range(self.num_workers), "a step", None if share is None else share.step)
+        if share is not None:  # the time after its own share this process waited for the workers' answers
+            share.waiting += time.perf_counter() - began - (share.busy - busy)
         parts = [(start, info) for (start, _), info in zip(self._shares(), [mine, *infos] if share else infos)]
         a = self._arrays
         return (self._observations(), a["rew"].copy(), a["term"].copy(), a["trunc"].copy(),
@@ -585,9 +606,12 @@ class WorkerVectorEnv(VectorEnv):
 
     def worker_stats(self) -> list[dict[str, float]]:
         """Per share (this process's first, with ``in_parent``; then each worker's), since it started:
-        ``steps`` (vector steps of its envs) and ``busy_seconds`` (time in them, exchange excluded).
-        Between two calls, busy seconds over wall seconds is how much of the time a share stepped
-        rather than waited for its next step (benchmarks/bench_scaling.py)."""
+        ``steps`` (vector steps of its envs), ``busy_seconds`` (time in them, exchange excluded),
+        ``answer_seconds`` (a worker's sending its answers; 0 for this process's share) and
+        ``wait_seconds`` (a worker's waiting for its next order, which holds this process's turn
+        between two steps and the wake-up; this process's: waiting for the workers' answers after its
+        own share). Between two calls, each over the wall seconds is how the time went
+        (benchmarks/bench_scaling.py)."""
         return self._each([("stats",)] * len(self._shares()), "stats")
 
     def node_loads(self) -> list[dict[str, Any]]:
@@ -655,6 +679,7 @@ class _Share:
         self.owns_shared = False
         self.start = self.stop = 0
         self.steps, self.busy = 0, 0.0
+        self.answering = self.waiting = 0.0  # a worker's: sending its answers; blocked for its next order
         if not shareable(self.vec.single_observation_space):
             self.close()
             raise ValueError(f"observation space {self.vec.single_observation_space} cannot go through shared "
@@ -704,7 +729,8 @@ class _Share:
         if cmd == "loads":
             return vec.node_loads()
         if cmd == "stats":
-            return {"steps": float(self.steps), "busy_seconds": self.busy}
+            return {"steps": float(self.steps), "busy_seconds": self.busy, "answer_seconds": self.answering,
+                    "wait_seconds": self.waiting}
         raise ValueError(f"unknown worker request {cmd!r}")
 
     def close(self) -> None:
@@ -718,9 +744,9 @@ class _Share:
 
 
 def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autoreset_mode: str,
-                 options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
+                 options: dict[str, Any], env_kwargs: dict[str, Any], spin_wait_sec: float = 0.0) -> None:
     """A worker: make its share, bind the shared arrays, then answer requests until told to close
-    or until the parent's end of the pipe closes."""
+    or until the parent's end of the pipe closes (polling ``spin_wait_sec`` for each before it sleeps)."""
     share: _Share | None = None
     try:
         try:
@@ -729,14 +755,22 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
         except Exception as exc:  # noqa: BLE001 - the parent reports it
             conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
             return
+        poller = _poller(conn)
         while True:
+            waited = time.perf_counter()
+            if spin_wait_sec > 0:
+                _spin(poller, spin_wait_sec)
             try:
                 data = conn.recv_bytes()
             except (EOFError, OSError):
                 return  # the parent is gone
+            share.waiting += time.perf_counter() - waited
             if data == _STEP:
                 try:
-                    conn.send(("ok", share.step()))
+                    info = share.step()
+                    answering = time.perf_counter()
+                    conn.send(("ok", info))
+                    share.answering += time.perf_counter() - answering
                 except Exception as exc:  # noqa: BLE001 - the parent raises it
                     _send_error(conn, exc)
                 continue
@@ -757,6 +791,35 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
         if share is not None:
             share.close()
         conn.close()
+
+
+def _spin_wait(value: float | None, shares: int, in_parent: bool) -> float:
+    """The ``spin_wait_sec`` of a vector env of ``shares`` shares: ``value`` checked, else the default
+    (:data:`SPIN_WAIT_SEC` where this process steps a share and every share has a core, else 0: a process
+    that polls while another needs its core only delays it)."""
+    if value is None:
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except (AttributeError, OSError):
+            cores = os.cpu_count() or 1
+        return SPIN_WAIT_SEC if in_parent and shares <= cores else 0.0
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 0.01:
+        raise ValueError(f"spin_wait_sec must be a number of seconds from 0 to 0.01, got {value!r}")
+    return float(value)
+
+
+def _poller(conn: Connection) -> Any:
+    """A ``select.poll`` of ``conn``'s socket (registered once: a poll of it then costs a microsecond)."""
+    poller = select.poll()
+    poller.register(conn.fileno(), select.POLLIN)
+    return poller
+
+
+def _spin(poller: Any, seconds: float) -> None:
+    """Poll until a message (or the socket's end) is there or ``seconds`` have passed."""
+    end = time.perf_counter() + seconds
+    while not poller.poll(0) and time.perf_counter() < end:
+        pass
 
 
 def _send_error(conn: Connection, exc: BaseException) -> None:

@@ -263,6 +263,12 @@ def test_worker_stats_count_the_steps_and_their_time(layout: dict) -> None:
         stats = vec.worker_stats()
         assert [s["steps"] for s in stats] == [3.0, 3.0]
         assert all(0.0 < s["busy_seconds"] < wall for s in stats)
+        here = stats[0] if layout.get("in_parent") else None  # this process's share, if it steps one
+        for s in stats:
+            if s is here:  # no answers to send; its wait is for the workers' answers within these steps
+                assert s["answer_seconds"] == 0.0 and 0.0 < s["wait_seconds"] < wall
+            else:  # a worker sent 3 step answers and waited for every order
+                assert s["answer_seconds"] > 0.0 and s["wait_seconds"] > 0.0
     finally:
         vec.close()
 
@@ -410,6 +416,39 @@ def test_workers_log_at_the_level_of_this_process_node_loggers(capfd, level: int
         ros.setLevel(old)
     err = capfd.readouterr().err
     assert ("[INFO] [ros.mujoco_sim]: entity " in err and "are already published by entity" in err) is shown, err
+
+
+def test_both_sides_poll_before_they_sleep_only_where_each_share_has_a_core(monkeypatch) -> None:
+    """``spin_wait_sec``: by default this process and the workers poll ``SPIN_WAIT_SEC`` for each other's
+    message where this process steps a share and the shares fit the cores; not in process mode (its
+    waiting parent is one process more than the cores) nor with more shares than cores; a value given is
+    checked; the envs step alike with it or without."""
+    import multiros.envs.worker_vector as wv
+
+    monkeypatch.setattr(wv.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    assert wv._spin_wait(None, 2, True) == wv.SPIN_WAIT_SEC
+    assert wv._spin_wait(None, 3, True) == 0.0  # more shares than cores
+    assert wv._spin_wait(None, 2, False) == 0.0  # no share here: the parent waits on a core a worker needs
+    assert wv._spin_wait(0, 2, True) == 0.0 and wv._spin_wait(0.001, 3, False) == 0.001
+    for bad in (-1e-6, 0.5, "0.001", True):
+        with pytest.raises(ValueError, match="spin_wait_sec must be a number of seconds from 0 to 0.01"):
+            wv._spin_wait(bad, 2, True)
+    monkeypatch.undo()
+    with pytest.raises(ValueError, match="spin_wait_sec must be"):
+        uniros.make_vec(ENV, 2, vector_kwargs={"workers": 1, "spin_wait_sec": -1})
+    spun = WorkerVectorEnv(ENV, 3, workers=1, in_parent=True, spin_wait_sec=0.002)
+    slept = WorkerVectorEnv(ENV, 3, workers=1, in_parent=True, spin_wait_sec=0)
+    try:
+        assert (spun.spin_wait_sec, slept.spin_wait_sec) == (0.002, 0.0)
+        a, b = spun.reset(seed=5)[0], slept.reset(seed=5)[0]
+        for i in range(5):
+            act = np.full(spun.action_space.shape, 0.1 * i, np.float32)
+            a, b = spun.step(act)[0], slept.step(act)[0]
+        for key in a:
+            np.testing.assert_array_equal(a[key], b[key])
+    finally:
+        spun.close()
+        slept.close()
 
 
 def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
