@@ -15,7 +15,8 @@ Prints (env steps/s, random actions, episodes autoreset as they end):
   K nodes composed on threads of this process and against K process-mode nodes called over Zenoh
   from this process (``workers=0``), interleaved;
 * ``make_vec(ID, 8)`` and process mode again with ``pin_workers=True`` (each worker process on a core
-  of its own), interleaved with the rest;
+  of its own), and ``make_vec(ID, 8)`` with ``spin_wait_sec=0`` (no spin, then block), interleaved with
+  the rest;
 * the same N on one composed node in this process (``vector_kwargs={"workers": 0, "num_nodes": 1}``),
   for N <= ``--inproc-max``;
 * the physics limit over all cores: ``mj_step`` alone in each worker's world (N/K robots), K
@@ -210,13 +211,16 @@ def main() -> None:
     zenoh8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process", vector_kwargs={"workers": 0, "num_nodes": k8}))
     # the same layouts with each worker pinned to a core of its own (pin_workers)
     pinned8 = Stepper(uniros.make_vec(args.env, 8, vector_kwargs={"pin_workers": True}))
+    # and the default layout without spin-then-block (each side sleeps at once while it waits)
+    asleep8 = Stepper(uniros.make_vec(args.env, 8, vector_kwargs={"spin_wait_sec": 0}))
     pinned_process8 = Stepper(uniros.make_vec(args.env, 8, sim_mode="process", vector_kwargs={"pin_workers": True}))
     got = interleaved({"one env": single.rate, "one env physics": single_limit.rate, "make_vec(8)": vec8.rate,
                        "make_vec(8) one node": one_node8.rate, "physics(8) all cores": limit8.rate,
                        "process(8)": process8.rate, "threads(8)": threads8.rate, "process(8) zenoh": zenoh8.rate,
-                       "make_vec(8) pinned": pinned8.rate, "process(8) pinned": pinned_process8.rate},
+                       "make_vec(8) pinned": pinned8.rate, "process(8) pinned": pinned_process8.rate,
+                       "make_vec(8) no spin": asleep8.rate},
                       args.rounds, args.seconds)
-    for s in (single, vec8, one_node8, process8, threads8, zenoh8, pinned8, pinned_process8):
+    for s in (single, vec8, one_node8, process8, threads8, zenoh8, pinned8, pinned_process8, asleep8):
         s.close()
     med = {name: float(np.median(v)) for name, v in got.items()}
     ratio = lambda a, b: float(np.median(np.array(got[a]) / np.array(got[b])))  # noqa: E731
@@ -237,7 +241,12 @@ def main() -> None:
           f"({ratio('make_vec(8) pinned', 'make_vec(8)'):.2f}x unpinned, "
           f"{ratio('make_vec(8) pinned', 'physics(8) all cores'):.2f} of the physics limit); process mode "
           f"{med['process(8) pinned']:,.0f}/s ({ratio('process(8) pinned', 'process(8)'):.2f}x unpinned, "
-          f"{ratio('process(8) pinned', 'threads(8)'):.2f}x threads)", flush=True)
+          f"{ratio('process(8) pinned', 'threads(8)'):.2f}x threads)")
+    spin_us = getattr(vec8.env, "spin_wait_sec", 0.0) * 1e6
+    print(f"  spin, then block (spin_wait_sec {spin_us:.0f} us in make_vec(8)'s default layout): "
+          f"{ratio('make_vec(8)', 'make_vec(8) no spin'):.2f}x the same with spin_wait_sec=0 "
+          f"({med['make_vec(8) no spin']:,.0f}/s); make_vec(8) {ratio('make_vec(8)', 'threads(8)'):.2f}x the 2 "
+          "nodes on threads", flush=True)
 
     # The curve: make_vec(N) at defaults, one node in-process, physics limit on all cores.
     fetch = Stepper(make_fetch_reach(), single=True)
