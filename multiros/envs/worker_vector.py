@@ -252,7 +252,7 @@ class WorkerVectorEnv(VectorEnv):
         spin_wait_sec: how long this process and each worker poll for the other's next message before
             they sleep (:data:`SPIN_WAIT_SEC` by default where each share has a core of its own: this
             process steps one and the shares are no more than the cores; else 0, sleep at once). On 2
-            cores it gains about 7 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
+            cores it gains about 10 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
         pin_workers: pin each worker process (every thread of it) to a core of its own
             (:func:`worker_cores`), as Sample Factory does with its workers; this process stays free to
             move. Off by default: on a machine of its own it steadies the lockstep, beside other programs
@@ -287,9 +287,9 @@ class WorkerVectorEnv(VectorEnv):
         pinned = pin_option(pin_workers)
         cores: list[int | None] = list(worker_cores(workers, bool(in_parent))) if pinned else [None] * workers
         self.worker_cores = cores
+        """The core each worker is pinned to (``pin_workers``), in worker order; ``None``: not pinned."""
         self.spin_wait_sec = _spin_wait(spin_wait_sec, shares, bool(in_parent))
         """Seconds each side polls for the other's message before it sleeps (see the constructor)."""
-        """The core each worker is pinned to (``pin_workers``), in worker order; ``None``: not pinned."""
         self.num_envs = num_envs
         self.num_workers = workers
         self.autoreset_mode = AutoresetMode(autoreset_mode)
