@@ -137,19 +137,20 @@ def test_the_shipped_pixel_config_is_the_documented_recipe():
     assert config.env_kwargs == documented.env_kwargs and config.training_steps == documented.training_steps
 
 
-def test_the_vx300s_pixel_config_is_the_rx200_recipe_at_64_pixels():
-    """config/training/pixels/VX300SReacherGoalSim-v0.yaml: the RX200's file but a 64 x 64 image and
-    60,000 steps (docs/tasks.md: what the run that reached 0.95 used)."""
+@pytest.mark.parametrize("env_id", ["VX300SReacherGoalSim-v0", "NED2ReacherGoalSim-v0"])
+def test_the_other_pixel_configs_are_the_rx200_recipe_at_64_pixels(env_id):
+    """config/training/pixels/<ID>.yaml of the VX300S and the NED2: the RX200's file but a 64 x 64 image
+    and 60,000 steps (docs/tasks.md: what the runs that reached 0.95 used)."""
     from importlib import resources
 
     pixels = resources.files("rl_environments.config").joinpath("training", "pixels")
     rx200 = load_training_config(str(pixels.joinpath("RX200ReacherGoalSim-v0.yaml")))
-    vx300s = load_training_config(str(pixels.joinpath("VX300SReacherGoalSim-v0.yaml")))
-    assert vx300s.env_kwargs == {**rx200.env_kwargs, "image_width": 64, "image_height": 64}
-    assert vx300s.training_steps == 60_000 and rx200.training_steps == 40_000
-    assert vx300s.algo_params == rx200.algo_params  # buffer_size 40,000 in both
-    assert (vx300s.algorithm, vx300s.use_her, vx300s.her_params, vx300s.policy_params, vx300s.normalize,
-            vx300s.eval_freq, vx300s.eval_episodes, vx300s.stop_at_success, vx300s.seed) == \
+    other = load_training_config(str(pixels.joinpath(f"{env_id}.yaml")))
+    assert other.env_kwargs == {**rx200.env_kwargs, "image_width": 64, "image_height": 64}
+    assert other.training_steps == 60_000 and rx200.training_steps == 40_000
+    assert other.algo_params == rx200.algo_params  # buffer_size 40,000 in both
+    assert (other.algorithm, other.use_her, other.her_params, other.policy_params, other.normalize,
+            other.eval_freq, other.eval_episodes, other.stop_at_success, other.seed) == \
            (rx200.algorithm, rx200.use_her, rx200.her_params, rx200.policy_params, rx200.normalize,
             rx200.eval_freq, rx200.eval_episodes, rx200.stop_at_success, rx200.seed)
 
