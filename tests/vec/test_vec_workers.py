@@ -339,6 +339,16 @@ def test_worker_counts_that_do_not_fit_are_refused_before_any_process_starts(wor
     assert _census() == before
 
 
+def _assert_step_alike(x, y, seed: int, steps: int = 5) -> None:
+    """Two vector envs of the same envs, reset with ``seed`` and given the same actions, observe alike."""
+    a, b = x.reset(seed=seed)[0], y.reset(seed=seed)[0]
+    for i in range(steps):
+        act = np.full(x.action_space.shape, 0.1 * i, np.float32)
+        a, b = x.step(act)[0], y.step(act)[0]
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])
+
+
 def _thread_cores(pid: int) -> set[frozenset[int]]:
     """The CPU affinity of every thread of process ``pid`` (one that ends meanwhile left out)."""
     out = set()
@@ -370,12 +380,7 @@ def test_pinned_workers_each_run_on_a_core_of_their_own(layout: dict, monkeypatc
         assert free.worker_cores == [None] * layout["workers"]
         assert all(_thread_cores(pid) == {frozenset(cores)} for pid in free.pids)
         assert sorted(os.sched_getaffinity(0)) == cores
-        a, b = vec.reset(seed=3)[0], free.reset(seed=3)[0]
-        for _ in range(5):
-            act = np.full(vec.action_space.shape, 0.3, np.float32)
-            a, b = vec.step(act)[0], free.step(act)[0]
-        for key in a:
-            np.testing.assert_array_equal(a[key], b[key])
+        _assert_step_alike(vec, free, seed=3)
     finally:
         vec.close()
         free.close()
@@ -440,12 +445,7 @@ def test_both_sides_poll_before_they_sleep_only_where_each_share_has_a_core(monk
     slept = WorkerVectorEnv(ENV, 3, workers=1, in_parent=True, spin_wait_sec=0)
     try:
         assert (spun.spin_wait_sec, slept.spin_wait_sec) == (0.002, 0.0)
-        a, b = spun.reset(seed=5)[0], slept.reset(seed=5)[0]
-        for i in range(5):
-            act = np.full(spun.action_space.shape, 0.1 * i, np.float32)
-            a, b = spun.step(act)[0], slept.step(act)[0]
-        for key in a:
-            np.testing.assert_array_equal(a[key], b[key])
+        _assert_step_alike(spun, slept, seed=5)
     finally:
         spun.close()
         slept.close()
