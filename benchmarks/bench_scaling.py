@@ -50,13 +50,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from fetch_compat import make_fetch_reach  # noqa: E402
 
 import uniros  # noqa: E402
-
-
-def cores() -> int:
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        return os.cpu_count() or 1
+from multiros.envs.batch import usable_cores  # noqa: E402
 
 
 class Stepper:
@@ -191,7 +185,7 @@ def main() -> None:
     parser.add_argument("--inproc-max", type=int, default=32, help="largest N measured on one node in-process")
     parser.add_argument("--plot", default="", help="write the scaling plot (PNG) here")
     args = parser.parse_args()
-    k_all = cores()
+    k_all = usable_cores()
     sizes = [int(s) for s in args.sizes.split(",")]
     print(f"{args.env} at its default step; {k_all} cores this process may use (os.sched_getaffinity); "
           f"load average {os.getloadavg()[0]:.1f}", flush=True)

@@ -47,7 +47,7 @@ from multiros.sim.client import SimulationNodeError
 from multiros.sim.stepper import PendingStep, RobotStepper, StepReply
 
 __all__ = ["EnvBatch", "slot_offset", "make_env_batch", "env_creator", "batchable", "default_num_nodes",
-           "BATCH_OPTIONS"]
+           "BATCH_OPTIONS", "usable_cores"]
 
 _batch_ids = itertools.count()
 
@@ -63,11 +63,16 @@ def default_num_nodes(num_envs: int) -> int:
     core this process may run on (``os.sched_getaffinity``), at most one per env. Composed nodes step
     their physics at once on threads (``mj_step`` releases the GIL), so on a 2-core machine 8 envs
     step faster on 2 nodes than on 1 (``benchmarks/bench_vec.py``)."""
+    return max(1, min(num_envs, usable_cores()))
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (``os.sched_getaffinity``; the CPU count where the platform
+    has no affinity)."""
     try:
-        cores = len(os.sched_getaffinity(0))
+        return len(os.sched_getaffinity(0))
     except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
-    return max(1, min(num_envs, cores))
+        return os.cpu_count() or 1
 
 
 class EnvBatch:

@@ -44,7 +44,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from multiros.envs.batch import default_num_nodes
+from multiros.envs.batch import default_num_nodes, usable_cores
 from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
 from multiros.ros.processes import configure_child_logging, owner_log_level
 
@@ -798,11 +798,7 @@ def _spin_wait(value: float | None, shares: int, in_parent: bool) -> float:
     (:data:`SPIN_WAIT_SEC` where this process steps a share and every share has a core, else 0: a process
     that polls while another needs its core only delays it)."""
     if value is None:
-        try:
-            cores = len(os.sched_getaffinity(0))
-        except (AttributeError, OSError):
-            cores = os.cpu_count() or 1
-        return SPIN_WAIT_SEC if in_parent and shares <= cores else 0.0
+        return SPIN_WAIT_SEC if in_parent and shares <= usable_cores() else 0.0
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 0.01:
         raise ValueError(f"spin_wait_sec must be a number of seconds from 0 to 0.01, got {value!r}")
     return float(value)
