@@ -45,7 +45,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from multiros.envs.batch import default_num_nodes, usable_cores
-from multiros.envs.shm_exchange import SharedArrays, layout_for, merge_infos, shareable
+from multiros.envs.shm_exchange import PLAIN_INFO, InfoCodec, SharedArrays, layout_for, merge_infos, shareable
 from multiros.ros.processes import configure_child_logging, owner_log_level
 
 __all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "pin_option", "process_mode_workers",
@@ -303,6 +303,7 @@ class WorkerVectorEnv(VectorEnv):
         self._finalizer = weakref.finalize(self, self._workers.stop)
         self._broken: str | None = None
         self._pollers: dict[int, Any] = {}
+        self._codecs = [InfoCodec() for _ in self.rows]  # each worker's step infos (shm_exchange.InfoCodec)
         spec = _picklable_spec(env_id)
         try:
             for k, (start, stop) in enumerate(self.rows):
@@ -383,13 +384,13 @@ class WorkerVectorEnv(VectorEnv):
         except (OSError, ValueError) as exc:
             raise self._dead(k, "a request") from exc
 
-    def _gather(self, ks: Sequence[int], timeout: float, what: str) -> list[Any]:
-        """The answers of workers ``ks`` to ``what``; every answer is read before a worker's error is
-        raised, so the next request's answers are the next request's."""
+    def _gather(self, ks: Sequence[int], timeout: float, what: str, step: bool = False) -> list[Any]:
+        """The answers of workers ``ks`` to ``what`` (``step``: to a step); every answer is read before
+        a worker's error is raised, so the next request's answers are the next request's."""
         answers, error = [], None
         for k in ks:
             try:
-                answers.append(self._recv(k, timeout, what))
+                answers.append(self._recv(k, timeout, what, step))
             except WorkerError:
                 raise
             except Exception as exc:  # noqa: BLE001 - raised once the others have answered
@@ -399,19 +400,30 @@ class WorkerVectorEnv(VectorEnv):
             raise error
         return answers
 
-    def _recv(self, k: int, timeout: float, what: str) -> Any:
-        """Worker ``k``'s answer to ``what``, within ``timeout`` seconds; its error re-raised here."""
+    def _recv(self, k: int, timeout: float, what: str, step: bool = False) -> Any:
+        """Worker ``k``'s answer to ``what``, within ``timeout`` seconds; its error re-raised here.
+        ``step``: the answer to a step, whose info may come as raw bytes (:class:`InfoCodec`)."""
         conn, proc = self._workers.conns[k], self._workers.procs[k]
+        ready = False
         if self.spin_wait_sec > 0:
             poller = self._pollers.get(k)
             if poller is None:
                 poller = self._pollers[k] = _poller(conn)
-            _spin(poller, self.spin_wait_sec)
-        if wait([conn], timeout):  # an answer, or the end of the socket: the worker exited
+            ready = _spin(poller, self.spin_wait_sec)
+        if ready or wait([conn], timeout):  # an answer, or the end of the socket: the worker exited
             try:
-                status, payload = conn.recv()
+                data = conn.recv_bytes()
             except (EOFError, OSError) as exc:
                 raise self._dead(k, what) from exc
+            if step and data[:1] == PLAIN_INFO:
+                try:
+                    return self._codecs[k].unpack(data)
+                except ValueError as exc:
+                    self._broken = f"worker {k} (pid {proc.pid}) sent a step answer this process cannot read ({exc})"
+                    raise WorkerError(f"vector env {self._broken}; close this vector env") from exc
+            status, payload = pickle.loads(data)
+            if step and status == "ok":
+                self._codecs[k].learn(payload)
         else:
             self._broken = f"worker {k} (pid {proc.pid}) did not answer {what} within {timeout:g} s"
             raise WorkerError(f"vector env {self._broken}; is the machine overloaded? close this vector env")
@@ -461,7 +473,8 @@ class WorkerVectorEnv(VectorEnv):
         found = [answers.get(k) for k in range(len(messages))]
         return [mine, *found] if share is not None else found
 
-    def _beside(self, ks: Sequence[int], what: str, mine: Callable[[], Any] | None) -> tuple[Any, list[Any]]:
+    def _beside(self, ks: Sequence[int], what: str, mine: Callable[[], Any] | None,
+                step: bool = False) -> tuple[Any, list[Any]]:
         """This process's part (``mine``, if any) while workers ``ks`` do theirs, then their answers
         (:meth:`_gather`). An error of this process's part is raised once they have all answered, so the
         next request's answers are the next request's; a worker's error then goes unraised (a dead worker
@@ -473,7 +486,7 @@ class WorkerVectorEnv(VectorEnv):
             except Exception as exc:  # noqa: BLE001 - raised below, once the workers have answered
                 error = exc
         try:
-            answers = self._gather(ks, self.timeout_sec, what)
+            answers = self._gather(ks, self.timeout_sec, what, step)
         except Exception:
             if error is None:
                 raise
@@ -548,7 +561,7 @@ class WorkerVectorEnv(VectorEnv):
                 raise self._dead(k, "a step") from exc
         share = self._workers.local  # steps its envs while the workers step theirs
         began, busy = time.perf_counter(), 0.0 if share is None else share.busy
-        mine, infos = self._beside(range(self.num_workers), "a step", None if share is None else share.step)
+        mine, infos = self._beside(range(self.num_workers), "a step", None if share is None else share.step, step=True)
         if share is not None:  # the time after its own share this process waited for the workers' answers
             share.waiting += time.perf_counter() - began - (share.busy - busy)
         parts = [(start, info) for (start, _), info in zip(self._shares(), [mine, *infos] if share else infos)]
@@ -755,7 +768,7 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
         except Exception as exc:  # noqa: BLE001 - the parent reports it
             conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
             return
-        poller = _poller(conn)
+        poller, codec = _poller(conn), InfoCodec()
         while True:
             waited = time.perf_counter()
             if spin_wait_sec > 0:
@@ -769,7 +782,12 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
                 try:
                     info = share.step()
                     answering = time.perf_counter()
-                    conn.send(("ok", info))
+                    packed = codec.pack(info)
+                    if packed is None:
+                        conn.send(("ok", info))
+                        codec.learn(info)
+                    else:
+                        conn.send_bytes(packed)
                     share.answering += time.perf_counter() - answering
                 except Exception as exc:  # noqa: BLE001 - the parent raises it
                     _send_error(conn, exc)
@@ -811,11 +829,13 @@ def _poller(conn: Connection) -> Any:
     return poller
 
 
-def _spin(poller: Any, seconds: float) -> None:
-    """Poll until a message (or the socket's end) is there or ``seconds`` have passed."""
+def _spin(poller: Any, seconds: float) -> bool:
+    """Poll until a message (or the socket's end) is there or ``seconds`` have passed; whether it is."""
     end = time.perf_counter() + seconds
-    while not poller.poll(0) and time.perf_counter() < end:
-        pass
+    while not poller.poll(0):
+        if time.perf_counter() >= end:
+            return False
+    return True
 
 
 def _send_error(conn: Connection, exc: BaseException) -> None:

@@ -17,7 +17,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import uniros
-from multiros.envs.shm_exchange import merge_infos
+from multiros.envs.shm_exchange import PLAIN_INFO, InfoCodec, merge_infos
 from multiros.envs.worker_vector import WorkerError, WorkerVectorEnv
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "envs"))
@@ -481,6 +481,57 @@ def test_merge_infos_fills_what_a_worker_lacks() -> None:
     np.testing.assert_array_equal(out["final_info"]["x"], [0, 0, 2])
     np.testing.assert_array_equal(out["final_info"]["_x"], [False, False, True])
     assert merge_infos([(0, a)], 2) == a
+
+
+def test_merge_infos_of_alike_workers_is_the_general_merge() -> None:
+    """The quick merge of a usual step (same keys and dtypes in every worker) gives what the general
+    merge gives, whatever order the parts come in; a dtype that differs goes the general way."""
+    from multiros.envs.shm_exchange import _merge
+
+    a = {"is_success": np.array([0.0, 1.0]), "_is_success": np.array([True, True])}
+    b = {"is_success": np.array([1.0, 0.0, 1.0]), "_is_success": np.array([True, False, True])}
+    general = _merge([(0, 2, a), (2, 3, b)], 5)
+    for parts in ([(0, a), (2, b)], [(2, b), (0, a)]):
+        out = merge_infos(parts, 5)
+        assert list(out) == list(general)
+        for key in general:
+            assert out[key].dtype == general[key].dtype
+            np.testing.assert_array_equal(out[key], general[key])
+    c = {"is_success": np.array([1, 0, 1]), "_is_success": np.array([True, True, True])}  # ints, not floats
+    out = merge_infos([(0, a), (2, c)], 5)
+    np.testing.assert_array_equal(out["is_success"], [0.0, 1.0, 1.0, 0.0, 1.0])
+
+
+def test_step_infos_travel_as_raw_bytes_once_their_layout_is_known() -> None:
+    """InfoCodec, both ends of a worker's pipe: an info of numeric arrays packs to its bytes once a
+    pickled one taught the layout; the parent reads it back into fresh writable arrays; any other
+    info (nested, objects, another key or shape) is left to pickle; bytes that do not fit are refused."""
+    worker, parent = InfoCodec(), InfoCodec()
+    info = {"is_success": np.array([0.0, 1.0]), "_is_success": np.array([True, False])}
+    assert worker.pack(info) is None  # nothing learnt yet: this one goes pickled, and both sides learn it
+    worker.learn(info)
+    parent.learn(info)
+    data = worker.pack({"is_success": np.array([1.0, 1.0]), "_is_success": np.array([True, True])})
+    assert data is not None and data[:1] == PLAIN_INFO
+    first, second = parent.unpack(data), parent.unpack(data)
+    assert list(first) == ["is_success", "_is_success"]
+    assert first["is_success"].dtype == np.float64 and first["_is_success"].dtype == np.bool_
+    np.testing.assert_array_equal(first["is_success"], [1.0, 1.0])
+    first["is_success"][0] = 5.0  # writable, and each step's arrays are its own
+    assert second["is_success"][0] == 1.0
+    for other in ({"is_success": np.array([0.0, 1.0]), "_is_success": np.array([True, False]),
+                   "final_info": {"x": np.array([1, 2])}},
+                  {"is_success": np.array([0.0, 1.0, 1.0]), "_is_success": np.array([True, False, True])},
+                  {"is_success": np.array([0, 1]), "_is_success": np.array([True, False])},
+                  {"is_success": np.array([None, None]), "_is_success": np.array([True, False])},
+                  {"is_success": 1.0, "_is_success": np.array([True, False])}):
+        assert worker.pack(other) is None
+    with pytest.raises(ValueError, match="does not match|makes"):
+        parent.unpack(data[:-1])
+    with pytest.raises(ValueError, match="before any came pickled"):
+        InfoCodec().unpack(data)
+    worker.learn({"final_info": {}})  # a nested info went pickled: no raw bytes until a plain one goes
+    assert worker.pack(info) is None
 
 
 def test_sb3_worker_vec_env_equals_the_in_process_one() -> None:
