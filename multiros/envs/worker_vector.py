@@ -33,6 +33,7 @@ import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import traceback
 import weakref
@@ -55,6 +56,11 @@ _STEP = b"s"
 #: How long a process with a core of its own polls for the other side's message before it sleeps
 #: (spin, then block): a sleeping process's wake-up costs more than the answer's usual wait.
 SPIN_WAIT_SEC = 200e-6
+#: A share spins only while its thread waits less than this for a core per vector step (the kernel's
+#: run-queue delay, a running mean; Linux): above it another program shares the cores, and a spinning
+#: process takes the core from a process that has work. make_vec(8) on 2 cores: 5-90 us a step alone,
+#: 200-1,100 us beside a second one.
+QUEUED_TO_SPIN = 200e-6
 #: Batch options that place nodes by hand (a worker makes its own node)
 _PLACING = ("node_name", "connect_kwargs")
 
@@ -250,9 +256,11 @@ class WorkerVectorEnv(VectorEnv):
         start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
             loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
         spin_wait_sec: how long this process and each worker poll for the other's next message before
-            they sleep (:data:`SPIN_WAIT_SEC` by default where each share has a core of its own: this
-            process steps one and the shares are no more than the cores; else 0, sleep at once). On 2
-            cores it gains about 10 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
+            they sleep. By default :data:`SPIN_WAIT_SEC` for the workers where the shares are no more
+            than the cores, and for this process where it also steps a share; else 0 (sleep at once).
+            A process that steps a share spins only while it seldom waits for a core
+            (:data:`QUEUED_TO_SPIN`): beside other programs it sleeps at once. On 2 cores it gains
+            about 10 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
         pin_workers: pin each worker process (every thread of it) to a core of its own
             (:func:`worker_cores`), as Sample Factory does with its workers; this process stays free to
             move. Off by default: on a machine of its own it steadies the lockstep, beside other programs
@@ -289,7 +297,9 @@ class WorkerVectorEnv(VectorEnv):
         self.worker_cores = cores
         """The core each worker is pinned to (``pin_workers``), in worker order; ``None``: not pinned."""
         self.spin_wait_sec = _spin_wait(spin_wait_sec, shares, bool(in_parent))
-        """Seconds each side polls for the other's message before it sleeps (see the constructor)."""
+        """Seconds this process polls for a worker's answer before it sleeps (see the constructor)."""
+        self.worker_spin_wait_sec = _spin_wait(spin_wait_sec, shares, True)
+        """Seconds each worker polls for this process's next order before it sleeps."""
         self.num_envs = num_envs
         self.num_workers = workers
         self.autoreset_mode = AutoresetMode(autoreset_mode)
@@ -309,7 +319,7 @@ class WorkerVectorEnv(VectorEnv):
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker(cores[k])
                 self._send(k, (env_id, spec, stop - start, self.autoreset_mode.value, options, env_kwargs,
-                               self.spin_wait_sec))
+                               self.worker_spin_wait_sec))
             if self.local_rows is not None:  # made while the workers make theirs
                 start, stop = self.local_rows
                 self._workers.local = _Share(env_id, spec, stop - start, self.autoreset_mode.value, options,
@@ -404,8 +414,8 @@ class WorkerVectorEnv(VectorEnv):
         """Worker ``k``'s answer to ``what``, within ``timeout`` seconds; its error re-raised here.
         ``step``: the answer to a step, whose info may come as raw bytes (:class:`InfoCodec`)."""
         conn, proc = self._workers.conns[k], self._workers.procs[k]
-        ready = False
-        if self.spin_wait_sec > 0:
+        ready, local = False, self._workers.local
+        if self.spin_wait_sec > 0 and (local is None or local.queued.per_step < QUEUED_TO_SPIN):
             poller = self._pollers.get(k)
             if poller is None:
                 poller = self._pollers[k] = _poller(conn)
@@ -623,8 +633,10 @@ class WorkerVectorEnv(VectorEnv):
         ``answer_seconds`` (a worker's sending its answers; 0 for this process's share) and
         ``wait_seconds`` (a worker's waiting for its next order, which holds this process's turn
         between two steps and the wake-up; this process's: waiting for the workers' answers after its
-        own share). Between two calls, each over the wall seconds is how the time went
-        (benchmarks/bench_scaling.py)."""
+        own share), and ``queued_per_step`` (a running mean of the seconds its thread waited for a
+        core per vector step, :class:`RunQueueDelay`: above :data:`QUEUED_TO_SPIN` it sleeps at once
+        while it waits). Between two calls, each seconds figure over the wall seconds is how the time
+        went (benchmarks/bench_scaling.py)."""
         return self._each([("stats",)] * len(self._shares()), "stats")
 
     def node_loads(self) -> list[dict[str, Any]]:
@@ -693,6 +705,7 @@ class _Share:
         self.start = self.stop = 0
         self.steps, self.busy = 0, 0.0
         self.answering = self.waiting = 0.0  # a worker's: sending its answers; blocked for its next order
+        self.queued = RunQueueDelay()  # of the thread that steps it
         if not shareable(self.vec.single_observation_space):
             self.close()
             raise ValueError(f"observation space {self.vec.single_observation_space} cannot go through shared "
@@ -712,6 +725,7 @@ class _Share:
     def step(self) -> dict[str, Any]:
         """Step with the actions in the shared arrays; rewards and episode ends written there; the info back."""
         began = time.perf_counter()
+        self.queued.sample()
         assert self.shared is not None, "a share steps once bound"
         a, start, stop = self.shared.arrays, self.start, self.stop
         _, rew, term, trunc, info = self.vec.step(a["act"][start:stop].copy())
@@ -743,12 +757,13 @@ class _Share:
             return vec.node_loads()
         if cmd == "stats":
             return {"steps": float(self.steps), "busy_seconds": self.busy, "answer_seconds": self.answering,
-                    "wait_seconds": self.waiting}
+                    "wait_seconds": self.waiting, "queued_per_step": self.queued.per_step}
         raise ValueError(f"unknown worker request {cmd!r}")
 
     def close(self) -> None:
         """Close the envs (and the shared block when this share attached it)."""
         vec, self.vec = self.vec, None
+        self.queued.close()
         if vec is not None:
             vec.close()
         if self.owns_shared and self.shared is not None:
@@ -771,7 +786,7 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
         poller, codec = _poller(conn), InfoCodec()
         while True:
             waited = time.perf_counter()
-            if spin_wait_sec > 0:
+            if spin_wait_sec > 0 and share.queued.per_step < QUEUED_TO_SPIN:
                 _spin(poller, spin_wait_sec)
             try:
                 data = conn.recv_bytes()
@@ -811,10 +826,55 @@ def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autore
         conn.close()
 
 
+class RunQueueDelay:
+    """How long the thread that samples it waited for a core (runnable, not running) between two
+    samples, a running mean (``per_step``, seconds), from the kernel's ``/proc/thread-self/schedstat``.
+
+    Beside other programs on the same cores a process that was woken waits for a core; a process that
+    spins keeps one from them. No standard module reads this (``os.sched_*`` and ``resource`` give CPU
+    time and switch counts, not the wait), so it is read here: one ``pread`` of an open file, about
+    1 us. Where the file is missing (not Linux) ``per_step`` stays 0.
+    """
+
+    WEIGHT = 1 / 16  # of each sample in the running mean
+
+    def __init__(self) -> None:
+        self.per_step = 0.0
+        self._fd: int | None = None
+        self._thread: int | None = None
+        self._last: int | None = None
+
+    def sample(self) -> None:
+        thread = threading.get_ident()
+        if thread != self._thread:  # (re)open for the thread that steps now
+            self.close()
+            self._thread = thread
+            try:
+                self._fd = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+            except OSError:
+                return
+        if self._fd is None:
+            return
+        try:
+            waited = int(os.pread(self._fd, 64, 0).split()[1])  # "cpu_ns run_delay_ns timeslices"
+        except (OSError, ValueError, IndexError):
+            self.close()
+            return
+        if self._last is not None:
+            self.per_step += ((waited - self._last) * 1e-9 - self.per_step) * self.WEIGHT
+        self._last = waited
+
+    def close(self) -> None:
+        fd, self._fd, self._last = self._fd, None, None
+        if fd is not None:
+            os.close(fd)
+
+
 def _spin_wait(value: float | None, shares: int, in_parent: bool) -> float:
-    """The ``spin_wait_sec`` of a vector env of ``shares`` shares: ``value`` checked, else the default
-    (:data:`SPIN_WAIT_SEC` where this process steps a share and every share has a core, else 0: a process
-    that polls while another needs its core only delays it)."""
+    """The ``spin_wait_sec`` of a side of a vector env of ``shares`` shares (``in_parent``: a side that
+    steps a share; a worker's always does): ``value`` checked, else the default (:data:`SPIN_WAIT_SEC`
+    where that side steps a share and every share has a core, else 0: a process that polls while
+    another needs its core only delays it)."""
     if value is None:
         return SPIN_WAIT_SEC if in_parent and shares <= usable_cores() else 0.0
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 0.01:

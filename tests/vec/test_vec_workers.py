@@ -424,10 +424,11 @@ def test_workers_log_at_the_level_of_this_process_node_loggers(capfd, level: int
 
 
 def test_both_sides_poll_before_they_sleep_only_where_each_share_has_a_core(monkeypatch) -> None:
-    """``spin_wait_sec``: by default this process and the workers poll ``SPIN_WAIT_SEC`` for each other's
-    message where this process steps a share and the shares fit the cores; not in process mode (its
-    waiting parent is one process more than the cores) nor with more shares than cores; a value given is
-    checked; the envs step alike with it or without."""
+    """``spin_wait_sec``: by default the workers poll ``SPIN_WAIT_SEC`` for this process's next order
+    where the shares fit the cores, and this process polls for their answers where it also steps a
+    share; not the parent of process mode (no share: it waits on a core a worker needs) nor with more
+    shares than cores; a value given is checked and goes to both sides; the envs step alike with it
+    or without."""
     import multiros.envs.worker_vector as wv
 
     monkeypatch.setattr(wv.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
@@ -435,6 +436,11 @@ def test_both_sides_poll_before_they_sleep_only_where_each_share_has_a_core(monk
     assert wv._spin_wait(None, 3, True) == 0.0  # more shares than cores
     assert wv._spin_wait(None, 2, False) == 0.0  # no share here: the parent waits on a core a worker needs
     assert wv._spin_wait(0, 2, True) == 0.0 and wv._spin_wait(0.001, 3, False) == 0.001
+    process = uniros.make_vec(ENV, 2, sim_mode="process")  # 2 nodes, 2 workers, no share here
+    try:
+        assert (process.spin_wait_sec, process.worker_spin_wait_sec) == (0.0, wv.SPIN_WAIT_SEC)
+    finally:
+        process.close()
     for bad in (-1e-6, 0.5, "0.001", True):
         with pytest.raises(ValueError, match="spin_wait_sec must be a number of seconds from 0 to 0.01"):
             wv._spin_wait(bad, 2, True)
@@ -445,10 +451,87 @@ def test_both_sides_poll_before_they_sleep_only_where_each_share_has_a_core(monk
     slept = WorkerVectorEnv(ENV, 3, workers=1, in_parent=True, spin_wait_sec=0)
     try:
         assert (spun.spin_wait_sec, slept.spin_wait_sec) == (0.002, 0.0)
+        assert (spun.worker_spin_wait_sec, slept.worker_spin_wait_sec) == (0.002, 0.0)
         _assert_step_alike(spun, slept, seed=5)
     finally:
         spun.close()
         slept.close()
+
+
+def test_a_share_that_waits_for_a_core_sleeps_at_once(monkeypatch) -> None:
+    """Spin-then-block stands down beside other programs: once this process's share has waited for a
+    core more than ``QUEUED_TO_SPIN`` per step, it no longer polls for the workers' answers (it sleeps
+    at once), and polls again once the waits are gone; the steps go on alike."""
+    import multiros.envs.worker_vector as wv
+
+    spins: list[float] = []
+    real_spin = wv._spin
+    monkeypatch.setattr(wv, "_spin", lambda poller, seconds: spins.append(seconds) or real_spin(poller, seconds))
+    vec = WorkerVectorEnv(ENV, 2, workers=1, in_parent=True, spin_wait_sec=0.001)
+    try:
+        vec.reset(seed=0)
+        queued = vec._workers.local.queued
+        queued.sample = lambda: None  # hold the mean where the test puts it
+        for per_step, polled in ((0.0, 1), (2 * wv.QUEUED_TO_SPIN, 0), (0.0, 1)):
+            queued.per_step = per_step
+            spins.clear()
+            obs = vec.step(np.zeros((2, 5), np.float32))[0]
+            assert spins == [0.001] * polled, per_step
+            assert np.isfinite(obs["observation"]).all()
+    finally:
+        vec.close()
+
+
+@pytest.mark.skipif(not Path("/proc/thread-self/schedstat").exists(), reason="Linux schedstat only")
+def test_run_queue_delay_counts_the_time_a_thread_waits_for_its_core() -> None:
+    """``RunQueueDelay`` reads the kernel's wait of this thread (not its CPU time): pinned to one core
+    beside two busy processes pinned there too, 0.1 s of this thread's work waits for the core about
+    twice that; where the file is missing it stays 0 and says nothing."""
+    import subprocess
+
+    from multiros.envs.worker_vector import RunQueueDelay
+
+    core = min(os.sched_getaffinity(0))
+    before = os.sched_getaffinity(0)
+    code = f"import os, sys; os.sched_setaffinity(0, {{{core}}}); print(flush=True); sys.stdin.readline() or exit()\n" \
+           "while True: pass"
+    busy = [subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            for _ in range(2)]
+    delay = RunQueueDelay()
+    try:
+        for proc in busy:  # pinned, then spinning
+            assert proc.stdout.readline() == "\n"
+            proc.stdin.write("go\n")
+            proc.stdin.flush()
+        os.sched_setaffinity(0, {core})
+        delay.sample()
+        cpu = time.thread_time()
+        while time.thread_time() - cpu < 0.1:  # 0.1 s of this thread's CPU, sharing the core
+            pass
+        delay.sample()
+        waited = delay.per_step / RunQueueDelay.WEIGHT
+        assert waited >= 1.3 * 0.1, waited
+    finally:
+        os.sched_setaffinity(0, before)
+        for proc in busy:
+            proc.kill()
+            proc.wait(timeout=10)
+        delay.close()
+    missing = RunQueueDelay()
+    real_open = os.open
+
+    def no_proc(path, *args):
+        if str(path).startswith("/proc/"):
+            raise FileNotFoundError(path)
+        return real_open(path, *args)
+
+    os.open = no_proc
+    try:
+        missing.sample()
+        missing.sample()
+    finally:
+        os.open = real_open
+    assert missing.per_step == 0.0
 
 
 def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
