@@ -146,15 +146,21 @@ class InfoCodec:
 
     Pickling ``{"is_success": array, "_is_success": mask}`` and reading it back costs about 13 us per
     vector step, on the path every step waits for. Both sides keep the layout (keys, dtypes, shapes)
-    of the last step info that went pickled (:meth:`learn`); while a step's info has that layout the
-    worker sends ``PLAIN_INFO`` and the arrays' bytes (:meth:`pack`), which the parent reads back
-    into fresh arrays (:meth:`unpack`). Any other info (nested ``final_info``, objects, a new key)
-    goes pickled and the layout follows it, so the two sides never disagree.
+    of the last step info that went pickled (:meth:`learn`) and count the layouts learnt; while a
+    step's info has that layout the worker sends an 8-byte header (``PLAIN_INFO``, the count modulo
+    256) and the arrays' bytes, each at an offset aligned for its dtype (:meth:`pack`), which the
+    parent reads back into fresh, aligned, writable arrays (:meth:`unpack`). Any other info (nested
+    ``final_info``, objects, a new key) goes pickled and the layout follows it. A message of another
+    layout than the parent's (the two sides out of step) is refused, not read under wrong keys.
     """
+
+    HEADER = 8  # PLAIN_INFO, the layout's count, padding: the fields start 8-byte aligned
 
     def __init__(self) -> None:
         self.layout: InfoLayout | None = None
+        self._learnt = 0  # layouts learnt, the second byte of a message
         self._fields: list[tuple[str, np.dtype, int, int, tuple[int, ...]]] = []  # key, dtype, count, offset, shape
+        self._pads: list[bytes] = []  # the zeros before each field
         self._size = 0  # the bytes of a message of the layout
 
     @staticmethod
@@ -170,29 +176,39 @@ class InfoCodec:
     def learn(self, info: Mapping[str, Any]) -> None:
         """``info`` went pickled: its layout is the one both sides know from now on."""
         self.layout = self.layout_of(info)
-        self._fields, offset = [], len(PLAIN_INFO)
+        self._learnt = (self._learnt + 1) % 256
+        self._fields, self._pads, offset = [], [], self.HEADER
         for key, dtype, shape in self.layout or ():
+            start = -(-offset // dtype.alignment) * dtype.alignment
             count = int(np.prod(shape, dtype=np.int64))
-            self._fields.append((key, dtype, count, offset, shape))
-            offset += count * dtype.itemsize
+            self._pads.append(bytes(start - offset))
+            self._fields.append((key, dtype, count, start, shape))
+            offset = start + count * dtype.itemsize
         self._size = offset
+
+    def _header(self) -> bytes:
+        return PLAIN_INFO + bytes([self._learnt]) + bytes(self.HEADER - 2)
 
     def pack(self, info: Mapping[str, Any]) -> bytes | None:
         """The message for ``info`` when it has the known layout, else ``None`` (send it pickled)."""
         if self.layout is None or self.layout_of(info) != self.layout:
             return None
-        return PLAIN_INFO + b"".join([value.tobytes() for value in info.values()])
+        parts = [self._header()]
+        for pad, value in zip(self._pads, info.values()):
+            parts += (pad, value.tobytes())
+        return b"".join(parts)
 
     def unpack(self, data: bytes) -> dict[str, Any]:
         """The info of a ``PLAIN_INFO`` message, in writable arrays of its own.
 
         Raises:
-            ValueError: no layout known, or bytes that do not fill it.
+            ValueError: no layout known, a message of another layout, or bytes that do not fill it.
         """
         if self.layout is None:
             raise ValueError("a step info came as raw bytes before any came pickled")
-        if len(data) != self._size:
-            raise ValueError(f"a step info of {len(data)} bytes where its layout {self.layout} makes {self._size}")
+        if data[1:2] != bytes([self._learnt]) or len(data) != self._size:
+            raise ValueError(f"a step info of {len(data)} bytes, layout {data[1:2].hex() or 'none'}, where this "
+                             f"side's layout {self._learnt} ({self.layout}) makes {self._size}")
         buf = bytearray(data)
         return {key: np.frombuffer(buf, dtype, count, offset).reshape(shape)
                 for key, dtype, count, offset, shape in self._fields}

@@ -461,6 +461,13 @@ class WorkerVectorEnv(VectorEnv):
                        f"with code {code} during {what}"
         return WorkerError(f"vector env {self._broken}; its envs are lost: close this vector env and make a new one")
 
+    def _interrupted(self, exc: BaseException, what: str) -> None:
+        """An exchange left by ``exc``: not an error (those are raised once every answer is read) but
+        Ctrl-C or an exit, with answers unread or orders unsent. The workers are out of step: refuse
+        the next request rather than read the wrong answer."""
+        if not isinstance(exc, Exception):
+            self._broken = f"was interrupted ({type(exc).__name__}) during {what}, with the workers' answers unread"
+
     def _check(self) -> None:
         if self._broken is not None:
             raise WorkerError(f"vector env {self._broken}; close this vector env and make a new one")
@@ -472,13 +479,17 @@ class WorkerVectorEnv(VectorEnv):
         meanwhile; then gather the answers in worker order (that share's first, when it has one).
         An error of that share is raised once the workers have answered."""
         self._check()
-        for k, message in enumerate(messages):
-            if message is not None:
-                self._send(k, message)
-        sent = [k for k, message in enumerate(messages) if message is not None]
         share = self._workers.local
-        mine, gathered = self._beside(sent, what, None if share is None or local is None else
-                                      lambda: share.answer(local))
+        try:
+            for k, message in enumerate(messages):
+                if message is not None:
+                    self._send(k, message)
+            sent = [k for k, message in enumerate(messages) if message is not None]
+            mine, gathered = self._beside(sent, what, None if share is None or local is None else
+                                          lambda: share.answer(local))
+        except BaseException as exc:
+            self._interrupted(exc, what)
+            raise
         answers = dict(zip(sent, gathered))
         found = [answers.get(k) for k in range(len(messages))]
         return [mine, *found] if share is not None else found
@@ -564,14 +575,19 @@ class WorkerVectorEnv(VectorEnv):
                              f"{self.single_action_space.shape}: give an array of shape {act.shape}")
         act[...] = arr
         conns = self._workers.conns
-        for k in range(self.num_workers):
-            try:
-                conns[k].send_bytes(_STEP)
-            except (OSError, ValueError) as exc:
-                raise self._dead(k, "a step") from exc
         share = self._workers.local  # steps its envs while the workers step theirs
         began, busy = time.perf_counter(), 0.0 if share is None else share.busy
-        mine, infos = self._beside(range(self.num_workers), "a step", None if share is None else share.step, step=True)
+        try:
+            for k in range(self.num_workers):
+                try:
+                    conns[k].send_bytes(_STEP)
+                except (OSError, ValueError) as exc:
+                    raise self._dead(k, "a step") from exc
+            mine, infos = self._beside(range(self.num_workers), "a step", None if share is None else share.step,
+                                       step=True)
+        except BaseException as exc:
+            self._interrupted(exc, "a step")
+            raise
         if share is not None:  # the time after its own share this process waited for the workers' answers
             share.waiting += time.perf_counter() - began - (share.busy - busy)
         parts = [(start, info) for (start, _), info in zip(self._shares(), [mine, *infos] if share else infos)]
@@ -833,7 +849,8 @@ class RunQueueDelay:
     Beside other programs on the same cores a process that was woken waits for a core; a process that
     spins keeps one from them. No standard module reads this (``os.sched_*`` and ``resource`` give CPU
     time and switch counts, not the wait), so it is read here: one ``pread`` of an open file, about
-    1 us. Where the file is missing (not Linux) ``per_step`` stays 0.
+    1 us. The file is opened again for another thread (by its kernel id, in this process: a fork's
+    child opens its own). Where the file is missing (not Linux) ``per_step`` stays 0.
     """
 
     WEIGHT = 1 / 16  # of each sample in the running mean
@@ -841,33 +858,43 @@ class RunQueueDelay:
     def __init__(self) -> None:
         self.per_step = 0.0
         self._fd: int | None = None
-        self._thread: int | None = None
+        self._thread: tuple[int, int] | None = None  # (process id, kernel thread id) the file is of
         self._last: int | None = None
+        self._missing = False  # no such file here: never asked again
 
     def sample(self) -> None:
-        thread = threading.get_ident()
+        if self._missing:
+            return
+        thread = (os.getpid(), threading.get_native_id())
         if thread != self._thread:  # (re)open for the thread that steps now
             self.close()
-            self._thread = thread
             try:
                 self._fd = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+            except FileNotFoundError:
+                self._missing = True
+                return
             except OSError:
                 return
-        if self._fd is None:
+            self._thread = thread
+        fd = self._fd
+        if fd is None:
             return
         try:
-            waited = int(os.pread(self._fd, 64, 0).split()[1])  # "cpu_ns run_delay_ns timeslices"
+            waited = int(os.pread(fd, 64, 0).split()[1])  # "cpu_ns run_delay_ns timeslices"
         except (OSError, ValueError, IndexError):
-            self.close()
+            self.close()  # the next sample opens it again
             return
         if self._last is not None:
             self.per_step += ((waited - self._last) * 1e-9 - self.per_step) * self.WEIGHT
         self._last = waited
 
     def close(self) -> None:
-        fd, self._fd, self._last = self._fd, None, None
+        fd, self._fd, self._last, self._thread = self._fd, None, None, None
         if fd is not None:
-            os.close(fd)
+            try:
+                os.close(fd)
+            except OSError:
+                pass
 
 
 def _spin_wait(value: float | None, shares: int, in_parent: bool) -> float:

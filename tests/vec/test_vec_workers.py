@@ -483,7 +483,7 @@ def test_a_share_that_waits_for_a_core_sleeps_at_once(monkeypatch) -> None:
 
 
 @pytest.mark.skipif(not Path("/proc/thread-self/schedstat").exists(), reason="Linux schedstat only")
-def test_run_queue_delay_counts_the_time_a_thread_waits_for_its_core() -> None:
+def test_run_queue_delay_counts_the_time_a_thread_waits_for_its_core(monkeypatch) -> None:
     """``RunQueueDelay`` reads the kernel's wait of this thread (not its CPU time): pinned to one core
     beside two busy processes pinned there too, 0.1 s of this thread's work waits for the core about
     twice that; where the file is missing it stays 0 and says nothing."""
@@ -493,8 +493,10 @@ def test_run_queue_delay_counts_the_time_a_thread_waits_for_its_core() -> None:
 
     core = min(os.sched_getaffinity(0))
     before = os.sched_getaffinity(0)
-    code = f"import os, sys; os.sched_setaffinity(0, {{{core}}}); print(flush=True); sys.stdin.readline() or exit()\n" \
-           "while True: pass"
+    parent = os.getpid()  # the children stop by themselves within 60 s, or when this process is gone
+    code = (f"import os, sys, time; os.sched_setaffinity(0, {{{core}}}); print(flush=True)\n"
+            "sys.stdin.readline() or exit()\n"
+            f"end = time.monotonic() + 60\nwhile time.monotonic() < end and os.getppid() == {parent}: pass")
     busy = [subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
             for _ in range(2)]
     delay = RunQueueDelay()
@@ -525,13 +527,30 @@ def test_run_queue_delay_counts_the_time_a_thread_waits_for_its_core() -> None:
             raise FileNotFoundError(path)
         return real_open(path, *args)
 
-    os.open = no_proc
-    try:
-        missing.sample()
-        missing.sample()
-    finally:
-        os.open = real_open
+    monkeypatch.setattr(os, "open", no_proc)
+    missing.sample()
+    missing.sample()
     assert missing.per_step == 0.0
+
+
+def test_an_interrupted_step_breaks_the_env_instead_of_reading_the_wrong_answers() -> None:
+    """Ctrl-C in the middle of a step (here: this process's share raises KeyboardInterrupt) leaves the
+    worker's answer unread; the next request says so instead of reading that answer as its own."""
+    vec = WorkerVectorEnv(ENV, 2, workers=1, in_parent=True)
+    try:
+        vec.reset(seed=0)
+        share = vec._workers.local
+
+        def interrupted() -> None:
+            raise KeyboardInterrupt
+
+        share.step = interrupted
+        with pytest.raises(KeyboardInterrupt):
+            vec.step(np.zeros((2, 5), np.float32))
+        with pytest.raises(WorkerError, match=r"interrupted \(KeyboardInterrupt\) during a step"):
+            vec.reset(seed=1)
+    finally:
+        vec.close()
 
 
 def test_an_error_of_the_share_stepped_here_keeps_the_workers_in_step() -> None:
@@ -569,7 +588,7 @@ def test_merge_infos_fills_what_a_worker_lacks() -> None:
 def test_merge_infos_of_alike_workers_is_the_general_merge() -> None:
     """The quick merge of a usual step (same keys and dtypes in every worker) gives what the general
     merge gives, whatever order the parts come in; a dtype that differs goes the general way."""
-    from multiros.envs.shm_exchange import _merge
+    from multiros.envs.shm_exchange import _merge, _merge_alike
 
     a = {"is_success": np.array([0.0, 1.0]), "_is_success": np.array([True, True])}
     b = {"is_success": np.array([1.0, 0.0, 1.0]), "_is_success": np.array([True, False, True])}
@@ -580,9 +599,14 @@ def test_merge_infos_of_alike_workers_is_the_general_merge() -> None:
         for key in general:
             assert out[key].dtype == general[key].dtype
             np.testing.assert_array_equal(out[key], general[key])
+    assert _merge_alike([(0, a), (2, b)], 5) is not None  # the quick way was taken
     c = {"is_success": np.array([1, 0, 1]), "_is_success": np.array([True, True, True])}  # ints, not floats
     out = merge_infos([(0, a), (2, c)], 5)
     np.testing.assert_array_equal(out["is_success"], [0.0, 1.0, 1.0, 0.0, 1.0])
+    nested = {**b, "final_info": {"x": np.array([1, 2, 3])}}
+    scalar = {"is_success": np.array(1.0), "_is_success": np.array([True, True, True])}
+    for other in (c, nested, scalar, {}, dict(reversed(list(b.items())))):
+        assert _merge_alike([(0, a), (2, other)], 5) is None, other  # the general merge's cases
 
 
 def test_step_infos_travel_as_raw_bytes_once_their_layout_is_known() -> None:
@@ -598,6 +622,7 @@ def test_step_infos_travel_as_raw_bytes_once_their_layout_is_known() -> None:
     assert data is not None and data[:1] == PLAIN_INFO
     first, second = parent.unpack(data), parent.unpack(data)
     assert list(first) == ["is_success", "_is_success"]
+    assert all(value.flags.aligned and value.flags.writeable for value in first.values())
     assert first["is_success"].dtype == np.float64 and first["_is_success"].dtype == np.bool_
     np.testing.assert_array_equal(first["is_success"], [1.0, 1.0])
     first["is_success"][0] = 5.0  # writable, and each step's arrays are its own
@@ -609,8 +634,17 @@ def test_step_infos_travel_as_raw_bytes_once_their_layout_is_known() -> None:
                   {"is_success": np.array([None, None]), "_is_success": np.array([True, False])},
                   {"is_success": 1.0, "_is_success": np.array([True, False])}):
         assert worker.pack(other) is None
-    with pytest.raises(ValueError, match="does not match|makes"):
+    with pytest.raises(ValueError, match="makes"):
         parent.unpack(data[:-1])
+    # out of step (a layout one side learnt and the other not): refused even where the sizes agree
+    swapped = {"is_reached": np.array([1.0, 1.0]), "_is_reached": np.array([True, True])}
+    ahead = InfoCodec()
+    ahead.learn(info)
+    ahead.learn(swapped)
+    other = ahead.pack(swapped)
+    assert other is not None and len(other) == len(data)
+    with pytest.raises(ValueError, match="layout"):
+        parent.unpack(other)
     with pytest.raises(ValueError, match="before any came pickled"):
         InfoCodec().unpack(data)
     worker.learn({"final_info": {}})  # a nested info went pickled: no raw bytes until a plain one goes
