@@ -10,7 +10,8 @@ Prints (env steps/s, random actions, episodes autoreset as they end):
   to make, to reset, and from reset to the first step;
 * for each make_vec(N) with workers, how much of the wall clock each share spent stepping its envs
   (``WorkerVectorEnv.worker_stats``): near 1 means they are the bound, well below 1 that they wait
-  for the exchange or for the slowest of them;
+  for the exchange or for the slowest of them; and how long each share's thread waited for a core per
+  step (the spin's gate: another program on the cores shows there);
 * ``make_vec(ID, 8, sim_mode="process")`` (a worker process per node, shared memory) against the same
   K nodes composed on threads of this process and against K process-mode nodes called over Zenoh
   from this process (``workers=0``), interleaved;
@@ -51,6 +52,7 @@ from fetch_compat import make_fetch_reach  # noqa: E402
 
 import uniros  # noqa: E402
 from multiros.envs.batch import usable_cores  # noqa: E402
+from multiros.envs.worker_vector import QUEUED_TO_SPIN  # noqa: E402
 
 
 class Stepper:
@@ -265,6 +267,9 @@ def main() -> None:
                     f"waiting for orders {np.mean(share('wait_seconds', ks)):.2f}")
             if stepper.env.local_rows is not None:
                 busy += f"; this process waiting for their answers {share('wait_seconds', [0])[0]:.2f}"
+            queued = [s["queued_per_step"] * 1e6 for s in after]
+            busy += (f"; waiting for a core {min(queued):.0f}-{max(queued):.0f} us a step (spin while under "
+                     f"{QUEUED_TO_SPIN * 1e6:.0f})")
             busy += f" [{layout(stepper.env)}]"
         stepper.close()
         k = max(1, workers)
