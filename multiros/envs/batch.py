@@ -426,6 +426,9 @@ def make_env_batch(env_id: str, num_envs: int, batch_options: Mapping[str, Any] 
     base = kwargs.pop("robot_name", getattr(creator, "ROBOT_NAME", "robot"))
     env_kwargs = {**spec.kwargs, **kwargs}
     trusted = local_description_dirs(env_kwargs.get("robot_model_xml"), env_kwargs.get("controllers_file"))
+    if env_kwargs.get("floor_color") is not None:  # the envs join the batch's nodes: they start with it
+        options["connect_kwargs"] = {**dict(options.get("connect_kwargs") or {}),
+                                     "floor_color": env_kwargs["floor_color"]}
 
     def make_env(**batch_kwargs: Any) -> Any:
         return creator(**env_kwargs, **batch_kwargs)

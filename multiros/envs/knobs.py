@@ -78,7 +78,8 @@ _REAL_REFUSED = {
 #: Knobs of the simulated envs that mean nothing to a robot (a Real env ignores them with a warning).
 SIMULATION_ONLY = frozenset({
     "sim_mode", "sim_node_name", "gui", "num_sim_steps", "sim_timestep", "real_time_factor", "spawn_robot",
-    "robot_model_xml", "reset_mode", "step_mode", "frames", "render_camera", "render_width", "render_height",
+    "floor_color", "robot_model_xml", "reset_mode", "step_mode", "frames", "render_camera", "render_width",
+    "render_height",
 })
 
 

@@ -74,6 +74,8 @@ class SimConnection(RobotConnection):
         timeout_sec: bound on every call; max_reset_attempts: retries of the initial pose.
         shared: an open :class:`~multiros.sim.launch.SimulationConnection` to join (a batch's node):
             not closed by this connection, and its resets never touch the world.
+        floor_color: the floor of a node this connection starts (``"light"``/``"dark"``); a shared
+            node's is the batch's.
         world_slot: the robot's slot offset ``(x, y, z)`` in a shared world.
     """
 
@@ -98,6 +100,7 @@ class SimConnection(RobotConnection):
         timeout_sec: float = 10.0,
         max_reset_attempts: int = 3,
         shared: SimulationConnection | None = None,
+        floor_color: str | None = None,
         world_slot: Sequence[float] = (0.0, 0.0, 0.0),
     ) -> None:
         self.robot_name = robot_name
@@ -126,6 +129,7 @@ class SimConnection(RobotConnection):
             shared.trust(local_description_dirs(model.robot_model_xml, model.controllers_file))
         self.link = shared if shared is not None else connect(
             sim_mode, node_name=sim_node_name, transport=transport, gui=gui, timeout_sec=self.timeout_sec,
+            floor_color=floor_color,
             trusted_paths=local_description_dirs(model.robot_model_xml, model.controllers_file) if model else ())
         try:
             self.node = self.link.node

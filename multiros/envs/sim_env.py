@@ -52,6 +52,10 @@ class MujocoEnvCore(EnvCore):
         sim_timestep: physics time step in seconds (``None`` keeps the node's).
         real_time_factor: real-time factor of the ``realtime`` mode (1.0 = wall clock, <= 0 = as fast
             as possible).
+        floor_color: the floor's tiles in rendered images of a node this env starts, ``"light"``
+            (default) or ``"dark"`` (a pale arm stands out on it in camera observations); no physics.
+            ValueError with ``sim_mode="existing"`` (that node's floor is its own; ``uniros-sim
+            --floor-color``). In a batched vector env the batch starts the nodes with it.
         frames: robot links or sites whose world poses each step returns (e.g. the end effector).
         sim_mode: ``"composed"`` (node in this process, the fast default), ``"process"`` (a child
             process over Zenoh) or ``"existing"`` (connect to a running node named ``sim_node_name``).
@@ -125,6 +129,7 @@ class MujocoEnvCore(EnvCore):
         action_cycle_time: float = 0.0,
         sim_timestep: float | None = None,
         real_time_factor: float | None = None,
+        floor_color: str | None = None,
         frames: Sequence[str] = (),
         sim_mode: str = "composed",
         sim_node_name: str = "mujoco_sim",
@@ -167,7 +172,8 @@ class MujocoEnvCore(EnvCore):
             reset_controllers=k["reset_controllers"], frames=k["frames"], sim_mode=k["sim_mode"],
             sim_node_name=k["sim_node_name"], transport=k["transport"], gui=k["gui"],
             sim_timestep=k["sim_timestep"], real_time_factor=k["real_time_factor"], timeout_sec=k["timeout_sec"],
-            max_reset_attempts=k["max_reset_attempts"], shared=k["sim_connection"], world_slot=k["world_slot"])
+            max_reset_attempts=k["max_reset_attempts"], shared=k["sim_connection"], world_slot=k["world_slot"],
+            floor_color=k["floor_color"])
         self.robot_name = self.connection.robot_name  # the node may have renamed it
 
     # -- what the robot's connection holds, by its documented names ---------------------------

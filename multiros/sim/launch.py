@@ -77,6 +77,7 @@ def compose(
     real_time_factor: float = 1.0,
     timestep: float | None = None,
     gui: bool = False,
+    floor_color: str | None = None,
     **node_kwargs: Any,
 ) -> Any:
     """Create a simulation node in this process and return it.
@@ -89,13 +90,20 @@ def compose(
         real_time_factor: playing speed (1.0 = wall clock, <= 0 = as fast as possible).
         timestep: physics time step in seconds.
         gui: open the interactive viewer (needs a display).
+        floor_color: the floor in rendered images, ``"light"`` (default) or ``"dark"``
+            (:class:`~multiros.sim.world.WorldOptions`).
     """
     from multiros.sim.node import SimulationNode
     from multiros.sim.world import WorldOptions
 
     if context is None:
         context = Context(transport=transport).init()
-    options = WorldOptions() if timestep is None else WorldOptions(timestep=timestep)
+    from multiros.sim.world_model import check_floor_color
+
+    world: dict[str, Any] = {} if timestep is None else {"timestep": timestep}
+    if floor_color is not None:
+        world["floor_color"] = check_floor_color(floor_color)
+    options = WorldOptions(**world)
     node = SimulationNode(
         node_name, options=options, paused=paused, real_time_factor=real_time_factor, context=context, **node_kwargs
     )
@@ -223,6 +231,7 @@ def connect(
     paused: bool = True,
     real_time_factor: float = 1.0,
     timestep: float | None = None,
+    floor_color: str | None = None,
     context: Context | None = None,
     isolated: bool = True,
     trusted_paths: Sequence[str | os.PathLike[str]] = (),
@@ -239,6 +248,8 @@ def connect(
         gui: open the viewer (composed and process modes).
         timeout_sec: how long to wait for the node to become ready.
         paused, real_time_factor, timestep: start-up options of a node this call starts.
+        floor_color: the floor in rendered images of a node this call starts, ``"light"`` or
+            ``"dark"`` (ValueError for ``existing``: that node's floor is its own).
         context: join this context instead of creating one (the caller then owns its shutdown).
         isolated: ``process`` mode: give the child a graph of its own (the default). Over Zenoh a
             private router on a free loopback port, closed by a secret, so no other process on the
@@ -251,6 +262,13 @@ def connect(
     """
     if mode not in ("composed", "process", "existing"):
         raise ValueError(f"sim_mode {mode!r} is not one of 'composed', 'process', 'existing'")
+    if floor_color is not None:
+        from multiros.sim.world_model import check_floor_color
+
+        check_floor_color(floor_color)
+        if mode == "existing":
+            raise ValueError(f"floor_color={floor_color!r} sets the floor of a node this env starts; the existing "
+                             "node keeps its own (start it with uniros-sim --floor-color)")
     if mode != "composed" and transport == "inproc":
         raise ValueError(f"sim_mode {mode!r} needs a wire transport; use transport='zenoh' or 'rclpy'")
     if mode == "composed":
@@ -275,12 +293,12 @@ def connect(
         if mode == "composed":
             sim_node = compose(
                 node_name, context=ctx, paused=paused, real_time_factor=real_time_factor, timestep=timestep, gui=gui,
-                **_trust_kwargs(trusted_paths),
+                floor_color=floor_color, **_trust_kwargs(trusted_paths),
             )
         elif mode == "process":
             process = _spawn_child(ctx, node_name, gui=gui, paused=paused, real_time_factor=real_time_factor,
                                    timestep=timestep, private=isolated and context is None and transport == "zenoh",
-                                   trusted_paths=trusted_paths)
+                                   trusted_paths=trusted_paths, floor_color=floor_color)
         node = Node(f"uniros_env_{os.getpid()}_{next(_env_ids)}", context=ctx)
         client = SimulationClient(node, "/" + node_name.lstrip("/"), timeout_sec=timeout_sec)
         if mode != "composed":
@@ -336,7 +354,7 @@ def _too_broad_to_trust() -> set[str]:
 
 def _spawn_child(
     ctx: Context, node_name: str, *, gui: bool, paused: bool, real_time_factor: float, timestep: float | None,
-    private: bool = False, trusted_paths: Sequence[str | os.PathLike[str]] = (),
+    private: bool = False, trusted_paths: Sequence[str | os.PathLike[str]] = (), floor_color: str | None = None,
 ) -> subprocess.Popen:
     argv = [sys.executable, "-m", "multiros.sim.launch", "--name", node_name.lstrip("/"), "--transport",
             ctx.transport_name,
@@ -348,6 +366,8 @@ def _spawn_child(
         argv.append("--gui")
     if timestep is not None:
         argv += ["--timestep", str(timestep)]
+    if floor_color is not None:
+        argv += ["--floor-color", floor_color]
     for path in trusted_paths:
         argv += ["--trust-path", os.fspath(path)]
     env = private_environment() if private else dict(os.environ)
@@ -440,6 +460,9 @@ def _parser() -> argparse.ArgumentParser:
                         help="speed when playing: 1.0 = wall clock, <= 0 = as fast as possible")
     parser.add_argument("--timestep", type=float, help="physics time step in seconds")
     parser.add_argument("--gui", action="store_true", help="open the interactive MuJoCo viewer")
+    parser.add_argument("--floor-color", default=None, choices=["light", "dark"],
+                        help="the floor's tiles in rendered images (default: light); a pale arm seen from "
+                             "pixels stands out on dark"),
     parser.add_argument("--router", default=None,
                         help="Zenoh router: 'auto' (default: use the one at $UNIROS_ZENOH_ROUTER or "
                              "tcp/127.0.0.1:7447, start one there if none listens), 'embedded', 'none', "
@@ -521,7 +544,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,
                        real_time_factor=opts.real_time_factor, timestep=opts.timestep, gui=opts.gui,
-                       serve=False, **node_options)
+                       floor_color=opts.floor_color, serve=False, **node_options)
         for name, uri in robots:
             node.spawn_from_cli(name, uri)
         node.mark_launched()

@@ -34,6 +34,11 @@ _WORLD_CONTYPE, _WORLD_CONAFFINITY = 1, 3
 _SERVO_WN = 50.0  # rad/s: natural frequency of the default position servos (critically damped)
 _VELOCITY_GAIN = 1000.0  # 1/s: default velocity servo bandwidth (kv = inertia x this); implicit, so stable
 _MJ_FREE = int(mujoco.mjtJoint.mjJNT_FREE)
+#: The floor's tiles, edge marks and all, by ``WorldOptions.floor_color``: rendering only.
+FLOOR_COLORS: dict[str, tuple[tuple[float, float, float], tuple[float, float, float], tuple[float, float, float]]] = {
+    "light": ((0.86, 0.86, 0.87), (0.8, 0.8, 0.82), (0.68, 0.68, 0.7)),
+    "dark": ((0.18, 0.18, 0.2), (0.12, 0.12, 0.14), (0.25, 0.25, 0.28)),
+}
 DEFAULT_CONTROLLERS = {
     "controller_manager": {"ros__parameters": {
         "joint_state_broadcaster": {"type": "joint_state_broadcaster/JointStateBroadcaster"},
@@ -55,6 +60,7 @@ def base_spec(opts: WorldOptions) -> mujoco.MjSpec:
     if opts.integrator not in integrators:
         raise ValueError(f"integrator '{opts.integrator}' is not one of {sorted(integrators)}")
     spec.option.integrator = int(integrators[opts.integrator])
+    check_floor_color(opts.floor_color)
     # MuJoCo would reset *all* of mjData on a bad state; we restore only the affected entity.
     spec.option.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
     spec.visual.global_.offwidth = 1920
@@ -67,17 +73,25 @@ def base_spec(opts: WorldOptions) -> mujoco.MjSpec:
     return spec
 
 
+def check_floor_color(value: object) -> str:
+    """``value`` if it names one of :data:`FLOOR_COLORS`, else ValueError saying which do."""
+    if not isinstance(value, str) or value not in FLOOR_COLORS:
+        raise ValueError(f"floor_color must be one of {sorted(FLOOR_COLORS)}, got {value!r}")
+    return value
+
+
 def _add_scenery(spec: mujoco.MjSpec, opts: WorldOptions) -> None:
     """What rendered images show besides the entities, none of it physics: a pale sky, a floor of
-    0.5 m light grey tiles, a sun behind the default views' left shoulder and a soft headlight."""
+    0.5 m grey tiles (light or dark: ``opts.floor_color``), a sun behind the default views' left
+    shoulder and a soft headlight."""
     spec.add_texture(name="uniros_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
                      builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, rgb1=[0.96, 0.97, 0.99],
                      rgb2=[0.72, 0.77, 0.84], width=64, height=384)
     if opts.floor:
+        rgb1, rgb2, mark = FLOOR_COLORS[opts.floor_color]
         spec.add_texture(name="uniros_floor", type=mujoco.mjtTexture.mjTEXTURE_2D,
-                         builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=[0.86, 0.86, 0.87],
-                         rgb2=[0.8, 0.8, 0.82], mark=mujoco.mjtMark.mjMARK_EDGE, markrgb=[0.68, 0.68, 0.7],
-                         width=256, height=256)
+                         builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, rgb1=list(rgb1), rgb2=list(rgb2),
+                         mark=mujoco.mjtMark.mjMARK_EDGE, markrgb=list(mark), width=256, height=256)
         floor = spec.add_material(name="uniros_floor", texrepeat=[1, 1], texuniform=True, reflectance=0.0)
         floor.textures[int(mujoco.mjtTextureRole.mjTEXROLE_RGB)] = "uniros_floor"
     if opts.lights:

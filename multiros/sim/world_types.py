@@ -41,6 +41,9 @@ class WorldOptions:
         default_armature: armature (kg m^2) added to URDF joints that have none, for stability.
         gravity_compensation: default of :meth:`~multiros.sim.world.World.spawn`'s ``gravity_compensation``.
         camera: name of the default free camera pose: ``(lookat xyz, distance, azimuth deg, elevation deg)``.
+        floor_color: the floor's tiles in rendered images, ``"light"`` (default) or ``"dark"``
+            (:data:`~multiros.sim.world_model.FLOOR_COLORS`; no physics): a pale arm learnt from
+            64 x 64 pixels only on the dark one (docs/tasks.md).
     """
 
     timestep: float = 0.002
@@ -51,6 +54,7 @@ class WorldOptions:
     default_armature: float = 0.01
     gravity_compensation: bool = True
     camera: tuple[tuple[float, float, float], float, float, float] = ((0.0, 0.0, 0.3), 1.5, 135.0, -25.0)
+    floor_color: str = "light"
 
 
 class EntityCategory(enum.IntEnum):

@@ -155,6 +155,21 @@ def test_the_other_pixel_configs_are_the_rx200_recipe_at_64_pixels(env_id):
             rx200.eval_freq, rx200.eval_episodes, rx200.stop_at_success, rx200.seed)
 
 
+def test_the_irb120_pixel_config_is_the_recipe_with_its_camera_and_a_dark_floor():
+    """config/training/pixels/IRB120ReacherGoalSim-v0.yaml: the VX300S's file (the RX200's recipe at 64 x 64)
+    with a camera framing the goal box and ``floor_color: dark``, what the run that reached 0.95 used."""
+    from importlib import resources
+
+    pixels = resources.files("rl_environments.config").joinpath("training", "pixels")
+    vx300s = load_training_config(str(pixels.joinpath("VX300SReacherGoalSim-v0.yaml")))
+    irb120 = load_training_config(str(pixels.joinpath("IRB120ReacherGoalSim-v0.yaml")))
+    assert irb120.env_kwargs == {**vx300s.env_kwargs, "camera_position": [0.938, -0.368, 0.675],
+                                 "camera_lookat": [0.3, 0.0, 0.25], "floor_color": "dark"}
+    assert irb120.training_steps == vx300s.training_steps and irb120.algo_params == vx300s.algo_params
+    assert (irb120.algorithm, irb120.use_her, irb120.policy_params, irb120.stop_at_success, irb120.seed) == \
+           (vx300s.algorithm, vx300s.use_her, vx300s.policy_params, vx300s.stop_at_success, vx300s.seed)
+
+
 @pytest.mark.slow
 def test_uniros_train_and_eval_a_drq_sac_model_on_a_camera_env(tmp_path, capsys):
     from uniros.cli import main as cli_main
