@@ -95,11 +95,10 @@ def compose(
     """
     from multiros.sim.node import SimulationNode
     from multiros.sim.world import WorldOptions
+    from multiros.sim.world_model import check_floor_color
 
     if context is None:
         context = Context(transport=transport).init()
-    from multiros.sim.world_model import check_floor_color
-
     world: dict[str, Any] = {} if timestep is None else {"timestep": timestep}
     if floor_color is not None:
         world["floor_color"] = check_floor_color(floor_color)
@@ -439,6 +438,8 @@ def robot_resource(
 
 
 def _parser() -> argparse.ArgumentParser:
+    from multiros.sim.world_model import FLOOR_COLORS
+
     parser = argparse.ArgumentParser(
         prog="uniros-sim",
         description="Run the uniros MuJoCo simulation node. It reports ready (a log line, and its services "
@@ -460,9 +461,9 @@ def _parser() -> argparse.ArgumentParser:
                         help="speed when playing: 1.0 = wall clock, <= 0 = as fast as possible")
     parser.add_argument("--timestep", type=float, help="physics time step in seconds")
     parser.add_argument("--gui", action="store_true", help="open the interactive MuJoCo viewer")
-    parser.add_argument("--floor-color", default=None, choices=["light", "dark"],
+    parser.add_argument("--floor-color", default=None, choices=sorted(FLOOR_COLORS),
                         help="the floor's tiles in rendered images (default: light); a pale arm seen from "
-                             "pixels stands out on dark"),
+                             "pixels stands out on dark")
     parser.add_argument("--router", default=None,
                         help="Zenoh router: 'auto' (default: use the one at $UNIROS_ZENOH_ROUTER or "
                              "tcp/127.0.0.1:7447, start one there if none listens), 'embedded', 'none', "
