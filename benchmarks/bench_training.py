@@ -68,9 +68,8 @@ class _Watched(Session):
     window: int = 2000
     curve: list[tuple[int, float, float]] = field(default_factory=list)
 
-    def after_eval(self, steps: int, rate: float, mean_return: float, *, seconds: float | None = None,
-                   episodes: int | None = None) -> bool:
-        keep = super().after_eval(steps, rate, mean_return, seconds=seconds, episodes=episodes)
+    def after_eval(self, steps: int, rate: float, mean_return: float, **kwargs: Any) -> bool:
+        keep = super().after_eval(steps, rate, mean_return, **kwargs)
         self.curve.append((steps, self.evaluations[-1]["train_seconds"], rate))
         if self.steps_to_success is not None and steps >= self.steps_to_success + self.window:
             return False

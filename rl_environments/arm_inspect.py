@@ -230,7 +230,7 @@ def inspect_description(uri: str, xacro_args: Mapping[str, str] | None = None) -
     try:
         path = index.resolve_uri(uri) if "://" in uri else Path(uri).expanduser().absolute()
     except SimError as exc:
-        _fail(uri, f"{_first(exc)}; fix: source the workspace that has the package (AMENT_PREFIX_PATH)")
+        _fail(uri, _first(exc))
     if not path.is_file():
         _fail(uri, f"file {str(path)!r} not found; fix: give an existing URDF or xacro file")
     try:

@@ -504,7 +504,9 @@ def _simulated_twin(env_id: str) -> str | None:
 
 
 def default_config_for(env_id: str) -> TrainingConfig:
-    """The training config uniros ships for ``env_id`` (``config/training/<env_id>.yaml``)."""
+    """The training config uniros ships for ``env_id``: for an arm file's ID its task's
+    (``config/training/tasks/<task>.yaml``, :func:`arm_task_config`), else ``config/training/<env_id>.yaml``
+    (a Real ID has none: the error names its simulated twin to train)."""
     bare = env_id.rpartition(":")[2]
     candidate = resources.files("rl_environments.config").joinpath("training", f"{bare}.yaml")
     derived = None if candidate.is_file() else arm_task_config(bare)

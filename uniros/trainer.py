@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import signal
 import time
 from collections.abc import Callable
@@ -242,7 +243,8 @@ def _callback_classes() -> tuple[type, type, type]:
                 self.logger.record("eval/success_rate", rate)
             self.logger.dump(self.num_timesteps)
             keep_going = s.after_eval(int(self.num_timesteps), rate, stats["mean_return"], seconds=seconds,
-                                      episodes=int(stats["episodes"]))
+                                      episodes=int(stats["episodes"]), std_return=stats["std_return"],
+                                      mean_length=stats["mean_length"])
             s.excluded += time.perf_counter() - started
             return keep_going
 
@@ -459,16 +461,21 @@ class Session:
                                                    train_seconds=round(self.train_seconds(), 3), **values)
 
     def after_eval(self, steps: int, rate: float, mean_return: float, *, seconds: float | None = None,
-                   episodes: int | None = None) -> bool:
+                   episodes: int | None = None, std_return: float | None = None,
+                   mean_length: float | None = None) -> bool:
         """Record an evaluation, keep the best model; False stops training (``stop_at_success``).
 
         ``seconds``: training seconds at ``steps`` (default: now; the evaluation callback passes the
-        time before it evaluated, which is not training).
+        time before it evaluated, which is not training). ``std_return`` and ``mean_length``: the
+        evaluation's, written to ``evaluations.csv`` when given.
         """
         seconds = self.train_seconds() if seconds is None else seconds
         best = max(self.evaluations, key=_eval_key, default=None)
         row = {"steps": steps, "train_seconds": round(seconds, 3), "success_rate": rate, "mean_return": mean_return,
                "episodes": self.config.eval_episodes if episodes is None else episodes}
+        for key, value in (("std_return", std_return), ("mean_length", mean_length)):
+            if value is not None and math.isfinite(value):
+                row[key] = value
         self.evaluations.append(row)
         if self.paths.evaluations is not None:
             from uniros.reports import write_evaluations

@@ -26,13 +26,32 @@ from gymnasium.vector.utils import batch_space, concatenate, create_empty_array,
 from multiros.envs.batch import EnvBatch, make_env_batch
 
 
+def autoreset_mode_of(value: AutoresetMode | str) -> AutoresetMode:
+    """Gymnasium's ``AutoresetMode`` from itself, its value (``"NextStep"``) or its name (``"NEXT_STEP"``),
+    in any case, with or without ``_``.
+
+    Raises:
+        ValueError: not one of the modes (the message lists them).
+    """
+    if isinstance(value, AutoresetMode):
+        return value
+    if isinstance(value, str):
+        key = value.replace("_", "").replace("-", "").lower()
+        for mode in AutoresetMode:
+            if key in (mode.name.replace("_", "").lower(), mode.value.lower()):
+                return mode
+    choices = ", ".join(f"{m.name!r}" for m in AutoresetMode)
+    raise ValueError(f"autoreset_mode {value!r} is not one of {choices} (gymnasium.vector.AutoresetMode, or its "
+                     "name or value as a string)")
+
+
 class BatchedVectorEnv(VectorEnv):
     """N uniros envs whose robots share simulation nodes, stepped in one request per node.
 
     Args:
         batch: the envs (see :class:`~multiros.envs.batch.EnvBatch`); closed with this vector env.
         autoreset_mode: ``AutoresetMode.NEXT_STEP`` (default), ``SAME_STEP`` or ``DISABLED``
-            (or their string values).
+            (or their names or values as strings: ``"SAME_STEP"``, ``"SameStep"``).
         copy: return copies of the observations (as ``SyncVectorEnv``).
         observations: arrays to keep the batch's observations in (an array of ``num_envs`` rows for a
             Box space, a dict of them for a Dict of Boxes), e.g. views of shared memory
@@ -44,7 +63,7 @@ class BatchedVectorEnv(VectorEnv):
         self.batch = batch
         self.envs = batch.envs
         self.num_envs = batch.num_envs
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode)
         self.copy = copy
         first = self.envs[0]
         self.metadata = dict(first.metadata)

@@ -47,6 +47,7 @@ from gymnasium.vector.utils import batch_space
 
 from multiros.envs.batch import default_num_nodes, usable_cores
 from multiros.envs.shm_exchange import PLAIN_INFO, InfoCodec, SharedArrays, layout_for, merge_infos, shareable
+from multiros.envs.vector import autoreset_mode_of
 from multiros.ros.processes import configure_child_logging, owner_log_level
 
 __all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "pin_option", "process_mode_workers",
@@ -302,7 +303,7 @@ class WorkerVectorEnv(VectorEnv):
         """Seconds each worker polls for this process's next order before it sleeps."""
         self.num_envs = num_envs
         self.num_workers = workers
-        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        self.autoreset_mode = autoreset_mode_of(autoreset_mode)
         self.copy = copy
         rows = worker_rows(num_envs, shares)
         self.local_rows: tuple[int, int] | None = rows[0] if in_parent else None

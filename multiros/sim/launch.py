@@ -452,7 +452,8 @@ def _parser() -> argparse.ArgumentParser:
     parser.add_argument("--namespace", default="", help="node namespace")
     parser.add_argument("--transport", default=None, choices=["zenoh", "rclpy", "inproc"],
                         help="ROS transport (default: $UNIROS_TRANSPORT, else rclpy when rclpy can be imported: "
-                             "your own ROS 2 graph on its default middleware; else zenoh)")
+                             "your own ROS 2 graph on its default middleware; else zenoh). inproc: a node no "
+                             "other process can reach (to watch with --gui)")
     parser.add_argument("--robot", action="append", default=[],
                         help="spawn a robot at launch: NAME=URI[?xacro_arg=value...] (repeatable); "
                              "ResetSimulation with SCOPE_ALL brings it back")
@@ -518,6 +519,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                       **(transport_options if opts.transport == "zenoh" else {})).init(ros_args)
     except (TransportError, ValueError) as exc:
         parser.exit(2, f"uniros-sim: {exc}\n")
+    if opts.transport == "inproc":
+        _logger.warning("transport inproc: no other process can reach this node (it serves this program alone: "
+                        "watch it with --gui); for clients choose zenoh or rclpy")
     if opts.transport == "rclpy" and not os.environ.get(DISCOVERY_RANGE_ENV, "").strip():
         _logger.info("DDS discovery on this machine only (%s=LOCALHOST); set %s=SUBNET to reach other hosts",
                      DISCOVERY_RANGE_ENV, DISCOVERY_RANGE_ENV)

@@ -87,9 +87,10 @@ class PackageIndex:
                 return found
         where = "; ".join(searched) if searched else "nothing (no extra paths, entry points or ROS paths)"
         raise PackageNotFoundError(
-            f"package '{name}' not found; searched: {where}. Install a Python package registering it "
-            f"in the '{ENTRY_POINT_GROUP}' entry-point group, or add its parent directory to "
-            f"ROS_PACKAGE_PATH or to the index's extra paths.", package=name)
+            f"package '{name}' not found; searched: {where}. To make it found, any one of: source the ROS "
+            f"workspace that installs it (AMENT_PREFIX_PATH), add the directory that holds it to ROS_PACKAGE_PATH, "
+            f"or install a Python package registering it in the '{ENTRY_POINT_GROUP}' entry-point group "
+            f"(from Python: PackageIndex(extra_paths=[that directory]))", package=name)
 
     def package_roots(self) -> tuple[Path, ...]:
         """Every directory this index finds packages in (absolute, not resolved; may not exist):

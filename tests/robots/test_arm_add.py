@@ -224,6 +224,7 @@ def test_missing_package_file_and_xacro_argument_are_one_line_errors(workspace, 
     out = tmp_path / "out"
     err = _error(capsys, "package://no_such_description/urdf/r.urdf", "--name", "ArmAddX", "--output", str(out))
     assert "package 'no_such_description' not found" in err and "AMENT_PREFIX_PATH" in err
+    assert "ROS_PACKAGE_PATH" in err and "extra_paths=" in err and "index's extra paths" not in err
     err = _error(capsys, str(tmp_path / "nope.urdf"), "--name", "ArmAddX", "--output", str(out))
     assert "not found" in err
     err = _error(capsys, PANDA, "--name", "ArmAddX", "--output", str(out))  # `hand` has no default

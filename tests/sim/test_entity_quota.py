@@ -313,3 +313,26 @@ def test_uniros_sim_refuses_bad_entity_limits(option: str, value: str) -> None:
     run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", option, value],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 2 and f"{option} must be" in run.stderr
+
+
+def test_uniros_sim_on_inproc_warns_that_no_other_process_reaches_it() -> None:
+    """``uniros-sim --transport inproc`` starts, says nobody else can reach it, and exits with its owner."""
+    owner = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
+    node = subprocess.Popen([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc",
+                             "--owner-pid", str(owner.pid)], stderr=subprocess.PIPE, text=True)
+    try:
+        assert node.stderr is not None
+        lines = []
+        for line in node.stderr:  # ends when the node exits; the owner's end below makes it exit
+            lines.append(line)
+            if "ready" in line:
+                owner.stdin.close()  # type: ignore[union-attr]
+                owner.wait(timeout=30)  # reaped: a zombie would still count as alive
+        assert node.wait(timeout=60) == 0
+        text = "".join(lines)
+        assert "transport inproc: no other process can reach this node" in text and "ready" in text
+    finally:
+        for proc in (node, owner):
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait(timeout=30)

@@ -138,6 +138,8 @@ def test_train_resume_on_a_batched_vector_env(tmp_path, capsys):
     rows = read_evaluations(run / "evaluations.csv")
     # eval_freq and save_freq are env steps: 4 envs evaluate every 50 vector steps.
     assert [r["steps"] for r in rows] == [200, 400, 600, 800]
+    # Every column is filled: the spread of the evaluation's returns and its episodes' mean length too.
+    assert all(r["std_return"] >= 0 and 1 <= r["mean_length"] <= 50 for r in rows)
     # An evaluation's own time is not training time: the row at the last step is not past the total.
     assert rows[-1]["train_seconds"] <= meta["train_seconds"]
     latest = json.loads((run / "checkpoints" / "latest.json").read_text())

@@ -10,6 +10,7 @@ import pytest
 from gymnasium.vector import AutoresetMode, SyncVectorEnv
 
 import uniros
+from multiros.envs.vector import autoreset_mode_of
 from multiros.ros import Context, Node
 from multiros.ros.interfaces import type_hash
 from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationServiceError
@@ -155,6 +156,25 @@ def test_num_envs_beyond_node_limit_is_refused() -> None:
         uniros.make_vec(ENV, 2, vectorization_mode="batched", vector_kwargs={"num_nodes": 3})
     with pytest.raises(TypeError, match="unknown batched vector env option"):
         uniros.make_vec(ENV, 2, vectorization_mode="batched", vector_kwargs={"nodes": 2})
+
+
+@pytest.mark.parametrize("given", ["SAME_STEP", "SameStep", "same_step", AutoresetMode.SAME_STEP])
+def test_autoreset_mode_by_name_or_value(given: AutoresetMode | str) -> None:
+    # The docs name the modes as the enum's members (SAME_STEP); Gymnasium's strings are the values.
+    assert autoreset_mode_of(given) is AutoresetMode.SAME_STEP
+    assert autoreset_mode_of("next_step") is AutoresetMode.NEXT_STEP
+    assert autoreset_mode_of("Disabled") is AutoresetMode.DISABLED
+
+
+@pytest.mark.parametrize("layout", [{"workers": 0}, {"workers": 1}])
+def test_unknown_autoreset_mode_is_refused_naming_the_modes(layout: dict) -> None:
+    with pytest.raises(ValueError, match="'NEXT_STEP', 'SAME_STEP', 'DISABLED'"):
+        uniros.make_vec(ENV, 2, vector_kwargs={"autoreset_mode": "SAMESTEPS", **layout})
+    vec = uniros.make_vec(ENV, 2, vector_kwargs={"autoreset_mode": "SAME_STEP", **layout})
+    try:
+        assert vec.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
+    finally:
+        vec.close()
 
 
 def test_gymnasium_sync_mode_still_works() -> None:
