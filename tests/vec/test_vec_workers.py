@@ -217,6 +217,29 @@ def test_a_killed_worker_is_named_at_once() -> None:
     assert all(_gone(pid) for pid in pids)
 
 
+def test_a_worker_that_stops_answering_is_named_after_the_timeout() -> None:
+    vec = uniros.make_vec(ENV, 2, vector_kwargs={"workers": 2, "timeout_sec": 0.5, "spin_wait_sec": 0.0})
+    victim = None
+    try:
+        vec.reset(seed=0)
+        vec.step(np.zeros((2, 5), np.float32))
+        victim = vec.pids[0]
+        os.kill(victim, signal.SIGSTOP)  # alive, its socket open: only the timeout can tell
+        start = time.monotonic()
+        # The bound is the workers' own (timeout_sec) and 5 s: a worker's node call times out first.
+        with pytest.raises(WorkerError, match=rf"worker 0 \(pid {victim}\) did not answer a step within 5.5 s"):
+            vec.step(np.zeros((2, 5), np.float32))
+        assert time.monotonic() - start >= 5.5
+        with pytest.raises(WorkerError, match="close this vector env"):
+            vec.step(np.zeros((2, 5), np.float32))
+    finally:
+        if victim is not None:
+            os.kill(victim, signal.SIGCONT)
+        pids = vec.pids
+        vec.close()
+    assert all(_gone(pid) for pid in pids)
+
+
 def test_a_worker_that_cannot_start_says_why() -> None:
     with pytest.raises(WorkerError, match=r"failed to start: TypeError: .*'no_such_knob'.*workers': 0"):
         uniros.make_vec(ENV, 2, vector_kwargs={"workers": 2}, no_such_knob=1)
