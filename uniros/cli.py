@@ -6,6 +6,7 @@ Each subcommand is a small function taking parsed arguments and returning an exi
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import os
 import sys
@@ -207,7 +208,7 @@ def _choose_device(args: argparse.Namespace, config: Any) -> None:
 
 def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     """The env ID and model file of ``uniros eval`` from what was typed (ID MODEL, MODEL, MODEL --env ID)."""
-    from uniros.training import TrainingError, check_env_id, resolve_model_path, trained_env_id
+    from uniros.training import TrainingError, check_env_id, register_run_arm, resolve_model_path, trained_env_id
 
     first, second = args.env_id, args.model
     if second is None:  # one positional: a model (or a run directory), or an env ID without its model
@@ -219,9 +220,17 @@ def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     if second is None:
         raise TrainingError("give a model: uniros eval ENV_ID MODEL, uniros eval RUN_DIR, or "
                             "uniros eval MODEL --env ENV_ID")
+    model_path = resolve_model_path(second)
+    meta = model_path.parent / "run.json"  # a run's arm file, registered where this process lacks its IDs
+    if meta.is_file():
+        try:
+            data = json.loads(meta.read_text())
+        except ValueError:
+            data = None
+        if isinstance(data, dict):
+            register_run_arm(data, str(meta), _note)
     if args.env or first:
         check_env_id(args.env or first)
-    model_path = resolve_model_path(second)
     env_id = args.env or first or trained_env_id(model_path)
     if env_id is None:
         raise TrainingError(f"cannot tell which env {model_path} was trained on: uniros eval ENV_ID {second}")
@@ -289,14 +298,10 @@ def _cmd_new(args: argparse.Namespace) -> int:
 
 # -- uniros arm add (issue 34) ------------------------------------------------------------------------
 def _cmd_arm_add(args: argparse.Namespace) -> int:
+    from multiros.hardware.robot_spec import parse_xacro_args
     from rl_environments.arm_inspect import add_arm
 
-    xacro_args: dict[str, str] = {}
-    for item in args.xacro_arg:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise ValueError(f"--xacro-arg {item!r} must be NAME=VALUE")
-        xacro_args[key] = value
+    xacro_args = parse_xacro_args(args.xacro_arg)
     path, ids, draft = add_arm(args.uri, args.name, xacro_args=xacro_args, output=args.output, force=args.force)
     print(f"wrote {path} (and {path.parent / args.name}/): check the values marked 'guessed'")
     print(f"servo settle check: largest tracking error {draft.settle_error:.4f} rad")
@@ -311,7 +316,8 @@ def _arm_parser(sub: Any) -> None:
     arm_sub = arm.add_subparsers(dest="arm_command", required=True)
     p = arm_sub.add_parser("add", help="inspect a URDF/xacro description and write NAME.yaml (an arm file)")
     p.add_argument("uri", help="package://pkg/urdf/robot.urdf.xacro (found through AMENT_PREFIX_PATH) or a path")
-    p.add_argument("--xacro-arg", action="append", default=[], metavar="K=V", help="a xacro argument (repeat)")
+    p.add_argument("--xacro-arg", action="append", default=[], metavar="NAME:=VALUE",
+                   help="a xacro argument (repeat; NAME=VALUE too)")
     p.add_argument("--name", required=True, help="the arm's name, the IDs' prefix (MyArm: MyArmReacherSim-v0, ...)")
     p.add_argument("--output", default=".", help="where NAME.yaml and NAME/ go (default: %(default)s)")
     p.add_argument("--force", action="store_true", help="replace an existing NAME.yaml and NAME/")

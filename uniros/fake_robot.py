@@ -306,6 +306,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                        "real: section names them")
     parser.add_argument("--start", choices=["home", "init"], default=None,
                         help="with --arm: start at arm.home (default) or at reach.init_joint_pos")
+    for action in parser._actions:
+        if action.dest == "robot":
+            action.help = f"{action.help}; also the shipped arm files' robots (vx300s, ur5e, ned2: as --arm <file>)"
     return parser
 
 
@@ -323,10 +326,32 @@ def _attach(arm: ArmFile) -> Callable[[Any], Callable[[], None] | None]:
     return attach
 
 
+def _shipped_arm_as_arm(args: list[str]) -> list[str]:
+    """``--robot vx300s`` (a shipped arm file's robot, not a preset of the lower layer) as ``--arm <its file>``
+    (not beside an ``--arm`` of its own: that stays the error it is)."""
+    if any(arg == "--arm" or arg.startswith("--arm=") for arg in args):
+        return args
+    for i, arg in enumerate(args):
+        if arg == "--":
+            break
+        name = (args[i + 1] if arg == "--robot" and i + 1 < len(args)
+                else arg[len("--robot="):] if arg.startswith("--robot=") else None)
+        if name is None or name in _fake.PRESETS:
+            continue
+        import rl_environments
+
+        if f"{name}.yaml" in rl_environments.SHIPPED_ARM_FILES:
+            from importlib import resources
+
+            path = str(resources.files("rl_environments.config").joinpath("arms", f"{name}.yaml"))
+            return [*args[:i], "--arm", path, *args[i + (2 if arg == "--robot" else 1):]]
+    return args
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: ``--arm PATH`` serves an arm file's robot; anything else is the lower layer's."""
     parser = build_parser()
-    args = list(sys.argv[1:] if argv is None else argv)
+    args = _shipped_arm_as_arm(list(sys.argv[1:] if argv is None else argv))
     own, ros_args = split_ros_arguments(args)
     opts = parser.parse_args(own)
     if not opts.arm:

@@ -17,6 +17,7 @@ import importlib
 import json
 import logging
 import os
+import re
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -348,9 +349,67 @@ def check_env_id(env_id: str) -> str:
     if bare not in gym.registry:
         close = difflib.get_close_matches(bare, list(gym.registry), n=3, cutoff=0.6)
         hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+        if _ARM_ID.match(bare):
+            hint += (" (an arm file's ID is registered by its file: UNIROS_ARMS=FILE, or uniros.register_arm(FILE)"
+                     " in Python)")
         raise TrainingError(f"unknown env {env_id!r}{hint} (`uniros list` shows the registered IDs; your own env: "
                             "my_pkg.my_module:MyEnv-v0)")
     return bare
+
+
+#: An ID an arm file would register: ``<Arm><task>Sim-v0`` or ``<Arm><task>Real-v0``.
+_ARM_ID = re.compile(r"[A-Za-z][A-Za-z0-9_]*(ReacherGoal|Reacher|PushGoal|Push|PnPGoal|PnP)(Sim|Real)-v0\Z")
+
+
+def arm_file_of(env_id: str) -> str | None:
+    """The arm file, if not one uniros ships, that registered ``env_id`` (or its simulated twin):
+    a run records it (``run.json``: ``arm_file``) so that ``uniros eval`` and ``--resume`` find the ID
+    in a process that has not registered it."""
+    from rl_environments.arm_registry import arm_env_ids, registered_arms
+
+    bare = env_id.rpartition(":")[2]
+    for spec in registered_arms().values():
+        ids = arm_env_ids(spec)
+        if bare in ids or bare in {real for _, _, real in ids.values()}:
+            return None if _shipped(spec.path) else str(spec.path)
+    return None
+
+
+def _shipped(path: Path) -> bool:
+    from importlib import resources
+
+    import rl_environments
+
+    if path.name not in rl_environments.SHIPPED_ARM_FILES:
+        return False
+    shipped = Path(str(resources.files("rl_environments.config").joinpath("arms", path.name)))
+    return shipped.resolve() == path.resolve()
+
+
+def register_run_arm(meta: dict[str, Any], where: str, note: Callable[[str], None] | None = None) -> None:
+    """Register the arm file a run was trained with (``run.json``'s ``arm_file``) when its env ID is
+    not registered in this process.
+
+    Raises:
+        TrainingError: the file is gone or no longer registers the ID.
+    """
+    import gymnasium as gym
+
+    from rl_environments.arm_file import ArmFileError
+    from rl_environments.arm_registry import register_arm
+
+    path, env_id = meta.get("arm_file"), str(meta.get("env_id", "")).rpartition(":")[2]
+    if not isinstance(path, str) or not path or not env_id or env_id in gym.registry:
+        return
+    fix = "put it back, or register the arm yourself (UNIROS_ARMS=FILE, or uniros.register_arm(FILE))"
+    if not Path(path).is_file():
+        raise TrainingError(f"{where}: the run's env {env_id} comes from the arm file {path}, which is gone: {fix}")
+    try:
+        register_arm(Path(path))
+    except ArmFileError as exc:
+        raise TrainingError(f"{where}: the run's arm file no longer registers {env_id} ({exc}): {fix}") from None
+    if note is not None:
+        note(f"registered the arm file {path} this run was trained with (run.json)")
 
 
 def note_updates_per_env_step(config: TrainingConfig) -> str | None:
@@ -391,7 +450,7 @@ def start_run(env_id: str, config: TrainingConfig, *, output: str | Path = "runs
         save_training_config(config, run.config)
         run.update_meta(env_id=env_id, algorithm=config.algorithm, env_kwargs=config.env_kwargs, status="created",
                         steps=0, train_seconds=0.0, command=command or [],
-                        started_with=config.to_dict()["model_params"])
+                        started_with=config.to_dict()["model_params"], arm_file=arm_file_of(env_id))
     except OSError as exc:
         run.discard()
         full = disk_full_error(exc, Path(output), "nothing was kept: free space, then start the run again")
@@ -425,6 +484,7 @@ def open_run(run_dir: str | Path) -> tuple[RunDir, str, TrainingConfig]:
             config.env_kwargs = dict(meta.get("env_kwargs", config.env_kwargs))
         if "env_id" not in meta:
             raise RunDirError(f"{run.meta} names no env_id: not a run `uniros train` wrote")
+        register_run_arm(meta, str(run.meta), lambda line: _logger.warning("%s", line))
     except BaseException:
         run.release()
         raise

@@ -14,6 +14,7 @@ from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.core import EnvError, ResetError
 from multiros.envs.errors import StepAfterFailedReset
 from multiros.envs.real import RealBaseEnv, RealGoalEnv, SafetyRules
+from multiros.sim.client import SimulationNodeError
 
 __all__ = [
     "EnvError",
@@ -23,6 +24,7 @@ __all__ = [
     "RealGoalEnv",
     "ResetError",
     "SafetyRules",
+    "SimulationNodeError",
     "SpawnPose",
     "StepAfterFailedReset",
     "StepConfig",

@@ -30,7 +30,7 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 from multiros.hardware.fake_hardware import DEFAULT_TIME_CONSTANT, FakeHardware
-from multiros.hardware.robot_spec import PRESETS, RobotSpec, load_robot_spec, parse_assignments
+from multiros.hardware.robot_spec import PRESETS, RobotSpec, load_robot_spec, parse_assignments, parse_xacro_args
 from multiros.ros import Context, Node
 from multiros.ros.action import GoalResponse
 from multiros.ros.exceptions import TransportError
@@ -198,7 +198,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--robot", choices=sorted(PRESETS),
                         help="a shipped robot: its description, controllers, namespace and controller names")
     parser.add_argument("--description", help="URDF/xacro file or package:// URI (?name=value adds xacro args)")
-    parser.add_argument("--xacro-arg", action="append", default=[], metavar="NAME:=VALUE", help="xacro argument")
+    parser.add_argument("--xacro-arg", action="append", default=[], metavar="NAME:=VALUE",
+                        help="xacro argument (NAME=VALUE too)")
     parser.add_argument("--controllers-file", help="ros2_control controllers YAML (file or package:// URI); "
                                                    "default: the preset's, or the one the description names")
     parser.add_argument("--namespace", help="ROS namespace (default: the preset's; rx200 -> /rx200, irb120 -> none)")
@@ -239,7 +240,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         spec = load_robot_spec(
             opts.robot, description=opts.description,
-            xacro_args=parse_assignments(opts.xacro_arg, "--xacro-arg", sep=":="),
+            xacro_args=parse_xacro_args(opts.xacro_arg),
             controllers_file=opts.controllers_file, namespace=opts.namespace,
             renames=parse_assignments(opts.controller_name, "--controller-name"),
             initial_positions={k: float(v) for k, v in parse_assignments(opts.initial, "--initial").items()},

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -276,6 +277,24 @@ def load_robot_spec(
     namespace = "/" + namespace.strip("/") if namespace.strip("/") else ""
     return RobotSpec(name=robot or urdf.name, namespace=namespace, joints=joints, mimics=mimics,
                      controllers=config, description=text)
+
+
+_XACRO_ARG_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_.-]*\Z")
+
+
+def parse_xacro_args(items: Sequence[str], what: str = "--xacro-arg") -> dict[str, str]:
+    """``["prefix:=left_", "hand=true"]`` -> ``{"prefix": "left_", "hand": "true"}``: xacro's and
+    ``ros2 launch``'s ``NAME:=VALUE``, or ``NAME=VALUE``; raises ValueError naming a malformed item
+    (a name that is not an XML name, e.g. ``prefix:`` from a ``:`` too many)."""
+    out = {}
+    for item in items:
+        key, found, value = item.partition(":=" if ":=" in item else "=")
+        key = key.strip()
+        if not found or not _XACRO_ARG_NAME.match(key):
+            raise ValueError(f"{what} {item!r} must look like NAME:=VALUE (or NAME=VALUE), NAME a xacro "
+                             "argument's name")
+        out[key] = value.strip()
+    return out
 
 
 def parse_assignments(items: Sequence[str], what: str, sep: str = "=") -> dict[str, str]:

@@ -508,6 +508,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(f"--robot {spec!r} must look like NAME=URI")
         robots.append((name, uri))
 
+    if opts.gui:
+        from multiros.sim.render import display_available
+
+        if not display_available():
+            parser.error("--gui opens MuJoCo's viewer, which needs a display (DISPLAY or WAYLAND_DISPLAY is not "
+                         "set): drop --gui to run the node headless")
     transport_options: dict[str, Any] = {}
     if opts.router:
         transport_options["router"] = opts.router

@@ -21,6 +21,7 @@ from typing import Any
 from multiros.sim.launch import SimulationConnection
 from multiros.utils.sim_core import (
     Sim,
+    client_of,
     close_sim,
     get_gravity,
     get_physics_properties,
@@ -150,6 +151,45 @@ def gazebo_set_gravity(sim: Sim, x: float = 0.0, y: float = 0.0, z: float = -9.8
     set_gravity(sim, (x, y, z))
 
 
+gazebo_get_gravity = get_gravity
+launch_Gazebo = launch_gazebo  # noqa: N816 - FRobs_RL's name
+close_Gazebo = close_gazebo  # noqa: N816 - FRobs_RL's name (it takes the handle launch_Gazebo returns)
+
+
+def gazebo_set_default_properties(sim: Sim) -> None:
+    """FRobs_RL's defaults: time step 1 ms, real time, gravity (0, 0, -9.81); its ODE settings have no
+    MuJoCo counterpart (see :func:`set_gazebo_ode_physics`)."""
+    set_physics_properties(sim, time_step=0.001, real_time_factor=1.0, gravity=(0.0, 0.0, -9.81))
+
+
+def set_gazebo_ode_physics(sim: Sim, *ode_config: Any, **ode_settings: Any) -> None:
+    """Gazebo's ODE solver settings: MuJoCo has none of them, so the call changes nothing (a warning
+    says so). MuJoCo's solver is the model's ``<option>`` (``solver``, ``iterations``, ``tolerance``),
+    set in the world MJCF; the time step, speed and gravity are :func:`set_gazebo_physics_properties`'s."""
+    _logger.warning("set_gazebo_ode_physics: Gazebo's ODE solver settings have no MuJoCo counterpart; nothing "
+                    "was changed (MuJoCo's solver options are the world model's <option>)")
+
+
+def get_gazebo_ode_physics(sim: Sim) -> dict[str, Any]:
+    """Refused: MuJoCo has no ODE solver settings to read (see :func:`set_gazebo_ode_physics`).
+
+    Raises:
+        NotImplementedError: always, naming what to read instead.
+    """
+    raise NotImplementedError("get_gazebo_ode_physics: MuJoCo has no ODE solver settings; read the time step, "
+                              "speed and gravity with get_gazebo_physics_properties(sim)")
+
+
+gazebo_set_ODE_physics = set_gazebo_ode_physics  # noqa: N816 - FRobs_RL's name
+gazebo_get_ODE_physics = get_gazebo_ode_physics  # noqa: N816 - FRobs_RL's name
+
+
+def gazebo_delete_model(sim: Sim, model_name: str, **legacy: Any) -> None:
+    """Delete an entity (a spawned robot or object) from the simulation."""
+    _drop(legacy, _IGNORED_ARGS, "gazebo_delete_model")
+    client_of(sim).delete_entity(model_name)
+
+
 def gazebo_reset_world(sim: Sim, **legacy: Any) -> None:
     """FRobs_RL: reset state, keep time."""
     reset_gazebo(sim, "world", **legacy)
@@ -166,7 +206,9 @@ __all__ = [
     "get_gazebo_max_update_rate", "set_gazebo_time_step", "get_gazebo_time_step", "set_gazebo_gravity",
     "get_gazebo_gravity", "gazebo_pause_physics", "gazebo_unpause_physics", "gazebo_step_physics",
     "gazebo_set_max_update_rate", "gazebo_get_max_update_rate", "gazebo_set_time_step", "gazebo_get_time_step",
-    "gazebo_set_gravity", "gazebo_reset_world", "gazebo_reset_sim", "launch_sim", "close_sim", "pause_sim",
+    "gazebo_set_gravity", "gazebo_get_gravity", "gazebo_reset_world", "gazebo_reset_sim", "launch_Gazebo",
+    "close_Gazebo", "gazebo_set_default_properties", "set_gazebo_ode_physics", "get_gazebo_ode_physics",
+    "gazebo_set_ODE_physics", "gazebo_get_ODE_physics", "gazebo_delete_model", "launch_sim", "close_sim", "pause_sim",
     "unpause_sim", "reset_sim", "step_sim", "set_gravity", "get_gravity", "get_physics_properties",
     "set_physics_properties",
 ]

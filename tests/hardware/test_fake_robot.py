@@ -370,3 +370,14 @@ def test_bad_command_lines_exit_with_a_reason(graph):
     out = subprocess.run([sys.executable, "-m", "multiros.hardware.fake_robot", "--robot", "rx200",
                           "--controller-name", "nope=x"], capture_output=True, text=True, timeout=60, cwd=_CWD)
     assert out.returncode == 2 and "cannot rename controller 'nope'" in out.stderr
+
+
+def test_xacro_arguments_in_either_form_and_a_stray_colon_refused() -> None:
+    from multiros.hardware.robot_spec import parse_xacro_args
+
+    assert parse_xacro_args(["prefix:=left_", "hand=true", "ur_type := ur5e", "x="]) == {
+        "prefix": "left_", "hand": "true", "ur_type": "ur5e", "x": ""}
+    assert parse_xacro_args(["tcp:=a=b"]) == {"tcp": "a=b"}  # the first separator splits
+    for bad in ["prefix::=left_", "prefix", "=x", "a b=c", "1a=2"]:
+        with pytest.raises(ValueError, match=r"--xacro-arg .* must look like NAME:=VALUE \(or NAME=VALUE\)"):
+            parse_xacro_args([bad])

@@ -147,6 +147,17 @@ def test_a_bad_arm_file_is_one_line_and_exit_code_2(tmp_path: Path, edit: Any, m
     assert re.search(match, lines[0]), lines[0]
 
 
+def test_robot_names_a_shipped_arm_files_robot_as_arm() -> None:
+    from uniros.fake_robot import _shipped_arm_as_arm
+
+    ur5e = str(_arm("UR5e").path)
+    assert _shipped_arm_as_arm(["--robot", "ur5e", "--rate", "50"]) == ["--arm", ur5e, "--rate", "50"]
+    assert _shipped_arm_as_arm(["--rate", "50", "--robot=ur5e"]) == ["--rate", "50", "--arm", ur5e]
+    for kept in (["--robot", "rx200"], ["--robot", "nope"], ["--arm", ur5e, "--robot", "ur5e"],
+                 ["--", "--robot", "ur5e"]):
+        assert _shipped_arm_as_arm(kept) == kept
+
+
 def test_the_arm_file_replaces_the_description_options() -> None:
     out = _run("--arm", str(_arm("UR5e").path), "--robot", "rx200")
     assert out.returncode == 2 and "--robot: the arm file names the description" in out.stderr

@@ -193,3 +193,50 @@ def test_an_unparsable_description_and_a_clashing_name(ur5e_data, write, tmp_pat
     (tmp_path / "notyaml.yaml").write_text("format: [1\n")
     with pytest.raises(ArmFileError, match="not valid YAML"):
         load_arm_file(tmp_path / "notyaml.yaml")
+
+
+def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_data, write, tmp_path):
+    """A run of an arm file's ID records the file (run.json: arm_file); a process that has not
+    registered it (no UNIROS_ARMS) registers it from there; a file gone is one line saying so."""
+    import json
+
+    from uniros.train_config import TrainingConfig
+    from uniros.training import TrainingError, arm_file_of, check_env_id, open_run, register_run_arm, start_run
+
+    assert arm_file_of("UR5eReacherGoalSim-v0") is None and arm_file_of("RX200PushGoalReal-v0") is None
+    ur5e_data["name"] = "RunArm"
+    path = write(ur5e_data, "runarm.yaml")
+    register_arm(path)
+    assert arm_file_of("RunArmReacherGoalSim-v0") == str(path) == arm_file_of("RunArmPushReal-v0")
+    run = start_run("RunArmReacherGoalSim-v0", TrainingConfig(training_steps=10), output=tmp_path, name="r")
+    meta = json.loads(run.meta.read_text())
+    assert meta["arm_file"] == str(path)
+    run.release()
+
+    unregister_arm("RunArm")
+    with pytest.raises(TrainingError, match=r"unknown env 'RunArmReacherGoalSim-v0'.*UNIROS_ARMS=FILE"):
+        check_env_id("RunArmReacherGoalSim-v0")
+    notes: list[str] = []
+    register_run_arm(meta, "run.json", notes.append)
+    assert "RunArmReacherGoalSim-v0" in gym.registry and notes == [f"registered the arm file {path} this run "
+                                                                   "was trained with (run.json)"]
+    unregister_arm("RunArm")
+    reopened, env_id, _ = open_run(tmp_path / "r")  # --resume: the same, before the env is made
+    reopened.release()
+    assert env_id == "RunArmReacherGoalSim-v0" and env_id in gym.registry
+    unregister_arm("RunArm")
+    import argparse
+
+    from uniros.cli import _eval_target
+
+    (tmp_path / "r" / "best_model.zip").write_bytes(b"")  # `uniros eval RUN` and `uniros eval REAL_ID RUN`
+    for first, second in ((str(tmp_path / "r"), None), ("RunArmReacherGoalReal-v0", str(tmp_path / "r"))):
+        target = _eval_target(argparse.Namespace(env_id=first, model=second, env=None))
+        assert target[0] == (first if second else "RunArmReacherGoalSim-v0")
+        unregister_arm("RunArm")
+
+    unregister_arm("RunArm")
+    path.unlink()
+    with pytest.raises(TrainingError, match=r"comes from the arm file .*runarm.yaml, which is gone: put it back"):
+        register_run_arm(meta, "run.json")
+    assert "RunArmReacherGoalSim-v0" not in gym.registry

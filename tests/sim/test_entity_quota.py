@@ -9,6 +9,7 @@ attachments, each naming its own GID.
 
 from __future__ import annotations
 
+import os
 import socket
 import struct
 import subprocess
@@ -313,6 +314,14 @@ def test_uniros_sim_refuses_bad_entity_limits(option: str, value: str) -> None:
     run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", option, value],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 2 and f"{option} must be" in run.stderr
+
+
+def test_uniros_sim_gui_without_a_display_is_a_usage_error() -> None:
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", "--gui"],
+                         capture_output=True, text=True, timeout=120, env=env)
+    assert run.returncode == 2 and "needs a display" in run.stderr and "drop --gui" in run.stderr
+    assert "Traceback" not in run.stderr
 
 
 def test_uniros_sim_on_inproc_warns_that_no_other_process_reaches_it() -> None:

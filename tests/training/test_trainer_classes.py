@@ -113,3 +113,11 @@ def test_uniros_sim_help_is_uniros_sims(capsys):
         main(["sim", "--help"])
     assert exc.value.code == 0
     assert "--robot" in capsys.readouterr().out
+
+
+def test_an_unknown_config_file_pkg_names_where_packages_are_found() -> None:
+    from uniros.sb3.core import resolve_config_path
+
+    with pytest.raises(TrainingConfigError, match=r"config_file_pkg: package 'no_such_cfg_pkg' not found.*"
+                                                  r"AMENT_PREFIX_PATH.*ROS_PACKAGE_PATH.*abs_config_path"):
+        resolve_config_path("td3", False, "no_such_cfg_pkg", "td3.yaml", None)

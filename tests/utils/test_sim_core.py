@@ -143,6 +143,37 @@ def test_physics_properties(fake):
         sim_core.set_time_step(client, 0.0)
 
 
+def test_the_migration_pages_legacy_names(fake, caplog):
+    """The names docs/migration.md maps: FRobs_RL's capitalised ones, MultiROS' gazebo_physics path,
+    the defaults of FRobs_RL, and ODE settings (none in MuJoCo: a setter warns, a getter refuses)."""
+    from multiros.utils import gazebo_physics
+
+    sim, client = fake
+    assert gazebo_core.launch_Gazebo is gazebo_core.launch_gazebo
+    assert gazebo_core.close_Gazebo is gazebo_core.close_gazebo
+    assert gazebo_physics.set_gazebo_time_step is sim_core.set_time_step
+    gazebo_physics.set_gazebo_physics_properties(client, time_step=0.004, max_update_rate=2.0, gravity=(0, 0, -1))
+    gazebo_core.gazebo_set_default_properties(client)
+    assert sim.physics == {"time_step": 0.001, "real_time_factor": 1.0, "gravity": (0.0, 0.0, -9.81)}
+    assert np.allclose(gazebo_core.gazebo_get_gravity(client), (0, 0, -9.81))
+    before = list(sim.calls), dict(sim.physics)
+    gazebo_core.gazebo_set_ODE_physics(client, False, 0, 50, 1.3, 0.0, 0.001, 0.0, 0.0, 0.2, 20)
+    assert "no MuJoCo counterpart" in caplog.text and (sim.calls, sim.physics) == before
+    with pytest.raises(NotImplementedError, match="get_gazebo_physics_properties"):
+        gazebo_physics.get_gazebo_ode_physics(client)
+
+    class Handle:  # what launch_gazebo returns: its client deletes entities
+        class client:  # noqa: N801
+            deleted: list[str] = []
+
+            @classmethod
+            def delete_entity(cls, name: str) -> None:
+                cls.deleted.append(name)
+
+    gazebo_core.gazebo_delete_model(Handle(), "box_0", max_tries=5)
+    assert Handle.client.deleted == ["box_0"]
+
+
 def test_no_hidden_global_simulation():
     with pytest.raises(TypeError, match="no global simulation"):
         sim_core.pause_sim(object())

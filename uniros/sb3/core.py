@@ -41,7 +41,10 @@ def _package_dir(pkg: str) -> Path:
     except (ImportError, ValueError):
         spec = None
     if spec is None or not spec.submodule_search_locations:
-        raise TrainingConfigError(f"package {pkg!r} not found (neither a ROS package nor an importable Python package)")
+        raise TrainingConfigError(
+            f"config_file_pkg: package {pkg!r} not found, neither a ROS package nor an importable Python package: "
+            "source the ROS workspace that installs it (AMENT_PREFIX_PATH), add the directory that holds it to "
+            "ROS_PACKAGE_PATH, or give the file itself as abs_config_path")
     return Path(next(iter(spec.submodule_search_locations)))
 
 
