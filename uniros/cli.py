@@ -208,7 +208,7 @@ def _choose_device(args: argparse.Namespace, config: Any) -> None:
 
 def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     """The env ID and model file of ``uniros eval`` from what was typed (ID MODEL, MODEL, MODEL --env ID)."""
-    from uniros.training import TrainingError, check_env_id, register_run_arm, resolve_model_path, trained_env_id
+    from uniros.training import TrainingError, check_env_id, resolve_model_path, trained_env_id
 
     first, second = args.env_id, args.model
     if second is None:  # one positional: a model (or a run directory), or an env ID without its model
@@ -220,22 +220,36 @@ def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     if second is None:
         raise TrainingError("give a model: uniros eval ENV_ID MODEL, uniros eval RUN_DIR, or "
                             "uniros eval MODEL --env ENV_ID")
-    model_path = resolve_model_path(second)
-    meta = model_path.parent / "run.json"  # a run's arm file, registered where this process lacks its IDs
-    if meta.is_file():
-        try:
-            data = json.loads(meta.read_text())
-        except ValueError:
-            data = None
-        if isinstance(data, dict):
-            register_run_arm(data, str(meta), _note)
     if args.env or first:
-        check_env_id(args.env or first)
+        try:
+            check_env_id(args.env or first)
+        except TrainingError:  # an arm file's ID: the run may name its file
+            if not _register_run_arm_near(Path(second)):
+                raise
+            check_env_id(args.env or first)
+    model_path = resolve_model_path(second)
+    _register_run_arm_near(model_path)
     env_id = args.env or first or trained_env_id(model_path)
     if env_id is None:
         raise TrainingError(f"cannot tell which env {model_path} was trained on: uniros eval ENV_ID {second}")
     check_env_id(env_id)
     return env_id, model_path
+
+
+def _register_run_arm_near(model: Path) -> bool:
+    """Register the arm file of the run ``model`` belongs to (a run directory, or a model in one), if
+    its ``run.json`` names one this process lacks; whether it names one."""
+    from uniros.training import register_run_arm
+
+    meta = (model if model.is_dir() else model.parent) / "run.json"
+    try:
+        data = json.loads(meta.read_text())
+    except (OSError, ValueError):
+        return False
+    if not isinstance(data, dict) or not data.get("arm_file"):
+        return False
+    register_run_arm(data, str(meta), _note)
+    return True
 
 
 def _registered(env_id: str) -> bool:
