@@ -220,25 +220,28 @@ def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     if second is None:
         raise TrainingError("give a model: uniros eval ENV_ID MODEL, uniros eval RUN_DIR, or "
                             "uniros eval MODEL --env ENV_ID")
-    if args.env or first:
+    typed = args.env or first
+    if typed:
         try:
-            check_env_id(args.env or first)
-        except TrainingError:  # an arm file's ID: the run may name its file
-            if not _register_run_arm_near(Path(second)):
+            check_env_id(typed)
+        except TrainingError:  # the ID of the run's own arm file (or its Real twin): the run names the file
+            if not _register_run_arm_near(Path(second), typed):
                 raise
-            check_env_id(args.env or first)
+            check_env_id(typed)
     model_path = resolve_model_path(second)
-    _register_run_arm_near(model_path)
-    env_id = args.env or first or trained_env_id(model_path)
+    if not typed:
+        _register_run_arm_near(model_path, None)
+    env_id = typed or trained_env_id(model_path)
     if env_id is None:
         raise TrainingError(f"cannot tell which env {model_path} was trained on: uniros eval ENV_ID {second}")
     check_env_id(env_id)
     return env_id, model_path
 
 
-def _register_run_arm_near(model: Path) -> bool:
+def _register_run_arm_near(model: Path, typed: str | None) -> bool:
     """Register the arm file of the run ``model`` belongs to (a run directory, or a model in one), if
-    its ``run.json`` names one this process lacks; whether it names one."""
+    its ``run.json`` names one this process lacks and ``typed`` (the ID given, if any) is the run's ID or
+    its Real twin; whether it did."""
     from uniros.training import register_run_arm
 
     meta = (model if model.is_dir() else model.parent) / "run.json"
@@ -247,6 +250,9 @@ def _register_run_arm_near(model: Path) -> bool:
     except (OSError, ValueError):
         return False
     if not isinstance(data, dict) or not data.get("arm_file"):
+        return False
+    trained = str(data.get("env_id", "")).rpartition(":")[2]
+    if typed is not None and typed.rpartition(":")[2] not in (trained, trained.replace("Sim-v0", "Real-v0")):
         return False
     register_run_arm(data, str(meta), _note)
     return True

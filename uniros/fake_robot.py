@@ -328,12 +328,11 @@ def _attach(arm: ArmFile) -> Callable[[Any], Callable[[], None] | None]:
 
 def _shipped_arm_as_arm(args: list[str]) -> list[str]:
     """``--robot vx300s`` (a shipped arm file's robot, not a preset of the lower layer) as ``--arm <its file>``
-    (not beside an ``--arm`` of its own: that stays the error it is)."""
+    (not beside an ``--arm`` of its own: that stays the error it is). ``args``: the program's own arguments
+    (the ROS ones split off)."""
     if any(arg == "--arm" or arg.startswith("--arm=") for arg in args):
         return args
     for i, arg in enumerate(args):
-        if arg == "--":
-            break
         name = (args[i + 1] if arg == "--robot" and i + 1 < len(args)
                 else arg[len("--robot="):] if arg.startswith("--robot=") else None)
         if name is None or name in _fake.PRESETS:
@@ -351,8 +350,9 @@ def _shipped_arm_as_arm(args: list[str]) -> list[str]:
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-fake-robot``: ``--arm PATH`` serves an arm file's robot; anything else is the lower layer's."""
     parser = build_parser()
-    args = _shipped_arm_as_arm(list(sys.argv[1:] if argv is None else argv))
+    args = list(sys.argv[1:] if argv is None else argv)
     own, ros_args = split_ros_arguments(args)
+    own = _shipped_arm_as_arm(own)  # with --arm the lower layer's main is not reached: `args` is not used
     opts = parser.parse_args(own)
     if not opts.arm:
         if opts.start is not None:

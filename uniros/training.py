@@ -26,6 +26,7 @@ from typing import Any
 
 from multiros.envs.real.core import SIMULATION_KNOBS, RealEnvCore
 from rl_environments import SIM_TO_REAL
+from rl_environments.arm_registry import ARM_TASKS
 from uniros.checkpoints import normalizer_path, remove_stale_temporaries, save_model_with_stats
 from uniros.evaluation import EVAL_SEED, evaluate, format_success, wilson_interval
 from uniros.interrupts import TrainingInterrupted, sigterm_as_interrupt
@@ -358,7 +359,8 @@ def check_env_id(env_id: str) -> str:
 
 
 #: An ID an arm file would register: ``<Arm><task>Sim-v0`` or ``<Arm><task>Real-v0``.
-_ARM_ID = re.compile(r"[A-Za-z][A-Za-z0-9_]*(ReacherGoal|Reacher|PushGoal|Push|PnPGoal|PnP)(Sim|Real)-v0\Z")
+_ARM_ID = re.compile(r"[A-Za-z][A-Za-z0-9_]*(" + "|".join(sorted(ARM_TASKS, key=len, reverse=True))
+                     + r")(Sim|Real)-v0\Z")
 
 
 def arm_file_of(env_id: str) -> str | None:
@@ -396,7 +398,7 @@ def register_run_arm(meta: dict[str, Any], where: str, note: Callable[[str], Non
     import gymnasium as gym
 
     from rl_environments.arm_file import ArmFileError
-    from rl_environments.arm_registry import register_arm
+    from rl_environments.arm_registry import register_arm, registered_arms, unregister_arm
 
     path, env_id = meta.get("arm_file"), str(meta.get("env_id", "")).rpartition(":")[2]
     if not isinstance(path, str) or not path or not env_id or env_id in gym.registry:
@@ -405,9 +407,15 @@ def register_run_arm(meta: dict[str, Any], where: str, note: Callable[[str], Non
     if not Path(path).is_file():
         raise TrainingError(f"{where}: the run's env {env_id} comes from the arm file {path}, which is gone: {fix}")
     try:
-        register_arm(Path(path))
+        ids = register_arm(Path(path))
     except ArmFileError as exc:
         raise TrainingError(f"{where}: the run's arm file no longer registers {env_id} ({exc}): {fix}") from None
+    if env_id not in ids:  # the file names another arm now: take back what it registered
+        for name, spec in list(registered_arms().items()):
+            if spec.path == Path(path).resolve():
+                unregister_arm(name)
+        raise TrainingError(f"{where}: the run's arm file {path} no longer registers {env_id} (it registers "
+                            f"{', '.join(ids[:2])}, ...): {fix}")
     if note is not None:
         note(f"registered the arm file {path} this run was trained with (run.json)")
 

@@ -23,8 +23,9 @@ print(" ".join(f"{n}=={version(n)}" for n in sys.argv[1:]))
 PY
 )
 platforms=""
-for p in manylinux_2_39 manylinux_2_35 manylinux_2_34 manylinux_2_31 manylinux_2_28 manylinux_2_27 manylinux_2_24 \
-         manylinux_2_17 manylinux2014 manylinux1; do
+# oldest first: pip prefers the first tag that matches, and the host may have an older glibc than this one
+for p in manylinux1 manylinux2014 manylinux_2_17 manylinux_2_24 manylinux_2_27 manylinux_2_28 manylinux_2_31 \
+         manylinux_2_34 manylinux_2_35 manylinux_2_39; do
     platforms="$platforms --platform ${p}_x86_64"
 done
 for pin in $pins; do

@@ -288,7 +288,8 @@ def parse_xacro_args(items: Sequence[str], what: str = "--xacro-arg") -> dict[st
     (a name that is not an XML name, e.g. ``prefix:`` from a ``:`` too many)."""
     out = {}
     for item in items:
-        key, found, value = item.partition(":=" if ":=" in item else "=")
+        colon, equals = item.find(":="), item.find("=")
+        key, found, value = item.partition(":=" if 0 <= colon < equals else "=")
         key = key.strip()
         if not found or not _XACRO_ARG_NAME.match(key):
             raise ValueError(f"{what} {item!r} must look like NAME:=VALUE (or NAME=VALUE), NAME a xacro "

@@ -45,7 +45,7 @@ _IGNORED_LAUNCH_ARGS = frozenset({
     "output", "respawn_gazebo", "pub_clock_frequency", "server_required", "gui_required", "custom_world_path",
     "custom_world_pkg", "custom_world_name", "launch_new_term",
 })
-_IGNORED_ARGS = frozenset({"max_tries", "ros_port", "gazebo_port"})
+_IGNORED_ARGS = frozenset({"max_tries", "retries", "ros_port", "gazebo_port"})
 
 
 def _drop(kwargs: dict[str, Any], allowed: frozenset[str], fn: str) -> None:
@@ -152,8 +152,15 @@ def gazebo_set_gravity(sim: Sim, x: float = 0.0, y: float = 0.0, z: float = -9.8
 
 
 gazebo_get_gravity = get_gravity
-launch_Gazebo = launch_gazebo  # noqa: N816 - FRobs_RL's name
 close_Gazebo = close_gazebo  # noqa: N816 - FRobs_RL's name (it takes the handle launch_Gazebo returns)
+
+
+def launch_Gazebo(paused: bool = False, use_sim_time: bool = True, gui: bool = False,  # noqa: N802 - FRobs_RL's
+                  **kwargs: Any) -> SimulationConnection:
+    """FRobs_RL's ``launch_Gazebo(paused, use_sim_time, gui, ...)``, its positional order kept:
+    :func:`launch_gazebo`. ``gui`` defaults to ``False`` here (FRobs_RL: ``True``): the viewer needs a
+    display; ``use_sim_time`` is always so (the node publishes ``/clock``)."""
+    return launch_gazebo(paused, gui, **kwargs)
 
 
 def gazebo_set_default_properties(sim: Sim) -> None:

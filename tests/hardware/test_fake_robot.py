@@ -378,6 +378,7 @@ def test_xacro_arguments_in_either_form_and_a_stray_colon_refused() -> None:
     assert parse_xacro_args(["prefix:=left_", "hand=true", "ur_type := ur5e", "x="]) == {
         "prefix": "left_", "hand": "true", "ur_type": "ur5e", "x": ""}
     assert parse_xacro_args(["tcp:=a=b"]) == {"tcp": "a=b"}  # the first separator splits
+    assert parse_xacro_args(["tcp=a:=b"]) == {"tcp": "a:=b"}
     for bad in ["prefix::=left_", "prefix", "=x", "a b=c", "1a=2"]:
         with pytest.raises(ValueError, match=r"--xacro-arg .* must look like NAME:=VALUE \(or NAME=VALUE\)"):
             parse_xacro_args([bad])

@@ -153,9 +153,13 @@ def test_robot_names_a_shipped_arm_files_robot_as_arm() -> None:
     ur5e = str(_arm("UR5e").path)
     assert _shipped_arm_as_arm(["--robot", "ur5e", "--rate", "50"]) == ["--arm", ur5e, "--rate", "50"]
     assert _shipped_arm_as_arm(["--rate", "50", "--robot=ur5e"]) == ["--rate", "50", "--arm", ur5e]
-    for kept in (["--robot", "rx200"], ["--robot", "nope"], ["--arm", ur5e, "--robot", "ur5e"],
-                 ["--", "--robot", "ur5e"]):
+    for kept in (["--robot", "rx200"], ["--robot", "nope"], ["--arm", ur5e, "--robot", "ur5e"]):
         assert _shipped_arm_as_arm(kept) == kept
+    # main rewrites the program's own arguments, after the ROS sections are split off (ros2 run's form)
+    from multiros.ros.names import split_ros_arguments
+
+    own, ros = split_ros_arguments(["--ros-args", "-r", "__ns:=/a", "--", "--robot", "ur5e"])
+    assert _shipped_arm_as_arm(own) == ["--arm", ur5e] and ros == ["--ros-args", "-r", "__ns:=/a"]
 
 
 def test_the_arm_file_replaces_the_description_options() -> None:

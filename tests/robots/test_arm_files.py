@@ -235,8 +235,23 @@ def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_d
         assert target[0] == (first if second else "RunArmReacherGoalSim-v0")
         unregister_arm("RunArm")
 
-    unregister_arm("RunArm")
+    # The file renamed its arm: nothing of it stays registered, and the error says so.
+    renamed = dict(ur5e_data, name="RunArmRenamed")
+    path.write_text(yaml.safe_dump(renamed, sort_keys=False))
+    with pytest.raises(TrainingError, match=r"no longer registers RunArmReacherGoalSim-v0 \(it registers "
+                                            r"RunArmRenamedReacherSim-v0"):
+        register_run_arm(meta, "run.json")
+    assert "RunArmRenamedReacherSim-v0" not in gym.registry and "RunArmRenamed" not in registered_arms()
+
     path.unlink()
     with pytest.raises(TrainingError, match=r"comes from the arm file .*runarm.yaml, which is gone: put it back"):
         register_run_arm(meta, "run.json")
     assert "RunArmReacherGoalSim-v0" not in gym.registry
+    # A file gone does not matter to an ID that needs no arm file, and a typo is still "unknown env".
+    run_dir = str(tmp_path / "r")
+    assert _eval_target(argparse.Namespace(env_id="RX200ReacherGoalSim-v0", model=run_dir, env=None))[0] == \
+        "RX200ReacherGoalSim-v0"
+    with pytest.raises(TrainingError, match="unknown env 'TypoArmReacherGoalSim-v0'"):
+        _eval_target(argparse.Namespace(env_id="TypoArmReacherGoalSim-v0", model=run_dir, env=None))
+    with pytest.raises(TrainingError, match="which is gone"):  # the run's own ID: the file is what is missing
+        _eval_target(argparse.Namespace(env_id=None, model=run_dir, env=None))

@@ -324,22 +324,22 @@ def test_uniros_sim_gui_without_a_display_is_a_usage_error() -> None:
     assert "Traceback" not in run.stderr
 
 
-def test_uniros_sim_on_inproc_warns_that_no_other_process_reaches_it() -> None:
+def test_uniros_sim_on_inproc_warns_that_no_other_process_reaches_it(tmp_path) -> None:
     """``uniros-sim --transport inproc`` starts, says nobody else can reach it, and exits with its owner."""
+    log = tmp_path / "node.log"
     owner = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
-    node = subprocess.Popen([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc",
-                             "--owner-pid", str(owner.pid)], stderr=subprocess.PIPE, text=True)
+    with open(log, "w") as err:
+        node = subprocess.Popen([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc",
+                                 "--owner-pid", str(owner.pid)], stderr=err)
     try:
-        assert node.stderr is not None
-        lines = []
-        for line in node.stderr:  # ends when the node exits; the owner's end below makes it exit
-            lines.append(line)
-            if "ready" in line:
-                owner.stdin.close()  # type: ignore[union-attr]
-                owner.wait(timeout=30)  # reaped: a zombie would still count as alive
+        deadline = time.monotonic() + 60
+        while "ready" not in log.read_text() and node.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)  # polled with a deadline: the node's log line is the event
+        assert "ready" in log.read_text(), log.read_text()
+        owner.stdin.close()  # type: ignore[union-attr]
+        owner.wait(timeout=30)  # reaped: a zombie would still count as alive
         assert node.wait(timeout=60) == 0
-        text = "".join(lines)
-        assert "transport inproc: no other process can reach this node" in text and "ready" in text
+        assert "transport inproc: no other process can reach this node" in log.read_text()
     finally:
         for proc in (node, owner):
             if proc.poll() is None:

@@ -149,8 +149,10 @@ def test_the_migration_pages_legacy_names(fake, caplog):
     from multiros.utils import gazebo_physics
 
     sim, client = fake
-    assert gazebo_core.launch_Gazebo is gazebo_core.launch_gazebo
     assert gazebo_core.close_Gazebo is gazebo_core.close_gazebo
+    with pytest.raises(TypeError, match="launch_gazebo.*no_such"):  # FRobs_RL's positional order, our checks
+        gazebo_core.launch_Gazebo(True, True, False, no_such=1)
+    gazebo_core.gazebo_reset_sim(client, retries=5)  # FRobs_RL's keyword, accepted and ignored
     assert gazebo_physics.set_gazebo_time_step is sim_core.set_time_step
     gazebo_physics.set_gazebo_physics_properties(client, time_step=0.004, max_update_rate=2.0, gravity=(0, 0, -1))
     gazebo_core.gazebo_set_default_properties(client)

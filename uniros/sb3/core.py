@@ -26,7 +26,7 @@ from uniros.training import fit_learning_starts, reports_success
 _logger = logging.getLogger(__name__)
 
 
-def _package_dir(pkg: str) -> Path:
+def _package_dir(pkg: str, what: str) -> Path:
     """A package's root: a ROS-style package (multiros' index) or an importable Python package."""
     import importlib.util
 
@@ -41,10 +41,11 @@ def _package_dir(pkg: str) -> Path:
     except (ImportError, ValueError):
         spec = None
     if spec is None or not spec.submodule_search_locations:
+        instead = " or give the file itself as abs_config_path" if what == "config_file_pkg" else ""
         raise TrainingConfigError(
-            f"config_file_pkg: package {pkg!r} not found, neither a ROS package nor an importable Python package: "
-            "source the ROS workspace that installs it (AMENT_PREFIX_PATH), add the directory that holds it to "
-            "ROS_PACKAGE_PATH, or give the file itself as abs_config_path")
+            f"{what}: package {pkg!r} not found, neither a ROS package nor an importable Python package: source "
+            "the ROS workspace that installs it (AMENT_PREFIX_PATH), add the directory that holds it to "
+            f"ROS_PACKAGE_PATH, or install it as a Python package{instead}")
     return Path(next(iter(spec.submodule_search_locations)))
 
 
@@ -60,7 +61,7 @@ def resolve_config_path(algo: str, goal: bool, config_file_pkg: str | None, conf
         if not shipped.is_file():
             raise TrainingConfigError(f"no config {name!r} shipped with uniros.sb3; pass abs_config_path")
         return Path(str(shipped))
-    root = _package_dir(config_file_pkg)
+    root = _package_dir(config_file_pkg, "config_file_pkg")
     name = config_filename or default
     candidates = [root / "config" / name, root / name]
     for path in candidates:
@@ -114,7 +115,7 @@ class BasicModel:
         legacy.pop("action_noise_type", None)
         if legacy:
             raise TypeError(f"{type(self).__name__} got unexpected keyword argument(s) {sorted(legacy)}")
-        root = _package_dir(model_pkg_path) if model_pkg_path else None
+        root = _package_dir(model_pkg_path, "model_pkg_path") if model_pkg_path else None
         self.env = env
         self.save_model_path = _under(root, save_model_path)
         self.log_path = _under(root, log_path)
@@ -229,7 +230,7 @@ class BasicModel:
         ``device`` (``auto``: the GPU for a policy that sees camera images when CUDA is present)."""
         from uniros.trainer import algorithm_class
 
-        path = _under(_package_dir(model_pkg) if model_pkg else None, model_path)
+        path = _under(_package_dir(model_pkg, "model_pkg") if model_pkg else None, model_path)
         if env is None:
             target = path if path.is_file() else path.with_name(path.name + ".zip")
             if not target.is_file():
