@@ -170,6 +170,22 @@ def test_the_irb120_pixel_config_is_the_recipe_with_its_camera_and_a_dark_floor(
            (vx300s.algorithm, vx300s.use_her, vx300s.policy_params, vx300s.stop_at_success, vx300s.seed)
 
 
+def test_the_ur5e_pixel_config_is_the_irb120_recipe_with_its_camera_and_100000_steps():
+    """config/training/pixels/UR5eReacherGoalSim-v0.yaml: the IRB120's file (dark floor) with the camera 1.1 m
+    from the UR5e's goal box and 100,000 steps, what the run that reached 0.95 at 96,000 steps used."""
+    from importlib import resources
+
+    pixels = resources.files("rl_environments.config").joinpath("training", "pixels")
+    irb120 = load_training_config(str(pixels.joinpath("IRB120ReacherGoalSim-v0.yaml")))
+    ur5e = load_training_config(str(pixels.joinpath("UR5eReacherGoalSim-v0.yaml")))
+    assert ur5e.env_kwargs == {**irb120.env_kwargs, "camera_position": [1.238, -0.64, 0.765],
+                               "camera_lookat": [0.475, 0.0, 0.3]}
+    assert ur5e.env_kwargs["floor_color"] == "dark" and ur5e.training_steps == 100_000
+    assert ur5e.algo_params == irb120.algo_params
+    assert (ur5e.algorithm, ur5e.use_her, ur5e.policy_params, ur5e.stop_at_success, ur5e.seed) == \
+           (irb120.algorithm, irb120.use_her, irb120.policy_params, irb120.stop_at_success, irb120.seed)
+
+
 @pytest.mark.slow
 def test_uniros_train_and_eval_a_drq_sac_model_on_a_camera_env(tmp_path, capsys):
     from uniros.cli import main as cli_main
