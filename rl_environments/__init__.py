@@ -115,13 +115,21 @@ def forget_arm_ids(sim_id: str, real_id: str) -> None:
         g[key] = tuple(i for i in g[key] if i not in (sim_id, real_id))
 
 
-def _register_arm_files() -> None:
+def shipped_arm_file(name: str) -> _Path | None:
+    """The shipped arm file ``name`` (``"ur5e.yaml"``, one of :data:`SHIPPED_ARM_FILES`), else ``None``."""
+    if name not in SHIPPED_ARM_FILES:
+        return None
     from importlib import resources
 
+    return _Path(str(resources.files("rl_environments.config").joinpath("arms", name)))
+
+
+def _register_arm_files() -> None:
     from rl_environments.arm_registry import register_arm, register_env_arms, registered_arms
 
     for name in SHIPPED_ARM_FILES:
-        path = _Path(str(resources.files("rl_environments.config").joinpath("arms", name)))
+        path = shipped_arm_file(name)
+        assert path is not None  # a name of SHIPPED_ARM_FILES
         register_arm(path, check_chain=False, tell_children=False)
     for arm, spec in registered_arms().items():
         ARMS[arm] = spec.robot_name
@@ -154,4 +162,5 @@ __all__ = [
     "forget_arm_ids",
     "note_arm_ids",
     "register_envs",
+    "shipped_arm_file",
 ]

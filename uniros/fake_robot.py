@@ -337,13 +337,11 @@ def _shipped_arm_as_arm(args: list[str]) -> list[str]:
                 else arg[len("--robot="):] if arg.startswith("--robot=") else None)
         if name is None or name in _fake.PRESETS:
             continue
-        import rl_environments
+        from rl_environments import shipped_arm_file
 
-        if f"{name}.yaml" in rl_environments.SHIPPED_ARM_FILES:
-            from importlib import resources
-
-            path = str(resources.files("rl_environments.config").joinpath("arms", f"{name}.yaml"))
-            return [*args[:i], "--arm", path, *args[i + (2 if arg == "--robot" else 1):]]
+        path = shipped_arm_file(f"{name}.yaml")
+        if path is not None:
+            return [*args[:i], "--arm", str(path), *args[i + (2 if arg == "--robot" else 1):]]
     return args
 
 

@@ -378,14 +378,10 @@ def arm_file_of(env_id: str) -> str | None:
 
 
 def _shipped(path: Path) -> bool:
-    from importlib import resources
+    from rl_environments import shipped_arm_file
 
-    import rl_environments
-
-    if path.name not in rl_environments.SHIPPED_ARM_FILES:
-        return False
-    shipped = Path(str(resources.files("rl_environments.config").joinpath("arms", path.name)))
-    return shipped.resolve() == path.resolve()
+    shipped = shipped_arm_file(path.name)
+    return shipped is not None and shipped.resolve() == path.resolve()
 
 
 def register_run_arm(meta: dict[str, Any], where: str, note: Callable[[str], None] | None = None) -> None:
