@@ -121,8 +121,12 @@ def test_transient_local_late_joiner_over_zenoh(zenoh_ctx: ros.Context, zenoh_pe
     late = ros.Node("late", context=zenoh_peer_ctx)
     got = []
     late.create_subscription(String, "/latched", lambda m: got.append(m.data), tl)
-    assert spin_until(late, lambda: len(got) >= 2, 5.0)
-    assert got == ["m2", "m3"]
+    # Wait for the newest message, not for any two: a put still on its way through the router when
+    # the late subscription is declared is delivered live (as DDS delivers one in flight), before
+    # the publisher's cache answers. Seen once in CI under load: ["m0", "m1", ...].
+    assert spin_until(late, lambda: "m3" in got, 5.0)
+    assert got[-2:] == ["m2", "m3"]  # the last `depth` messages, from the publisher's cache
+    assert got == sorted(set(got))  # in publication order, each once
 
 
 @pytest.mark.slow
