@@ -125,6 +125,41 @@ def test_goal_feedback_and_result(setup) -> None:
     assert ("/steps", ["simulation_interfaces/action/SimulateSteps"]) in get_action_names_and_types(client._node)
 
 
+def test_a_result_completes_after_the_feedback_sent_before_it(setup) -> None:
+    """A slow feedback callback (a user writing each message to disk) must not lose feedback:
+    the result waits for the feedback that arrived before it, which is delivered in order."""
+    _, server, client = setup
+    feedback, at_result = [], []
+
+    def slow_consumer(msg) -> None:
+        threading.Event().wait(0.1)  # the consumer's own work, not a wait for anything
+        feedback.append(msg.feedback.completed_steps)
+
+    handle = client.send_goal_async(SimulateSteps.Goal(steps=4), feedback_callback=slow_consumer)
+    assert handle.wait(5.0) and handle.result().accepted
+    result = handle.result().get_result_async()
+    result.add_done_callback(lambda _: at_result.append(list(feedback)))
+    assert result.wait(10.0) and result.result().status == STATUS_SUCCEEDED
+    assert _wait(lambda: at_result)
+    assert at_result == [[1, 2, 3, 4]]  # all of it, in order, before the result
+    assert feedback == [1, 2, 3, 4]  # and nothing after it
+
+
+def test_a_failing_feedback_callback_is_logged_and_delivery_goes_on(setup, caplog) -> None:
+    _, server, client = setup
+    seen = []
+
+    def flaky(msg) -> None:
+        seen.append(msg.feedback.completed_steps)
+        if msg.feedback.completed_steps == 1:
+            raise ValueError("consumer bug")
+
+    with caplog.at_level("ERROR", logger="multiros.ros.action.client"):
+        response = client.send_goal(SimulateSteps.Goal(steps=2), feedback_callback=flaky, timeout_sec=10.0)
+    assert response.status == STATUS_SUCCEEDED and seen == [1, 2]
+    assert "feedback callback of action '/steps' raised" in caplog.text and "consumer bug" in caplog.text
+
+
 def test_rejected_goal(setup) -> None:
     _, server, client = setup
     assert client.send_goal(SimulateSteps.Goal(steps=13), timeout_sec=5.0) is None

@@ -1,8 +1,10 @@
 """``ActionClient`` and ``ClientGoalHandle``, shaped like ``rclpy.action.client``.
 
-Futures complete on their own (no spinning needed, as for service clients); feedback and
-status callbacks run in the thread that delivers them (Zenoh's receive thread, or the server's
-execute thread in-process), without the node lock: keep them short.
+Futures complete on their own (no spinning needed, as for service clients). Feedback callbacks
+run on a thread of the client's, one at a time in the order the feedback arrived, without the node
+lock; a goal's result completes after the feedback that arrived before it has been delivered, so a
+feedback callback must not wait for its own goal's result. Status is applied in the thread that
+delivers it.
 
 A result request waits on the server until the goal ends. Over the wire each request is bounded
 by the context's ``default_timeout_sec`` and asked again while the server is there, so a goal may
@@ -12,8 +14,10 @@ run longer than that; the caller bounds its own wait (``get_result(timeout_sec=.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
@@ -39,6 +43,62 @@ if TYPE_CHECKING:
     from multiros.ros.node import Node
 
 __all__ = ["ActionClient", "ClientGoalHandle"]
+
+_log = logging.getLogger(__name__)
+
+
+class _FeedbackDelivery:
+    """Feedback in arrival order, handed to the goals' callbacks by one thread of the client's.
+
+    The transport's receive thread only queues a message (``put``), so it is queued before the
+    transport reads what followed it on the same link, the server's answer to a result request
+    among them. A goal's result is queued too, behind its feedback: a short goal's
+    result could otherwise complete, and its feedback callback be forgotten, before the feedback
+    published ahead of it had been delivered (seen under load over Zenoh: all of it lost).
+    """
+
+    def __init__(self, name: str) -> None:
+        self._name = name
+        self._items: deque[Callable[[], None]] = deque()
+        self._cond = threading.Condition()
+        self._thread: threading.Thread | None = None
+        self._closed = False
+
+    def put(self, deliver: Callable[[], None]) -> None:
+        """Queue ``deliver`` behind everything queued before it (any thread; never blocks long).
+        Once closed, run it at once: feedback then finds no callback, and a result still completes."""
+        with self._cond:
+            closed = self._closed
+            if not closed:
+                self._items.append(deliver)
+                if self._thread is None:
+                    self._thread = threading.Thread(target=self._run, name=f"feedback {self._name}", daemon=True)
+                    self._thread.start()
+                self._cond.notify()
+        if closed:
+            deliver()
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._items and not self._closed:
+                    self._cond.wait()
+                if not self._items:
+                    return  # closed, and everything queued before closing was delivered
+                deliver = self._items.popleft()
+            try:
+                deliver()
+            except Exception:  # noqa: BLE001 - the thread must outlive a failing callback
+                _log.exception("a feedback callback of action '%s' raised", self._name)
+
+    def close(self) -> None:
+        """Deliver what is queued, then stop the thread (waits for it unless called on it)."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify()
+            thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=5.0)
 
 
 class ClientGoalHandle:
@@ -147,9 +207,10 @@ class ActionClient:
                                                  qos_profile=cancel_service_qos_profile)
         self._result_client = node.create_client(t.get_result, self._name + GET_RESULT,
                                                  qos_profile=result_service_qos_profile)
+        self._feedback = _FeedbackDelivery(self._name)
         self._feedback_sub = node.create_subscription(t.feedback_message, self._name + FEEDBACK,
                                                       self._on_feedback, feedback_sub_qos_profile)
-        self._feedback_sub._deliver_directly()
+        self._feedback_sub._deliver_directly(wire_inline=True)  # queued in wire order with the replies
         self._status_sub = node.create_subscription(t.status_array, self._name + STATUS,
                                                     self._on_status, status_sub_qos_profile)
         self._status_sub._deliver_directly()
@@ -271,9 +332,13 @@ class ActionClient:
                     outer.set_exception(exc or ServiceCallError(self._name + GET_RESULT, "request cancelled"))
                     return
                 response = done.result()
-                handle._status = int(response.status)
-                self._forget(gid)
-                outer.set_result(response)
+
+                def complete() -> None:
+                    handle._status = int(response.status)
+                    self._forget(gid)
+                    outer.set_result(response)
+
+                self._feedback.put(complete)  # after the feedback that arrived before the result
 
             pending.add_done_callback(on_reply)
 
@@ -287,9 +352,14 @@ class ActionClient:
 
     # -- topics (run in the delivering thread) ------------------------------------------------
     def _on_feedback(self, msg: Any) -> None:
-        callback = self._feedback_callbacks.get(bytes(msg.goal_id.uuid))
-        if callback is not None:
-            callback(msg)
+        gid = bytes(msg.goal_id.uuid)
+
+        def deliver() -> None:
+            callback = self._feedback_callbacks.get(gid)
+            if callback is not None:
+                callback(msg)
+
+        self._feedback.put(deliver)
 
     def _on_status(self, msg: Any) -> None:
         self._last_status = msg
@@ -318,6 +388,7 @@ class ActionClient:
         with self._lock:
             self._feedback_callbacks.clear()
             self._handles.clear()
+        self._feedback.close()  # results already queued still complete
         node.remove_waitable(self)
 
     def __repr__(self) -> str:
