@@ -3,8 +3,8 @@
 Futures complete on their own (no spinning needed, as for service clients). Feedback callbacks
 run on a thread of the client's, one at a time in the order the feedback arrived, without the node
 lock; a goal's result completes after the feedback that arrived before it has been delivered, so a
-feedback callback must not wait for its own goal's result. Status is applied in the thread that
-delivers it.
+feedback callback must not wait for a result of the same client (it would wait for itself until the
+wait's timeout). Status is applied in the thread that delivers it.
 
 A result request waits on the server until the goal ends. Over the wire each request is bounded
 by the context's ``default_timeout_sec`` and asked again while the server is there, so a goal may
