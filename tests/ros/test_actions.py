@@ -160,6 +160,27 @@ def test_a_failing_feedback_callback_is_logged_and_delivery_goes_on(setup, caplo
     assert "feedback callback of action '/steps' raised" in caplog.text and "consumer bug" in caplog.text
 
 
+def test_a_feedback_callback_that_waits_for_a_result_times_out_instead_of_hanging(setup) -> None:
+    _, server, client = setup
+    waited = []
+    handles = []
+    have_handle = threading.Event()
+
+    def impatient(msg) -> None:
+        if not waited and have_handle.wait(5.0):
+            try:
+                handles[0].get_result(timeout_sec=0.2)
+            except ros.ServiceTimeoutError as exc:  # its result is queued behind this very callback
+                waited.append(exc)
+
+    future = client.send_goal_async(SimulateSteps.Goal(steps=2), feedback_callback=impatient)
+    assert future.wait(5.0)
+    handles.append(future.result())
+    have_handle.set()
+    assert handles[0].get_result(timeout_sec=10.0).status == STATUS_SUCCEEDED
+    assert len(waited) == 1
+
+
 def test_rejected_goal(setup) -> None:
     _, server, client = setup
     assert client.send_goal(SimulateSteps.Goal(steps=13), timeout_sec=5.0) is None
