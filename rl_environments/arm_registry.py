@@ -86,6 +86,7 @@ def robot_constants(spec: ArmFile) -> dict[str, Any]:
         "DESCRIPTION_PACKAGE": "",
         "XACRO_ARGS": dict(spec.xacro_args),
         "ARM_JOINTS": spec.joints,
+        "HOME": tuple(spec.home),
         "BASE_LINK": spec.base_link,
         "EE_LINK": spec.ee_link,
         "ARM_CONTROLLER": spec.arm_controller,

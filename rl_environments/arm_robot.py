@@ -119,6 +119,8 @@ class ArmRobot(ArmInterface):
     RENDER_CAMERA: ClassVar[str] = "render_camera"
     GRIPPER_CONTROLLER: ClassVar[str] = ""
     FINGER_JOINTS: ClassVar[tuple[str, ...]] = ()
+    #: The arm's joint positions it is spawned at (an arm file's ``arm.home``); empty: the description's.
+    HOME: ClassVar[tuple[float, ...]] = ()
     FINGER_MIMIC: ClassVar[float] = -1.0
     RESET_MIMIC: ClassVar[bool] = True
     SCENE: ClassVar[Mapping[str, Any]] = {}
@@ -169,6 +171,8 @@ class ArmRobot(ArmInterface):
             "num_sim_steps": cls.NUM_SIM_STEPS,
             "sim_timestep": cls.SIM_TIMESTEP,
         }
+        if cls.HOME:  # spawned at home: an arm whose zero pose reaches below its base stays clear of the table
+            kwargs["initial_joint_positions"] = dict(zip(cls.ARM_JOINTS, cls.HOME))
         kwargs.update(overrides)
         if cls.RENDER_CAMERA and "render_camera" not in overrides and kwargs.get("spawn_robot", True):
             kwargs["render_camera"] = f"{kwargs['robot_name']}/{cls.RENDER_CAMERA}"

@@ -79,7 +79,7 @@ _REAL_REFUSED = {
 SIMULATION_ONLY = frozenset({
     "sim_mode", "sim_node_name", "gui", "num_sim_steps", "sim_timestep", "real_time_factor", "spawn_robot",
     "floor_color", "robot_model_xml", "reset_mode", "step_mode", "frames", "render_camera", "render_width",
-    "render_height",
+    "render_height", "initial_joint_positions",
 })
 
 

@@ -55,6 +55,9 @@ class RobotModel:
     urdf_folder: str = "/urdf"
     urdf_xacro_args: Mapping[str, Any] | Sequence[str] | None = None
     controllers_file: str | None = None
+    #: the joint positions the robot is spawned (and a world reset puts it back) at; ``None``: the
+    #: description's ``initial_value``, else zeros clamped into the limits.
+    initial_joint_positions: Mapping[str, float] | None = None
 
 
 class SimConnection(RobotConnection):
@@ -154,7 +157,8 @@ class SimConnection(RobotConnection):
         uri, text = robot_resource(
             robot_model_xml=model.robot_model_xml, urdf_pkg_name=model.urdf_pkg_name,
             urdf_file_name=model.urdf_file_name, urdf_folder=model.urdf_folder, xacro_args=model.urdf_xacro_args,
-            controllers_file=model.controllers_file, controllers_list=self.controllers_list or None)
+            controllers_file=model.controllers_file, controllers_list=self.controllers_list or None,
+            joint_positions=model.initial_joint_positions)
         self.robot_name = self.sim.spawn_entity(
             self.robot_name, uri=uri, resource_string=text, namespace=self.namespace,
             position=tuple(self.to_world(np.asarray(self.spawn_pose.position, dtype=np.float64))),

@@ -44,6 +44,9 @@ class MujocoEnvCore(EnvCore):
         controllers_file: a ros2_control controllers YAML (path or ``package://``) overriding the one
             the description names.
         controllers_list: controllers to activate (default: what the YAML configures).
+        initial_joint_positions: ``{joint: position}`` the robot is spawned at, and put back at by a
+            world reset (default: the description's ros2_control ``initial_value``, else zeros clamped
+            into the limits): an arm whose zero pose reaches below its base spawns at its home.
         reset_controllers: restart the controllers on every reset.
         reset_mode: ``"world"`` (state only; sim time keeps running) or ``"simulation"`` (state and time).
         step_mode: ``"lockstep"`` (default), ``"pause_unpause"`` or ``"realtime"``; MultiROS' 1/2 accepted.
@@ -122,6 +125,7 @@ class MujocoEnvCore(EnvCore):
         robot_ori_z: float = 0.0,
         controllers_file: str | None = None,
         controllers_list: Sequence[str] | None = None,
+        initial_joint_positions: Mapping[str, float] | None = None,
         reset_controllers: bool = False,
         reset_mode: Any = "world",
         step_mode: Any = "lockstep",
@@ -165,7 +169,8 @@ class MujocoEnvCore(EnvCore):
                                       float(k["action_cycle_time"]))
         self.reset_mode = parse_reset_mode(k["reset_mode"])
         model = RobotModel(k["robot_model_xml"], k["urdf_pkg_name"], k["urdf_file_name"], k["urdf_folder"],
-                           k["urdf_xacro_args"], k["controllers_file"]) if k["spawn_robot"] else None
+                           k["urdf_xacro_args"], k["controllers_file"],
+                           k["initial_joint_positions"]) if k["spawn_robot"] else None
         self.connection = SimConnection(
             robot_name=self.robot_name, namespace=namespace, model=model, spawn_pose=self.spawn_pose,
             step_config=self.step_config, reset_mode=self.reset_mode, controllers_list=k["controllers_list"] or [],

@@ -46,7 +46,7 @@ from multiros.sim.trust import (
     check_model,
     screen_mjcf_text,
 )
-from multiros.sim.urdf_model import parse_urdf
+from multiros.sim.urdf_model import Joint, parse_urdf
 from multiros.sim.urdf_tags import Ros2ControlJoint, add_gazebo_cameras, parse_controllers_file, parse_ros2_control
 from multiros.sim.xacro_runner import xacro_to_urdf
 
@@ -110,6 +110,7 @@ class RobotDescription:
         link_bodies: body names that differ from their link name (a URDF link ``world`` clashes
             with MuJoCo's world body and becomes body ``world_urdf``).
         ros2_control: joints of the ``<ros2_control>`` tag (empty if absent).
+        mimic_leaders: joints that a ``<mimic>`` joint follows (a gripper's driven joint), in file order.
         controllers_yaml: controller YAML referenced by a ``<gazebo><plugin><parameters>`` tag.
         free_root: the MJCF root body had a free joint: the entity is free-floating (the joint is
             taken out of ``spec``; the world adds its own when it spawns the entity).
@@ -127,6 +128,7 @@ class RobotDescription:
     controllers_yaml: Path | None = None
     link_bodies: dict[str, str] = field(default_factory=dict)
     free_root: bool = False
+    mimic_leaders: tuple[str, ...] = ()
 
     def body_name(self, link: str) -> str:
         """MuJoCo body name of a link (differs only for a link called ``world``)."""
@@ -134,10 +136,18 @@ class RobotDescription:
 
     @property
     def actuated_joints(self) -> tuple[str, ...]:
-        """Joints with a ros2_control command interface, else every 1-DoF joint."""
+        """Joints with a ros2_control command interface, else every 1-DoF joint.
+
+        A joint that ``<mimic>`` joints follow is actuated too when the ``<ros2_control>`` tag leaves it
+        out: it is a gripper's drive, which vendors leave out of the arm's hardware block when another
+        driver runs the gripper (UFACTORY's xArm at its default plugin). Unactuated, the linkage could
+        never move; the simulation drives it within its own URDF limits.
+        """
         if self.ros2_control:
             known = {j.name for j in self.joints}
-            return tuple(j.name for j in self.ros2_control if j.command_interfaces and j.name in known)
+            listed = {j.name for j in self.ros2_control}
+            named = [j.name for j in self.ros2_control if j.command_interfaces and j.name in known]
+            return (*named, *(j for j in self.mimic_leaders if j in known and j not in listed))
         return tuple(j.name for j in self.joints)
 
 
@@ -341,7 +351,14 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
     return RobotDescription(name=spec.modelname, format="urdf", spec=spec, source=source_name, text=urdf,
                             root=roots[0], joints=tuple(joint_infos), links=tuple(links),
                             ros2_control=rc_joints, link_bodies=link_bodies,
-                            controllers_yaml=parse_controllers_file(xml_root, index, source_name, policy))
+                            controllers_yaml=parse_controllers_file(xml_root, index, source_name, policy),
+                            mimic_leaders=_mimic_leaders(robot.joints, {j.name for j in joint_infos}))
+
+
+def _mimic_leaders(joints: Sequence[Joint], movable: set[str]) -> tuple[str, ...]:
+    """The movable joints a movable ``<mimic>`` joint follows, once each, in file order."""
+    led = {j.mimic.joint for j in joints if j.mimic is not None and j.name in movable and j.mimic.joint != j.name}
+    return tuple(j.name for j in joints if j.name in led and j.name in movable)
 
 
 def _add_mimics(spec: mujoco.MjSpec, joints: Sequence[object], movable: set[str]) -> None:

@@ -388,6 +388,7 @@ def robot_resource(
     xacro_args: Mapping[str, Any] | Sequence[str] | None = None,
     controllers_file: str | None = None,
     controllers_list: Sequence[str] | None = None,
+    joint_positions: Mapping[str, float] | None = None,
 ) -> tuple[str, str]:
     """The ``(uri, resource_string)`` pair of a ``SpawnEntity`` request for an env's robot.
 
@@ -395,7 +396,8 @@ def robot_resource(
     node passes to xacro); XML text becomes the resource string, xacro text expanded here first (the
     node does not run xacro on request text). ``controllers_file`` and
     ``controllers_list`` travel as the reserved query keys ``__controllers_file`` and
-    ``__controllers``.
+    ``__controllers``; ``joint_positions`` (the pose the robot is spawned and reset at, instead of
+    the description's ``initial_value`` or zeros) as ``__joint_positions``.
     """
     if robot_model_xml is None:
         if not (urdf_pkg_name and urdf_file_name):
@@ -418,6 +420,8 @@ def robot_resource(
         args["__controllers_file"] = controllers_file
     if controllers_list:
         args["__controllers"] = ",".join(controllers_list)
+    if joint_positions:
+        args["__joint_positions"] = ",".join(f"{name}={float(value)!r}" for name, value in joint_positions.items())
     if robot_model_xml.lstrip().startswith("<"):
         # xacro text runs here, in the user's own (trusted) process: the node refuses to run xacro
         # on a request's text, since xacro evaluates Python.

@@ -1,9 +1,9 @@
 """SpawnEntity handling of the simulation node: request checks, URI options, the source policy.
 
 :func:`spawn_entity` validates the request (resource, namespace, pose, sizes), splits the URI's
-query into xacro arguments and the node's own options (``__controllers``,
-``__controllers_file``), loads the description outside the world under the node's
-:class:`~multiros.sim.description.SourcePolicy` and limits, compiles and admits it beside the world
+query into xacro arguments and the node's own options (``__controllers``, ``__controllers_file``,
+``__joint_positions``: ``name=value,...``, the pose the robot is spawned and reset at), loads the
+description outside the world under the node's :class:`~multiros.sim.description.SourcePolicy` and limits, compiles and admits it beside the world
 (:mod:`multiros.sim.world_prepare`: the others step meanwhile), commits it under the node's lock (or,
 when the world changed structure meanwhile, spawns and admits it under the lock as before) and
 attaches the robot's ROS interfaces. The node's entity limits and the caller's quota
@@ -87,6 +87,11 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
     controllers_yaml: Any = args.pop("__controllers_file", None)
     controllers = [c for c in args.pop("__controllers", "").split(",") if c] or None
     try:
+        joint_positions = _joint_positions(args.pop("__joint_positions", ""))
+    except ValueError as exc:
+        fail(res, response.INVALID_POSE, str(exc))
+        return response
+    try:
         if controllers_yaml:
             controllers_yaml = (policy.resolve(controllers_yaml, node.world.index, what="controllers file")
                                 if policy is not None else node.world.index.resolve_uri(controllers_yaml))
@@ -119,7 +124,7 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
             return response
         snapshot = node.world.spawn_snapshot(name)
     spawn = {"pose": (position, quat), "namespace": namespace or None, "controllers": controllers,
-             "controllers_yaml": controllers_yaml}
+             "controllers_yaml": controllers_yaml, "joint_positions": joint_positions}
     try:  # compiled and admitted beside the world, the others stepping meanwhile (multiros.sim.world_prepare)
         prepared = node.world.prepare_spawn(snapshot, desc, limits=limits, **spawn)
     except (DescriptionError, EntityError, ControllerError, ValueError, SpawnRefusedError) as exc:
@@ -156,6 +161,35 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
     response.entity_name = info.name
     ok(res)
     return response
+
+
+_MAX_JOINT_POSITIONS = 256  # entries of __joint_positions: more than any robot the limits admit has joints
+
+
+def _joint_positions(text: str) -> dict[str, float] | None:
+    """``__joint_positions``: ``name=value`` pairs, comma-separated (hostile: bounded, names checked,
+    values finite; unknown joints and values outside the limits are the world's errors)."""
+    if not text:
+        return None
+    items = text.split(",")
+    if len(items) > _MAX_JOINT_POSITIONS:
+        raise ValueError(f"__joint_positions has {len(items)} entries; at most {_MAX_JOINT_POSITIONS}")
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not _JOINT_NAME.fullmatch(name):
+            raise ValueError(f"__joint_positions entry {item[:80]!r} is not NAME=NUMBER")
+        try:
+            number = float(value)
+        except ValueError:
+            raise ValueError(f"__joint_positions entry {item[:80]!r} is not NAME=NUMBER") from None
+        if not np.isfinite(number):
+            raise ValueError(f"__joint_positions: joint {name!r} position {value[:40]!r} is not finite")
+        out[name] = number
+    return out
+
+
+_JOINT_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_/.\-]{0,255}")
 
 
 def _spawn_failed(node: SimulationNode, quota: EntityQuota | None, caller: str | None, response: Any, name: str,

@@ -135,6 +135,8 @@ class Robot:
     links: list[Link]
     joints: list[Joint]
     materials: list[Material]
+    #: What the reader took otherwise than written, one line each (a non-positive effort read as unknown).
+    notes: list[str] = field(default_factory=list)
 
 
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
@@ -144,6 +146,7 @@ class _Reader:
     def __init__(self, source: str, limits: DescriptionLimits) -> None:
         self.source = source
         self.limits = limits
+        self.notes: list[str] = []
 
     def fail(self, what: str) -> DescriptionError:
         return DescriptionError(f"{self.source}: invalid URDF: {what}", source=self.source)
@@ -296,8 +299,14 @@ class _Reader:
                 if getattr(limit, attr) is not None:
                     self.bounded(getattr(limit, attr), -pmax, pmax, f"{what} {attr}")
             for attr in ("effort", "velocity"):
-                if getattr(limit, attr) is not None:
-                    self.bounded(getattr(limit, attr), 0.0, jmax, f"{what} {attr}")
+                value = getattr(limit, attr)
+                if value is not None and value <= 0.0:
+                    # ROS tools load these (urdfdom keeps them; some vendors write effort="-1" for "no
+                    # limit given"): unknown, as if left out, and said, rather than a refused description.
+                    setattr(limit, attr, None)
+                    self.notes.append(f"joint {name!r} limit {attr} {value:g} <= 0 is read as unknown (no limit)")
+                elif value is not None:
+                    self.bounded(value, 0.0, jmax, f"{what} {attr}")
             if limit.lower is not None and limit.upper is not None and limit.lower > limit.upper:
                 raise self.fail(f"{what} lower {limit.lower:g} > upper {limit.upper:g}; limits must be ordered")
         elif jtype in ("revolute", "prismatic"):
@@ -339,9 +348,6 @@ def parse_urdf(root: ET.Element, source: str = "<string>", limits: DescriptionLi
             raise DescriptionError(f"{source}: too many {what}: {count} > {most} (the node's description limits)",
                                    source=source)
     materials = [m for m in (reader.material(e) for e in root.findall("material")) if m is not None]
-    return Robot(
-        name=root.get("name", ""),
-        links=[reader.link(e) for e in root.findall("link")],
-        joints=[reader.joint(e) for e in root.findall("joint")],
-        materials=materials,
-    )
+    links = [reader.link(e) for e in root.findall("link")]
+    joints = [reader.joint(e) for e in root.findall("joint")]
+    return Robot(name=root.get("name", ""), links=links, joints=joints, materials=materials, notes=reader.notes)

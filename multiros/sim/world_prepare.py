@@ -142,6 +142,7 @@ class PreparedSpawn:
     controllers: Sequence[str] | None
     controllers_yaml: str | Path | Mapping | None
     gravcomp: bool  # gravity compensation as asked for (World.spawn's recipe)
+    joint_positions: dict[str, float] | None = None  # as asked for (World.spawn's recipe)
 
 
 class _Candidate(WorldAdmission):
@@ -185,7 +186,8 @@ class WorldSpawnPreparation:
                       pose: tuple[Sequence[float], Sequence[float]] | None = None, namespace: str | None = None,
                       controllers: Sequence[str] | None = None,
                       controllers_yaml: str | Path | Mapping | None = None,
-                      limits: DescriptionLimits | None = None) -> PreparedSpawn | None:
+                      limits: DescriptionLimits | None = None,
+                      joint_positions: Mapping[str, float] | None = None) -> PreparedSpawn | None:
         """Outside the lock: the candidate world with the newcomer, admitted. ``World.spawn``'s
         arguments (category, floating and gravity compensation by default). None when the candidate
         does not keep the others' state slots (then spawn under the lock).
@@ -194,7 +196,7 @@ class WorldSpawnPreparation:
             what ``World.spawn`` and ``World.admit`` raise; the world is not touched.
         """
         ent = self._new_record(snapshot.name, description, pose=pose, namespace=namespace,
-                               category=None, xacro_args=None, floating=None, joint_positions=None,
+                               category=None, xacro_args=None, floating=None, joint_positions=joint_positions,
                                initial=False)  # the name: checked by spawn_snapshot
         requested = bool(self.options.gravity_compensation)
         spec = snapshot.spec
@@ -217,7 +219,7 @@ class WorldSpawnPreparation:
             _trial_controllers(model, data, ent, controllers, controllers_yaml)
         _Candidate(model, data, {**snapshot.entities, ent.name: ent}).admit(ent.name, limits)
         return PreparedSpawn(snapshot.generation, spec, model, data, before, ent, controllers,
-                             controllers_yaml, requested)
+                             controllers_yaml, requested, dict(joint_positions) if joint_positions else None)
 
     def commit_spawn(self, prepared: PreparedSpawn) -> EntityInfo | None:
         """Under the lock: the candidate becomes the world, the others' state as it is now. None
@@ -232,7 +234,7 @@ class WorldSpawnPreparation:
         self._removed.pop(ent.name, None)
         self._rebind()
         return self._finish_spawn(ent, prepared.controllers, prepared.controllers_yaml,
-                                  None, prepared.gravcomp)
+                                  prepared.joint_positions, prepared.gravcomp)
 
 
 def _trial_controllers(m: mujoco.MjModel, d: mujoco.MjData, ent: EntityRecord, controllers: Sequence[str] | None,
