@@ -3,8 +3,9 @@
 :func:`spawn_entity` validates the request (resource, namespace, pose, sizes), splits the URI's
 query into xacro arguments and the node's own options (``__controllers``, ``__controllers_file``,
 ``__joint_positions``: ``name=value,...``, the pose the robot is spawned and reset at), loads the
-description outside the world under the node's :class:`~multiros.sim.description.SourcePolicy` and limits, compiles and admits it beside the world
-(:mod:`multiros.sim.world_prepare`: the others step meanwhile), commits it under the node's lock (or,
+description outside the world under the node's :class:`~multiros.sim.description.SourcePolicy` and
+limits, compiles and admits it beside the world (:mod:`multiros.sim.world_prepare`: the others step
+meanwhile), commits it under the node's lock (or,
 when the world changed structure meanwhile, spawns and admits it under the lock as before) and
 attaches the robot's ROS interfaces. The node's entity limits and the caller's quota
 (:mod:`multiros.sim.node_quota`) are checked before loading, after loading, and under the lock before
