@@ -299,53 +299,78 @@ class _Gripper:
     midpoint: np.ndarray  # root frame, fingers open, arm at zero
     closing_direction: np.ndarray  # root frame
     pads: tuple[float, float] | None = None  # m: the gap between the fingers' geometry (closed, open)
+    notes: list[str] = field(default_factory=list)  # what else the file should say of the gripper
 
 
-def _pad_gaps(ins: Inspection, gripper: _Gripper) -> tuple[float, float] | None:
-    """The smallest distance between the two fingers' collision geometry, closed and open (MuJoCo's
-    geom distance on the description's model: meshes included), or None without geometry."""
-    import mujoco
+class _Hand:
+    """The description compiled, to measure the fingers by their geometry: MuJoCo's distance between
+    the two fingers' collision geoms (meshes as their convex hulls, as the simulation collides them),
+    and the fingertips as the geoms' centres (a mesh geom sits at its mesh's centroid)."""
 
-    model = ins.description.spec.copy().compile()
-    data = mujoco.MjData(model)
-    lead, follower = ins.tree.joints[gripper.joint], ins.tree.joints[gripper.follower]
+    def __init__(self, ins: Inspection) -> None:
+        import mujoco
 
-    def geoms(link: str) -> list[int]:
-        bodies = {int(model.body(ins.description.body_name(n)).id) for n in ins.tree.descendants(link)}
+        self.ins = ins
+        self.model = ins.description.spec.copy().compile()
+        self.data = mujoco.MjData(self.model)
+
+    def geoms(self, link: str) -> list[int]:
+        """The collision geoms of ``link`` and its descendants (all geoms when none collides)."""
+        model = self.model
+        bodies = {int(model.body(self.ins.description.body_name(n)).id) for n in self.ins.tree.descendants(link)}
         found = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies]
         solid = [g for g in found if model.geom_contype[g] or model.geom_conaffinity[g]]
         return solid or found
 
-    first, second = geoms(lead.child), geoms(follower.child)
-    if not first or not second:
-        return None
-    out = []
-    for value in (gripper.closed, gripper.open):
+    def drive(self, lead: Any, value: float) -> None:
+        """Every joint at zero but ``lead`` at ``value`` and the joints mimicking it where their mimic puts them."""
+        import mujoco
+
+        model, data = self.model, self.data
+        data.qpos[:] = model.qpos0
         data.qpos[model.joint(lead.name).qposadr[0]] = value
-        data.qpos[model.joint(follower.name).qposadr[0]] = follower.mimic.multiplier * value + follower.mimic.offset
+        for j in self.ins.tree.robot.joints:
+            if j.mimic is not None and j.mimic.joint == lead.name and j.type in _MOVING:
+                data.qpos[model.joint(j.name).qposadr[0]] = j.mimic.multiplier * value + j.mimic.offset
         mujoco.mj_kinematics(model, data)
+
+    def gap(self, first: list[int], second: list[int]) -> float:
+        """The smallest distance between two sets of geoms in the pose of the last :meth:`drive`."""
+        import mujoco
+
         fromto = np.zeros(6)
-        out.append(min(mujoco.mj_geomDistance(model, data, a, b, 1.0, fromto) for a in first for b in second))
-    return float(out[0]), float(out[1])
+        return float(min(mujoco.mj_geomDistance(self.model, self.data, a, b, 1.0, fromto)
+                         for a in first for b in second))
+
+    def tip(self, geoms: list[int], hand: np.ndarray) -> list[int]:
+        """The fingertip's geoms: those of the body whose geom lies farthest from the hand's origin
+        ``hand`` (a linkage's distal link, not its knuckles), in the pose of the last :meth:`drive`."""
+        centres = self.data.geom_xpos[geoms]
+        body = int(self.model.geom_bodyid[geoms[int(np.argmax(np.linalg.norm(centres - hand, axis=1)))]])
+        return [g for g in geoms if int(self.model.geom_bodyid[g]) == body]
+
+    def centre(self, geoms: list[int]) -> np.ndarray:
+        """The mean centre of ``geoms`` in the pose of the last :meth:`drive`."""
+        return np.asarray(self.data.geom_xpos[geoms], dtype=float).mean(axis=0)
 
 
-def _finger_point(tree: _Tree, joint: Any, q: Mapping[str, float]) -> np.ndarray:
-    """A finger's pad: the mean of its link's geometry and its descendants' origins (root frame)."""
-    link = joint.child
-    tf = tree.transform(link, q)
-    points = []
-    links = {lk.name: lk for lk in tree.robot.links}
-    for name in tree.descendants(link):
-        ltf = tree.transform(name, q)
-        body = links.get(name)
-        geoms = [g.origin for g in (body.collisions or body.visuals)] if body is not None else []
-        points += [ltf.dot(g)[:3, 3] for g in geoms]
-        if name != link:
-            points.append(ltf[:3, 3])
-    return np.mean(points, axis=0) if points else tf[:3, 3]
+def _drive_range(lead: Any, followers: Sequence[Any]) -> tuple[float, float]:
+    """The driven joint's limits narrowed to where every joint mimicking it stays inside its own
+    limits (a follower whose multiplier maps the drive's range past its limits)."""
+    lo, hi = _limits(lead)
+    for f in followers:
+        f_lo, f_hi = _limits(f)
+        k, o = f.mimic.multiplier, f.mimic.offset
+        if k == 0 or not (math.isfinite(f_lo) and math.isfinite(f_hi)):
+            continue
+        a, b = sorted(((f_lo - o) / k, (f_hi - o) / k))
+        lo, hi = max(lo, a), min(hi, b)
+    return lo, hi
 
 
-def _gripper(tree: _Tree, last_arm_joint: str) -> tuple[_Gripper | None, str]:
+def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_Gripper | None, str]:
+    """The parallel gripper after the arm (see the module docstring), measured on its geometry."""
+    tree = ins.tree
     hand = tree.joints[last_arm_joint].child
     below = [tree.joints[n] for n in tree.joints if n != last_arm_joint
              and tree.joints[n].type in _MOVING and tree.joints[n].parent in tree.descendants(hand)]
@@ -353,30 +378,65 @@ def _gripper(tree: _Tree, last_arm_joint: str) -> tuple[_Gripper | None, str]:
     if not leaders:
         return None, "no actuated joint after the arm: reach only (push and pick-and-place need a gripper)"
     if len(leaders) > 1:
-        return None, (f"the joints after the arm {[j.name for j in leaders]} are not one finger joint and its "
-                      "mimic: reach only; write the gripper by hand if one drives the others")
+        return None, (f"the joints after the arm {[j.name for j in leaders]} are driven independently (no <mimic> "
+                      "ties them to one drive): reach only; write the gripper by hand if one drives the others")
     lead = leaders[0]
-    followers = [j for j in below if j.mimic is not None and j.mimic.joint == lead.name and j.type == lead.type]
-    if not followers:
-        return None, (f"finger joint {lead.name!r} has no joint mimicking it (a parallel gripper's second finger): "
-                      "reach only")
-    follower = followers[0]
-    lo, hi = _limits(lead)
-    if not (math.isfinite(lo) and math.isfinite(hi)) or lo == hi:
-        return None, f"finger joint {lead.name!r} has no finite limits: reach only"
-    def gap(v: float) -> float:
-        q = {lead.name: v}
-        return float(np.linalg.norm(_finger_point(tree, lead, q) - _finger_point(tree, follower, q)))
-    closed, opened = (lo, hi) if gap(lo) <= gap(hi) else (hi, lo)
-    q_open = {lead.name: opened}
-    a, b = _finger_point(tree, lead, q_open), _finger_point(tree, follower, q_open)
+    followers = [j for j in below if j.mimic is not None and j.mimic.joint == lead.name]
+    own = set(tree.descendants(lead.child))
+    # The other finger: a follower outside the driven finger's own links (a linkage's knuckles and
+    # fingertip on the same side are not), the one whose links' gap to the driven finger's changes most.
+    others = [j for j in followers if j.child not in own and j.type in _MOVING]
+    top = [j for j in others if not any(j.parent in tree.descendants(o.child) for o in others if o is not j)]
+    if not top:
+        return None, (f"finger joint {lead.name!r} has no joint on another finger mimicking it (a parallel gripper's "
+                      "second finger): reach only")
+    lo, hi = _drive_range(lead, followers)
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi - lo <= 1e-6:
+        return None, (f"finger joint {lead.name!r} has no finite range in which it and the joints mimicking it stay "
+                      "inside their limits: reach only; fix the limits or the <mimic> multipliers")
+    if not hand_model.geoms(lead.child):
+        return None, f"finger joint {lead.name!r} moves no geometry: reach only"
+    hand_origin = tree.transform(hand, {})[:3, 3]
+    hand_model.drive(lead, lo)
+    lead_tip = hand_model.tip(hand_model.geoms(lead.child), hand_origin)
+
+    def stroke(follower: Any) -> tuple[list[int], float, float]:
+        """The follower's fingertip and its gap to the driven fingertip at the drive's two limits."""
+        theirs = hand_model.geoms(follower.child)
+        if not theirs:
+            return [], 0.0, 0.0
+        hand_model.drive(lead, lo)
+        tip = hand_model.tip(theirs, hand_origin)
+        g_lo = hand_model.gap(lead_tip, tip)
+        hand_model.drive(lead, hi)
+        return tip, g_lo, hand_model.gap(lead_tip, tip)
+
+    strokes = {j.name: stroke(j) for j in top}
+    follower = max(top, key=lambda j: (abs(strokes[j.name][2] - strokes[j.name][1]), -top.index(j)))
+    other_tip, g_lo, g_hi = strokes[follower.name]
+    if abs(g_hi - g_lo) < 1e-4:
+        return None, (f"finger joint {lead.name!r} and {follower.name!r} keep their gap when driven: not a "
+                      "parallel gripper; reach only")
+    closed, opened = (lo, hi) if g_lo <= g_hi else (hi, lo)
+    hand_model.drive(lead, opened)
+    a, b = hand_model.centre(lead_tip), hand_model.centre(other_tip)
     direction = a - b
     if lead.type == "prismatic":
         direction = tree.transform(lead.parent, {})[:3, :3].dot(np.asarray(lead.axis, float))
+    pads = (min(g_lo, g_hi), max(g_lo, g_hi))
     found = _Gripper(lead.name, follower.name, float(follower.mimic.multiplier), closed, opened,
-                     abs(gap(opened) - gap(closed)), (a + b) / 2, direction / max(np.linalg.norm(direction), 1e-9))
-    why = (f"inferred: finger joint {lead.name!r} ({lead.type}) and {follower.name!r} mimicking it "
-           f"(x {found.mimic:g}); closed = the limit where the fingers are nearer each other")
+                     pads[1] - pads[0], (a + b) / 2, direction / max(np.linalg.norm(direction), 1e-9), pads)
+    why = (f"inferred: finger joint {lead.name!r} ({lead.type}) and {follower.name!r} on the other finger mimicking "
+           f"it (x {found.mimic:g}); closed = the limit where the fingers' geometry is nearer")
+    if len(followers) > 1:
+        why += f"; {len(followers) - 1} more joint(s) follow it (a linkage)"
+    if (lo, hi) != _limits(lead):
+        found.notes.append(f"the drive's range is narrowed to [{lo:.4g}, {hi:.4g}] so that every joint mimicking it "
+                           "stays inside its own limits")
+    listed = {j.name for j in ins.description.ros2_control}
+    if listed and lead.name not in listed:
+        found.notes.append(f"{lead.name!r} is not in the description's <ros2_control> tag (another driver runs the "
+                           "gripper): the simulation actuates it within its URDF limits")
     return found, why
 
 
@@ -436,9 +496,7 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft = ArmDraft(name)
     joints, why_chain = _pick_chain(ins)
     base = _base_link(tree, joints[0])
-    gripper, why_gripper = _gripper(tree, joints[-1])
-    if gripper is not None:
-        gripper.pads = _pad_gaps(ins, gripper)
+    gripper, why_gripper = _gripper(ins, _Hand(ins), joints[-1])
     ee, why_ee = _ee_link(tree, joints[-1], gripper)
     try:
         chain = KinematicChain.from_urdf(ins.description.text, base, ee)
@@ -557,6 +615,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
                                      "controller": "gripper_position_controller"}
         draft.note("gripper", why_gripper)
         draft.note("gripper.open", f"inferred: the other limit; the gap opens by {gripper.opening * 100:.1f} cm")
+        if gripper.notes:
+            draft.note("gripper.closed", "; ".join(gripper.notes))
     draft.sections["camera"] = {"render_camera": "", "view": {
         "lookat": _rl([0.45 * reach, 0.0, 0.25 * reach], 3), "distance": _r(2.0 * reach + 0.1, 3),
         "azimuth": 140.0, "elevation": -25.0}}

@@ -58,16 +58,21 @@ class ScriptedPickAndPlace:
         half: the object's half size.
         closed: the finger position of the closed gripper (the task's ``gripper_min``): fingers
             stopped short of it hold the object.
+        opened: the finger position of the open gripper (the task's ``gripper_max``): which side of
+            ``closed`` "short of it" is (a gripper may close towards its upper or its lower limit).
         carry_ramp: steps over which the carry speeds up from 0.3 of its speed to all of it (0: none).
             A held cube slips along the pads when the carry starts at full speed on an arm whose end
             effector moves 4 cm a step (1 m/s): :func:`scripted_policy` sets it for such arms.
     """
 
     def __init__(self, ee_delta_coeff: float = 0.02, half: float = 0.015, closed: float = 0.015,
-                 carry_ramp: int = 0) -> None:
+                 carry_ramp: int = 0, opened: float | None = None) -> None:
         if carry_ramp < 0:
             raise ValueError(f"carry_ramp must be >= 0 steps, got {carry_ramp}")
+        if opened is not None and opened == closed:
+            raise ValueError(f"opened and closed are both {closed}: the fingers would not move")
         self.coeff, self.half, self.closed, self.carry_ramp = ee_delta_coeff, half, closed, carry_ramp
+        self.opening_sign = -1.0 if opened is not None and opened < closed else 1.0
         self.reset()
 
     def reset(self) -> None:
@@ -80,7 +85,8 @@ class ScriptedPickAndPlace:
         xy_err = float(np.linalg.norm(ee[:2] - obj[:2]))
         grasp_z = obj[2] + 0.003
         near = max(0.03, 2 * self.half)  # a big cube may slip along the pads and still be held
-        held = self._closing >= 4 and fingers[0] > self.closed + 0.003 and np.linalg.norm(ee - obj) < near
+        stopped_short = self.opening_sign * (fingers[0] - self.closed) > 0.003
+        held = self._closing >= 4 and stopped_short and np.linalg.norm(ee - obj) < near
         if held:
             # carry: the object sits ~obj-ee below the EE; move so the object reaches the goal
             target = goal + (ee - obj)
@@ -145,7 +151,8 @@ def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace | ScriptedR
         return ScriptedReach(ee_delta_coeff=task.ee_delta_coeff)
     cls = ScriptedPush if task.task == "push" else ScriptedPickAndPlace
     ramp = FAST_CARRY_RAMP if task.ee_delta_coeff > FAST_EE_STEP else 0
-    return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0], carry_ramp=ramp)
+    return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0], carry_ramp=ramp,
+               opened=task.gripper_range[1])
 
 
 def run_episode(env: Any, policy: Callable[[Any], Action], seed: int | None = None,

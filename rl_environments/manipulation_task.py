@@ -279,7 +279,7 @@ class ManipulationTask(BatchTask, ArmInterface):
         pos_lo = base + np.array([-reach, -reach, -0.5])
         pos_hi = base + np.array([reach, reach, 0.7])
         rel = np.array([2 * reach, 2 * reach, 1.2])
-        g_lo, g_hi = self.gripper_range
+        g_lo, g_hi = sorted(self.gripper_range)  # a gripper may close towards either limit
         m_lo, m_hi = sorted((self.FINGER_MIMIC * g_lo, self.FINGER_MIMIC * g_hi))  # the mimicking finger's range
         lin, ang = float(self.cfg["max_linear_velocity"]), float(self.cfg["max_angular_velocity"])
         fvel = float(self.cfg["max_joint_vel"])
