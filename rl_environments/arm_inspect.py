@@ -197,6 +197,7 @@ class ArmDraft:
     table_xml: str = ""
     cube_xml: str = ""
     settle_error: float = math.nan
+    check: Any = None  # rl_environments.arm_check.ArmCheck of the drafted file (None: not checked)
 
     def note(self, key: str, text: str) -> None:
         self.comments[key] = text
@@ -954,16 +955,22 @@ def render_arm_file(draft: ArmDraft) -> str:
 
 
 def add_arm(uri: str, name: str, *, xacro_args: Mapping[str, str] | None = None, output: str | Path = ".",
-            force: bool = False, register: bool = True) -> tuple[Path, list[str], ArmDraft]:
+            force: bool = False, register: bool = True, check: bool = True) -> tuple[Path, list[str], ArmDraft]:
     """``uniros arm add``: write ``output/NAME.yaml`` (and ``output/NAME/``: controllers, table, cube)
     from a description, check it, register it.
+
+    With ``check`` (the default) the drafted file is tried first with the scripted policies
+    (:func:`rl_environments.arm_check.check_arm`: reach, and push and pick-and-place with a gripper,
+    on a few seeds); a task they cannot do is an :class:`ArmFileError` and nothing is written. The
+    check's figures are ``draft.check``.
 
     Returns:
         the arm file, its registered IDs (empty with ``register=False``), the draft.
 
     Raises:
-        ArmFileError: a bad name, a name in use, an existing file without ``force``, or a description
-            that does not load or has no chain the tasks serve. Nothing is written then.
+        ArmFileError: a bad name, a name in use, an existing file without ``force``, a description
+            that does not load or has no chain the tasks serve, or a drafted file the scripted policies
+            fail on. Nothing is written then.
     """
     from gymnasium.envs.registration import registry
 
@@ -1005,6 +1012,12 @@ def add_arm(uri: str, name: str, *, xacro_args: Mapping[str, str] | None = None,
         (tmp / f"{name}.yaml").write_text(text)
         spec = load_arm_file(tmp / f"{name}.yaml")  # what we wrote loads, and holds its chain
         check_description(spec)
+        if check:  # and works: the scripted policies do every task on it
+            from rl_environments.arm_check import check_arm, refusal
+
+            draft.check = check_arm(tmp / f"{name}.yaml")
+            if not draft.check.passed:
+                raise refusal(draft.check)
         if "://" not in uri:
             draft.sections["description"]["uri"] = os.path.relpath(ins.source, out_dir)
             (tmp / f"{name}.yaml").write_text(render_arm_file(draft))

@@ -1,4 +1,4 @@
-"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim``, ``new`` and ``arm add``.
+"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim``, ``new``, ``arm add`` and ``arm check``.
 
 Each subcommand is a small function taking parsed arguments and returning an exit code.
 """
@@ -322,9 +322,16 @@ def _cmd_arm_add(args: argparse.Namespace) -> int:
     from rl_environments.arm_inspect import add_arm
 
     xacro_args = parse_xacro_args(args.xacro_arg)
-    path, ids, draft = add_arm(args.uri, args.name, xacro_args=xacro_args, output=args.output, force=args.force)
+    if not args.no_check:
+        print(f"drafting {args.name} and trying it with the scripted policies (a minute or two) ...", flush=True)
+    path, ids, draft = add_arm(args.uri, args.name, xacro_args=xacro_args, output=args.output, force=args.force,
+                               check=not args.no_check)
     print(f"wrote {path} (and {path.parent / args.name}/): check the values marked 'guessed'")
     print(f"servo settle check: largest tracking error {draft.settle_error:.4f} rad")
+    if draft.check is not None:
+        print(f"scripted check ({draft.check.seconds:.0f} s):")
+        for task in draft.check.tasks:
+            print(f"    {task.line()}")
     print(f"registered (uniros.register_arm({str(path)!r}), or UNIROS_ARMS={path}):")
     for env_id in ids:
         print(f"  {env_id}")
@@ -341,7 +348,27 @@ def _arm_parser(sub: Any) -> None:
     p.add_argument("--name", required=True, help="the arm's name, the IDs' prefix (MyArm: MyArmReacherSim-v0, ...)")
     p.add_argument("--output", default=".", help="where NAME.yaml and NAME/ go (default: %(default)s)")
     p.add_argument("--force", action="store_true", help="replace an existing NAME.yaml and NAME/")
+    p.add_argument("--no-check", action="store_true",
+                   help="write the file without trying it with the scripted policies first")
     p.set_defaults(func=_cmd_arm_add)
+    p = arm_sub.add_parser("check", help="try an arm file's IDs with the scripted policies (reach, push, "
+                                         "pick-and-place)")
+    p.add_argument("file", help="the arm file (NAME.yaml)")
+    p.add_argument("--seeds", type=int, default=3, help="episodes per task, seeds 0.. (default: %(default)s)")
+    p.set_defaults(func=_cmd_arm_check)
+
+
+def _cmd_arm_check(args: argparse.Namespace) -> int:
+    from rl_environments.arm_check import PASS_RATE, check_arm
+
+    if args.seeds < 1:
+        raise ValueError(f"--seeds must be at least 1, got {args.seeds}")
+    result = check_arm(args.file, seeds=range(args.seeds))
+    for task in result.tasks:
+        print(task.line())
+    verdict = "passed" if result.passed else f"FAILED (each task needs {PASS_RATE:.0%} of its seeds)"
+    print(f"{result.name}: {verdict} in {result.seconds:.0f} s")
+    return 0 if result.passed else 1
 
 
 def build_parser() -> argparse.ArgumentParser:
