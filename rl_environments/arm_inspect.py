@@ -585,6 +585,7 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft.header = [
         f"{name}: an arm file written by `uniros arm add {ins.uri}`: check every value marked guessed.",
         "An arm file (format 1): see docs/add_your_arm.md for every key.",
+        *(f"The description: {note}." for note in tree.robot.notes),
     ]
     draft.sections["format"] = 1
     draft.sections["name"] = name

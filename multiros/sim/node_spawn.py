@@ -112,6 +112,12 @@ def spawn_entity(node: SimulationNode, request: Any, response: Any, policy: Sour
         fail(res, response.RESOURCE_PARSE_ERROR, f"the description is too large or too deep to load "
               f"({type(exc).__name__}); see the node's description limits")
         return response
+    if joint_positions:
+        unknown = sorted(set(joint_positions) - {j.name for j in desc.joints})
+        if unknown:
+            fail(res, response.INVALID_POSE, f"__joint_positions names joint(s) {unknown[:10]} the description does "
+                                             f"not have; its joints: {[j.name for j in desc.joints][:30]}")
+            return response
     robot = default_category(desc) == EntityCategory.ROBOT  # as the world will file it (no category asked)
     if quota is not None and _refused(node, quota, caller, robot, res):
         return response

@@ -165,3 +165,28 @@ def test_mesh_cache_rejects_garbage(tmp_path):
     bad.write_text("garbage")
     with pytest.raises(DescriptionError, match="x.dae"):
         MeshCache(tmp_path / "c").usable_path(bad)
+
+
+_GRIPPER_URDF = """<robot name='g'>
+  <link name='base'/><link name='arm'/><link name='left'/><link name='right'/>
+  <joint name='wrist' type='revolute'><parent link='base'/><child link='arm'/><axis xyz='0 0 1'/>
+    <limit lower='-1' upper='1' effort='5' velocity='1'/></joint>
+  <joint name='drive' type='prismatic'><parent link='arm'/><child link='left'/><axis xyz='0 1 0'/>
+    <limit lower='0' upper='0.04' effort='5' velocity='1'/></joint>
+  <joint name='follow' type='prismatic'><parent link='arm'/><child link='right'/><axis xyz='0 -1 0'/>
+    <limit lower='0' upper='0.04' effort='5' velocity='1'/><mimic joint='drive'/></joint>
+  <ros2_control name='arm' type='system'><hardware><plugin>x/Y</plugin></hardware>
+    <joint name='wrist'><command_interface name='position'/><state_interface name='position'/></joint>
+  </ros2_control>
+</robot>"""
+
+
+def test_a_drive_that_mimics_follow_is_actuated_when_ros2_control_leaves_it_out(index):
+    """A vendor's arm block without the gripper (another driver runs it): the drive is still actuated in
+    simulation, its mimic follows through the equality, and a joint no one mimics stays passive."""
+    desc = load_description(_GRIPPER_URDF, index=index)
+    assert desc.mimic_leaders == ("drive",)
+    assert desc.actuated_joints == ("wrist", "drive")
+    listed = _GRIPPER_URDF.replace("<joint name='wrist'><command_interface", "<joint name='drive'>"
+                                   "<command_interface name='position'/></joint><joint name='wrist'><command_interface")
+    assert load_description(listed, index=index).actuated_joints == ("drive", "wrist")

@@ -306,7 +306,7 @@ def test_doctype_entities_are_refused(rig):
     ({"ixx": "nan"}, ("l1", "inertia")),
     ({"lower": "2", "upper": "1"}, ("j1", "ordered")),
     ({"upper": "inf"}, ("j1", "upper")),
-    ({"effort": "-5"}, ("j1", "effort")),
+    ({"effort": "1e30"}, ("j1", "effort")),
     ({"damping": "1e300"}, ("j1", "damping")),
     ({"xyz": "1e30 0 0"}, ("j1", "origin xyz")),
 ])
@@ -559,3 +559,43 @@ def test_robot_resource_expands_xacro_text_client_side():
     assert uri == "" and "xacro" not in out and 'name="b"' in out
     uri, out = robot_resource(robot_model_xml=text, controllers_list=["a"])
     assert uri == "string:?__controllers=a" and "xacro" not in out
+
+
+# -- the pose a robot is spawned at ---------------------------------------------------------------
+@pytest.mark.parametrize(("query", "expect"), [
+    ("joint1=nan", ("joint1", "not finite")),
+    ("joint1=inf", ("joint1", "not finite")),
+    ("joint1", ("NAME=NUMBER",)),
+    ("joint1=abc", ("NAME=NUMBER",)),
+    ("bad name!=1", ("NAME=NUMBER",)),
+    (",".join(f"j{i}=0" for i in range(300)), ("at most 256",)),
+    ("joint1=99", ("joint1", "outside")),
+    ("nosuch=0.1", ("nosuch", "does not have")),
+])
+def test_bad_spawn_joint_positions_are_refused(rig, query, expect):
+    from urllib.parse import quote
+
+    rig.refused(INVALID_POSE, uri=f"{ARM_URI}&__joint_positions={quote(query)}", expect=expect)
+
+
+def test_a_robot_is_spawned_and_reset_at_the_joint_positions_asked_for(rig):
+    """``__joint_positions`` (an env's ``initial_joint_positions``): the spawn pose, and what a reset of the
+    world puts the robot back at."""
+    res = rig.spawn_after_cool_down(uri=f"{ARM_URI}&__joint_positions=joint1%3D0.5,joint2%3D-0.25", name="placed",
+                                    position=(3.0, 0.0, 0.0))
+    assert res.result.result == 1, res.result.error_message
+    world = rig.node.world
+
+    def placed() -> dict[str, float]:
+        with rig.node.lock:
+            return dict(zip(world.joint_names("placed"), world.joint_state_arrays("placed")[0].tolist()))
+
+    try:
+        state = placed()
+        assert state["joint1"] == pytest.approx(0.5) and state["joint2"] == pytest.approx(-0.25)
+        with rig.node.lock:
+            world.set_joint_positions("placed", ["joint1", "joint2"], [0.0, 0.0])
+            world.reset_entity("placed")
+        assert placed() == pytest.approx(state)
+    finally:
+        rig.peer.call("delete_entity", rig.peer.request("delete_entity", entity="placed"), timeout=10.0)

@@ -73,3 +73,18 @@ def test_matches_yourdfpy(name, urdf):
 def test_malformed_elements_are_named(text, match):
     with pytest.raises(DescriptionError, match=match):
         parse_urdf(ET.fromstring(text))
+
+
+def test_a_non_positive_effort_or_velocity_is_read_as_unknown_and_said():
+    """ROS tools load effort="-1" (some vendors write it for "not given"): unknown, with a note, not a refusal."""
+    text = ("<robot name='r'><link name='a'/><link name='b'/><link name='c'/>"
+            "<joint name='j1' type='revolute'><parent link='a'/><child link='b'/>"
+            "<limit lower='-1' upper='1' effort='-1' velocity='0'/></joint>"
+            "<joint name='j2' type='revolute'><parent link='b'/><child link='c'/>"
+            "<limit lower='-1' upper='1' effort='5' velocity='2'/></joint></robot>")
+    robot = parse_urdf(ET.fromstring(text))
+    j1, j2 = robot.joints
+    assert (j1.limit.effort, j1.limit.velocity) == (None, None)
+    assert (j2.limit.effort, j2.limit.velocity) == (5.0, 2.0)
+    assert robot.notes == ["joint 'j1' limit effort -1 <= 0 is read as unknown (no limit)",
+                           "joint 'j1' limit velocity 0 <= 0 is read as unknown (no limit)"]
