@@ -331,7 +331,7 @@ def _cmd_arm_add(args: argparse.Namespace) -> int:
     if draft.check is not None:
         print(f"scripted check ({draft.check.seconds:.0f} s):")
         for task in draft.check.tasks:
-            print(f"    {task.line()}")
+            print(f"- {task.line()}")
     print(f"registered (uniros.register_arm({str(path)!r}), or UNIROS_ARMS={path}):")
     for env_id in ids:
         print(f"  {env_id}")

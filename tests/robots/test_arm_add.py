@@ -1,10 +1,12 @@
 """``uniros arm add``: an arm file inferred from a description laid out as a sourced ament workspace
 gives it (``share/<pkg>``, xacro with ``$(find)`` and arguments, found through ``AMENT_PREFIX_PATH``).
 
-The two descriptions under ``arm_add_data/install/share`` are written for these tests from published
+The descriptions under ``arm_add_data/install/share`` are written for these tests from published
 kinematics with primitive geometry (no vendor files): a 7-joint arm with a parallel gripper (Franka
-Emika Panda's DH parameters and limits; ``hand:=false`` leaves the gripper out) and a 4-joint arm with
-a parallel gripper (ROBOTIS OpenManipulator-X's). The written file loads, registers its 6 + 6 IDs,
+Emika Panda's DH parameters and limits; ``hand:=false`` leaves the gripper out), a 4-joint arm with
+a parallel gripper (ROBOTIS OpenManipulator-X's) and a 6-joint arm with a linkage gripper laid out as
+UFACTORY's xarm_description lays out the xArm6 and its gripper (what vendors' packages do that a
+hand-made file would not: see its xacro). The written file loads, registers its 6 + 6 IDs,
 every simulated ID passes gymnasium's checker, the scripted reach reaches, and every bad input is a
 one-line error that leaves nothing behind.
 """
@@ -17,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from gymnasium.envs.registration import registry
 from gymnasium.utils.env_checker import check_env
 
 import uniros
@@ -28,6 +31,7 @@ from uniros.cli import main as cli
 DATA = Path(__file__).parent / "arm_add_data" / "install"
 PANDA = "package://uniros_test_panda_description/urdf/panda.urdf.xacro"
 OMX = "package://uniros_test_omx_description/urdf/omx.urdf.xacro"
+LINKAGE = "package://uniros_test_linkage_description/urdf/linkage_arm.urdf.xacro"
 TASKS = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
 
 
@@ -61,7 +65,9 @@ def _error(capsys, *argv: str) -> str:
 ARMS = {  # name: (URI, arguments, joints, EE link, approach axis)
     "ArmAddPanda": (PANDA, ("--xacro-arg", "hand=true"), 7, "panda_hand_tcp", "z"),
     "ArmAddOmx": (OMX, (), 4, "end_effector_link", "x"),
+    "ArmAddLinkage": (LINKAGE, (), 6, "link_tcp", "z"),
 }
+CLOSES_UP = {"ArmAddLinkage"}  # its gripper closes towards the drive's upper limit
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +99,8 @@ def test_arm_add_writes_a_file_that_loads_and_registers_its_ids(written, name):
     assert ids == [f"{name}{t}Sim-v0" for t in TASKS] + [f"{name}{t}Real-v0" for t in TASKS]
     spec = load_arm_file(path)
     assert len(spec.joints) == joints and spec.ee_link == ee and spec.approach_axis == approach
-    assert spec.gripper is not None and spec.gripper.closed < spec.gripper.open
+    assert spec.gripper is not None
+    assert (spec.gripper.closed > spec.gripper.open) == (name in CLOSES_UP)
     assert Path(spec.controllers_file) == path.parent / name / "controllers.yaml"
     assert set(spec.scene_files) == {"table", "object"}
     text = path.read_text()
@@ -144,7 +151,8 @@ def test_scripted_reach_succeeds_on_the_written_arm(written, name):
 # over 30 seeds, its EE moving 3.9 cm a step, so the carry starts slowly: see scripted_policy).
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "task"), [("ArmAddOmx", "PushGoal"), ("ArmAddOmx", "PnPGoal"),
-                                            ("ArmAddPanda", "PushGoal"), ("ArmAddPanda", "PnPGoal")])
+                                            ("ArmAddPanda", "PushGoal"), ("ArmAddPanda", "PnPGoal"),
+                                            ("ArmAddLinkage", "PushGoal"), ("ArmAddLinkage", "PnPGoal")])
 def test_scripted_push_and_pick_and_place_succeed_on_the_written_arm(written, name, task):
     """The written scene (table, cube, goal boxes) fits the arm: the scripted policy, which reads only
     the observation, moves the cube to the goal on at least 9 of 10 fixed seeds (30 seeds: all)."""
@@ -155,6 +163,53 @@ def test_scripted_push_and_pick_and_place_succeed_on_the_written_arm(written, na
         assert sum(r["is_success"] for r in results) >= 9, results
     finally:
         env.close()
+
+
+def test_a_linkage_gripper_is_written_as_its_package_describes_it(written):
+    """UFACTORY-style: one driven knuckle and five mimics, closing towards its upper limit, the drive left
+    out of ros2_control, a follower that stops before the drive does, effort="-1", the fingers below the
+    base at zero joints. The second finger is the follower on the other side, the range the one every
+    follower can take, and each of these is said in the file."""
+    path, _ = written["ArmAddLinkage"]
+    spec = load_arm_file(path)
+    assert spec.gripper.joints == ("drive_joint", "right_outer_knuckle_joint")
+    assert (spec.gripper.closed, spec.gripper.open) == (0.7, 0.0)
+    assert spec.scene["gripper_min"] == 0.7 and spec.scene["gripper_max"] == 0.0
+    text = path.read_text()
+    assert "# The description: joint 'joint1' limit effort -1 <= 0 is read as unknown (no limit)." in text
+    assert "narrowed to [0, 0.7]" in text and "not in the description's <ros2_control> tag" in text
+    assert "4 more joint(s) follow it (a linkage)" in text
+    assert spec.scene["object_half_size"] >= 0.015, "a cube for the 8 cm stroke, not for the knuckles' gap"
+
+
+def test_arm_add_prints_the_scripted_check_and_arm_check_repeats_it(written, workspace, capsys):
+    path, _ = written["ArmAddOmx"]
+    assert cli(["arm", "check", str(path), "--seeds", "2"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in out[:3]] == [f"ArmAddOmx{t}Sim-v0" for t in ("ReacherGoal", "PushGoal",
+                                                                                        "PnPGoal")]
+    assert all("scripted success 1.00 (2 of 2 seeds)" in line for line in out[:3]), out
+    assert out[3].startswith("ArmAddOmx: passed")
+    assert "ArmAddOmxReacherSim-v0" in registry, "the check leaves the arm registered as it was"
+
+
+def test_a_drafted_file_the_scripted_policies_fail_on_is_not_written(workspace, capsys, tmp_path, monkeypatch):
+    """The check is what decides: with a bar no task can meet, arm add refuses in one line and writes
+    nothing, and arm check of a written file exits 1 naming what failed."""
+    import rl_environments.arm_check as arm_check
+
+    out = tmp_path / "arms"
+    monkeypatch.setattr(arm_check, "PASS_RATE", 1.01)
+    workspace.append("Unchecked")
+    err = _error(capsys, OMX, "--name", "Unchecked", "--output", str(out))
+    assert "the scripted check failed: UncheckedReacherGoalSim-v0: scripted success 1.00" in err
+    assert "--no-check" in err
+    assert not out.exists() or not any(out.iterdir())
+    assert "UncheckedReacherSim-v0" not in registry
+    path, ids = _add(capsys, workspace, OMX, "Unchecked", out, "--no-check")
+    assert ids[0] == "UncheckedReacherSim-v0"
+    assert cli(["arm", "check", str(path), "--seeds", "1"]) == 1
+    assert "FAILED" in capsys.readouterr().out
 
 
 def test_an_arm_without_a_gripper_is_reach_only_and_says_so(workspace, capsys, tmp_path):
