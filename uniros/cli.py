@@ -323,7 +323,7 @@ def _cmd_arm_add(args: argparse.Namespace) -> int:
 
     xacro_args = parse_xacro_args(args.xacro_arg)
     if not args.no_check:
-        print(f"drafting {args.name} and trying it with the scripted policies (a minute or two) ...", flush=True)
+        print(f"drafting {args.name} and trying it with the scripted policies (seconds to a minute) ...", flush=True)
     path, ids, draft = add_arm(args.uri, args.name, xacro_args=xacro_args, output=args.output, force=args.force,
                                check=not args.no_check)
     print(f"wrote {path} (and {path.parent / args.name}/): check the values marked 'guessed'")

@@ -180,6 +180,13 @@ def test_a_linkage_gripper_is_written_as_its_package_describes_it(written):
     assert "narrowed to [0, 0.7]" in text and "not in the description's <ros2_control> tag" in text
     assert "4 more joint(s) follow it (a linkage)" in text
     assert spec.scene["object_half_size"] >= 0.015, "a cube for the 8 cm stroke, not for the knuckles' gap"
+    # the driver's names from the package's own controllers file, namespace included
+    real = spec.real
+    assert (real.namespace, real.arm_controller, real.joint_states_topic) == (
+        "/linkage", "linkage_traj_controller", "/linkage/joint_states")
+    assert (real.gripper_controller, real.gripper_interface) == ("linkage_gripper_controller", "gripper_action")
+    assert "inferred: the JointTrajectoryController of the arm's joints in the package's linkage_controllers.yaml" \
+        in text
 
 
 def test_arm_add_prints_the_scripted_check_and_arm_check_repeats_it(written, workspace, capsys):
