@@ -2,7 +2,8 @@
 
 Read from a robot description (URDF or xacro, a file or a ``package://`` URI) and a ros2_control
 controllers YAML, as a real ros2_control robot reads them at start-up. The joints are those of the
-description's ``<ros2_control>`` block (all movable joints when there is none); joints with a
+description's ``<ros2_control>`` block (all movable joints when there is none), plus a joint that
+``<mimic>`` joints follow when the block leaves it out (a gripper's drive); joints with a
 ``<mimic>`` follow their leader. Presets name the robots shipped with uniros, with the ROS namespace
 and controller names of their vendors' ROS 2 drivers.
 
@@ -246,6 +247,8 @@ def load_robot_spec(
     declared = _ros2_control_joints(root) or [
         (j.name, j.mimic is None, None) for j in urdf.joints if j.type not in ("fixed", "floating", "planar")
     ]
+    listed = {name for name, _, _ in declared}
+    declared += [(name, True, None) for name in urdf.mimic_leaders() if name not in listed]  # a gripper's drive
     initial_positions = dict(initial_positions or {})
     joints: list[JointSpec] = []
     mimics: list[MimicSpec] = []

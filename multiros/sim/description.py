@@ -46,7 +46,7 @@ from multiros.sim.trust import (
     check_model,
     screen_mjcf_text,
 )
-from multiros.sim.urdf_model import Joint, parse_urdf
+from multiros.sim.urdf_model import parse_urdf
 from multiros.sim.urdf_tags import Ros2ControlJoint, add_gazebo_cameras, parse_controllers_file, parse_ros2_control
 from multiros.sim.xacro_runner import xacro_to_urdf
 
@@ -352,13 +352,7 @@ def urdf_to_description(urdf: str, *, index: PackageIndex | None = None, mesh_ca
                             root=roots[0], joints=tuple(joint_infos), links=tuple(links),
                             ros2_control=rc_joints, link_bodies=link_bodies,
                             controllers_yaml=parse_controllers_file(xml_root, index, source_name, policy),
-                            mimic_leaders=_mimic_leaders(robot.joints, {j.name for j in joint_infos}))
-
-
-def _mimic_leaders(joints: Sequence[Joint], movable: set[str]) -> tuple[str, ...]:
-    """The movable joints a movable ``<mimic>`` joint follows, once each, in file order."""
-    led = {j.mimic.joint for j in joints if j.mimic is not None and j.name in movable and j.mimic.joint != j.name}
-    return tuple(j.name for j in joints if j.name in led and j.name in movable)
+                            mimic_leaders=robot.mimic_leaders())
 
 
 def _add_mimics(spec: mujoco.MjSpec, joints: Sequence[object], movable: set[str]) -> None:

@@ -138,6 +138,18 @@ class Robot:
     #: What the reader took otherwise than written, one line each (a non-positive effort read as unknown).
     notes: list[str] = field(default_factory=list)
 
+    def mimic_leaders(self) -> tuple[str, ...]:
+        """The 1-DoF joints a 1-DoF ``<mimic>`` joint follows (a gripper's drive), once each, in file order.
+
+        Such a joint is commandable even where a ``<ros2_control>`` tag leaves it out: vendors leave the
+        gripper out of the arm's hardware block when another driver runs it, and unactuated the
+        linkage could never move (the simulation node and the fake robot both follow this rule).
+        """
+        movable = {j.name for j in self.joints if j.type in ("revolute", "continuous", "prismatic")}
+        led = {j.mimic.joint for j in self.joints
+               if j.mimic is not None and j.name in movable and j.mimic.joint != j.name}
+        return tuple(j.name for j in self.joints if j.name in led and j.name in movable)
+
 
 _JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 
