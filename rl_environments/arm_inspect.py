@@ -888,7 +888,8 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
         namespace = ""
         for key, value in doc.items():
             if str(key).rstrip("/").endswith("controller_manager") and isinstance(value, dict):
-                namespace = "/" + str(key).rsplit("controller_manager", 1)[0].strip("/*").strip("/")
+                prefix = str(key).rsplit("controller_manager", 1)[0].strip("/*")  # "/lbr/", "/**/", ""
+                namespace = f"/{prefix}" if prefix else ""
                 params = value.get("ros__parameters") or {}
                 types.update({k: v["type"] for k, v in params.items() if isinstance(v, dict) and "type" in v})
         for key, value in doc.items():
@@ -898,7 +899,7 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
                 continue
             listed = [str(j) for j in params["joints"]]
             if found is None and types[name].endswith("JointTrajectoryController") and set(listed) == set(joints):
-                found = _Driver(path.name, namespace.rstrip("/") if namespace != "/" else "", name)
+                found = _Driver(path.name, namespace, name)
             elif gripper is not None and listed == [gripper.joint] and types[name] in _GRIPPER_TYPES:
                 grip = (name, _GRIPPER_TYPES[types[name]])
     if found is not None and grip is not None:

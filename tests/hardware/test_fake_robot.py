@@ -14,6 +14,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -61,20 +62,9 @@ def test_presets_read_the_shipped_descriptions_and_vendor_controller_names():
     assert "my_arm" in renamed.controllers["controller_manager"]["ros__parameters"]
 
 
-def test_a_gripper_drive_left_out_of_ros2_control_is_commandable_and_its_mimic_follows(tmp_path):
+def test_a_gripper_drive_left_out_of_ros2_control_is_commandable_and_its_mimic_follows():
     """As in the simulation (urdf_model.Robot.mimic_leaders): the vendor's arm block without the gripper."""
-    urdf = tmp_path / "g.urdf"
-    urdf.write_text("""<robot name='g'>
-      <link name='base'/><link name='arm'/><link name='left'/><link name='right'/>
-      <joint name='wrist' type='revolute'><parent link='base'/><child link='arm'/><axis xyz='0 0 1'/>
-        <limit lower='-1' upper='1' effort='5' velocity='1'/></joint>
-      <joint name='drive' type='prismatic'><parent link='arm'/><child link='left'/><axis xyz='0 1 0'/>
-        <limit lower='0' upper='0.04' effort='5' velocity='1'/></joint>
-      <joint name='follow' type='prismatic'><parent link='arm'/><child link='right'/><axis xyz='0 -1 0'/>
-        <limit lower='0' upper='0.04' effort='5' velocity='1'/><mimic joint='drive'/></joint>
-      <ros2_control name='arm' type='system'><hardware><plugin>x/Y</plugin></hardware>
-        <joint name='wrist'><command_interface name='position'/><state_interface name='position'/></joint>
-      </ros2_control></robot>""")
+    urdf = Path(__file__).parents[1] / "sim" / "data" / "gripper_drive_outside_ros2_control.urdf"
     spec = load_robot_spec(description=str(urdf))
     assert [j.name for j in spec.joints] == ["wrist", "drive"]
     assert spec.joints[1].upper == pytest.approx(0.04)

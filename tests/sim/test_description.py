@@ -167,18 +167,7 @@ def test_mesh_cache_rejects_garbage(tmp_path):
         MeshCache(tmp_path / "c").usable_path(bad)
 
 
-_GRIPPER_URDF = """<robot name='g'>
-  <link name='base'/><link name='arm'/><link name='left'/><link name='right'/>
-  <joint name='wrist' type='revolute'><parent link='base'/><child link='arm'/><axis xyz='0 0 1'/>
-    <limit lower='-1' upper='1' effort='5' velocity='1'/></joint>
-  <joint name='drive' type='prismatic'><parent link='arm'/><child link='left'/><axis xyz='0 1 0'/>
-    <limit lower='0' upper='0.04' effort='5' velocity='1'/></joint>
-  <joint name='follow' type='prismatic'><parent link='arm'/><child link='right'/><axis xyz='0 -1 0'/>
-    <limit lower='0' upper='0.04' effort='5' velocity='1'/><mimic joint='drive'/></joint>
-  <ros2_control name='arm' type='system'><hardware><plugin>x/Y</plugin></hardware>
-    <joint name='wrist'><command_interface name='position'/><state_interface name='position'/></joint>
-  </ros2_control>
-</robot>"""
+_GRIPPER_URDF = (DATA / "gripper_drive_outside_ros2_control.urdf").read_text()
 
 
 def test_a_drive_that_mimics_follow_is_actuated_when_ros2_control_leaves_it_out(index):
