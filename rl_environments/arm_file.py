@@ -20,6 +20,7 @@ The layout (``docs/add_your_arm.md`` explains every key)::
       joints: [...]             # base to tip
       base_link: base_link
       ee_link: grasp_link
+      tcp_offset: [0, 0, 0]     # the grasp point in ee_link's frame, metres (when no link lies between the pads)
       home: [...]
       controller: forward_position_controller
       controllers: [joint_state_broadcaster, forward_position_controller, gripper_position_controller]
@@ -33,6 +34,7 @@ The layout (``docs/add_your_arm.md`` explains every key)::
       closed: 0.0
       open: 0.0425
       controller: gripper_position_controller
+      independent: false        # true: both joints driven (no <mimic>), the second commanded at mimic x the first
     camera: {render_camera: render_camera, view: {lookat: [...], distance: .., azimuth: .., elevation: ..}}
     reach: {...}                # rl_environments.arm_reach.reach_schema's keys (arm_joints left out)
     manipulation: {...}         # arm_manipulation.manipulation_schema's keys and the scene's
@@ -81,6 +83,14 @@ class GripperSpec:
     open: float
     controller: str
     reset_mimic: bool = True
+    #: Both finger joints are driven (the description ties them by no ``<mimic>``): the simulation's
+    #: gripper controller and the real driver's take both, the second at ``mimic`` times the first.
+    independent: bool = False
+
+    def targets(self, finger: float) -> tuple[float, ...]:
+        """The gripper controller's command for the first finger at ``finger``: one value, or both
+        fingers' when they are driven independently."""
+        return (finger, self.mimic * finger) if self.independent else (finger,)
 
 
 @dataclass(frozen=True)
@@ -132,6 +142,8 @@ class ArmFile:
     scene_files: Mapping[str, str]
     real: RealSpec
     training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    #: The end effector: this point of ``ee_link`` (metres, in its frame); zeros: the link's origin.
+    tcp_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     @property
     def has_gripper(self) -> bool:
@@ -243,10 +255,11 @@ def _resolve(uri: str, base: Path) -> str:
 _TOP = ("format", "name", "robot_name", "description", "arm", "gripper", "camera", "reach", "manipulation", "scene",
         "real", "training")
 _DESCRIPTION = ("uri", "xacro_args", "controllers")
-_ARM = ("joints", "base_link", "ee_link", "home", "controller", "controllers", "approach_axis", "closing_axis",
-        "ik_seed", "top_down_ik")
+_ARM = ("joints", "base_link", "ee_link", "tcp_offset", "home", "controller", "controllers", "approach_axis",
+        "closing_axis", "ik_seed", "top_down_ik")
 _IK = ("solver", "shoulder_height", "upper_arm", "forearm", "tip")
-_GRIPPER = ("joints", "mimic", "closed", "open", "controller", "reset_mimic")
+_GRIPPER = ("joints", "mimic", "closed", "open", "controller", "reset_mimic", "independent")
+_MAX_TCP_OFFSET = 0.5  # m: a tool centre point further from its link is a mistake (units, a wrong link)
 _CAMERA = ("render_camera", "view", "topics")
 _VIEW = ("lookat", "distance", "azimuth", "elevation")
 _SCENE_FILES = ("table", "object")
@@ -307,6 +320,10 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         arm.fail("arm.joints", f"names {len(joints)} joints; the tasks serve serial arms of 4 to 7 joints")
     n = len(joints)
     home = arm.numbers("home", n)
+    tcp_offset = arm.numbers("tcp_offset", 3, (0.0, 0.0, 0.0))
+    if max(abs(v) for v in tcp_offset) > _MAX_TCP_OFFSET:
+        arm.fail("arm.tcp_offset", f"is {list(tcp_offset)}: a point more than {_MAX_TCP_OFFSET} m from "
+                                   "arm.ee_link along an axis; it is in metres, in ee_link's frame")
     approach, closing = arm.axis("approach_axis"), arm.axis("closing_axis")
     if approach == closing:
         arm.fail("arm.closing_axis", f"must differ from approach_axis ({approach})")
@@ -337,7 +354,11 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         if overlap:
             gsec.fail("gripper.joints", f"names arm joints {overlap}")
         gripper = GripperSpec(gjoints, gsec.number("mimic", 1.0), gsec.number("closed"), gsec.number("open"),
-                              gsec.string("controller"), gsec.boolean("reset_mimic", True))
+                              gsec.string("controller"), gsec.boolean("reset_mimic", True),
+                              gsec.boolean("independent", False))
+        if gripper.independent and len(gjoints) != 2:
+            gsec.fail("gripper.independent", f"is true but gripper.joints names {len(gjoints)} joint(s): it takes "
+                                             "the two driven finger joints")
         if gripper.controller not in sim_controllers:
             gsec.fail("gripper.controller", f"{gripper.controller!r} is not among arm.controllers "
                                             f"{list(sim_controllers)}")
@@ -430,6 +451,7 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         camera_topics={k: (v[0], v[1]) for k, v in topics.items()},
         reach=reach, manipulation=manipulation, scene_files=scene_files, real=real,
         training={str(k): dict(v) for k, v in training.items()},
+        tcp_offset=(tcp_offset[0], tcp_offset[1], tcp_offset[2]),
     )
 
 

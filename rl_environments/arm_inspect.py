@@ -301,6 +301,7 @@ class _Gripper:
     closing_direction: np.ndarray  # root frame
     pads: tuple[float, float] | None = None  # m: the gap between the fingers' geometry (closed, open)
     notes: list[str] = field(default_factory=list)  # what else the file should say of the gripper
+    independent: bool = False  # both joints driven (no <mimic> ties them)
 
 
 class _Hand:
@@ -323,16 +324,18 @@ class _Hand:
         solid = [g for g in found if model.geom_contype[g] or model.geom_conaffinity[g]]
         return solid or found
 
-    def drive(self, lead: Any, value: float) -> None:
-        """Every joint at zero but ``lead`` at ``value`` and the joints mimicking it where their mimic puts them."""
+    def drive(self, lead: Any, value: float, *more: tuple[Any, float]) -> None:
+        """Every joint at zero but ``lead`` at ``value`` (and each ``(joint, value)`` of ``more``), the joints
+        mimicking them where their mimic puts them."""
         import mujoco
 
         model, data = self.model, self.data
         data.qpos[:] = model.qpos0
-        data.qpos[model.joint(lead.name).qposadr[0]] = value
-        for j in self.ins.tree.robot.joints:
-            if j.mimic is not None and j.mimic.joint == lead.name and j.type in _MOVING:
-                data.qpos[model.joint(j.name).qposadr[0]] = j.mimic.multiplier * value + j.mimic.offset
+        for driven, at in ((lead, value), *more):
+            data.qpos[model.joint(driven.name).qposadr[0]] = at
+            for j in self.ins.tree.robot.joints:
+                if j.mimic is not None and j.mimic.joint == driven.name and j.type in _MOVING:
+                    data.qpos[model.joint(j.name).qposadr[0]] = j.mimic.multiplier * at + j.mimic.offset
         mujoco.mj_kinematics(model, data)
 
     def gap(self, first: list[int], second: list[int]) -> float:
@@ -379,8 +382,7 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
     if not leaders:
         return None, "no actuated joint after the arm: reach only (push and pick-and-place need a gripper)"
     if len(leaders) > 1:
-        return None, (f"the joints after the arm {[j.name for j in leaders]} are driven independently (no <mimic> "
-                      "ties them to one drive): reach only; write the gripper by hand if one drives the others")
+        return _independent_fingers(ins, hand_model, hand, leaders)
     lead = leaders[0]
     followers = [j for j in below if j.mimic is not None and j.mimic.joint == lead.name]
     own = set(tree.descendants(lead.child))
@@ -441,7 +443,75 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
     return found, why
 
 
-def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tuple[str, str]:
+def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
+                         leaders: Sequence[Any]) -> tuple[_Gripper | None, str]:
+    """Two finger joints driven independently (no ``<mimic>`` ties them): the pair on separate fingers
+    whose fingertips' gap changes most, closed where both are nearer. The simulation's gripper
+    controller drives both, the second at the ratio of their strokes (``gripper.independent``)."""
+    tree = ins.tree
+    hand_origin = tree.transform(hand, {})[:3, 3]
+    pairs = [(a, b) for i, a in enumerate(leaders) for b in leaders[i + 1:]
+             if a.child not in tree.descendants(b.child) and b.child not in tree.descendants(a.child)
+             and hand_model.geoms(a.child) and hand_model.geoms(b.child)]
+    names = [j.name for j in leaders]
+    best: tuple[float, Any, Any, dict[tuple[float, float], float], list[int], list[int]] | None = None
+    for a, b in pairs:
+        (alo, ahi), (blo, bhi) = _limits(a), _limits(b)
+        if not all(map(math.isfinite, (alo, ahi, blo, bhi))) or ahi - alo <= 1e-6 or bhi - blo <= 1e-6:
+            continue
+        hand_model.drive(a, alo, (b, blo))
+        tip_a = hand_model.tip(hand_model.geoms(a.child), hand_origin)
+        tip_b = hand_model.tip(hand_model.geoms(b.child), hand_origin)
+        gaps = {}
+        for va in (alo, ahi):
+            for vb in (blo, bhi):
+                hand_model.drive(a, va, (b, vb))
+                gaps[(va, vb)] = hand_model.gap(tip_a, tip_b)
+        stroke = max(gaps.values()) - min(gaps.values())
+        if best is None or stroke > best[0]:
+            best = (stroke, a, b, gaps, tip_a, tip_b)
+    if best is None or best[0] < 1e-4:
+        return None, (f"the joints after the arm {names} are driven independently (no <mimic> ties them) but no two "
+                      "of them on separate fingers with finite limits change the fingers' gap: reach only")
+    _, a, b, gaps, tip_a, tip_b = best
+    closed_pair = min(gaps, key=lambda k: gaps[k])
+    open_pair = max(gaps, key=lambda k: gaps[k])
+    if closed_pair[0] == open_pair[0] or closed_pair[1] == open_pair[1]:
+        return None, (f"finger joints {a.name!r} and {b.name!r} are driven independently, but the fingers do not "
+                      "close by moving both (one finger's limit opens the gap whatever the other does): reach only")
+    (ca, cb), (oa, ob) = closed_pair, open_pair
+    mimic = (ob - cb) / (oa - ca)
+    if abs(cb - mimic * ca) > 1e-6:
+        return None, (f"finger joints {a.name!r} ({ca:g} closed, {oa:g} open) and {b.name!r} ({cb:g}, {ob:g}) are "
+                      "driven independently and no multiplier maps one onto the other (closed is not at zero for "
+                      "both): reach only; write the gripper by hand")
+    hand_model.drive(a, oa, (b, ob))
+    pa, pb = hand_model.centre(tip_a), hand_model.centre(tip_b)
+    direction = pa - pb
+    if a.type == "prismatic":
+        direction = tree.transform(a.parent, {})[:3, :3].dot(np.asarray(a.axis, float))
+    found = _Gripper(a.name, b.name, mimic, ca, oa, gaps[open_pair] - gaps[closed_pair], (pa + pb) / 2,
+                     direction / max(np.linalg.norm(direction), 1e-9), (gaps[closed_pair], gaps[open_pair]),
+                     independent=True)
+    why = (f"inferred: finger joints {a.name!r} and {b.name!r} ({a.type}) driven independently (no <mimic> ties "
+           f"them): both commanded, {b.name!r} at {mimic:g} x {a.name!r}; closed = the limits where the fingers' "
+           "geometry is nearer")
+    if len(leaders) > 2:
+        why += f"; the other driven joints {[n for n in names if n not in (a.name, b.name)]} are left at rest"
+    listed = {j.name for j in ins.description.ros2_control}
+    outside = [n for n in (a.name, b.name) if listed and n not in listed]
+    if outside:  # actuated in simulation only through <ros2_control> (or as the drive of a <mimic>)
+        return None, (f"finger joints {outside} are driven independently but not in the description's "
+                      "<ros2_control> tag, so the simulation cannot drive them: reach only; add them to the tag")
+    return found, why
+
+
+_TCP_FAR = 0.01  # m: a hand link this far from the fingertips' midpoint gets arm.tcp_offset (the grasp point)
+_TCP_SHORT = 0.03  # m: a tool frame this far short of the fingertips' midpoint is a flange frame
+
+
+def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tuple[str, str, np.ndarray]:
+    """The end-effector link, why, and the grasp point in its frame (``arm.tcp_offset``; zeros: its origin)."""
     fixed = tree.fixed_descendants(tree.joints[last_arm_joint].child)
 
     def named(link: str) -> int | None:
@@ -453,21 +523,38 @@ def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tupl
         return None
 
     candidates = [n for n in fixed if named(n) is not None]
-    if gripper is not None:
-        def dist(link: str) -> float:
-            return float(np.linalg.norm(tree.transform(link, {}) [:3, 3] - gripper.midpoint))
-        pool = candidates or fixed
-        best = min(pool, key=lambda n: (round(dist(n), 3), -fixed.index(n)))  # ties: the deeper link
+    if gripper is None:
         if candidates:
-            return best, (f"inferred: the link named like a tool frame nearest the fingers ({dist(best) * 100:.1f} cm "
-                          "from their midpoint); check it lies between the fingertips")
+            best = min(candidates, key=lambda n: (named(n), fixed.index(n)))
+            return best, "inferred: the link fixed to the last arm link named like a tool frame", np.zeros(3)
+        return fixed[-1], "guessed: no link named tcp/grasp/ee/tool: the last link fixed to the arm's last link", \
+            np.zeros(3)
+
+    def dist(link: str) -> float:
+        return float(np.linalg.norm(tree.transform(link, {})[:3, 3] - gripper.midpoint))
+
+    best = min(candidates or fixed, key=lambda n: (round(dist(n), 3), -fixed.index(n)))  # ties: the deeper link
+    wrist = tree.transform(tree.joints[last_arm_joint].child, {})[:3, 3]
+    out = gripper.midpoint - wrist
+    reach_out = float(np.linalg.norm(out))
+    # How far the link lies short of the fingertips' midpoint, along the wrist -> fingers direction.
+    short = reach_out - float(np.dot(tree.transform(best, {})[:3, 3] - wrist, out / max(reach_out, 1e-9)))
+    if candidates and short <= _TCP_SHORT:  # the vendor's tool frame: the grasp point it means
+        return best, (f"inferred: the link named like a tool frame nearest the fingers ({dist(best) * 100:.1f} cm "
+                      "from the fingertips' midpoint); check it lies between the fingertips"), np.zeros(3)
+    if candidates:  # a flange frame (tool0, end_effector_link at the wrist): the grasp point is further out
+        tf = tree.transform(best, {})
+        return best, (f"inferred: the link named like a tool frame nearest the fingers lies {short * 100:.1f} cm short "
+                      "of the fingertips' midpoint (a flange frame), which arm.tcp_offset makes the end effector"), \
+            tf[:3, :3].T.dot(gripper.midpoint - tf[:3, 3])
+    if dist(best) <= _TCP_FAR:
         return best, (f"guessed: no link named tcp/grasp/ee/tool: the hand's link nearest the fingers "
-                      f"({dist(best) * 100:.1f} cm from their midpoint); the grasp point should lie between the "
-                      "fingertips: add a fixed link there and name it here")
-    if candidates:
-        best = min(candidates, key=lambda n: (named(n), fixed.index(n)))
-        return best, "inferred: the link fixed to the last arm link named like a tool frame"
-    return fixed[-1], "guessed: no link named tcp/grasp/ee/tool: the last link fixed to the arm's last link"
+                      f"({dist(best) * 100:.1f} cm from their midpoint)"), np.zeros(3)
+    tf = tree.transform(best, {})
+    offset = tf[:3, :3].T.dot(gripper.midpoint - tf[:3, 3])
+    return best, (f"inferred: no link named tcp/grasp/ee/tool: the hand's link nearest the fingers, "
+                  f"{dist(best) * 100:.1f} cm from the fingertips' midpoint, which arm.tcp_offset makes the end "
+                  "effector"), offset
 
 
 def _axis_name(vec: np.ndarray, exclude: str | None = None) -> tuple[str, float]:
@@ -488,6 +575,13 @@ def _rl(values: Sequence[float] | np.ndarray, digits: int = 4) -> list[float]:
     return [_r(v, digits) for v in values]
 
 
+def _rl_within(values: Sequence[float] | np.ndarray, lower: Sequence[float], upper: Sequence[float]) -> list[float]:
+    """Joint positions rounded as written, kept inside the limits as written (``reach.min_joint_pos``'s
+    5 digits): a pose at a limit must not round past it."""
+    lo, hi = _rl(lower, 5), _rl(upper, 5)
+    return [float(min(max(v, a), b)) for v, a, b in zip(_rl(values), lo, hi)]
+
+
 def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     """Every value of the arm file for ``name`` from an inspected description (see the module docstring)."""
     from multiros.utils.kinematics import KinematicChain
@@ -498,9 +592,9 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     joints, why_chain = _pick_chain(ins)
     base = _base_link(tree, joints[0])
     gripper, why_gripper = _gripper(ins, _Hand(ins), joints[-1])
-    ee, why_ee = _ee_link(tree, joints[-1], gripper)
+    ee, why_ee, tcp = _ee_link(tree, joints[-1], gripper)
     try:
-        chain = KinematicChain.from_urdf(ins.description.text, base, ee)
+        chain = KinematicChain.from_urdf(ins.description.text, base, ee, tip_offset=tcp)
     except ValueError as exc:
         _fail(ins.uri, f"the chain {base!r} -> {ee!r}: {_first(exc)}")
     if tuple(chain.joint_names) != joints:  # a moving joint between the base and the arm: not served
@@ -534,6 +628,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     zero = {j: 0.0 for j in joints}
     if gripper is not None:
         zero[gripper.joint] = gripper.open
+        if gripper.independent:
+            zero[gripper.follower] = gripper.mimic * gripper.open
     ee_tf = tree.transform(ee, zero)
     wrist = tree.transform(tree.joints[joints[-1]].child, zero)[:3, 3]
     target = gripper.midpoint if gripper is not None else ee_tf[:3, 3]
@@ -597,13 +693,17 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     if gripper is not None:
         controllers.append("gripper_position_controller")
     draft.sections["arm"] = {
-        "joints": list(joints), "base_link": base, "ee_link": ee, "home": _rl(home),
+        "joints": list(joints), "base_link": base, "ee_link": ee, **({"tcp_offset": _rl(tcp)} if np.any(
+            np.abs(tcp) > 0) else {}), "home": _rl_within(home, lower, upper),
         "controller": "arm_position_controller", "controllers": controllers,
-        "approach_axis": approach, "closing_axis": closing, "ik_seed": _rl(seed_q),
+        "approach_axis": approach, "closing_axis": closing, "ik_seed": _rl_within(seed_q, lower, upper),
     }
     draft.note("arm.joints", why_chain)
     draft.note("arm.base_link", "inferred: the link the first arm joint hangs from (through fixed joints)")
     draft.note("arm.ee_link", why_ee)
+    if np.any(np.abs(tcp) > 0):
+        draft.note("arm.tcp_offset", "inferred: the fingertips' midpoint (fingers open, measured on their geometry) "
+                                     "in arm.ee_link's frame, metres")
     draft.note("arm.home", why_home)
     draft.note("arm.approach_axis", why_approach)
     draft.note("arm.closing_axis", why_closing)
@@ -614,7 +714,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     else:
         draft.sections["gripper"] = {"joints": [gripper.joint, gripper.follower], "mimic": _r(gripper.mimic),
                                      "closed": _r(gripper.closed), "open": _r(gripper.open),
-                                     "controller": "gripper_position_controller"}
+                                     "controller": "gripper_position_controller",
+                                     **({"independent": True} if gripper.independent else {})}
         draft.note("gripper", why_gripper)
         draft.note("gripper.open", f"inferred: the other limit; the gap opens by {gripper.opening * 100:.1f} cm")
         if gripper.notes:
@@ -625,7 +726,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft.note("camera.render_camera", "guessed: the description has no camera sensor; renders use the view below")
     limits_why = "inferred: the URDF limits" + (f", {wide} clipped to [-pi, pi] (guessed)" if wide else "")
     draft.sections["reach"] = {
-        "min_joint_pos": _rl(lower, 5), "max_joint_pos": _rl(upper, 5), "init_joint_pos": _rl(seed_q),
+        "min_joint_pos": _rl(lower, 5), "max_joint_pos": _rl(upper, 5),
+        "init_joint_pos": _rl_within(seed_q, lower, upper),
         "delta_coeff": 0.05, "ee_delta_coeff": _r(float(np.clip(0.025 * reach / 0.9, 0.015, 0.03)), 3),
         "position_ee_min": _rl(ee_min, 3), "position_ee_max": _rl(ee_max, 3),
         "position_goal_min": _rl(goal_min, 3), "position_goal_max": _rl(goal_max, 3),
@@ -647,7 +749,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
             if err2 < err:
                 seed_q, err = q, err2
                 ik.seed = ik.home = np.asarray(seed_q)
-                draft.sections["arm"]["ik_seed"] = draft.sections["reach"]["init_joint_pos"] = _rl(seed_q)
+                draft.sections["arm"]["ik_seed"] = draft.sections["reach"]["init_joint_pos"] = \
+                    _rl_within(seed_q, lower, upper)
                 draft.note("arm.ik_seed", f"inferred: top-down pose (ChainTopDownIK) with the EE at {_rl(init, 3)} "
                                           "(manipulation.init_ee_position) in the base frame")
     _real(draft, ins, joints, gripper, ee_min, ee_max)
@@ -834,6 +937,13 @@ def _source_packages(ins: Inspection) -> list[str]:
     from multiros.sim.packages import default_index
 
     names: list[str] = []
+    for parent in Path(ins.source).resolve().parents:  # the package the description is in comes first
+        manifest = parent / "package.xml"
+        if manifest.is_file():
+            own = re.search(r"<name>\s*([A-Za-z0-9_]+)\s*</name>", manifest.read_text(errors="replace")[:100_000])
+            if own:
+                names.append(own.group(1))
+            break
     index = default_index()
     seen: set[Path] = set()
     queue = [Path(ins.source)]
@@ -900,7 +1010,8 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
             listed = [str(j) for j in params["joints"]]
             if found is None and types[name].endswith("JointTrajectoryController") and set(listed) == set(joints):
                 found = _Driver(path.name, namespace, name)
-            elif gripper is not None and listed == [gripper.joint] and types[name] in _GRIPPER_TYPES:
+            elif gripper is not None and listed in ([gripper.joint], [gripper.joint, gripper.follower]) \
+                    and types[name] in _GRIPPER_TYPES:
                 grip = (name, _GRIPPER_TYPES[types[name]])
     if found is not None and grip is not None:
         found.gripper_controller, found.gripper_interface = grip
@@ -977,6 +1088,9 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
         stroke = abs(gripper.open - gripper.closed)
         p = float(np.clip(min(f_effort, 20.0 if prismatic else 2.0) / max(stroke, 1e-3), 20.0, 2000.0))
         fingers[gripper.joint] = {"p": _r(p, 1), "d": _r(0.02 * p, 2)}
+        if gripper.independent:  # both fingers driven: the second squeezes as hard over its own stroke
+            f_p = float(np.clip(p / abs(gripper.mimic), 20.0, 2000.0))
+            fingers[gripper.follower] = {"p": _r(f_p, 1), "d": _r(0.02 * f_p, 2)}
     lines = [
         f"# ros2_control controllers of the {draft.name} in simulation (written by uniros arm add).",
         "#",
@@ -1006,7 +1120,7 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
     if arm_ctrl not in cm:
         cm[arm_ctrl] = {"type": "joint_trajectory_controller/JointTrajectoryController"}
     doc["joint_state_broadcaster"] = {"ros__parameters": {
-        "joints": [*joints, *([gripper.joint] if gripper else [])]}}
+        "joints": [*joints, *(list(fingers) if gripper else [])]}}
     doc["arm_position_controller"] = {"ros__parameters": {"joints": list(joints), "gains": gains}}
     if arm_ctrl != "arm_position_controller":
         doc[arm_ctrl] = {"ros__parameters": {
@@ -1014,7 +1128,7 @@ def _controllers(draft: ArmDraft, ins: Inspection, joints: Sequence[str], grippe
             "state_publish_rate": 100.0, "action_monitor_rate": 20.0, "allow_partial_joints_goal": False,
             "gains": gains}}
     if gripper is not None:
-        doc["gripper_position_controller"] = {"ros__parameters": {"joints": [gripper.joint], "gains": fingers}}
+        doc["gripper_position_controller"] = {"ros__parameters": {"joints": list(fingers), "gains": fingers}}
     import yaml
 
     class _NoAliases(yaml.SafeDumper):

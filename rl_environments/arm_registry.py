@@ -27,7 +27,7 @@ from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
 from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
 __all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "register_arm", "register_env_arms",
-           "registered_arms", "top_down_ik_of", "unregister_arm"]
+           "link_chain_of", "registered_arms", "top_down_ik_of", "unregister_arm"]
 
 #: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
 ARM_TASKS: dict[str, tuple[bool, str | None]] = {
@@ -40,7 +40,14 @@ _ADDED_TO_ENVIRONMENT: set[str] = set()  # the UNIROS_ARMS entries register_arm 
 
 
 def chain_of(spec: ArmFile) -> KinematicChain:
-    """The arm's chain from ``arm.base_link`` to ``arm.ee_link`` of its description (built once per process)."""
+    """The arm's chain from ``arm.base_link`` to its end effector (``arm.ee_link``, moved by ``arm.tcp_offset``)
+    of its description (built once per process)."""
+    chain = _chain(spec.description_uri, tuple(sorted(spec.xacro_args.items())), spec.base_link, spec.ee_link)
+    return chain.with_tip_offset(spec.tcp_offset) if any(spec.tcp_offset) else chain
+
+
+def link_chain_of(spec: ArmFile) -> KinematicChain:
+    """The chain to ``arm.ee_link``'s own origin (no ``arm.tcp_offset``): the frame a simulation returns."""
     return _chain(spec.description_uri, tuple(sorted(spec.xacro_args.items())), spec.base_link, spec.ee_link)
 
 
@@ -89,12 +96,14 @@ def robot_constants(spec: ArmFile) -> dict[str, Any]:
         "HOME": tuple(spec.home),
         "BASE_LINK": spec.base_link,
         "EE_LINK": spec.ee_link,
+        "TCP_OFFSET": tuple(spec.tcp_offset),
         "ARM_CONTROLLER": spec.arm_controller,
         "CONTROLLERS": spec.sim_controllers,
         "GRIPPER_CONTROLLER": gripper.controller if gripper else "",
         "FINGER_JOINTS": gripper.joints if gripper else (),
         "FINGER_MIMIC": gripper.mimic if gripper else 1.0,
         "RESET_MIMIC": gripper.reset_mimic if gripper else True,
+        "FINGERS_INDEPENDENT": gripper.independent if gripper else False,
         "SCENE": scene,
         "RENDER_CAMERA": spec.render_camera,
         "CAMERA_VIEW": spec.camera_view,
@@ -175,6 +184,9 @@ def _check_gripper(spec: ArmFile) -> None:
         if i == 0 and joint.find("mimic") is not None:
             raise ArmFileError(f"{spec.path}: key 'gripper.joints': {name!r} mimics another joint; the first "
                                "finger joint is the commanded one (put the mimicking one second)")
+        if i == 1 and spec.gripper.independent and joint.find("mimic") is not None:
+            raise ArmFileError(f"{spec.path}: key 'gripper.independent': {name!r} mimics another joint, so it is "
+                               "not driven: set independent: false")
 
 
 def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_chain: bool = True,

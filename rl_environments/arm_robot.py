@@ -26,7 +26,7 @@ import numpy as np
 from multiros.envs import EnvError
 from multiros.envs.connection import SceneEntity
 from multiros.robot_state import RobotStates
-from multiros.utils.kinematics import KinematicChain
+from multiros.utils.kinematics import KinematicChain, matrix_from_quat
 from rl_environments.arm_ik import TopDownIK
 from rl_environments.arm_interface import ArmInterface
 
@@ -55,6 +55,8 @@ class ArmRobot(ArmInterface):
         CONTROLLERS_FILE: the ros2_control controllers YAML in the package's ``config/``.
         ARM_JOINTS: the arm's joint names, in command order.
         BASE_LINK, EE_LINK: the kinematic chain's ends (URDF link names).
+        TCP_OFFSET: the end effector as a point of ``EE_LINK`` (metres, in its frame; zeros: its origin),
+            for a description with no link between the fingers (an arm file's ``arm.tcp_offset``).
         ARM_CONTROLLER: the group position controller commanding ``ARM_JOINTS``.
         CONTROLLERS: controllers to activate at spawn.
         SIM_TIMESTEP: physics time step in seconds.
@@ -66,6 +68,8 @@ class ArmRobot(ArmInterface):
             ``FINGER_JOINTS`` (a position).
         FINGER_JOINTS: the commanded finger joint and the one mimicking it.
         FINGER_MIMIC: the second finger's position per unit of the first (its URDF ``<mimic>``).
+        FINGERS_INDEPENDENT: both finger joints are driven (no ``<mimic>`` ties them): the gripper
+            controller takes both, the second at ``FINGER_MIMIC`` times the first.
         RESET_MIMIC: whether a reset also teleports the second finger to its mimic position (the
             RX200's episodes have only ever set the commanded one; its mimic then follows).
         SCENE: the push / pick-and-place scene, positions relative to the robot base (the description
@@ -109,6 +113,7 @@ class ArmRobot(ArmInterface):
     ARM_JOINTS: ClassVar[tuple[str, ...]]
     BASE_LINK: ClassVar[str]
     EE_LINK: ClassVar[str]
+    TCP_OFFSET: ClassVar[tuple[float, ...]] = (0.0, 0.0, 0.0)
     ARM_CONTROLLER: ClassVar[str]
     CONTROLLERS: ClassVar[tuple[str, ...]]
     # 4 ms steps: the position servos of both arms are far inside their explicit-stiffness stability
@@ -123,6 +128,7 @@ class ArmRobot(ArmInterface):
     HOME: ClassVar[tuple[float, ...]] = ()
     FINGER_MIMIC: ClassVar[float] = -1.0
     RESET_MIMIC: ClassVar[bool] = True
+    FINGERS_INDEPENDENT: ClassVar[bool] = False
     SCENE: ClassVar[Mapping[str, Any]] = {}
     CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]] = ((0.2, 0.0, 0.1), 0.9, 140.0,
                                                                                       -25.0)
@@ -228,9 +234,13 @@ class ArmRobot(ArmInterface):
 
     @classmethod
     def ee_positions_of(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
-        """The ``EE_LINK`` frame of each state, in each env's world (returned with the step in simulation,
-        forward kinematics of the observed joints on a robot: the connection's)."""
-        return envs[0].connection.frame_positions(states, cls.EE_LINK)
+        """The end effector of each state, in each env's world: the ``EE_LINK`` frame (returned with the step
+        in simulation, forward kinematics of the observed joints on a robot: the connection's), moved by
+        ``TCP_OFFSET`` in its frame."""
+        if not any(cls.TCP_OFFSET):
+            return envs[0].connection.frame_positions(states, cls.EE_LINK)
+        where, quat = envs[0].connection.frame_poses(states, cls.EE_LINK)
+        return where + np.einsum("nij,j->ni", matrix_from_quat(quat), np.asarray(cls.TCP_OFFSET, dtype=np.float64))
 
     @classmethod
     def set_arm_targets_of(cls, envs: Sequence[Any], targets: np.ndarray) -> None:
@@ -274,7 +284,8 @@ class ArmRobot(ArmInterface):
         """Each env's finger target: the gripper controller's command (with the next step in simulation; on
         a robot, routed by the connection to the gripper driver's interface)."""
         for env, target in zip(envs, targets):
-            env.connection.command(cls.GRIPPER_CONTROLLER, np.array([float(target)]))
+            values = [float(target), cls.FINGER_MIMIC * float(target)] if cls.FINGERS_INDEPENDENT else [float(target)]
+            env.connection.command(cls.GRIPPER_CONTROLLER, np.array(values))
 
     # -- where the arm stands, its scene and its gripper (the connection's, whichever side) --------------
     @property

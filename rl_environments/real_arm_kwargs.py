@@ -125,7 +125,8 @@ def real_robot_kwargs(cls: Any, overrides: Mapping[str, Any]) -> dict[str, Any]:
         "safety": safety,
     }
     kwargs.update(opts)
-    kwargs[SETUP_KEY] = RealArmSetup(base, cls.EE_LINK, chain, scene)
+    # The frame served as a simulation serves it: the link's pose (the robot layer adds TCP_OFFSET).
+    kwargs[SETUP_KEY] = RealArmSetup(base, cls.EE_LINK, chain.with_tip_offset(None), scene)
     return kwargs
 
 
@@ -149,12 +150,17 @@ def _scene_options_from(cls: Any, opts: dict[str, Any]) -> RealSceneOptions:
     if not isinstance(topic, str) or not topic.strip("/"):
         raise ValueError(f"{cls.__name__}: object_pose_topic must be a topic name, got {topic!r}")
     real_range = opts.pop("gripper_range", cls.REAL_GRIPPER_RANGE)
+    # Two independently driven fingers: a trajectory or forward command drives both (a GripperCommand
+    # action's driver moves its fingers itself).
+    followers = ((cls.FINGER_JOINTS[1], float(cls.FINGER_MIMIC)),) if (
+        cls.FINGERS_INDEPENDENT and interface in ("trajectory", "forward")) else ()
     return RealSceneOptions(
         gripper_interface=interface,
         gripper_controller=opts.pop("gripper_controller", cls.REAL_GRIPPER_CONTROLLER),
         gripper_joint=opts.pop("gripper_joint", cls.REAL_GRIPPER_JOINT) or cls.FINGER_JOINTS[0],
         gripper_range=None if real_range is None else (float(real_range[0]), float(real_range[1])),
         gripper_max_effort=float(opts.pop("gripper_max_effort", 0.0)),
+        gripper_followers=followers,
         object_pose_topic=topic,
         object_pose_frame=opts.pop("object_pose_frame", cls.BASE_LINK),
         object_pose_timeout=float(timeout),

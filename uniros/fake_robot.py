@@ -127,13 +127,17 @@ def vendor_controllers(arm: ArmFile, yaml_config: Mapping[str, Any] | None = Non
                                 f"{interface!r}: name the driver's gripper controller")
         kind, params = _defined(config, real.gripper_controller)
         wanted = _JTC if interface == "trajectory" else _FORWARD
-        if kind != wanted or list(params.get("joints") or []) != [joint]:
+        assert arm.gripper is not None
+        # Two independently driven fingers: the driver's trajectory or forward controller takes both.
+        joints = [joint, arm.gripper.joints[1]] if arm.gripper.independent and interface != "gripper_action" \
+            else [joint]
+        if kind != wanted or list(params.get("joints") or []) != joints:
             params = {}
         if interface == "trajectory":
             params = {"command_interfaces": ["position"], "state_interfaces": ["position", "velocity"], **params}
         # A GripperActionController is served as a position controller on the joint plus the action
         # (GripperActionServer): the fake robot's controller manager has no such controller type.
-        add(real.gripper_controller, wanted, {**params, "joints": [joint]})
+        add(real.gripper_controller, wanted, {**params, "joints": joints})
     for name in real.controllers:
         if name in cm:
             continue

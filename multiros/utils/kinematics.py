@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
@@ -238,9 +239,16 @@ class KinematicChain:
     joints are folded into the neighbouring transforms. Continuous joints have infinite limits.
     """
 
-    def __init__(self, joints: list[_Joint], base_link: str, tip_link: str) -> None:
+    def __init__(self, joints: list[_Joint], base_link: str, tip_link: str,
+                 tip_offset: Sequence[float] | None = None) -> None:
         self.base_link = base_link
         self.tip_link = tip_link
+        offset = np.zeros(3) if tip_offset is None else np.asarray(tip_offset, dtype=float).reshape(-1)
+        if offset.shape != (3,) or not np.all(np.isfinite(offset)):
+            raise ValueError(f"tip_offset must be 3 finite numbers (metres in the tip link's frame), "
+                             f"got {tip_offset!r}")
+        self.tip_offset = offset
+        self._joints = list(joints)
         # Fold fixed joints: pre[i] goes before moving joint i, tip after the last.
         pre: list[np.ndarray] = []
         moving: list[_Joint] = []
@@ -258,6 +266,8 @@ class KinematicChain:
                     "supported; chains may contain revolute, continuous, prismatic and fixed joints"
                 )
         n = len(moving)
+        acc = acc.copy()
+        acc[:3, 3] += acc[:3, :3].dot(offset)  # a point fixed in the tip link (a tool centre point)
         self._tip = acc
         self._names = tuple(j.name for j in moving)
         self._lower = np.array([j.lower for j in moving], dtype=float)
@@ -297,6 +307,7 @@ class KinematicChain:
         tip_link: str,
         *,
         xacro_args: dict[str, str] | None = None,
+        tip_offset: Sequence[float] | None = None,
     ) -> KinematicChain:
         """Build the chain from ``base_link`` to ``tip_link``.
 
@@ -305,6 +316,8 @@ class KinematicChain:
             base_link: Link whose frame poses are expressed in.
             tip_link: End link (for example ``rx200/ee_gripper_link`` or ``tool0``).
             xacro_args: ``$(arg ...)`` values when ``urdf`` is a xacro file.
+            tip_offset: a point fixed in ``tip_link``'s frame (metres) that is the chain's tip instead
+                of the link's origin: a tool centre point the description has no link for.
 
         Raises:
             ValueError: A link is not in the URDF, or ``tip_link`` is not a descendant of ``base_link``.
@@ -336,7 +349,12 @@ class KinematicChain:
                 )
             path.append(joint)
             link = joint.parent
-        return cls(path[::-1], base_link, tip_link)
+        return cls(path[::-1], base_link, tip_link, tip_offset)
+
+    def with_tip_offset(self, tip_offset: Sequence[float] | None) -> KinematicChain:
+        """The same chain whose tip is ``tip_offset`` (metres, in the tip link's frame) from the tip link's
+        origin (instead of this chain's offset)."""
+        return type(self)(self._joints, self.base_link, self.tip_link, tip_offset)
 
     # ------------------------------------------------------------------ properties
     @property
@@ -601,6 +619,5 @@ class KinematicChain:
         return (qs, pos) if return_q else pos
 
     def __repr__(self) -> str:
-        return (
-            f"KinematicChain({self.base_link!r} -> {self.tip_link!r}, joints={list(self._names)})"
-        )
+        offset = f", tip_offset={self.tip_offset.tolist()}" if np.any(self.tip_offset) else ""
+        return f"KinematicChain({self.base_link!r} -> {self.tip_link!r}, joints={list(self._names)}{offset})"

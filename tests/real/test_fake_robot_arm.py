@@ -341,13 +341,37 @@ def test_an_arm_file_of_your_own_with_its_own_driver_names(graph: Context, tmp_p
         unregister_arm("NED2Mine")
 
 
+def _both_fingers_follow(graph: Context, env: Any, arm: ArmFile) -> None:
+    """Two independently driven fingers: one finger action moves both, the second at its multiplier."""
+    assert arm.gripper is not None
+    lead, other = arm.gripper.joints
+    recorder = TopicRecorder(graph, JointState, arm.real.joint_states_topic or "/joint_states")
+    try:
+        env.step(np.array([0.0, 0.0, 0.0, 0.0], np.float32))  # fingers half open: both joints mid-stroke
+        half = (arm.gripper.closed + arm.gripper.open) / 2
+
+        def at_half() -> bool:
+            if not recorder.messages:
+                return False
+            last = recorder.messages[-1]
+            where = dict(zip(last.name, last.position))
+            return abs(where[lead] - half) < 1e-3 and abs(where[other] - arm.gripper.mimic * half) < 1e-3
+
+        assert env.unwrapped.context.wait_for(at_half, 15.0), recorder.messages[-1:]
+    finally:
+        recorder.close()
+
+
 #: Arms written by ``uniros arm add`` from the suite's stand-ins of vendor descriptions: (URI, arguments,
 #: the gripper interface the file names): the OMX's from its ros2_control tag (a Dynamixel plugin), the
-#: Panda's (no tag) from ros2_control's conventions (a GripperActionController).
+#: Panda's (no tag) from ros2_control's conventions (a GripperActionController), the two-finger arm's from
+#: its package's controllers file (one trajectory controller over both independently driven fingers).
 WRITTEN = {
     "OmxWritten": ("package://uniros_test_omx_description/urdf/omx.urdf.xacro", (), "gripper_action"),
     "PandaWritten": ("package://uniros_test_panda_description/urdf/panda.urdf.xacro", ("--xacro-arg", "hand=true"),
                      "gripper_action"),
+    "TwoFingerWritten": ("package://uniros_test_twofinger_description/urdf/twofinger_arm.urdf.xacro", (),
+                         "trajectory"),
 }
 
 
@@ -389,6 +413,14 @@ def test_an_arm_written_by_arm_add_runs_its_real_twins_against_its_fake_robot(
                         obs, _, _, _, info = env.step(env.action_space.sample())
                         assert obs_space.contains(obs) and info["safety"]["refused"] is False
                     assert env.unwrapped.commands_sent >= 3
+                    if any(arm.tcp_offset):  # the EE: the link's FK moved by arm.tcp_offset in its frame
+                        from rl_environments.arm_registry import chain_of
+
+                        u = env.unwrapped
+                        np.testing.assert_allclose(u.ee_position(), chain_of(arm).fk_position(u.arm_positions())
+                                                   + u.connection.base_position, atol=1e-9)
+                    if task == "PushGoal" and arm.gripper is not None and arm.gripper.independent:
+                        _both_fingers_follow(graph, env, arm)
                 finally:
                     env.close()
         finally:

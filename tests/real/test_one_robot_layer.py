@@ -7,6 +7,7 @@ import functools
 import importlib
 import threading
 from collections.abc import Callable, Iterator
+from types import SimpleNamespace
 from typing import Any
 
 import gymnasium as gym
@@ -16,6 +17,7 @@ import pytest
 import uniros  # noqa: F401 - registers the IDs
 from multiros.envs.connection import RobotConnection, SceneEntity
 from multiros.envs.errors import EnvError
+from multiros.envs.real.gripper import RealGripper
 from multiros.envs.real.scene import RealScene, RealSceneOptions
 from multiros.robot_state import RobotStates
 from multiros.ros import Context, Node
@@ -97,6 +99,9 @@ class _StubConnection:
     def publish_forward(self, controller: str, values: np.ndarray) -> None:
         self.published.append((controller, values.tolist()))
 
+    def publish_trajectory(self, controller: str, joints: list[str], values: np.ndarray, cycle: Any) -> None:
+        self.published.append((controller, [*joints, *values.tolist()]))
+
     def wait_for_subscriber(self, controller: str, interface: str, timeout: float) -> bool:
         return True
 
@@ -177,3 +182,20 @@ def test_a_real_gripper_is_routed_and_commanded_at_reset(graph: Node) -> None:
     assert conn.checks == 2
     scene.close()
     assert scene.gripper is None
+
+
+@pytest.mark.parametrize("interface", ["forward", "trajectory"])
+def test_two_independently_driven_fingers_are_commanded_together(graph: Node, interface: str) -> None:
+    """A gripper whose fingers are two driven joints: one finger target drives both, the second at its
+    multiplier, on the driver's one controller; a GripperCommand action cannot take two."""
+    conn = _StubConnection(graph)
+    conn.loop = SimpleNamespace(cycle=0.04)  # type: ignore[attr-defined]
+    scene = RealScene(conn, RealSceneOptions(gripper_interface=interface, gripper_controller="fingers",  # type: ignore[arg-type]
+                                             gripper_joint="joint7", gripper_followers=(("joint8", -1.0),)))
+    scene.use_gripper("gripper_controller", (0.0, 0.038))
+    conn.routes["gripper_controller"](np.array([0.02, -0.02]))
+    joints = ["joint7", "joint8"] if interface == "trajectory" else []
+    assert conn.published == [("fingers", [*joints, pytest.approx(0.02), pytest.approx(-0.02)])]
+    scene.close()
+    with pytest.raises(ValueError, match="GripperCommand action takes one position"):
+        RealGripper(conn, "gripper_action", "fingers", "joint7", (0.0, 0.038), followers=(("joint8", -1.0),))

@@ -32,6 +32,7 @@ DATA = Path(__file__).parent / "arm_add_data" / "install"
 PANDA = "package://uniros_test_panda_description/urdf/panda.urdf.xacro"
 OMX = "package://uniros_test_omx_description/urdf/omx.urdf.xacro"
 LINKAGE = "package://uniros_test_linkage_description/urdf/linkage_arm.urdf.xacro"
+TWOFINGER = "package://uniros_test_twofinger_description/urdf/twofinger_arm.urdf.xacro"
 TASKS = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
 
 
@@ -66,6 +67,7 @@ ARMS = {  # name: (URI, arguments, joints, EE link, approach axis)
     "ArmAddPanda": (PANDA, ("--xacro-arg", "hand=true"), 7, "panda_hand_tcp", "z"),
     "ArmAddOmx": (OMX, (), 4, "end_effector_link", "x"),
     "ArmAddLinkage": (LINKAGE, (), 6, "link_tcp", "z"),
+    "ArmAddTwoFinger": (TWOFINGER, (), 6, "link6", "z"),
 }
 CLOSES_UP = {"ArmAddLinkage"}  # its gripper closes towards the drive's upper limit
 
@@ -152,7 +154,8 @@ def test_scripted_reach_succeeds_on_the_written_arm(written, name):
 @pytest.mark.slow
 @pytest.mark.parametrize(("name", "task"), [("ArmAddOmx", "PushGoal"), ("ArmAddOmx", "PnPGoal"),
                                             ("ArmAddPanda", "PushGoal"), ("ArmAddPanda", "PnPGoal"),
-                                            ("ArmAddLinkage", "PushGoal"), ("ArmAddLinkage", "PnPGoal")])
+                                            ("ArmAddLinkage", "PushGoal"), ("ArmAddLinkage", "PnPGoal"),
+                                            ("ArmAddTwoFinger", "PushGoal"), ("ArmAddTwoFinger", "PnPGoal")])
 def test_scripted_push_and_pick_and_place_succeed_on_the_written_arm(written, name, task):
     """The written scene (table, cube, goal boxes) fits the arm: the scripted policy, which reads only
     the observation, moves the cube to the goal on at least 9 of 10 fixed seeds (30 seeds: all)."""
@@ -187,6 +190,42 @@ def test_a_linkage_gripper_is_written_as_its_package_describes_it(written):
     assert (real.gripper_controller, real.gripper_interface) == ("linkage_gripper_controller", "gripper_action")
     assert "inferred: the JointTrajectoryController of the arm's joints in the package's linkage_controllers.yaml" \
         in text
+
+
+def test_two_independent_fingers_and_no_tool_frame_are_written_as_the_package_describes_them(written):
+    """Piper-style: two prismatic finger joints with no <mimic>, both in ros2_control, no link between the
+    pads. Both are the gripper (the second at -1 x the first, driven in simulation by one controller over
+    both), the end effector is the last link moved to the fingertips' midpoint by arm.tcp_offset, and the
+    driver's gripper controller over both joints comes from the package's controllers file."""
+    path, _ = written["ArmAddTwoFinger"]
+    spec = load_arm_file(path)
+    assert spec.gripper.joints == ("joint7", "joint8") and spec.gripper.independent
+    assert (spec.gripper.mimic, spec.gripper.closed, spec.gripper.open) == (-1.0, 0.0, 0.038)
+    assert spec.tcp_offset == pytest.approx((0.0, 0.0, 0.075), abs=1e-3), "5 cm body + half the 5 cm pads"
+    text = path.read_text()
+    assert "driven independently (no <mimic> ties them)" in text and "arm.tcp_offset makes the end effector" in text
+    controllers = yaml.safe_load((path.parent / "ArmAddTwoFinger" / "controllers.yaml").read_text())
+    assert controllers["gripper_position_controller"]["ros__parameters"]["joints"] == ["joint7", "joint8"]
+    assert (spec.real.arm_controller, spec.real.gripper_controller, spec.real.gripper_interface) == (
+        "twofinger_arm_controller", "twofinger_gripper_controller", "trajectory")
+    # in simulation the end effector is the link's frame moved by the offset: the chain's tip
+    from rl_environments.arm_registry import chain_of
+
+    env = uniros.make("ArmAddTwoFingerPushGoalSim-v0")
+    try:
+        env.reset(seed=0)
+        u = env.unwrapped
+        np.testing.assert_allclose(u.ee_position(), chain_of(spec).fk_position(u.arm_positions())
+                                   + u.connection.base_position, atol=1e-6)
+        env.step(np.array([0.0, 0.0, 0.0, 1.0], np.float32))  # open: one command drives both fingers
+        for _ in range(10):
+            env.step(np.array([0.0, 0.0, 0.0, 1.0], np.float32))
+        names = list(u.connection.states.names)
+        q = u.connection.states.position[0]
+        assert q[names.index("joint7")] == pytest.approx(0.038, abs=2e-3)
+        assert q[names.index("joint8")] == pytest.approx(-0.038, abs=2e-3)
+    finally:
+        env.close()
 
 
 def test_arm_add_prints_the_scripted_check_and_arm_check_repeats_it(written, workspace, capsys):

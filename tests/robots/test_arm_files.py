@@ -149,6 +149,10 @@ BAD = [
     ("reach.delta_coeff", "big", "key 'delta_coeff' must be a number"),
     ("real.gripper_interface", "magic", "real.gripper_interface' must be one of"),
     ("training.Reach", {}, "did you mean 'Reacher'?"),
+    ("arm.tcp_offset", [0.0, 0.0], "key 'arm.tcp_offset' must be a list of 3 finite numbers"),
+    ("arm.tcp_offset", [0.0, 0.0, 120.0], "more than 0.5 m from arm.ee_link along an axis; it is in metres"),
+    ("arm.tcp_offset", [0.0, float("nan"), 0.0], "must be a list of 3 finite numbers"),
+    ("gripper.independent", "yes", "key 'gripper.independent' must be true or false"),
 ]
 
 
@@ -171,6 +175,7 @@ def test_bad_keys_are_one_line_errors_and_register_nothing(ur5e_data, write, key
     ("gripper.joints", ["no_finger", "right_finger_joint"], "'no_finger' is not a joint of the description"),
     ("gripper.joints", ["right_finger_joint", "left_finger_joint"], "mimics another joint"),
     ("gripper.joints", ["wrist_3_link-ft_frame"], "is a fixed joint, not an actuated one"),
+    ("gripper.independent", True, "'right_finger_joint' mimics another joint, so it is not driven"),
 ])
 def test_a_description_that_does_not_hold_the_chain_is_refused(ur5e_data, write, key, value, message):
     ur5e_data["name"] = "BadChain"

@@ -52,6 +52,29 @@ def test_world_base_gives_same_answer_when_world_is_identity():
     np.testing.assert_allclose(chain.fk_position(np.zeros(6)), [0.374, 0.0, 0.630], atol=1e-12)
 
 
+def test_a_tip_offset_is_a_point_fixed_in_the_tip_link(abb_flange):
+    """The chain's tip moved by ``tip_offset`` in the tip link's frame: FK, the batched FK and the Jacobian
+    all see the point; the offset chain and the link's own differ by the rotated offset only."""
+    offset = np.array([0.01, -0.02, 0.15])
+    tcp = abb_flange.with_tip_offset(offset)
+    also = KinematicChain.from_urdf(irb120.URDF_XACRO, "base_link", "flange", tip_offset=offset)
+    qs = np.random.default_rng(3).uniform(abb_flange.lower, abb_flange.upper, size=(20, 6))
+    link = abb_flange.fk_matrix(qs)
+    expected = link[:, :3, 3] + np.einsum("nij,j->ni", link[:, :3, :3], offset)
+    np.testing.assert_allclose(tcp.fk_position(qs), expected, atol=1e-12)
+    np.testing.assert_allclose(also.fk_position(qs), expected, atol=1e-12)
+    np.testing.assert_allclose(tcp.fk_position(qs[0]), expected[0], atol=1e-12)
+    q, eps = qs[0], 1e-7
+    numeric = np.stack([(tcp.fk_position(q + eps * np.eye(6)[i]) - tcp.fk_position(q - eps * np.eye(6)[i])) / (2 * eps)
+                        for i in range(6)], axis=1)
+    np.testing.assert_allclose(tcp.jacobian(q)[:3], numeric, atol=1e-6)
+    np.testing.assert_allclose(tcp.with_tip_offset(None).fk_position(qs), link[:, :3, 3], atol=0)
+    assert "tip_offset=[0.01, -0.02, 0.15]" in repr(tcp)
+    for bad in ([0.0, 0.0], [0.0, math.inf, 0.0]):
+        with pytest.raises(ValueError, match="tip_offset must be 3 finite numbers"):
+            abb_flange.with_tip_offset(bad)
+
+
 def test_unknown_link_and_no_chain_errors():
     with pytest.raises(ValueError, match="tip_link 'rx200/nope' is not a link"):
         KinematicChain.from_urdf(rx200.URDF_XACRO, "rx200/base_link", "rx200/nope")

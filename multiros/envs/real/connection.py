@@ -30,6 +30,7 @@ from multiros.envs.real.robot_link import RobotLink
 from multiros.envs.real.safety import SafetyDecision, SafetyRules
 from multiros.envs.real.scene import RealScene, RealSceneOptions
 from multiros.robot_state import RobotState, RobotStates
+from multiros.utils.kinematics import quat_from_matrix
 
 __all__ = ["RealConnection"]
 
@@ -488,11 +489,11 @@ class RealConnection(RobotConnection):
         """Serve ``frame`` as a simulation returns it with each step: forward kinematics of the observed
         joints of ``chain`` (a :class:`~multiros.utils.kinematics.KinematicChain` from the base link to
         ``frame``), in the task's world (a real robot offers no end-effector pose; the simulated frame is
-        the same link of the same description)."""
+        the same link of the same description), its orientation too (the base is not turned)."""
         joints = tuple(chain.joint_names)
         index: dict[tuple[str, ...], list[int]] = {}
 
-        def fk(states: RobotStates) -> tuple[np.ndarray, None]:
+        def fk(states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
             idx = index.get(states.names)
             if idx is None:
                 where = {name: i for i, name in enumerate(states.names)}
@@ -500,7 +501,8 @@ class RealConnection(RobotConnection):
                 if missing:
                     raise EnvError(f"frame {frame!r}: robot {self.robot_name!r} reports no joints {missing}")
                 idx = index[states.names] = [where[j] for j in joints]
-            return chain.fk_position(states.position[:, idx]) + self._base, None
+            q = states.position[:, idx]
+            return chain.fk_position(q) + self._base, quat_from_matrix(chain.fk_matrix(q)[:, :3, :3])
 
         self.add_frame_source(frame, fk)
 

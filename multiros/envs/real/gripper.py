@@ -38,10 +38,13 @@ class RealGripper:
         env_range: the task's finger positions ``(closed, open)``.
         real_range: the driver's values at ``(closed, open)`` (default: ``env_range``).
         max_effort: a GripperCommand goal's effort limit (N; 0: the driver's default).
+        followers: ``(joint, multiplier)`` of joints a trajectory or forward command also drives, each at
+            its multiplier times ``joint``'s value (two independently driven fingers, commanded together).
     """
 
     def __init__(self, connection: Any, interface: str, controller: str, joint: str, env_range: Sequence[float],
-                 real_range: Sequence[float] | None = None, max_effort: float = 0.0) -> None:
+                 real_range: Sequence[float] | None = None, max_effort: float = 0.0,
+                 followers: Sequence[tuple[str, float]] = ()) -> None:
         if interface not in GRIPPER_INTERFACES:
             raise ValueError(f"gripper_interface {interface!r} is not one of {list(GRIPPER_INTERFACES)}")
         if interface != "none" and not controller:
@@ -54,6 +57,12 @@ class RealGripper:
         self.connection, self.interface, self.controller, self.joint = connection, interface, controller, joint
         self.env_range, self.real_range = (lo, hi), (rlo, rhi)
         self.max_effort = float(max_effort)
+        self.followers = tuple((str(name), float(m)) for name, m in followers)
+        if not all(math.isfinite(m) for _, m in self.followers):
+            raise ValueError(f"gripper follower multipliers must be finite, got {list(followers)}")
+        if self.followers and interface == "gripper_action":
+            raise ValueError("a GripperCommand action takes one position: gripper followers need the "
+                             "'trajectory' or 'forward' interface")
         self.last: float | None = None
         self._client: Any = None
         if interface == "gripper_action":
@@ -79,11 +88,12 @@ class RealGripper:
         value = self.to_driver(finger)
         if self.interface == "none":
             return
+        values = np.array([value, *(m * value for _, m in self.followers)])
         if self.interface == "trajectory":
-            self.connection.link.publish_trajectory(self.controller, [self.joint], np.array([value]),
-                                                    self.connection.loop.cycle)
+            self.connection.link.publish_trajectory(self.controller, [self.joint, *(n for n, _ in self.followers)],
+                                                    values, self.connection.loop.cycle)
         elif self.interface == "forward":
-            self.connection.link.publish_forward(self.controller, np.array([value]))
+            self.connection.link.publish_forward(self.controller, values)
         else:
             span = abs(self.real_range[1] - self.real_range[0])
             if self.last is not None and abs(value - self.last) <= 0.01 * span:

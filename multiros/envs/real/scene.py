@@ -47,6 +47,9 @@ class RealSceneOptions:
         gripper_joint: the joint a gripper trajectory commands.
         gripper_range: the driver's values at the task's (closed, open) fingers (``None``: the same).
         gripper_max_effort: a GripperCommand goal's effort limit (N; 0: the driver's default).
+        gripper_followers: ``(joint, multiplier)`` of joints a trajectory or forward command drives
+            with ``gripper_joint``, each at its multiplier times ``gripper_joint``'s value (a gripper
+            whose two fingers are driven independently).
     """
 
     object_pose_topic: str = "/object_pose"
@@ -57,6 +60,7 @@ class RealSceneOptions:
     gripper_joint: str = ""
     gripper_range: tuple[float, float] | None = None
     gripper_max_effort: float = 0.0
+    gripper_followers: tuple[tuple[str, float], ...] = ()
 
 
 def _standing(position: Sequence[float]) -> Callable[[RobotStates], tuple[np.ndarray, None]]:
@@ -117,7 +121,7 @@ class RealScene:
         if self.gripper is not None:
             self.gripper.close()
         self.gripper = RealGripper(connection, opts.gripper_interface, opts.gripper_controller, opts.gripper_joint,
-                                   task_range, opts.gripper_range, opts.gripper_max_effort)
+                                   task_range, opts.gripper_range, opts.gripper_max_effort, opts.gripper_followers)
         wait = connection.startup_timeout
         if not self.gripper.wait_ready(wait):
             raise RobotConnectionError(
