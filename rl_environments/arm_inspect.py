@@ -54,6 +54,9 @@ _MOVING = ("revolute", "continuous", "prismatic")
 _REVOLUTE = ("revolute", "continuous")
 # End-effector link names, most specific first (matched as whole words of the link name).
 _EE_NAMES = ("tcp", "grasp", "grasping", "gripper_center", "end_effector", "eef", "ee", "tool", "tool0")
+_TCP_FAR = 0.01  # m: a hand link this far from the grasp point gets arm.tcp_offset
+_TCP_SHORT = 0.03  # m: a tool frame this far short of the grasp point is a flange frame
+_PAD_BACK = 0.01  # m: the grasp point short of the fingertips' ends (the smallest cube, 0.8 cm half size, clears)
 _CUBE_DENSITY = 1100.0  # kg/m^3: the shipped cubes' (0.14 kg for 5 cm)
 _HOLD_ABOVE = 0.02  # m: the EE above a held cube's centre (the scripted grasp: 3 mm; a cube slips ~2 cm in the pads)
 #: Vendors' ros2_control hardware plugins -> (arm controller, gripper controller, gripper interface)
@@ -289,6 +292,17 @@ def _base_link(tree: _Tree, first: str) -> str:
     return link
 
 
+def _moving_above(tree: _Tree, link: str) -> list[str]:
+    """The moving joints between the root and ``link`` (a torso, a mobile base's): the tasks drive none."""
+    found = []
+    while link in tree.parent:
+        joint = tree.parent[link]
+        if joint.type in _MOVING or joint.type in ("floating", "planar"):
+            found.append(joint.name)
+        link = joint.parent
+    return found[::-1]
+
+
 @dataclass
 class _Gripper:
     joint: str
@@ -302,6 +316,7 @@ class _Gripper:
     pads: tuple[float, float] | None = None  # m: the gap between the fingers' geometry (closed, open)
     notes: list[str] = field(default_factory=list)  # what else the file should say of the gripper
     independent: bool = False  # both joints driven (no <mimic> ties them)
+    grasp_point: np.ndarray | None = None  # root frame: between the open fingertips, _PAD_BACK short of their ends
 
 
 class _Hand:
@@ -323,6 +338,11 @@ class _Hand:
         found = [g for g in range(model.ngeom) if int(model.geom_bodyid[g]) in bodies]
         solid = [g for g in found if model.geom_contype[g] or model.geom_conaffinity[g]]
         return solid or found
+
+    def solid(self, link: str) -> bool:
+        """Whether ``link`` or a link below it has collision geometry."""
+        model = self.model
+        return any(model.geom_contype[g] or model.geom_conaffinity[g] for g in self.geoms(link))
 
     def drive(self, lead: Any, value: float, *more: tuple[Any, float]) -> None:
         """Every joint at zero but ``lead`` at ``value`` (and each ``(joint, value)`` of ``more``), the joints
@@ -352,6 +372,33 @@ class _Hand:
         centres = self.data.geom_xpos[geoms]
         body = int(self.model.geom_bodyid[geoms[int(np.argmax(np.linalg.norm(centres - hand, axis=1)))]])
         return [g for g in geoms if int(self.model.geom_bodyid[g]) == body]
+
+    def extent(self, geoms: list[int], direction: np.ndarray) -> float:
+        """How far ``geoms`` reach along the unit ``direction`` (the largest projection of their vertices: a
+        mesh's own, a primitive's bounding box corners), in the pose of the last :meth:`drive`."""
+        model, data = self.model, self.data
+        best = -math.inf
+        for g in geoms:
+            rot = data.geom_xmat[g].reshape(3, 3)
+            mesh = int(model.geom_dataid[g]) if int(model.geom_type[g]) == 7 else -1  # mjGEOM_MESH
+            if mesh >= 0:
+                start, count = int(model.mesh_vertadr[mesh]), int(model.mesh_vertnum[mesh])
+                local = np.asarray(model.mesh_vert[start:start + count], dtype=float)
+            else:
+                centre, half = model.geom_aabb[g][:3], model.geom_aabb[g][3:]
+                local = centre + half * np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)])
+            best = max(best, float(np.max((data.geom_xpos[g] + local.dot(rot.T)).dot(direction))))
+        return best
+
+    def grasp_point(self, first: list[int], second: list[int], hand: np.ndarray) -> np.ndarray:
+        """Between two fingertips (open, as posed by the last :meth:`drive`): the midpoint of their centres
+        moved along the hand -> fingers direction to ``_PAD_BACK`` short of the nearer fingertip's end (a
+        mesh's centre lies wherever its volume is, often back in the finger's slide)."""
+        middle = (self.centre(first) + self.centre(second)) / 2
+        out = middle - hand
+        u = out / max(float(np.linalg.norm(out)), 1e-9)
+        ends = min(self.extent(first, u), self.extent(second, u))
+        return middle + (ends - _PAD_BACK - float(middle.dot(u))) * u
 
     def centre(self, geoms: list[int]) -> np.ndarray:
         """The mean centre of ``geoms`` in the pose of the last :meth:`drive`."""
@@ -399,6 +446,10 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
                       "inside their limits: reach only; fix the limits or the <mimic> multipliers")
     if not hand_model.geoms(lead.child):
         return None, f"finger joint {lead.name!r} moves no geometry: reach only"
+    bare = [j.name for j in (lead, *top) if not hand_model.solid(j.child)]
+    if bare:
+        return None, (f"the fingers of {bare} have no <collision> geometry, so the simulation cannot grasp with "
+                      "them: reach only; add collision geometry to the finger links")
     hand_origin = tree.transform(hand, {})[:3, 3]
     hand_model.drive(lead, lo)
     lead_tip = hand_model.tip(hand_model.geoms(lead.child), hand_origin)
@@ -428,7 +479,8 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
         direction = tree.transform(lead.parent, {})[:3, :3].dot(np.asarray(lead.axis, float))
     pads = (min(g_lo, g_hi), max(g_lo, g_hi))
     found = _Gripper(lead.name, follower.name, float(follower.mimic.multiplier), closed, opened,
-                     pads[1] - pads[0], (a + b) / 2, direction / max(np.linalg.norm(direction), 1e-9), pads)
+                     pads[1] - pads[0], (a + b) / 2, direction / max(np.linalg.norm(direction), 1e-9), pads,
+                     grasp_point=hand_model.grasp_point(lead_tip, other_tip, hand_origin))
     why = (f"inferred: finger joint {lead.name!r} ({lead.type}) and {follower.name!r} on the other finger mimicking "
            f"it (x {found.mimic:g}); closed = the limit where the fingers' geometry is nearer")
     if len(followers) > 1:
@@ -452,7 +504,7 @@ def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
     hand_origin = tree.transform(hand, {})[:3, 3]
     pairs = [(a, b) for i, a in enumerate(leaders) for b in leaders[i + 1:]
              if a.child not in tree.descendants(b.child) and b.child not in tree.descendants(a.child)
-             and hand_model.geoms(a.child) and hand_model.geoms(b.child)]
+             and hand_model.solid(a.child) and hand_model.solid(b.child)]
     names = [j.name for j in leaders]
     best: tuple[float, Any, Any, dict[tuple[float, float], float], list[int], list[int]] | None = None
     for a, b in pairs:
@@ -472,7 +524,8 @@ def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
             best = (stroke, a, b, gaps, tip_a, tip_b)
     if best is None or best[0] < 1e-4:
         return None, (f"the joints after the arm {names} are driven independently (no <mimic> ties them) but no two "
-                      "of them on separate fingers with finite limits change the fingers' gap: reach only")
+                      "of them on separate fingers with <collision> geometry and finite limits change the fingers' "
+                      "gap: reach only")
     _, a, b, gaps, tip_a, tip_b = best
     closed_pair = min(gaps, key=lambda k: gaps[k])
     open_pair = max(gaps, key=lambda k: gaps[k])
@@ -492,7 +545,7 @@ def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
         direction = tree.transform(a.parent, {})[:3, :3].dot(np.asarray(a.axis, float))
     found = _Gripper(a.name, b.name, mimic, ca, oa, gaps[open_pair] - gaps[closed_pair], (pa + pb) / 2,
                      direction / max(np.linalg.norm(direction), 1e-9), (gaps[closed_pair], gaps[open_pair]),
-                     independent=True)
+                     independent=True, grasp_point=hand_model.grasp_point(tip_a, tip_b, hand_origin))
     why = (f"inferred: finger joints {a.name!r} and {b.name!r} ({a.type}) driven independently (no <mimic> ties "
            f"them): both commanded, {b.name!r} at {mimic:g} x {a.name!r}; closed = the limits where the fingers' "
            "geometry is nearer")
@@ -506,8 +559,6 @@ def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
     return found, why
 
 
-_TCP_FAR = 0.01  # m: a hand link this far from the fingertips' midpoint gets arm.tcp_offset (the grasp point)
-_TCP_SHORT = 0.03  # m: a tool frame this far short of the fingertips' midpoint is a flange frame
 
 
 def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tuple[str, str, np.ndarray]:
@@ -530,31 +581,33 @@ def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tupl
         return fixed[-1], "guessed: no link named tcp/grasp/ee/tool: the last link fixed to the arm's last link", \
             np.zeros(3)
 
+    grasp = gripper.midpoint if gripper.grasp_point is None else gripper.grasp_point
+
     def dist(link: str) -> float:
-        return float(np.linalg.norm(tree.transform(link, {})[:3, 3] - gripper.midpoint))
+        return float(np.linalg.norm(tree.transform(link, {})[:3, 3] - grasp))
 
     best = min(candidates or fixed, key=lambda n: (round(dist(n), 3), -fixed.index(n)))  # ties: the deeper link
     wrist = tree.transform(tree.joints[last_arm_joint].child, {})[:3, 3]
-    out = gripper.midpoint - wrist
+    out = grasp - wrist
     reach_out = float(np.linalg.norm(out))
-    # How far the link lies short of the fingertips' midpoint, along the wrist -> fingers direction.
+    # How far the link lies short of the grasp point, along the wrist -> fingers direction.
     short = reach_out - float(np.dot(tree.transform(best, {})[:3, 3] - wrist, out / max(reach_out, 1e-9)))
+    tf = tree.transform(best, {})
+    offset = tf[:3, :3].T.dot(grasp - tf[:3, 3])
+    where = f"{_PAD_BACK * 100:g} cm short of the open fingertips' ends, between them"
     if candidates and short <= _TCP_SHORT:  # the vendor's tool frame: the grasp point it means
         return best, (f"inferred: the link named like a tool frame nearest the fingers ({dist(best) * 100:.1f} cm "
-                      "from the fingertips' midpoint); check it lies between the fingertips"), np.zeros(3)
+                      f"from the point {where}); check it lies between the fingertips"), np.zeros(3)
     if candidates:  # a flange frame (tool0, end_effector_link at the wrist): the grasp point is further out
-        tf = tree.transform(best, {})
         return best, (f"inferred: the link named like a tool frame nearest the fingers lies {short * 100:.1f} cm short "
-                      "of the fingertips' midpoint (a flange frame), which arm.tcp_offset makes the end effector"), \
-            tf[:3, :3].T.dot(gripper.midpoint - tf[:3, 3])
+                      f"of the point {where} (a flange frame): arm.tcp_offset makes that point the end effector"), \
+            offset
     if dist(best) <= _TCP_FAR:
         return best, (f"guessed: no link named tcp/grasp/ee/tool: the hand's link nearest the fingers "
-                      f"({dist(best) * 100:.1f} cm from their midpoint)"), np.zeros(3)
-    tf = tree.transform(best, {})
-    offset = tf[:3, :3].T.dot(gripper.midpoint - tf[:3, 3])
+                      f"({dist(best) * 100:.1f} cm from the point {where})"), np.zeros(3)
     return best, (f"inferred: no link named tcp/grasp/ee/tool: the hand's link nearest the fingers, "
-                  f"{dist(best) * 100:.1f} cm from the fingertips' midpoint, which arm.tcp_offset makes the end "
-                  "effector"), offset
+                  f"{dist(best) * 100:.1f} cm from the point {where}, which arm.tcp_offset makes the end effector"), \
+        offset
 
 
 def _axis_name(vec: np.ndarray, exclude: str | None = None) -> tuple[str, float]:
@@ -591,6 +644,11 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft = ArmDraft(name)
     joints, why_chain = _pick_chain(ins)
     base = _base_link(tree, joints[0])
+    above = _moving_above(tree, base)
+    if above:
+        _fail(ins.uri, f"the arm's base {base!r} hangs from moving joint(s) {above} (a torso, a mobile base) that "
+                       "the tasks neither drive nor hold; fix: load the description with the arm on a fixed base "
+                       "(its xacro arguments), or write the arm file by hand")
     gripper, why_gripper = _gripper(ins, _Hand(ins), joints[-1])
     ee, why_ee, tcp = _ee_link(tree, joints[-1], gripper)
     try:
@@ -702,8 +760,8 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft.note("arm.base_link", "inferred: the link the first arm joint hangs from (through fixed joints)")
     draft.note("arm.ee_link", why_ee)
     if np.any(np.abs(tcp) > 0):
-        draft.note("arm.tcp_offset", "inferred: the fingertips' midpoint (fingers open, measured on their geometry) "
-                                     "in arm.ee_link's frame, metres")
+        draft.note("arm.tcp_offset", f"inferred: between the open fingertips, {_PAD_BACK * 100:g} cm short of their "
+                                     "ends (measured on their geometry), in arm.ee_link's frame, metres")
     draft.note("arm.home", why_home)
     draft.note("arm.approach_axis", why_approach)
     draft.note("arm.closing_axis", why_closing)

@@ -328,6 +328,8 @@ def _cmd_arm_add(args: argparse.Namespace) -> int:
                                check=not args.no_check)
     print(f"wrote {path} (and {path.parent / args.name}/): check the values marked 'guessed'")
     print(f"servo settle check: largest tracking error {draft.settle_error:.4f} rad")
+    if draft.sections.get("gripper") is None:  # why there is no push / pick-and-place, in one line
+        print(f"reach only: {draft.comments.get('gripper', 'no gripper')}")
     if draft.check is not None:
         print(f"scripted check ({draft.check.seconds:.0f} s):")
         for task in draft.check.tasks:

@@ -201,9 +201,9 @@ def test_two_independent_fingers_and_no_tool_frame_are_written_as_the_package_de
     spec = load_arm_file(path)
     assert spec.gripper.joints == ("joint7", "joint8") and spec.gripper.independent
     assert (spec.gripper.mimic, spec.gripper.closed, spec.gripper.open) == (-1.0, 0.0, 0.038)
-    assert spec.tcp_offset == pytest.approx((0.0, 0.0, 0.075), abs=1e-3), "5 cm body + half the 5 cm pads"
+    assert spec.tcp_offset == pytest.approx((0.0, 0.0, 0.09), abs=1e-3), "5 cm body + 5 cm pads - 1 cm"
     text = path.read_text()
-    assert "driven independently (no <mimic> ties them)" in text and "arm.tcp_offset makes the end effector" in text
+    assert "driven independently (no <mimic> ties them)" in text and "which arm.tcp_offset makes the end effector" in text
     controllers = yaml.safe_load((path.parent / "ArmAddTwoFinger" / "controllers.yaml").read_text())
     assert controllers["gripper_position_controller"]["ros__parameters"]["joints"] == ["joint7", "joint8"]
     assert (spec.real.arm_controller, spec.real.gripper_controller, spec.real.gripper_interface) == (
@@ -309,6 +309,7 @@ def _chain_urdf(types: list[str], extra: str = "") -> str:
                                            "'package://arm_add_bad/meshes/nope.stl'/></geometry></visual></link>"
                                            "<joint name='f' type='fixed'><parent link='l5'/><child link='m'/>"
                                            "</joint></robot>"), "mesh 'package://arm_add_bad/meshes/nope.stl'"),
+    (_chain_urdf(["prismatic"] + ["revolute"] * 6), "the arm's base 'l1' hangs from moving joint(s) ['j0'] (a torso"),
 ])
 def test_bad_descriptions_are_one_line_errors_and_write_nothing(workspace, capsys, tmp_path, monkeypatch, urdf,
                                                                  match):
@@ -319,6 +320,21 @@ def test_bad_descriptions_are_one_line_errors_and_write_nothing(workspace, capsy
     err = _error(capsys, uri, "--name", "ArmAddBad", "--output", str(out))
     assert match in err and uri in err and "fix:" in err
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_fingers_without_collision_geometry_are_reach_only_in_one_line(workspace, capsys, tmp_path):
+    """A vendor's hand whose fingers carry visuals only (franka_ros2's Panda at 0.1.13): nothing in the
+    simulation can touch the cube, so the file is reach only and arm add says why on its own line."""
+    workspace.append("ArmAddBareFingers")
+    code = cli(["arm", "add", PANDA, "--xacro-arg", "hand=true", "--xacro-arg", "finger_collision=false",
+                "--name", "ArmAddBareFingers", "--output", str(tmp_path)])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    line = [x for x in printed.out.splitlines() if x.startswith("reach only:")]
+    assert line == ["reach only: the fingers of ['panda_finger_joint1', 'panda_finger_joint2'] have no <collision> "
+                    "geometry, so the simulation cannot grasp with them: reach only; add collision geometry to the "
+                    "finger links"]
+    assert "ArmAddBareFingersPushSim-v0" not in printed.out and "ArmAddBareFingersReacherSim-v0" in printed.out
 
 
 def test_missing_package_file_and_xacro_argument_are_one_line_errors(workspace, capsys, tmp_path):
