@@ -49,7 +49,17 @@ class ArmFileRobot(ArmRobot):
 
     @classmethod
     def scene_uri(cls, item: str) -> str:
-        return cls.ARM_FILE.scene_files["object" if item == "cube" else item]
+        return cls.ARM_FILE.scene_files.get("object" if item == "cube" else item, "")
+
+    @classmethod
+    def scene_mjcf(cls, item: str) -> str:
+        """The file's ``scene:`` MJCF when it names one, else made from its ``manipulation`` sizes."""
+        key = "object" if item == "cube" else item
+        if key in cls.ARM_FILE.scene_files or cls.ARM_FILE.manipulation is None:
+            return ""
+        from rl_environments.arm_scene import scene_mjcf
+
+        return scene_mjcf(cls.ARM_FILE.robot_name, cls.ARM_FILE.manipulation, key)
 
     @classmethod
     def task_config(cls, task: str) -> Mapping[str, Any]:

@@ -19,13 +19,15 @@ inferred or guessed, so the user reviews one file instead of starting from a bla
 * home (zeros clipped into the limits, unless that puts the EE below the base), the workspace
   and reach goal boxes from the forward kinematics of random configurations, the object box where
   :class:`~rl_environments.arm_ik.ChainTopDownIK` reaches the table and the lift height in front of
-  the base, a top-down start pose whose joints stay clear of the floor, the table and the cube from
-  the reach and the gripper's opening;
+  the base, a top-down start pose whose joints stay clear of the floor, the table's and the cube's
+  sizes from the reach and the gripper's opening (the scene is made from them:
+  :mod:`rl_environments.arm_scene`);
 * the simulation's controllers (servo gains of :mod:`rl_environments.arm_gains`: from the joints'
   effort limits, the worst gravity torque and the joint-space inertia over random poses, checked by
   holding two poses in MuJoCo);
-* the real twin's driver names from the ``<ros2_control>`` tag's hardware plugin where we know its
-  vendor's convention, else ROS 2 control's conventional names, each marked ``guessed``.
+* the real twin's driver names from the controllers files (``config`` folders) of the packages the
+  description names, else the ``<ros2_control>`` tag's hardware plugin where we know its vendor's
+  convention, else ROS 2 control's conventional names, each marked ``inferred`` or ``guessed``.
 
 Everything is written to a temporary directory, loaded back, checked against the description and
 renamed into place only then; a bad description or a name in use is a one-line
@@ -190,15 +192,13 @@ def _chains(tree: _Tree) -> list[tuple[str, ...]]:
 # -- the draft: values and why ----------------------------------------------------------------------
 @dataclass
 class ArmDraft:
-    """An arm file's values (the YAML's sections) with a comment per key, and the scene's files."""
+    """An arm file's values (the YAML's sections) with a comment per key, and its controllers file."""
 
     name: str
     sections: dict[str, Any] = field(default_factory=dict)
     comments: dict[str, str] = field(default_factory=dict)  # "section.key" or "section" -> comment
     header: list[str] = field(default_factory=list)
     controllers_yaml: str = ""
-    table_xml: str = ""
-    cube_xml: str = ""
     settle_error: float = math.nan
     check: Any = None  # rl_environments.arm_check.ArmCheck of the drafted file (None: not checked)
 
@@ -932,40 +932,9 @@ def _manipulation(draft: ArmDraft, ik: Any, chain: Any, gripper: _Gripper, reach
     draft.note("manipulation.object_mass", f"inferred: a cube of {_CUBE_DENSITY:g} kg/m^3, as the shipped ones")
     draft.note("manipulation.object_xy_min", why_box)
     draft.note("manipulation.gripper_min", "the closed fingers (gripper.closed)")
-    draft.sections["scene"] = {"table": f"{draft.name}/table.xml", "object": f"{draft.name}/cube.xml"}
-    draft.note("scene", "written by uniros arm add from manipulation's sizes")
+    draft.note("manipulation.table_half_extents", "the table and the cube are made from these sizes (no scene: "
+                                                  "files to keep in step with them)")
     start = np.array(init)
-    hx, hy, hz = m["table_half_extents"]
-    draft.table_xml = f"""<!--
-  The work table of the {draft.name} push and pick-and-place scene (written by uniros arm add): a
-  {2 * hx:.2f} x {2 * hy:.2f} m slab on the floor, its top just under the robot's base (spawned at
-  z = {robot_height}). A free body heavy enough that the arm cannot move it; friction 0.5.
--->
-<mujoco model="{draft.sections['robot_name']}_table">
-  <worldbody>
-    <body name="table">
-      <freejoint/>
-      <geom name="top" type="box" size="{hx} {hy} {hz}" mass="60" friction="0.5 0.005 0.0001"
-            rgba="0.72 0.6 0.46 1"/>
-    </body>
-  </worldbody>
-</mujoco>
-"""
-    draft.cube_xml = f"""<!--
-  The object of the {draft.name} push and pick-and-place scene (written by uniros arm add): a
-  {2 * half * 100:.1f} cm cube of {m['object_mass'] * 1000:.0f} g, with the shipped cubes' contact settings
-  (friction 0.5, torsional friction so a held cube does not spin, soft enough to be squeezed).
--->
-<mujoco model="{draft.sections['robot_name']}_cube">
-  <worldbody>
-    <body name="object">
-      <freejoint/>
-      <geom name="cube" type="box" size="{half} {half} {half}" mass="{m['object_mass']}" condim="4"
-            friction="0.5 0.01 0.0002" solref="0.01 1" solimp="0.99 0.999 0.001" rgba="0.85 0.15 0.1 1"/>
-    </body>
-  </worldbody>
-</mujoco>
-"""
     return start
 
 
@@ -1025,6 +994,18 @@ def _source_packages(ins: Inspection) -> list[str]:
     return names
 
 
+def _config_files(share: Path) -> list[Path]:
+    """The YAML files in ``config`` folders of a package (``config/``, or deeper as Kinova's
+    ``arms/gen3_lite/6dof/config/``), at most ``_MAX_CONTROLLER_FILES``, 4 folders deep."""
+    found: list[Path] = []
+    for depth in range(4):
+        pattern = "/".join(["*"] * depth + ["config", "**", "*.yaml"])
+        found += sorted(p for p in share.glob(pattern) if p.is_file() and p not in found)
+        if len(found) >= _MAX_CONTROLLER_FILES:
+            break
+    return found[:_MAX_CONTROLLER_FILES]
+
+
 def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | None) -> _Driver | None:
     """The arm's trajectory controller (and the gripper's) from the controllers files of the packages
     the description names (``config/**/*.yaml``): the controller whose joints are the arm's, its
@@ -1040,7 +1021,7 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
             share = index.find_package_share(pkg)
         except Exception:  # noqa: BLE001 - not installed here: nothing to read
             continue
-        files += sorted(p for p in (share / "config").rglob("*.yaml") if p.is_file())[:_MAX_CONTROLLER_FILES]
+        files += _config_files(share)
     found: _Driver | None = None
     grip: tuple[str, str] | None = None
     for path in files[:_MAX_CONTROLLER_FILES]:
@@ -1063,9 +1044,12 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
         for key, value in doc.items():
             name = str(key).strip("/").rsplit("/", 1)[-1]
             params = value.get("ros__parameters") if isinstance(value, dict) else None
-            if name not in types or not isinstance(params, dict) or not isinstance(params.get("joints"), list):
+            if name not in types or not isinstance(params, dict):
                 continue
-            listed = [str(j) for j in params["joints"]]
+            joints_of = params.get("joints", [params["joint"]] if isinstance(params.get("joint"), str) else None)
+            if not isinstance(joints_of, list):  # a GripperActionController names its one joint as `joint`
+                continue
+            listed = [str(j) for j in joints_of]
             if found is None and types[name].endswith("JointTrajectoryController") and set(listed) == set(joints):
                 found = _Driver(path.name, namespace, name)
             elif gripper is not None and listed in ([gripper.joint], [gripper.joint, gripper.follower]) \
@@ -1289,9 +1273,6 @@ def add_arm(uri: str, name: str, *, xacro_args: Mapping[str, str] | None = None,
     try:
         (tmp / name).mkdir()
         (tmp / name / "controllers.yaml").write_text(draft.controllers_yaml)
-        if draft.table_xml:
-            (tmp / name / "table.xml").write_text(draft.table_xml)
-            (tmp / name / "cube.xml").write_text(draft.cube_xml)
         if "://" not in uri:
             draft.sections["description"]["uri"] = os.path.relpath(ins.source, tmp)
         text = render_arm_file(draft)

@@ -17,6 +17,7 @@ before any ID is.
 from __future__ import annotations
 
 import functools
+import logging
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -26,8 +27,8 @@ from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
 from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
-__all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "register_arm", "register_env_arms",
-           "link_chain_of", "registered_arms", "top_down_ik_of", "unregister_arm"]
+__all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "env_arm_errors", "link_chain_of",
+           "register_arm", "register_env_arms", "registered_arms", "top_down_ik_of", "unregister_arm"]
 
 #: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
 ARM_TASKS: dict[str, tuple[bool, str | None]] = {
@@ -36,6 +37,7 @@ ARM_TASKS: dict[str, tuple[bool, str | None]] = {
 }
 ENV_MODULE = "rl_environments.arm_envs"
 _ARMS: dict[str, ArmFile] = {}
+_ENV_ARM_ERRORS: dict[str, str] = {}  # UNIROS_ARMS entries skipped at import: path -> why
 _ADDED_TO_ENVIRONMENT: set[str] = set()  # the UNIROS_ARMS entries register_arm added (unregister takes them out)
 
 
@@ -282,8 +284,14 @@ def arm_of(name: str) -> ArmFile:
         raise ArmFileError(f"no arm {name!r} is registered; arms: {sorted(_ARMS)}") from None
 
 
-def register_env_arms(paths: str | None = None) -> list[str]:
-    """Register the arm files of ``UNIROS_ARMS`` (or ``paths``, separated by ``os.pathsep``); the IDs."""
+def register_env_arms(paths: str | None = None, *, strict: bool = True) -> list[str]:
+    """Register the arm files of ``UNIROS_ARMS`` (or ``paths``, separated by ``os.pathsep``); the IDs.
+
+    Args:
+        strict: raise :class:`ArmFileError` on the first file that cannot be registered. Otherwise (at
+            import) each such file is skipped with one line logged, the others are registered, and
+            :func:`env_arm_errors` says what was skipped (``uniros.make`` of a missing ID names it).
+    """
     text = os.environ.get("UNIROS_ARMS", "") if paths is None else paths
     out: list[str] = []
     for item in text.split(os.pathsep):
@@ -293,5 +301,17 @@ def register_env_arms(paths: str | None = None) -> list[str]:
                 try:
                     out += register_arm(path)
                 except ArmFileError as exc:
-                    raise ArmFileError(f"UNIROS_ARMS: {exc}") from None
+                    message = f"UNIROS_ARMS: {exc}"
+                    if strict:
+                        raise ArmFileError(message) from None
+                    _ENV_ARM_ERRORS[str(path)] = message
+                    logging.getLogger("rl_environments.arm_registry").warning(
+                        "%s (its IDs are not registered)", message)
+                else:
+                    _ENV_ARM_ERRORS.pop(str(path), None)
     return out
+
+
+def env_arm_errors() -> list[str]:
+    """Why ``UNIROS_ARMS`` entries were skipped (one line each; empty when every one registered)."""
+    return list(_ENV_ARM_ERRORS.values())

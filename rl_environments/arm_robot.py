@@ -164,6 +164,12 @@ class ArmRobot(ArmInterface):
         return f"package://{cls.DESCRIPTION_PACKAGE}/mjcf/{item}.xml"
 
     @classmethod
+    def scene_mjcf(cls, item: str) -> str:
+        """The ``"table"`` or ``"cube"`` as MJCF text when the scene is made from sizes (else ``""``: the
+        :meth:`scene_uri` file)."""
+        return ""
+
+    @classmethod
     def robot_kwargs(cls, overrides: Mapping[str, Any]) -> dict[str, Any]:
         """Base-env constructor arguments for this robot; ``overrides`` (user kwargs) win."""
         model, xacro_args, controllers = cls.description_files()
@@ -300,8 +306,10 @@ class ArmRobot(ArmInterface):
         if self.GRIPPER_CONTROLLER:
             self.connection.use_gripper(self.GRIPPER_CONTROLLER, tuple(self.gripper_range))  # type: ignore[attr-defined]
         self.connection.add_scene((
-            SceneEntity(table, self.scene_uri("table"), _point(table_position), f"{table}/table", movable=False),
-            SceneEntity(obj, self.scene_uri("cube"), _point(object_position), f"{obj}/object", movable=True)))
+            SceneEntity(table, self.scene_uri("table"), _point(table_position), f"{table}/table", movable=False,
+                        mjcf=self.scene_mjcf("table")),
+            SceneEntity(obj, self.scene_uri("cube"), _point(object_position), f"{obj}/object", movable=True,
+                        mjcf=self.scene_mjcf("cube"))))
 
     def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
         """Teleport the object (at rest) to its episode start; put the table back when knocked. On a robot

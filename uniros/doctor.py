@@ -139,11 +139,22 @@ def _versions() -> list[tuple[str, str]]:
     return rows
 
 
+def _arms() -> list[tuple[str, str]]:
+    """The arm files of ``UNIROS_ARMS``: registered, or why not."""
+    from rl_environments.arm_registry import env_arm_errors, registered_arms
+
+    entries = [e for e in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if e.strip()]
+    rows = [("UNIROS_ARMS", f"{len(entries) - len(env_arm_errors())} of {len(entries)} arm file(s) registered; "
+                            f"arms: {', '.join(sorted(registered_arms()))}")]
+    rows += [("UNIROS_ARMS error", why) for why in env_arm_errors()]
+    return rows
+
+
 def findings(gl_timeout: float = 60.0) -> list[tuple[str, str]]:
     """Every finding as ``(what, found)``; a part that fails says so in its row."""
     rows: list[tuple[str, str]] = []
     parts: list[tuple[str, Callable[[], list[tuple[str, str]]]]] = [
-        ("GL", lambda: _gl(gl_timeout)), ("GPU", _gpu), ("ROS", _ros), ("versions", _versions)]
+        ("GL", lambda: _gl(gl_timeout)), ("GPU", _gpu), ("ROS", _ros), ("arms", _arms), ("versions", _versions)]
     for name, part in parts:
         try:
             rows += part()

@@ -121,9 +121,12 @@ def make(env_id: str, **kwargs: Any) -> gym.Env:
             accepted keyword and lists them all).
     """
     if isinstance(env_id, str) and env_id not in gym.registry:
+        from rl_environments.arm_registry import env_arm_errors
+
         close = difflib.get_close_matches(env_id, list(gym.registry), n=3)
         hint = f" Did you mean {close}?" if close else ""
-        raise UnknownEnvError(f"no env {env_id!r}.{hint} uniros envs: {list(rl_environments.ENV_IDS)}")
+        skipped = "".join(f" Not registered: {why}." for why in env_arm_errors())
+        raise UnknownEnvError(f"no env {env_id!r}.{skipped}{hint} uniros envs: {list(rl_environments.ENV_IDS)}")
     try:
         return _retry_safe_checker(gym.make(env_id, **kwargs))
     except TypeError as exc:

@@ -108,15 +108,19 @@ def make_env(env_id: str, **kwargs: Any) -> Any:
     """``uniros.make`` for a registered ID or a ``module:ID``.
 
     Raises:
-        TrainingError: the env does not take one of ``kwargs`` (the message names it).
+        TrainingError: the env does not take one of ``kwargs`` (the message names it), or the simulation
+            refused to make its world (a scene that does not fit the robot: one line naming the arm file).
     """
     import re
 
     import uniros
+    from multiros.sim.client import SimulationServiceError
     from uniros.factory import EnvKeywordError, did_you_mean
 
     try:
         return uniros.make(resolve_env_id(env_id), **kwargs)
+    except SimulationServiceError as exc:
+        raise TrainingError(f"{env_id} cannot be made: {str(exc).splitlines()[0]}{_arm_hint(env_id)}") from None
     except TypeError as exc:
         match = re.search(r"unexpected keyword argument\(?s?\)? \[?'([^']+)'", str(exc))
         if match is None or match[1] not in kwargs:
@@ -127,6 +131,12 @@ def make_env(env_id: str, **kwargs: Any) -> Any:
         raise TrainingError(f"{env_id} does not take the env kwarg {match[1]!r}{hint} (env_kwargs of the config, e.g. "
                             "a shipped RX200 config's ee_action_type on another env): remove it"
                             + (f"; it accepts: {accepted}" if accepted else "")) from None
+
+
+def _arm_hint(env_id: str) -> str:
+    """For an arm file's ID: which file, and the command that tries it."""
+    path = arm_file_of(env_id)
+    return "" if path is None else f" (its arm file {path}: `uniros arm check {path}` tries its tasks)"
 
 
 _make_env = make_env  # ``train`` has a parameter of that name

@@ -73,6 +73,8 @@ class SceneEntity:
         frame: the frame of it the task reads (``"<name>/<body>"``).
         movable: an object the robot moves (on a robot: its pose comes from a tracker), not a fixture
             (on a robot: it stands where the task says).
+        mjcf: its description as MJCF text, spawned instead of ``uri`` when given (a scene made from
+            sizes).
     """
 
     name: str
@@ -80,6 +82,7 @@ class SceneEntity:
     position: tuple[float, float, float]
     frame: str
     movable: bool
+    mjcf: str = ""
 
 
 @dataclass(frozen=True)

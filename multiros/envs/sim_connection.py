@@ -165,11 +165,12 @@ class SimConnection(RobotConnection):
             orientation=self.spawn_pose.orientation, timeout_sec=max(self.timeout_sec, 30.0))
 
     def spawn_entity(self, name: str, uri: str, position: Sequence[float] | np.ndarray,
-                     orientation: Sequence[float] | np.ndarray = (1.0, 0.0, 0.0, 0.0)) -> str:
+                     orientation: Sequence[float] | np.ndarray = (1.0, 0.0, 0.0, 0.0), *,
+                     resource_string: str = "") -> str:
         """Spawn an object of the robot's task (a table, a cube) into the robot's namespace, at a
         position in the robot's frame of the world (its slot's offset added): a shared-world reset
-        puts it back with the robot."""
-        return self.sim.spawn_entity(name, uri=uri, namespace=self.namespace,
+        puts it back with the robot. ``resource_string``: its MJCF or URDF text instead of ``uri``."""
+        return self.sim.spawn_entity(name, uri=uri, resource_string=resource_string, namespace=self.namespace,
                                      position=tuple(self.to_world(np.asarray(position, dtype=np.float64))),
                                      orientation=tuple(orientation), timeout_sec=max(self.timeout_sec, 30.0))
 
@@ -188,7 +189,8 @@ class SimConnection(RobotConnection):
         """Spawn the entities in order into the robot's namespace (a shared world's reset puts them back
         with the robot) and ask every step for their frames too."""
         for entity in entities:
-            self.spawn_entity(entity.name, entity.uri, entity.position)
+            self.spawn_entity(entity.name, "" if entity.mjcf else entity.uri, entity.position,
+                              resource_string=entity.mjcf)
         self.add_frames(tuple(entity.frame for entity in entities))
         self.refresh(0)
 

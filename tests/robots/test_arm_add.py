@@ -104,7 +104,9 @@ def test_arm_add_writes_a_file_that_loads_and_registers_its_ids(written, name):
     assert spec.gripper is not None
     assert (spec.gripper.closed > spec.gripper.open) == (name in CLOSES_UP)
     assert Path(spec.controllers_file) == path.parent / name / "controllers.yaml"
-    assert set(spec.scene_files) == {"table", "object"}
+    assert spec.scene_files == {} and "scene" not in yaml.safe_load(path.read_text()), \
+        "the table and the cube are made from manipulation's sizes: one place"
+    assert sorted(p.name for p in (path.parent / name).iterdir()) == ["controllers.yaml"]
     text = path.read_text()
     assert "# inferred: the serial chain" in text and "guessed" in text
     controllers = yaml.safe_load((path.parent / name / "controllers.yaml").read_text())
@@ -112,8 +114,14 @@ def test_arm_add_writes_a_file_that_loads_and_registers_its_ids(written, name):
     assert list(gains) == list(spec.joints) and all(g["p"] > 0 and g["d"] > 0 for g in gains.values())
     error = float(text_after((path.parent / name / "controllers.yaml").read_text(), "largest tracking error"))
     assert error < 0.02, "the settle check holds both poses"
-    cube = (path.parent / name / "cube.xml").read_text()
-    assert f'size="{spec.scene["object_half_size"]}' in cube
+    from rl_environments.arm_envs import ArmFileRobot
+    from rl_environments.arm_registry import registered_arms
+
+    robot = type("Robot", (ArmFileRobot,), {"ARM_FILE": registered_arms()[name]})
+    half = spec.scene["object_half_size"]
+    assert f'size="{half:g} {half:g} {half:g}"' in robot.scene_mjcf("cube") and robot.scene_uri("cube") == ""
+    hx, hy, hz = spec.scene["table_half_extents"]
+    assert f'size="{hx:g} {hy:g} {hz:g}"' in robot.scene_mjcf("table")
 
 
 def text_after(text: str, marker: str) -> str:
@@ -203,7 +211,8 @@ def test_two_independent_fingers_and_no_tool_frame_are_written_as_the_package_de
     assert (spec.gripper.mimic, spec.gripper.closed, spec.gripper.open) == (-1.0, 0.0, 0.038)
     assert spec.tcp_offset == pytest.approx((0.0, 0.0, 0.09), abs=1e-3), "5 cm body + 5 cm pads - 1 cm"
     text = path.read_text()
-    assert "driven independently (no <mimic> ties them)" in text and "which arm.tcp_offset makes the end effector" in text
+    assert "driven independently (no <mimic> ties them)" in text
+    assert "which arm.tcp_offset makes the end effector" in text
     controllers = yaml.safe_load((path.parent / "ArmAddTwoFinger" / "controllers.yaml").read_text())
     assert controllers["gripper_position_controller"]["ros__parameters"]["joints"] == ["joint7", "joint8"]
     assert (spec.real.arm_controller, spec.real.gripper_controller, spec.real.gripper_interface) == (

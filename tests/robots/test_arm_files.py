@@ -105,11 +105,29 @@ def test_uniros_arms_registers_in_another_process(ur5e_data, tmp_path):
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "True"
+    # A broken entry beside a good one: one line on stderr, the good file's IDs registered all the same,
+    # and uniros.make of an ID it would have given says why it is not there.
     bad = tmp_path / "bad.yaml"
     bad.write_text("format: 1\nname: X\n")
-    out = subprocess.run([sys.executable, "-c", code], env={**env, "UNIROS_ARMS": str(bad)}, capture_output=True,
+    code += ("; import uniros; from uniros.factory import UnknownEnvError\ntry:\n    uniros.make('XReacherSim-v0')\n"
+             "except UnknownEnvError as e:\n    print(e)")
+    both = os.pathsep.join([str(bad), str(path)])
+    out = subprocess.run([sys.executable, "-c", code], env={**env, "UNIROS_ARMS": both}, capture_output=True,
                          text=True, timeout=120)
-    assert out.returncode != 0 and "UNIROS_ARMS:" in out.stderr and "bad.yaml" in out.stderr
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip() == f"UNIROS_ARMS: {bad}: key 'description' is missing (its IDs are not registered)"
+    first, second = out.stdout.splitlines()[:2]
+    assert first == "True" and f"Not registered: UNIROS_ARMS: {bad}: key 'description' is missing." in second
+
+
+def test_a_broken_uniros_arms_entry_is_one_line_in_every_command(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("format: 1\nname: X\n")
+    env = {**os.environ, "UNIROS_ARMS": str(bad)}
+    line = f"UNIROS_ARMS: {bad}: key 'description' is missing (its IDs are not registered)"
+    for argv in (["-m", "uniros.cli", "list"], ["-m", "uniros.fake_robot", "--help"]):
+        out = subprocess.run([sys.executable, *argv], env=env, capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0 and out.stderr.strip() == line, (argv, out.stderr)
 
 
 def test_training_configs_derive_from_the_task_with_the_arm_files_overrides(ur5e_data, write):
