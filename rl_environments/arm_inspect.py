@@ -628,7 +628,8 @@ def _rl(values: Sequence[float] | np.ndarray, digits: int = 4) -> list[float]:
     return [_r(v, digits) for v in values]
 
 
-def _rl_within(values: Sequence[float] | np.ndarray, lower: Sequence[float], upper: Sequence[float]) -> list[float]:
+def _rl_within(values: Sequence[float] | np.ndarray, lower: Sequence[float] | np.ndarray,
+               upper: Sequence[float] | np.ndarray) -> list[float]:
     """Joint positions rounded as written, kept inside the limits as written (``reach.min_joint_pos``'s
     5 digits): a pose at a limit must not round past it."""
     lo, hi = _rl(lower, 5), _rl(upper, 5)
@@ -644,9 +645,9 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     draft = ArmDraft(name)
     joints, why_chain = _pick_chain(ins)
     base = _base_link(tree, joints[0])
-    above = _moving_above(tree, base)
-    if above:
-        _fail(ins.uri, f"the arm's base {base!r} hangs from moving joint(s) {above} (a torso, a mobile base) that "
+    moving = _moving_above(tree, base)
+    if moving:
+        _fail(ins.uri, f"the arm's base {base!r} hangs from moving joint(s) {moving} (a torso, a mobile base) that "
                        "the tasks neither drive nor hold; fix: load the description with the arm on a fixed base "
                        "(its xacro arguments), or write the arm file by hand")
     gripper, why_gripper = _gripper(ins, _Hand(ins), joints[-1])

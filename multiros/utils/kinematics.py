@@ -240,7 +240,7 @@ class KinematicChain:
     """
 
     def __init__(self, joints: list[_Joint], base_link: str, tip_link: str,
-                 tip_offset: Sequence[float] | None = None) -> None:
+                 tip_offset: Sequence[float] | np.ndarray | None = None) -> None:
         self.base_link = base_link
         self.tip_link = tip_link
         offset = np.zeros(3) if tip_offset is None else np.asarray(tip_offset, dtype=float).reshape(-1)
@@ -307,7 +307,7 @@ class KinematicChain:
         tip_link: str,
         *,
         xacro_args: dict[str, str] | None = None,
-        tip_offset: Sequence[float] | None = None,
+        tip_offset: Sequence[float] | np.ndarray | None = None,
     ) -> KinematicChain:
         """Build the chain from ``base_link`` to ``tip_link``.
 
@@ -351,7 +351,7 @@ class KinematicChain:
             link = joint.parent
         return cls(path[::-1], base_link, tip_link, tip_offset)
 
-    def with_tip_offset(self, tip_offset: Sequence[float] | None) -> KinematicChain:
+    def with_tip_offset(self, tip_offset: Sequence[float] | np.ndarray | None) -> KinematicChain:
         """The same chain whose tip is ``tip_offset`` (metres, in the tip link's frame) from the tip link's
         origin (instead of this chain's offset)."""
         return type(self)(self._joints, self.base_link, self.tip_link, tip_offset)
