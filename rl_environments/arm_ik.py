@@ -301,13 +301,15 @@ class ChainTopDownIK:
         eye = np.eye(n)
         q = np.clip(q, self.lower, self.upper)
         err = math.inf
+        pull = math.inf  # the last step toward home: resolving the redundancy goes on until it is small
         for _ in range(iters):
             tf = self.chain.fk_matrix(q)
             approach, closing = tf[:3, self._approach], tf[:3, self._closing]
             e_pos = target - tf[:3, 3]
             e_app = np.cross(approach, down)  # rotation taking the approach axis down
             err = float(np.linalg.norm(e_pos)) + 0.1 * float(np.linalg.norm(e_app))
-            if np.linalg.norm(e_pos) < self.tol and np.linalg.norm(e_app) < 10 * self.tol:
+            if np.linalg.norm(e_pos) < self.tol and np.linalg.norm(e_app) < 10 * self.tol and (
+                    rest is not None or pull < 1e-3):
                 break
             jac = self.chain.jacobian(q)
             jv, jw = jac[:3], jac[3:]
@@ -325,7 +327,9 @@ class ChainTopDownIK:
             dq = dq + null1.dot(p2.dot(np.array([e_yaw]) - approach.dot(jw).dot(dq)[None]))
             # (3) toward the rest pose (the start when solving from the current pose, else home), in what is left
             null2 = null1.dot(eye - np.linalg.pinv(j2, rcond=1e-4).dot(j2))
-            dq = dq + null2.dot(0.1 * ((self.home if rest is None else rest) - q))
+            toward = null2.dot(0.1 * ((self.home if rest is None else rest) - q))
+            pull = float(np.max(np.abs(toward)))
+            dq = dq + toward
             step = float(np.max(np.abs(dq)))
             if step > 0.3:
                 dq *= 0.3 / step

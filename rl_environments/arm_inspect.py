@@ -821,16 +821,33 @@ def _top_down(ik: Any, chain: Any, target: np.ndarray, rng: np.random.Generator,
               lowest: Any = None) -> tuple[np.ndarray, float]:
     """The top-down IK's pose for ``target`` from its seed and random seeds: (q, error). Of the poses
     that meet it, the one whose joints all stay ``clearance`` above the base (``lowest(q)``: the lowest joint's
-    height), then the one nearest home."""
+    height), then the one nearest home; a redundant (7-joint) arm's, the one in its usual posture: each
+    pose's redundancy resolved toward home, then the pose whose joints (the tool's roll aside) sit nearest
+    the middle of their ranges, not a twisted elbow a random start left."""
     axis = "xyz".index(approach)
+    redundant = chain.n_joints > 6
+    mid, half = (ik.lower + ik.upper) / 2, np.maximum((ik.upper - ik.lower) / 2, 1e-6)
+
+    def posture(q: np.ndarray) -> float:
+        if not redundant:
+            return float(np.linalg.norm(q - ik.home))
+        away = ((q - mid) / half)[:-1]
+        return float(away.dot(away))
+
     found: list[tuple[float, tuple[bool, float], np.ndarray]] = []
     for s in [None, *chain.sample_configurations(rng, 12)]:
         q = np.asarray(ik.solve(target, q0=s), dtype=float)
+        if redundant:  # from there, the redundancy resolved toward home (a seed's null-space pull)
+            seed, ik.seed = ik.seed, q
+            try:
+                q = np.asarray(ik.solve(target), dtype=float)
+            finally:
+                ik.seed = seed
         tf = chain.fk_matrix(q)
         err = float(np.linalg.norm(tf[:3, 3] - target)) + 0.05 * float(np.linalg.norm(tf[:3, axis] - [0, 0, -1]))
         below = lowest is not None and lowest(q) < clearance
-        found.append((err, (below, float(np.linalg.norm(q - ik.home))), q))
-        if sum(f[0] < 0.002 and not f[1][0] for f in found) >= 3:
+        found.append((err, (below, posture(q)), q))
+        if not redundant and sum(f[0] < 0.002 and not f[1][0] for f in found) >= 3:
             break
     good = [f for f in found if f[0] < 0.002]
     err, _, q = min(good, key=lambda f: f[1]) if good else min(found, key=lambda f: f[0])

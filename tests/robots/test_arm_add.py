@@ -237,6 +237,29 @@ def test_two_independent_fingers_and_no_tool_frame_are_written_as_the_package_de
         env.close()
 
 
+def test_a_redundant_arms_ik_from_its_seed_resolves_the_redundancy_toward_home(workspace):
+    """A 7-joint arm's top-down IK from its seed keeps pulling the null space toward home after the pose is
+    met (the arm's usual posture), where a solve from the current pose keeps the redundancy where it is."""
+    from multiros.sim.description import xacro_to_urdf
+    from multiros.sim.packages import default_index
+    from multiros.utils.kinematics import KinematicChain
+    from rl_environments.arm_ik import ChainTopDownIK
+
+    index = default_index()
+    text = xacro_to_urdf(index.resolve_uri(PANDA), {"hand": "true"}, index=index)
+    chain = KinematicChain.from_urdf(text, "panda_link0", "panda_hand_tcp")
+    home = np.array([0.0, -0.2, 0.0, -2.4, 0.0, 2.2, 0.8])
+    twisted = np.array([1.5481, -1.1101, -1.2867, -2.317, -1.0467, 1.6885, -1.5972])
+    target = chain.fk_position(twisted)
+    ik = ChainTopDownIK(chain, "z", "y", twisted.tolist(), home=home.tolist())
+    kept = ik.solve(target, q0=twisted)  # from the current pose: a step, not a jump
+    resolved = ik.solve(target)  # from the seed: toward home
+    for q in (kept, resolved):
+        np.testing.assert_allclose(chain.fk_position(q), target, atol=1e-3)
+    np.testing.assert_allclose(kept, twisted, atol=1e-3)
+    assert np.linalg.norm((resolved - home)[:-1]) < 0.5 * np.linalg.norm((twisted - home)[:-1])
+
+
 def test_arm_add_prints_the_scripted_check_and_arm_check_repeats_it(written, workspace, capsys):
     path, _ = written["ArmAddOmx"]
     assert cli(["arm", "check", str(path), "--seeds", "2"]) == 0
