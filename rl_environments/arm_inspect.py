@@ -59,6 +59,7 @@ _EE_NAMES = ("tcp", "grasp", "grasping", "gripper_center", "end_effector", "eef"
 _TCP_FAR = 0.01  # m: a hand link this far from the grasp point gets arm.tcp_offset
 _TCP_SHORT = 0.03  # m: a tool frame this far short of the grasp point is a flange frame
 _PAD_BACK = 0.01  # m: the grasp point short of the fingertips' ends (the smallest cube, 0.8 cm half size, clears)
+_MIN_OPEN_GAP = 0.02  # m: the open fingers' geometry leaves the smallest cube (1.6 cm) and 2 mm a side
 _CUBE_DENSITY = 1100.0  # kg/m^3: the shipped cubes' (0.14 kg for 5 cm)
 _HOLD_ABOVE = 0.02  # m: the EE above a held cube's centre (the scripted grasp: 3 mm; a cube slips ~2 cm in the pads)
 #: Vendors' ros2_control hardware plugins -> (arm controller, gripper controller, gripper interface)
@@ -651,6 +652,11 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
                        "the tasks neither drive nor hold; fix: load the description with the arm on a fixed base "
                        "(its xacro arguments), or write the arm file by hand")
     gripper, why_gripper = _gripper(ins, _Hand(ins), joints[-1])
+    if gripper is not None and gripper.pads is not None and gripper.pads[1] < _MIN_OPEN_GAP:
+        why_gripper = (f"the open fingers' collision geometry leaves {gripper.pads[1] * 100:.1f} cm between them "
+                       "(MuJoCo collides a mesh as its convex hull), too little for the smallest cube (1.6 cm): "
+                       "reach only; fix: give the finger links primitive <collision> pads on their inner faces")
+        gripper = None
     ee, why_ee, tcp = _ee_link(tree, joints[-1], gripper)
     try:
         chain = KinematicChain.from_urdf(ins.description.text, base, ee, tip_offset=tcp)

@@ -369,6 +369,20 @@ def test_fingers_without_collision_geometry_are_reach_only_in_one_line(workspace
     assert "ArmAddBareFingersPushSim-v0" not in printed.out and "ArmAddBareFingersReacherSim-v0" in printed.out
 
 
+def test_fingers_that_leave_no_room_for_a_cube_are_reach_only_in_one_line(workspace, capsys, tmp_path):
+    """Fingers whose open geometry leaves less than the smallest cube needs (jaws colliding as their convex
+    hulls, a short stroke): reach only, and why, with the fix."""
+    workspace.append("ArmAddNarrow")
+    code = cli(["arm", "add", TWOFINGER, "--xacro-arg", "finger_stroke=0.005", "--name", "ArmAddNarrow",
+                "--output", str(tmp_path)])
+    printed = capsys.readouterr()
+    assert code == 0, printed.err
+    line = [x for x in printed.out.splitlines() if x.startswith("reach only:")]
+    assert line == ["reach only: the open fingers' collision geometry leaves 1.2 cm between them (MuJoCo collides a "
+                    "mesh as its convex hull), too little for the smallest cube (1.6 cm): reach only; fix: give the "
+                    "finger links primitive <collision> pads on their inner faces"]
+
+
 def test_missing_package_file_and_xacro_argument_are_one_line_errors(workspace, capsys, tmp_path):
     out = tmp_path / "out"
     err = _error(capsys, "package://no_such_description/urdf/r.urdf", "--name", "ArmAddX", "--output", str(out))
