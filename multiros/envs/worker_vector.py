@@ -316,7 +316,7 @@ class WorkerVectorEnv(VectorEnv):
         self._broken: str | None = None
         self._pollers: dict[int, Any] = {}
         self._codecs = [InfoCodec() for _ in self.rows]  # each worker's step infos (shm_exchange.InfoCodec)
-        spec = _picklable_spec(env_id)
+        spec = (_picklable_spec(env_id), _registering_module(env_id))  # how a worker registers the ID
         try:
             for k, (start, stop) in enumerate(self.rows):
                 self._start_worker(cores[k])
@@ -670,7 +670,8 @@ class WorkerVectorEnv(VectorEnv):
 
 def _picklable_spec(env_id: str) -> Any:
     """The ID's registration, for a worker to register an ID this process registered at run time
-    (``None`` when it cannot travel: the worker then needs the ID registered on import)."""
+    (``None`` when it cannot travel: the worker then imports the module that registers it,
+    :func:`_registering_module`)."""
     import gymnasium as gym
 
     spec = gym.spec(env_id)
@@ -679,6 +680,16 @@ def _picklable_spec(env_id: str) -> Any:
     except Exception:  # noqa: BLE001 - a lambda entry point, say
         return None
     return spec
+
+
+def _registering_module(env_id: str) -> str | None:
+    """The module of the ID's entry point: imported in a worker, it registers what the entry point needs
+    (an upper layer's envs, an arm file's classes) without this layer naming that layer."""
+    import gymnasium as gym
+
+    entry = gym.spec(env_id).entry_point
+    module = entry.partition(":")[0] if isinstance(entry, str) else getattr(entry, "__module__", None)
+    return None if not module or module == "__main__" else module
 
 
 def _serve(fd: int, log_level: str = "WARNING") -> None:
@@ -706,13 +717,17 @@ class _Share:
     memory cannot carry.
     """
 
-    def __init__(self, env_id: str, spec: Any, num_envs: int, autoreset_mode: str, options: dict[str, Any],
-                 env_kwargs: dict[str, Any]) -> None:
+    def __init__(self, env_id: str, registration: tuple[Any, str | None], num_envs: int, autoreset_mode: str,
+                 options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
+        import importlib
+
         import gymnasium as gym
 
-        import rl_environments  # noqa: F401 - registers the shipped IDs
         from multiros.envs.vector import make_batched_vector_env
 
+        spec, module = registration  # the ID's registration, and its entry point's module
+        if module:  # the entry point's module: registers what its envs need (an upper layer's, an arm file's)
+            importlib.import_module(module)
         if env_id not in gym.registry and spec is not None:
             gym.registry[env_id] = spec
         self.vec: Any = make_batched_vector_env(env_id, num_envs, vector_options={
@@ -789,14 +804,15 @@ class _Share:
         self.shared = None
 
 
-def _worker_main(conn: Connection, env_id: str, spec: Any, num_envs: int, autoreset_mode: str,
-                 options: dict[str, Any], env_kwargs: dict[str, Any], spin_wait_sec: float = 0.0) -> None:
+def _worker_main(conn: Connection, env_id: str, registration: tuple[Any, str | None], num_envs: int,
+                 autoreset_mode: str, options: dict[str, Any], env_kwargs: dict[str, Any],
+                 spin_wait_sec: float = 0.0) -> None:
     """A worker: make its share, bind the shared arrays, then answer requests until told to close
     or until the parent's end of the pipe closes (polling ``spin_wait_sec`` for each before it sleeps)."""
     share: _Share | None = None
     try:
         try:
-            share = _Share(env_id, spec, num_envs, autoreset_mode, options, env_kwargs)
+            share = _Share(env_id, registration, num_envs, autoreset_mode, options, env_kwargs)
             conn.send(("ok", share.spaces()))
         except Exception as exc:  # noqa: BLE001 - the parent reports it
             conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
