@@ -147,8 +147,14 @@ def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace | ScriptedR
     task = env.unwrapped
     if not getattr(task, "ee_action_type", False):
         raise ValueError("the scripted policies drive end-effector actions; make the env with ee_action_type=True")
-    if getattr(task, "task", None) not in ("push", "pnp"):
+    kind = getattr(task, "task", None)
+    if kind is None:  # a reach: no scene
+        if getattr(task, "SCENE_TASK", False):
+            raise ValueError(f"{type(task).__name__} has a scene but names no task: no scripted policy for it")
         return ScriptedReach(ee_delta_coeff=task.ee_delta_coeff)
+    if kind not in ("push", "pnp"):
+        raise ValueError(f"no scripted policy for the task {kind!r} of {type(task).__name__} (scripted: reach, "
+                         "push, pnp)")
     cls = ScriptedPush if task.task == "push" else ScriptedPickAndPlace
     ramp = FAST_CARRY_RAMP if task.ee_delta_coeff > FAST_EE_STEP else 0
     return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0], carry_ramp=ramp,

@@ -12,6 +12,7 @@ from rl_environments.manipulation_scripted import (
     FAST_CARRY_RAMP,
     ScriptedPickAndPlace,
     ScriptedPush,
+    ScriptedReach,
     scripted_policy,
 )
 
@@ -76,6 +77,14 @@ def test_scripted_policy_ramps_only_arms_whose_ee_moves_more_than_3_cm_a_step():
     assert scripted_policy(task(0.025, "pnp")).carry_ramp == 0  # RX200, VX300S, NED2: unchanged
     push = scripted_policy(task(0.04, "push"))
     assert isinstance(push, ScriptedPush) and push.carry_ramp == FAST_CARRY_RAMP
+
+
+def test_a_task_without_a_scripted_policy_is_refused_not_driven_as_a_reach():
+    unknown = SimpleNamespace(unwrapped=SimpleNamespace(ee_action_type=True, task="slide", ee_delta_coeff=0.04))
+    with pytest.raises(ValueError, match="no scripted policy for the task 'slide'"):
+        scripted_policy(unknown)
+    reach = SimpleNamespace(unwrapped=SimpleNamespace(ee_action_type=True, ee_delta_coeff=0.04))
+    assert isinstance(scripted_policy(reach), ScriptedReach)
 
 
 def test_a_negative_ramp_is_refused():
