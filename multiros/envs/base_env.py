@@ -17,7 +17,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium_robotics.core import GoalEnv
 
-from multiros.envs.batch_task import StepResults, batch_route, uses_own_hooks
+from multiros.envs.batch_task import StepResults, act_rows, batch_route, uses_own_hooks
 from multiros.envs.core import EnvCore, EnvError, call_hook
 from multiros.envs.errors import StepAfterFailedReset
 from multiros.envs.sim_env import MujocoEnvCore
@@ -47,9 +47,7 @@ class StepTemplate(EnvCore):
         cls: Any = type(self)
         if batch_route(cls) is not None and not uses_own_hooks(self):  # the task's batch functions, as a batch of one
             actions = self.check_actions(np.asarray(action, dtype=np.float64)[None], single=True)
-            self.info = {}
-            self.connection.before_act()
-            cls.batch_act([self], actions, self.connection.states)
+            act_rows(cls, [self], actions, self.connection.states)
             self.step_advance()
             return end_on_fault(cls.batch_results([self], self.connection.states)).row(0)
         self.step_act(action)

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from multiros.envs.base_env import end_on_fault
-from multiros.envs.batch_task import StepResults, batch_route, uses_own_hooks
+from multiros.envs.batch_task import StepResults, act_rows, batch_route, uses_own_hooks
 from multiros.envs.errors import EnvError
 from multiros.envs.sim_env import MujocoEnvCore
 from multiros.robot_state import RobotStates
@@ -248,9 +248,7 @@ class EnvBatch:
         if states is None:
             raise EnvError(f"the robots of {type(envs[0]).__name__} report different joints; a batch-first task "
                            "needs robots alike")
-        for env in envs:
-            env.info = {}
-        task.batch_act(envs, checked, states)  # type: ignore[attr-defined]
+        act_rows(task, envs, checked, states)  # as one env's step acts (its connection's checks included)
 
     def _advance(self, envs: Sequence[Any], groups: Mapping[int, list[int]]) -> RobotStates | None:
         """One call per node for the envs of ``groups`` (node -> positions in ``envs``); hands each

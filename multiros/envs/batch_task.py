@@ -22,7 +22,7 @@ import numpy as np
 
 from multiros.robot_state import RobotStates
 
-__all__ = ["BatchTask", "StepResults", "STEP_HOOKS", "batch_route", "uses_own_hooks"]
+__all__ = ["BatchTask", "StepResults", "STEP_HOOKS", "act_rows", "batch_route", "uses_own_hooks"]
 
 StepResult = tuple[Any, float, bool, bool, dict[str, Any]]
 
@@ -129,3 +129,13 @@ def _route(cls: type) -> type | None:
 def uses_own_hooks(env: Any) -> bool:
     """Whether this env instance carries a step hook of its own (set on the instance)."""
     return not vars(env).keys().isdisjoint(STEP_HOOKS)  # looks up the few hook names, not every attribute
+
+
+def act_rows(task: Any, envs: Sequence[Any], actions: np.ndarray, states: RobotStates) -> None:
+    """The act half of a batch-first step, for one env (a batch of one) and for a vector env's N alike:
+    each env's info emptied and its connection's checks before acting (a robot's watchdog), then the
+    task's :meth:`BatchTask.batch_act` on the checked ``actions`` (rows in ``envs``' order)."""
+    for env in envs:
+        env.info = {}
+        env.connection.before_act()
+    task.batch_act(envs, actions, states)

@@ -71,6 +71,27 @@ def test_batched_equals_separate_envs_step_for_step(mode: AutoresetMode, num_nod
         separate.close()
 
 
+def test_a_batch_step_runs_each_connections_checks_before_acting_as_one_env_does() -> None:
+    """One act half for one env and a batch (multiros.envs.batch_task.act_rows): every env's
+    connection's ``before_act`` (a robot's watchdog) runs once per step, before its commands."""
+    batched = uniros.make_vec(ENV, 2, vectorization_mode="batched", max_episode_steps=20)
+    single = uniros.make(ENV)
+    try:
+        assert batched.batch.task is not None
+        calls: list[str] = []
+        envs = [*batched.batch.envs, single.unwrapped]
+        for k, env in enumerate(envs):
+            env.connection.before_act = (lambda k=k: calls.append(f"env{k}"))  # type: ignore[method-assign]
+        batched.reset(seed=0)
+        single.reset(seed=0)
+        batched.step(np.zeros((2, 5), np.float32))
+        single.step(np.zeros(5, np.float32))
+        assert calls == ["env0", "env1", "env2"]
+    finally:
+        batched.close()
+        single.close()
+
+
 def test_next_step_autoreset_semantics_and_slots() -> None:
     """NEXT_STEP: the step after an episode ends ignores that env's action and returns its first
     observation with reward 0; robots sit in their own slots, namespaces, and never touch."""
