@@ -25,15 +25,25 @@ from __future__ import annotations
 
 from pathlib import Path as _Path
 
-from gymnasium.envs.registration import register, registry
-
 from rl_environments._checkout import map_checkout_package as _map_checkout_package
+from rl_environments.env_ids import (
+    ENV_SPECS,
+    EPISODE_STEPS,
+    MANIPULATION_EPISODE_STEPS,
+    MAX_EPISODE_STEPS,
+    REAL_ENV_SPECS,
+    SIM_TO_REAL,
+    VECTOR_ENTRY_MODULE,
+    add_ids,
+    forget_arm_ids,
+    id_tuple,
+    note_arm_ids,
+    register_envs,
+)
 
 # From a source checkout, config/ is not inside this package (an install maps it): map it.
 _map_checkout_package("rl_environments.config", _Path(__file__).resolve().parent.parent / "config")
 
-#: Simulated IDs -> entry points (the arm files' are added as they are registered, first).
-ENV_SPECS: dict[str, str] = {}
 #: The arms whose IDs come from arm files (:mod:`rl_environments.arm_registry`): ID prefix -> robot name.
 ARMS: dict[str, str] = {}
 #: The six tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper).
@@ -43,76 +53,15 @@ SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", 
 #: The RX200's tasks observed through a Zed2 stereo camera (rl_environments.rx200.sim.zed2).
 ZED2_TASKS: tuple[str, ...] = ARM_TASKS
 CAMERA_ENV_IDS: tuple[str, ...] = tuple(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS)
-_STATIC_SPECS: dict[str, str] = {
-    "ABBIRB120ReacherEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherEnv",
-    "ABBIRB120ReacherGoalEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalEnv",
-    **{f"RX200Zed2{task}Sim-v0": f"rl_environments.rx200.sim.zed2:RX200Zed2{task}Env" for task in ZED2_TASKS},
-}
-ENV_IDS: tuple[str, ...] = ()
-GOAL_ENV_IDS: tuple[str, ...] = (
-    "ABBIRB120ReacherGoalEnv-v0", *(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS if task.endswith("Goal")),
-)
-MANIPULATION_ENV_IDS: tuple[str, ...] = tuple(
-    f"RX200Zed2{task}Sim-v0" for task in ARM_TASKS if task.startswith(("Push", "PnP")))
-MAX_EPISODE_STEPS = 100
-# Push and pick-and-place: Fetch's 50 steps of 40 ms (see rl_environments.arm_manipulation).
-MANIPULATION_EPISODE_STEPS = 50
-EPISODE_STEPS: dict[str, int] = dict.fromkeys(MANIPULATION_ENV_IDS, MANIPULATION_EPISODE_STEPS)
-REAL_ENV_SPECS: dict[str, str] = {}
-_STATIC_REAL_SPECS: dict[str, str] = {
-    "ABBIRB120ReacherRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherRealEnv",
-    "ABBIRB120ReacherGoalRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalRealEnv",
-}
-REAL_ENV_IDS: tuple[str, ...] = ()
-REAL_GOAL_ENV_IDS: tuple[str, ...] = ("ABBIRB120ReacherGoalRealEnv-v0",)
-SIM_TO_REAL: dict[str, str] = {
-    "ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
-    "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0",
-}
 
 
-# Gymnasium loads "<module>:<ID>" entry points by name (JSON-able specs); the module makes each ID's.
-VECTOR_ENTRY_MODULE = "rl_environments.vector_entry"
-
-
-def register_envs() -> None:
-    """Register every uniros env ID with gymnasium (idempotent); simulated IDs get a batched vector entry point."""
-    for env_id, entry_point in {**ENV_SPECS, **REAL_ENV_SPECS}.items():
-        if env_id not in registry:
-            register(id=env_id, entry_point=entry_point,
-                     vector_entry_point=f"{VECTOR_ENTRY_MODULE}:{env_id}" if env_id in ENV_SPECS else None,
-                     max_episode_steps=EPISODE_STEPS.get(env_id, MAX_EPISODE_STEPS))
-
-
-def note_arm_ids(sim_id: str, real_id: str, *, goal: bool, manipulation: bool, steps: int) -> None:
-    """Add an arm file's simulated ID and its Real twin to the ID tables
-    (:func:`~rl_environments.arm_registry.register_arm`)."""
-    from rl_environments.arm_registry import ENV_MODULE
-
-    g = globals()
-    name = sim_id.removesuffix("Sim-v0")
-    ENV_SPECS[sim_id] = f"{ENV_MODULE}:{name}Env"
-    REAL_ENV_SPECS[real_id] = f"{ENV_MODULE}:{name}RealEnv"
-    SIM_TO_REAL[sim_id] = real_id
-    EPISODE_STEPS[sim_id] = EPISODE_STEPS[real_id] = steps
-    g["ENV_IDS"] = tuple(ENV_SPECS)
-    g["REAL_ENV_IDS"] = tuple(REAL_ENV_SPECS)
-    if goal:
-        g["GOAL_ENV_IDS"] = (*GOAL_ENV_IDS, sim_id)
-        g["REAL_GOAL_ENV_IDS"] = (*REAL_GOAL_ENV_IDS, real_id)
-    if manipulation:
-        g["MANIPULATION_ENV_IDS"] = (*MANIPULATION_ENV_IDS, sim_id)
-
-
-def forget_arm_ids(sim_id: str, real_id: str) -> None:
-    """Remove an arm file's IDs from the ID tables (:func:`~rl_environments.arm_registry.unregister_arm`)."""
-    g = globals()
-    for table in (ENV_SPECS, REAL_ENV_SPECS, SIM_TO_REAL, EPISODE_STEPS):
-        table.pop(sim_id, None)
-    REAL_ENV_SPECS.pop(real_id, None)
-    EPISODE_STEPS.pop(real_id, None)
-    for key in ("ENV_IDS", "GOAL_ENV_IDS", "MANIPULATION_ENV_IDS", "REAL_ENV_IDS", "REAL_GOAL_ENV_IDS"):
-        g[key] = tuple(i for i in g[key] if i not in (sim_id, real_id))
+def __getattr__(name: str) -> tuple[str, ...]:
+    """``ENV_IDS``, ``REAL_ENV_IDS``, ``GOAL_ENV_IDS``, ``REAL_GOAL_ENV_IDS``, ``MANIPULATION_ENV_IDS``: the
+    ID table's (:mod:`rl_environments.env_ids`) as they are when read, arm files registered since included."""
+    try:
+        return id_tuple(name)
+    except AttributeError:
+        raise AttributeError(f"module 'rl_environments' has no attribute {name!r}") from None
 
 
 def shipped_arm_file(name: str) -> _Path | None:
@@ -139,10 +88,18 @@ def _register_arm_files() -> None:
 
 
 _register_arm_files()
-ENV_SPECS.update(_STATIC_SPECS)
-REAL_ENV_SPECS.update(_STATIC_REAL_SPECS)
-ENV_IDS = tuple(ENV_SPECS)
-REAL_ENV_IDS = tuple(REAL_ENV_SPECS)
+# The static IDs, after the arm files' (ENV_IDS lists the arms' first).
+add_ids({"ABBIRB120ReacherEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherEnv"})
+add_ids({"ABBIRB120ReacherGoalEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalEnv"}, goal=True)
+add_ids({"ABBIRB120ReacherRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherRealEnv"}, real=True)
+add_ids({"ABBIRB120ReacherGoalRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalRealEnv"}, goal=True,
+        real=True)
+SIM_TO_REAL.update({"ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
+                    "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0"})
+for _task in ZED2_TASKS:
+    add_ids({f"RX200Zed2{_task}Sim-v0": f"rl_environments.rx200.sim.zed2:RX200Zed2{_task}Env"},
+            goal=_task.endswith("Goal"), manipulation=not _task.startswith("Reacher"),
+            steps=None if _task.startswith("Reacher") else MANIPULATION_EPISODE_STEPS)
 register_envs()
 
 __all__ = [
@@ -154,6 +111,8 @@ __all__ = [
     "EPISODE_STEPS",
     "GOAL_ENV_IDS",
     "MANIPULATION_ENV_IDS",
+    "MANIPULATION_EPISODE_STEPS",
+    "MAX_EPISODE_STEPS",
     "REAL_ENV_IDS",
     "REAL_ENV_SPECS",
     "REAL_GOAL_ENV_IDS",

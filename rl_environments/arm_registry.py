@@ -209,7 +209,7 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
     """
     from gymnasium.envs.registration import register, registry
 
-    import rl_environments as pkg
+    from rl_environments import env_ids
 
     spec = load_arm_file(path)
     ids = arm_env_ids(spec)
@@ -230,11 +230,11 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
     out: list[str] = []
     for sim_id, (task, cls_name, real_id) in ids.items():
         kind = ARM_TASKS[task][1]
-        steps = pkg.MANIPULATION_EPISODE_STEPS if kind else pkg.MAX_EPISODE_STEPS
+        steps = env_ids.MANIPULATION_EPISODE_STEPS if kind else env_ids.MAX_EPISODE_STEPS
         register(id=sim_id, entry_point=f"{ENV_MODULE}:{cls_name}",
-                 vector_entry_point=f"{pkg.VECTOR_ENTRY_MODULE}:{sim_id}", max_episode_steps=steps)
+                 vector_entry_point=f"{env_ids.VECTOR_ENTRY_MODULE}:{sim_id}", max_episode_steps=steps)
         register(id=real_id, entry_point=f"{ENV_MODULE}:{spec.name}{task}RealEnv", max_episode_steps=steps)
-        pkg.note_arm_ids(sim_id, real_id, goal=ARM_TASKS[task][0], manipulation=kind is not None, steps=steps)
+        env_ids.note_arm_ids(sim_id, real_id, goal=ARM_TASKS[task][0], manipulation=kind is not None, steps=steps)
         out.append(sim_id)
     out += [ids[i][2] for i in ids]
     if tell_children:
@@ -246,8 +246,7 @@ def unregister_arm(name: str) -> None:
     """Remove an arm's IDs (its env classes are rebuilt if it is registered again)."""
     from gymnasium.envs.registration import registry
 
-    import rl_environments as pkg
-    from rl_environments import arm_envs
+    from rl_environments import arm_envs, env_ids
 
     spec = _ARMS.pop(name, None)
     if spec is None:
@@ -255,7 +254,7 @@ def unregister_arm(name: str) -> None:
     for sim_id, (_, _, real_id) in arm_env_ids(spec).items():
         registry.pop(sim_id, None)
         registry.pop(real_id, None)
-        pkg.forget_arm_ids(sim_id, real_id)
+        env_ids.forget_arm_ids(sim_id, real_id)
     arm_envs.forget_arm(spec.name)
     if str(spec.path) in _ADDED_TO_ENVIRONMENT:
         _ADDED_TO_ENVIRONMENT.discard(str(spec.path))

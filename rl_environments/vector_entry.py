@@ -28,7 +28,7 @@ class BatchedVectorEntryPoint:
 
 
 def __getattr__(name: str) -> BatchedVectorEntryPoint:
-    from rl_environments import ENV_SPECS
+    from rl_environments.env_ids import ENV_SPECS
 
     if name in ENV_SPECS:
         return BatchedVectorEntryPoint(name)
