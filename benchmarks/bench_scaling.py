@@ -52,7 +52,7 @@ from fetch_compat import make_fetch_reach  # noqa: E402
 
 import uniros  # noqa: E402
 from multiros.envs.batch import usable_cores  # noqa: E402
-from multiros.envs.worker_vector import QUEUED_TO_SPIN  # noqa: E402
+from multiros.envs.spin_wait import QUEUED_TO_SPIN  # noqa: E402
 
 
 class Stepper:

@@ -222,7 +222,8 @@ def make_batched_vec_env(env_id: str, n_envs: int = 1, *, sim_mode: str = "compo
     (``reward_type``, ``max_episode_steps``, ...). ``pin_workers=True`` pins each worker process to a core
     of its own (for a machine the run has to itself; no effect without workers).
     """
-    from multiros.envs.worker_vector import WorkerVectorEnv, default_layout, pin_option
+    from multiros.envs.worker_layout import default_layout, pin_option
+    from multiros.envs.worker_vector import WorkerVectorEnv
     from uniros.factory import make, make_batch
 
     pin = pin_option(pin_workers)

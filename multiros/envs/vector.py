@@ -326,7 +326,7 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`).
     ``workers=0`` (the default here) keeps the envs in this process (:class:`BatchedVectorEnv`),
     process-mode nodes called over Zenoh. This is what ``uniros.make_vec`` (which by default puts a share
-    on each core: this process and a worker per other core, :func:`~multiros.envs.worker_vector.default_layout`)
+    on each core: this process and a worker per other core, :func:`~multiros.envs.worker_layout.default_layout`)
     and the IDs' Gymnasium ``vector_entry_point`` build.
     """
     options = dict(vector_options or {})
@@ -334,12 +334,12 @@ def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: d
     copy = options.pop("copy", True)
     workers = options.pop("workers", 0)
     in_parent = bool(options.pop("in_parent", False))
-    from multiros.envs.worker_vector import pin_option
+    from multiros.envs.worker_layout import pin_option
 
     pin_workers = pin_option(options.pop("pin_workers", False))
     spin_wait_sec = options.pop("spin_wait_sec", None)
     if workers is None:
-        from multiros.envs.worker_vector import default_layout
+        from multiros.envs.worker_layout import default_layout
 
         workers, in_parent = default_layout(num_envs, kwargs.get("sim_mode", "composed"), options, kwargs)
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:

@@ -8,13 +8,15 @@ actions, observations, rewards, terminations and truncations with them through s
 (:mod:`multiros.envs.shm_exchange`): a vector step writes the actions, wakes every worker with a
 byte on its pipe, and waits for each worker's answer, which carries that step's info dict only.
 With ``in_parent`` the parent steps one more share itself (rows first) while the workers step
-theirs, with no pipe between: K cores then run K shares (:func:`default_layout`, ``uniros.make_vec``'s
-default), where a worker per core left the parent's exchange taking turns with their physics.
+theirs, with no pipe between: K cores then run K shares
+(:func:`~multiros.envs.worker_layout.default_layout`, ``uniros.make_vec``'s default), where a worker
+per core left the parent's exchange taking turns with their physics.
 
 ``sim_mode="process"`` (nodes in child processes) is this form with no share in the parent: each
 worker is its node's child process, running the node composed beside its envs, so process mode
 exchanges through the same shared memory instead of a Zenoh service call per node and step
-(:func:`process_mode_workers`; ``workers=0`` keeps those calls, for a node on a wire of the caller's).
+(:func:`~multiros.envs.worker_layout.process_mode_workers`; ``workers=0`` keeps those calls, for a
+node on a wire of the caller's).
 
 Semantics are the in-process batched env's: the same spaces, seeds (an int seed gives env ``i``
 ``seed + i`` whatever K is, so env ``i`` runs the same trajectory), autoreset modes and infos.
@@ -26,17 +28,11 @@ garbage-collected and at interpreter exit; they also exit when the parent's end 
 from __future__ import annotations
 
 import json
-import math
-import os
 import pickle
-import select
-import signal
 import socket
 import subprocess
 import sys
-import threading
 import time
-import traceback
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 from multiprocessing.connection import Connection
@@ -46,163 +42,27 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from multiros.envs.batch import default_num_nodes, usable_cores
-from multiros.envs.shm_exchange import PLAIN_INFO, InfoCodec, SharedArrays, layout_for, merge_infos, shareable
+from multiros.envs.batch import default_num_nodes
+from multiros.envs.shm_exchange import PLAIN_INFO, InfoCodec, SharedArrays, layout_for, merge_infos
+from multiros.envs.spin_wait import QUEUED_TO_SPIN, _poller, _spin, _spin_wait, _wait_for
 from multiros.envs.vector import autoreset_mode_of
-from multiros.ros.processes import configure_child_logging, owner_log_level
+from multiros.envs.worker_layout import _count_up_to, _nodes_in_workers, pin_option, worker_cores, worker_rows
+from multiros.envs.worker_process import _STEP, _picklable_spec, _registering_module, _Share
+from multiros.ros.processes import owner_log_level
 
 __all__ = ["WorkerVectorEnv", "WorkerError", "default_layout", "default_workers", "pin_option", "process_mode_workers",
-           "worker_cores", "worker_rows"]
+           "worker_cores", "worker_rows", "QUEUED_TO_SPIN", "SPIN_WAIT_SEC", "RunQueueDelay"]
 
-_STEP = b"s"
-#: How long a process with a core of its own polls for the other side's message before it sleeps
-#: (spin, then block): a sleeping process's wake-up costs more than the answer's usual wait.
-SPIN_WAIT_SEC = 200e-6
-#: A share spins only while its thread waits less than this for a core per vector step (the kernel's
-#: run-queue delay, a running mean; Linux): above it another program shares the cores, and a spinning
-#: process takes the core from a process that has work. make_vec(8) on 2 cores: 5-90 us a step alone,
-#: 200-1,100 us beside a second one.
-QUEUED_TO_SPIN = 200e-6
-#: Batch options that place nodes by hand (a worker makes its own node)
-_PLACING = ("node_name", "connect_kwargs")
+# Re-exported: these names lived in this module until it was split (issue 50), and user code and the
+# docs import them from here. Their homes now: worker_layout (how many workers, which rows and cores:
+# default_layout, default_workers, pin_option, process_mode_workers, worker_cores, worker_rows) and
+# spin_wait (how each side waits for the other: QUEUED_TO_SPIN, SPIN_WAIT_SEC, RunQueueDelay).
+from multiros.envs.spin_wait import SPIN_WAIT_SEC, RunQueueDelay
+from multiros.envs.worker_layout import default_layout, default_workers, process_mode_workers
 
 
 class WorkerError(RuntimeError):
     """A worker process of a :class:`WorkerVectorEnv` exited or did not answer in time."""
-
-
-def default_workers(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None,
-                    env_kwargs: Mapping[str, Any] | None = None) -> int:
-    """The number of worker processes ``uniros.make_vec`` uses unless told.
-
-    * Composed nodes, their layout left to the default: one per core this process may run on
-      (``os.sched_getaffinity``), at most one per env; ``0`` (in this process) where that is one.
-    * ``sim_mode="process"``: a worker per node, each node in a child process with its envs
-      (:func:`process_mode_workers`): ``num_nodes`` of them, else one per core.
-    * ``0`` where the nodes are elsewhere already (``"existing"``), placed by hand (``num_nodes`` of
-      composed nodes, ``node_name``, ``connect_kwargs``), or where a process-mode node must be on a wire
-      or show a viewer (``transport``, ``gui``).
-    """
-    options = options or {}
-    if sim_mode == "process":
-        return process_mode_workers(num_envs, options, env_kwargs)
-    if sim_mode != "composed" or any(key in options for key in ("num_nodes", *_PLACING)):
-        return 0
-    k = default_num_nodes(num_envs)
-    return k if k >= 2 else 0
-
-
-def process_mode_workers(num_envs: int, options: Mapping[str, Any], env_kwargs: Mapping[str, Any] | None = None) -> int:
-    """Worker processes for ``sim_mode="process"``: each node in a child process, as the mode says, and
-    its envs' task code with it, the actions and observations through shared memory (no message per
-    step). ``num_nodes`` nodes, else one per core (at most one per env). ``0`` (nodes in child processes
-    reached over their private Zenoh router, one service call per node and step, the envs' code in
-    this process) where the node must be on a wire of the caller's choice (``transport``) or show a
-    viewer (``gui``), where it is placed by hand (``node_name``, ``connect_kwargs``), or where
-    ``num_nodes`` is not a count of nodes (the batch then says why)."""
-    if _wired(env_kwargs or {}) or any(key in options for key in _PLACING):
-        return 0
-    k = options.get("num_nodes")
-    if k is None:
-        return default_num_nodes(num_envs)
-    return k if _count_up_to(k, num_envs) else 0
-
-
-def _count_up_to(value: Any, most: int) -> bool:
-    """Whether ``value`` is a count from 1 to ``most`` (an int, not a bool)."""
-    return isinstance(value, int) and not isinstance(value, bool) and 1 <= value <= most
-
-
-def _wired(env_kwargs: Mapping[str, Any]) -> str | None:
-    """The env keyword that asks for a node of its own process (a wire, a viewer), if any: a worker's
-    node is composed in it, on no wire and with no viewer. ``$UNIROS_TRANSPORT`` naming a wire other
-    than the private router's Zenoh counts as ``transport`` (process mode's node would take it)."""
-    chosen = next((key for key in ("transport", "gui") if env_kwargs.get(key) not in (None, False)), None)
-    if chosen is None and os.environ.get("UNIROS_TRANSPORT", "") not in ("", "zenoh", "inproc"):
-        return "UNIROS_TRANSPORT"
-    return chosen
-
-
-def default_layout(num_envs: int, sim_mode: str = "composed", options: Mapping[str, Any] | None = None,
-                   env_kwargs: Mapping[str, Any] | None = None) -> tuple[int, bool]:
-    """``(workers, in_parent)`` of ``uniros.make_vec`` unless told: a share of the envs per core, one
-    of them stepped by this process while the workers step theirs (:func:`default_workers` cores: one
-    worker process fewer; a worker per core besides the parent left three processes on two cores, the
-    parent's exchange taking turns with the workers' physics). ``(0, False)``: all in this process.
-    ``sim_mode="process"``: every node in a worker process, none in this one."""
-    k = default_workers(num_envs, sim_mode, options, env_kwargs)
-    if sim_mode == "process":
-        return k, False
-    return (k - 1, True) if k >= 2 else (0, False)
-
-
-def _nodes_in_workers(num_envs: int, workers: int | None, in_parent: bool, options: dict[str, Any],
-                      env_kwargs: dict[str, Any]) -> int | None:
-    """``sim_mode="process"`` with workers: each worker is the child process of its node, which it
-    runs composed beside its envs (one node a worker). Rewrites ``options`` and ``env_kwargs`` for the
-    workers (``num_nodes`` becomes the worker count, the mode ``"composed"`` inside them) and returns
-    the number of workers. Other modes reach nodes elsewhere: refused."""
-    mode = env_kwargs.get("sim_mode")
-    if mode != "process":
-        raise ValueError(f"worker processes run their envs' nodes in themselves; sim_mode={mode!r} reaches nodes "
-                         "elsewhere: use workers=0")
-    if in_parent:
-        raise ValueError("sim_mode='process' puts every node in a child process; in_parent would step a share "
-                         "(and its node) in this process")
-    key = _wired(env_kwargs)
-    if key is not None:
-        value = env_kwargs.get(key, os.environ.get(key))
-        raise ValueError(f"a worker runs its node composed, on no wire and with no viewer; {key}={value!r} "
-                         "needs workers=0 (each node a process of its own)")
-    placed = [key for key in _PLACING if key in options]
-    if placed:
-        raise ValueError(f"a worker makes its own node, composed; {placed} place nodes by hand: use workers=0")
-    nodes = options.pop("num_nodes", None)  # in process mode: all the nodes, one a worker
-    if nodes is not None and not _count_up_to(nodes, num_envs):
-        raise ValueError(f"num_nodes must be an integer from 1 to num_envs ({num_envs}), got {nodes!r}")
-    if workers is None:
-        workers = nodes
-    elif nodes is not None and nodes != workers:
-        raise ValueError(f"sim_mode='process' with workers puts one node in each, so num_nodes counts all the "
-                         f"nodes (composed workers take it per worker): num_nodes={nodes} and workers={workers} differ")
-    env_kwargs["sim_mode"] = "composed"
-    return workers
-
-
-def worker_rows(num_envs: int, workers: int) -> list[tuple[int, int]]:
-    """Rows ``[start, stop)`` of each of ``workers`` workers (the batch's node split: ``i * K // N``)."""
-    return [(k * num_envs // workers, (k + 1) * num_envs // workers) for k in range(workers)]
-
-
-def pin_option(value: Any) -> bool:
-    """The ``pin_workers`` option checked: a bool (a YAML ``true``/``false``).
-
-    Raises:
-        ValueError: anything else.
-    """
-    if not isinstance(value, bool):
-        raise ValueError(f"pin_workers must be true or false, got {value!r}")
-    return value
-
-
-def worker_cores(workers: int, in_parent: bool = False) -> list[int]:
-    """The core each of ``workers`` pinned workers runs on: the cores this process may use
-    (``os.sched_getaffinity``), in order, one a worker; with ``in_parent`` the first is left to this
-    process's share (it is not pinned: it still moves where the scheduler finds room).
-
-    Raises:
-        ValueError: more shares than cores (two pinned workers would take turns on one), or a platform
-            without CPU affinity.
-    """
-    if not hasattr(os, "sched_setaffinity"):
-        raise ValueError("pin_workers needs CPU affinity (os.sched_setaffinity), which this platform lacks")
-    cores = sorted(os.sched_getaffinity(0))
-    first = int(bool(in_parent))
-    if first + workers > len(cores):
-        raise ValueError(f"pin_workers gives each worker a core of its own: {workers} worker(s)"
-                         f"{' and this process' if in_parent else ''} need {first + workers} cores, and this process "
-                         f"may use {len(cores)} ({cores}); use fewer workers or leave pin_workers off")
-    return cores[first:first + workers]
 
 
 class _Workers:
@@ -247,7 +107,8 @@ class WorkerVectorEnv(VectorEnv):
         env_id: a registered ID whose envs batch (a uniros simulated env).
         num_envs: N.
         workers: K worker processes, at least 1 and at most N (one fewer with ``in_parent``); default:
-            one per core (:func:`default_workers`), less this process's share with ``in_parent``.
+            one per core (:func:`~multiros.envs.worker_layout.default_workers`), less this process's share
+            with ``in_parent``.
         in_parent: this process steps a share of the envs too (the first rows, :attr:`local_rows`).
         autoreset_mode: as :class:`~multiros.envs.vector.BatchedVectorEnv`'s.
         copy: return copies of the observations; ``False`` returns views of shared memory, overwritten
@@ -258,16 +119,16 @@ class WorkerVectorEnv(VectorEnv):
         start_timeout_sec: bound on a worker's start (its envs made); default 120 s + 4 s per env (a
             loaded machine makes an env in about 0.25 s a core, ten times that under heavy load).
         spin_wait_sec: how long this process and each worker poll for the other's next message before
-            they sleep. By default :data:`SPIN_WAIT_SEC` for the workers where the shares are no more
-            than the cores, and for this process where it also steps a share; else 0 (sleep at once).
-            A process that steps a share spins only while it seldom waits for a core
-            (:data:`QUEUED_TO_SPIN`): beside other programs it sleeps at once. On 2 cores it gains
-            about 10 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
+            they sleep. By default :data:`~multiros.envs.spin_wait.SPIN_WAIT_SEC` for the workers where the
+            shares are no more than the cores, and for this process where it also steps a share; else 0
+            (sleep at once). A process that steps a share spins only while it seldom waits for a core
+            (:data:`~multiros.envs.spin_wait.QUEUED_TO_SPIN`): beside other programs it sleeps at once. On
+            2 cores it gains about 10 % at N = 8 (docs/vector_envs.md); a process still sleeps after it.
         pin_workers: pin each worker process (every thread of it) to a core of its own
-            (:func:`worker_cores`), as Sample Factory does with its workers; this process stays free to
-            move. Off by default: on a machine of its own it steadies the lockstep, beside other programs
-            that pin theirs it costs. A worker of several composed nodes (``num_nodes``) then steps
-            their physics on its one core.
+            (:func:`~multiros.envs.worker_layout.worker_cores`), as Sample Factory does with its workers;
+            this process stays free to move. Off by default: on a machine of its own it steadies the
+            lockstep, beside other programs that pin theirs it costs. A worker of several composed nodes
+            (``num_nodes``) then steps their physics on its one core.
 
     Raises:
         WorkerError: a worker that failed to start (its error is in the message).
@@ -370,17 +231,17 @@ class WorkerVectorEnv(VectorEnv):
         return [int(proc.pid) for proc in self._workers.procs]
 
     def _start_worker(self, core: int | None = None) -> None:
-        """A fresh Python running :func:`_serve` on one end of a socket pair, pinned to ``core`` (if
-        given) before it imports anything: numpy's BLAS starts its threads at import, and a thread
-        inherits the affinity of the thread that starts it. Not ``multiprocessing``'s spawn: that runs
-        the parent's main script again in the child (a script without a ``__main__`` guard would make
-        envs there), and fork copies a process that may run threads."""
+        """A fresh Python running :func:`~multiros.envs.worker_process._serve` on one end of a socket
+        pair, pinned to ``core`` (if given) before it imports anything: numpy's BLAS starts its threads
+        at import, and a thread inherits the affinity of the thread that starts it. Not
+        ``multiprocessing``'s spawn: that runs the parent's main script again in the child (a script
+        without a ``__main__`` guard would make envs there), and fork copies a process that may run threads."""
         ours, theirs = socket.socketpair()
         try:
             fd = theirs.fileno()
             boot = ("import os, sys; sys.argv[4] and os.sched_setaffinity(0, {int(sys.argv[4])}); "
                     "import json; sys.path[:0] = json.loads(sys.argv[2]); "
-                    "from multiros.envs.worker_vector import _serve; _serve(int(sys.argv[1]), sys.argv[3])")
+                    "from multiros.envs.worker_process import _serve; _serve(int(sys.argv[1]), sys.argv[3])")
             proc = subprocess.Popen([sys.executable, "-c", boot, str(fd), json.dumps([p for p in sys.path if p]),
                                      owner_log_level(), "" if core is None else str(core)],
                                     pass_fds=(fd,), stdin=subprocess.DEVNULL)
@@ -652,9 +513,9 @@ class WorkerVectorEnv(VectorEnv):
         ``wait_seconds`` (a worker's waiting for its next order, which holds this process's turn
         between two steps and the wake-up; this process's: waiting for the workers' answers after its
         own share), and ``queued_per_step`` (a running mean of the seconds its thread waited for a
-        core per vector step, :class:`RunQueueDelay`: above :data:`QUEUED_TO_SPIN` it sleeps at once
-        while it waits). Between two calls, each seconds figure over the wall seconds is how the time
-        went (benchmarks/bench_scaling.py)."""
+        core per vector step, :class:`~multiros.envs.spin_wait.RunQueueDelay`: above
+        :data:`~multiros.envs.spin_wait.QUEUED_TO_SPIN` it sleeps at once while it waits). Between two
+        calls, each seconds figure over the wall seconds is how the time went (benchmarks/bench_scaling.py)."""
         return self._each([("stats",)] * len(self._shares()), "stats")
 
     def node_loads(self) -> list[dict[str, Any]]:
@@ -666,295 +527,3 @@ class WorkerVectorEnv(VectorEnv):
         """Stop the workers (asked first, then by PID) and free the shared memory."""
         self._obs = self._arrays = {}  # type: ignore[assignment]
         self._finalizer()
-
-
-def _picklable_spec(env_id: str) -> Any:
-    """The ID's registration, for a worker to register an ID this process registered at run time
-    (``None`` when it cannot travel: the worker then imports the module that registers it,
-    :func:`_registering_module`)."""
-    import gymnasium as gym
-
-    spec = gym.spec(env_id)
-    try:
-        pickle.dumps(spec)
-    except Exception:  # noqa: BLE001 - a lambda entry point, say
-        return None
-    return spec
-
-
-def _registering_module(env_id: str) -> str | None:
-    """The module of the ID's entry point: imported in a worker, it registers what the entry point needs
-    (an upper layer's envs, an arm file's classes) without this layer naming that layer."""
-    import gymnasium as gym
-
-    entry = gym.spec(env_id).entry_point
-    module = entry.partition(":")[0] if isinstance(entry, str) else getattr(entry, "__module__", None)
-    return None if not module or module == "__main__" else module
-
-
-def _serve(fd: int, log_level: str = "WARNING") -> None:
-    """A worker process's life: its logging at the parent's level (:func:`owner_log_level`, as a node
-    the parent's env starts gets it), its orders from the parent on socket ``fd``, then :func:`_worker_main`."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle (it closes us)
-    configure_child_logging(log_level)
-    conn = Connection(fd)
-    try:
-        args = conn.recv()
-    except (EOFError, OSError):
-        return
-    except Exception:  # noqa: BLE001 - an order that does not unpickle here (a class of the parent's __main__)
-        conn.send(("error", (None, traceback.format_exc())))
-        return
-    _worker_main(conn, *args)
-
-
-class _Share:
-    """One share of the N envs: its batched vector env on its own composed node, stepped on rows
-    ``[start, stop)`` of the shared arrays, and its answers to the parent's requests. A worker process
-    runs one (:func:`_worker_main`); with ``in_parent`` the parent runs one too, with no pipe between.
-
-    Raises (constructor): what making the envs raises; ValueError for an observation space shared
-    memory cannot carry.
-    """
-
-    def __init__(self, env_id: str, registration: tuple[Any, str | None], num_envs: int, autoreset_mode: str,
-                 options: dict[str, Any], env_kwargs: dict[str, Any]) -> None:
-        import importlib
-
-        import gymnasium as gym
-
-        from multiros.envs.vector import make_batched_vector_env
-
-        spec, module = registration  # the ID's registration, and its entry point's module
-        if module:  # the entry point's module: registers what its envs need (an upper layer's, an arm file's)
-            importlib.import_module(module)
-        if env_id not in gym.registry and spec is not None:
-            gym.registry[env_id] = spec
-        self.vec: Any = make_batched_vector_env(env_id, num_envs, vector_options={
-            **options, "num_nodes": options.get("num_nodes", 1), "autoreset_mode": autoreset_mode,
-            "copy": False}, **env_kwargs)
-        self.shared: SharedArrays | None = None
-        self.owns_shared = False
-        self.start = self.stop = 0
-        self.steps, self.busy = 0, 0.0
-        self.answering = self.waiting = 0.0  # a worker's: sending its answers; blocked for its next order
-        self.queued = RunQueueDelay()  # of the thread that steps it
-        if not shareable(self.vec.single_observation_space):
-            self.close()
-            raise ValueError(f"observation space {self.vec.single_observation_space} cannot go through shared "
-                             "memory: use workers=0 (in-process)")
-
-    def spaces(self) -> tuple[Any, ...]:
-        """What a worker answers once its envs are made: spaces, metadata, render mode, episode length."""
-        vec = self.vec
-        return (vec.single_observation_space, vec.single_action_space, dict(vec.metadata), vec.render_mode,
-                vec.batch.max_episode_steps)
-
-    def bind(self, shared: SharedArrays, start: int, stop: int, owns: bool = False) -> None:
-        """Step rows ``[start, stop)`` of ``shared`` from now on (``owns``: close it with this share)."""
-        self.shared, self.owns_shared, self.start, self.stop = shared, owns, start, stop
-        self.vec.bind_observations(shared.observations(slice(start, stop)))
-
-    def step(self) -> dict[str, Any]:
-        """Step with the actions in the shared arrays; rewards and episode ends written there; the info back."""
-        began = time.perf_counter()
-        self.queued.sample()
-        assert self.shared is not None, "a share steps once bound"
-        a, start, stop = self.shared.arrays, self.start, self.stop
-        _, rew, term, trunc, info = self.vec.step(a["act"][start:stop].copy())
-        a["rew"][start:stop] = rew
-        a["term"][start:stop] = term
-        a["trunc"][start:stop] = trunc
-        self.steps, self.busy = self.steps + 1, self.busy + time.perf_counter() - began
-        return info
-
-    def answer(self, message: tuple[Any, ...]) -> Any:
-        """The answer to a request other than a step or a bind (``reset``, ``call``, ``set``, ``loads``, ``stats``)."""
-        cmd, vec = message[0], self.vec
-        if cmd == "reset":
-            _, seeds, reset_options = message
-            return vec.reset(seed=seeds, options=reset_options)[1]
-        if cmd == "call":
-            _, local, name, args, kwargs = message
-            answer = []
-            for j in local:
-                value = getattr(vec.envs[j], name)
-                answer.append(value(*args, **kwargs) if callable(value) else value)
-            return answer
-        if cmd == "set":
-            _, pairs, name = message
-            for j, value in pairs:
-                setattr(vec.envs[j], name, value)
-            return None
-        if cmd == "loads":
-            return vec.node_loads()
-        if cmd == "stats":
-            return {"steps": float(self.steps), "busy_seconds": self.busy, "answer_seconds": self.answering,
-                    "wait_seconds": self.waiting, "queued_per_step": self.queued.per_step}
-        raise ValueError(f"unknown worker request {cmd!r}")
-
-    def close(self) -> None:
-        """Close the envs (and the shared block when this share attached it)."""
-        vec, self.vec = self.vec, None
-        self.queued.close()
-        if vec is not None:
-            vec.close()
-        if self.owns_shared and self.shared is not None:
-            self.shared.close()
-        self.shared = None
-
-
-def _worker_main(conn: Connection, env_id: str, registration: tuple[Any, str | None], num_envs: int,
-                 autoreset_mode: str, options: dict[str, Any], env_kwargs: dict[str, Any],
-                 spin_wait_sec: float = 0.0) -> None:
-    """A worker: make its share, bind the shared arrays, then answer requests until told to close
-    or until the parent's end of the pipe closes (polling ``spin_wait_sec`` for each before it sleeps)."""
-    share: _Share | None = None
-    try:
-        try:
-            share = _Share(env_id, registration, num_envs, autoreset_mode, options, env_kwargs)
-            conn.send(("ok", share.spaces()))
-        except Exception as exc:  # noqa: BLE001 - the parent reports it
-            conn.send(("error", (None, "".join(traceback.format_exception(exc)))))
-            return
-        poller, codec = _poller(conn), InfoCodec()
-        while True:
-            waited = time.perf_counter()
-            if spin_wait_sec > 0 and share.queued.per_step < QUEUED_TO_SPIN:
-                _spin(poller, spin_wait_sec)
-            try:
-                data = conn.recv_bytes()
-            except (EOFError, OSError):
-                return  # the parent is gone
-            share.waiting += time.perf_counter() - waited
-            if data == _STEP:
-                try:
-                    info = share.step()
-                    answering = time.perf_counter()
-                    packed = codec.pack(info)
-                    if packed is None:
-                        conn.send(("ok", info))
-                        codec.learn(info)
-                    else:
-                        conn.send_bytes(packed)
-                    share.answering += time.perf_counter() - answering
-                except Exception as exc:  # noqa: BLE001 - the parent raises it
-                    _send_error(conn, exc)
-                continue
-            message = pickle.loads(data)
-            if message[0] == "close":
-                return
-            try:
-                if message[0] == "bind":
-                    _, name, layout, start, stop = message
-                    share.bind(SharedArrays.attach(name, layout), start, stop, owns=True)
-                    answer: Any = None
-                else:
-                    answer = share.answer(message)
-                conn.send(("ok", answer))
-            except Exception as exc:  # noqa: BLE001 - the parent raises it
-                _send_error(conn, exc)
-    finally:
-        if share is not None:
-            share.close()
-        conn.close()
-
-
-class RunQueueDelay:
-    """How long the thread that samples it waited for a core (runnable, not running) between two
-    samples, a running mean (``per_step``, seconds), from the kernel's ``/proc/thread-self/schedstat``.
-
-    Beside other programs on the same cores a process that was woken waits for a core; a process that
-    spins keeps one from them. No standard module reads this (``os.sched_*`` and ``resource`` give CPU
-    time and switch counts, not the wait), so it is read here: one ``pread`` of an open file, about
-    1 us. The file is opened again for another thread (by its kernel id, in this process: a fork's
-    child opens its own). Where the file is missing (not Linux) ``per_step`` stays 0.
-    """
-
-    WEIGHT = 1 / 16  # of each sample in the running mean
-
-    def __init__(self) -> None:
-        self.per_step = 0.0
-        self._fd: int | None = None
-        self._thread: tuple[int, int] | None = None  # (process id, kernel thread id) the file is of
-        self._last: int | None = None
-        self._missing = False  # no such file here: never asked again
-
-    def sample(self) -> None:
-        if self._missing:
-            return
-        thread = (os.getpid(), threading.get_native_id())
-        if thread != self._thread:  # (re)open for the thread that steps now
-            self.close()
-            try:
-                self._fd = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
-            except FileNotFoundError:
-                self._missing = True
-                return
-            except OSError:
-                return
-            self._thread = thread
-        fd = self._fd
-        if fd is None:
-            return
-        try:
-            waited = int(os.pread(fd, 64, 0).split()[1])  # "cpu_ns run_delay_ns timeslices"
-        except (OSError, ValueError, IndexError):
-            self.close()  # the next sample opens it again
-            return
-        if self._last is not None:
-            self.per_step += ((waited - self._last) * 1e-9 - self.per_step) * self.WEIGHT
-        self._last = waited
-
-    def close(self) -> None:
-        fd, self._fd, self._last, self._thread = self._fd, None, None, None
-        if fd is not None:
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
-
-def _spin_wait(value: float | None, shares: int, in_parent: bool) -> float:
-    """The ``spin_wait_sec`` of a side of a vector env of ``shares`` shares (``in_parent``: a side that
-    steps a share; a worker's always does): ``value`` checked, else the default (:data:`SPIN_WAIT_SEC`
-    where that side steps a share and every share has a core, else 0: a process that polls while
-    another needs its core only delays it)."""
-    if value is None:
-        return SPIN_WAIT_SEC if in_parent and shares <= usable_cores() else 0.0
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0.0 <= value <= 0.01:
-        raise ValueError(f"spin_wait_sec must be a number of seconds from 0 to 0.01, got {value!r}")
-    return float(value)
-
-
-def _poller(conn: Connection) -> Any:
-    """A ``select.poll`` of ``conn``'s socket (registered once: a poll of it then costs a microsecond)."""
-    poller = select.poll()
-    poller.register(conn.fileno(), select.POLLIN)
-    return poller
-
-
-def _wait_for(poller: Any, seconds: float) -> bool:
-    """Sleep until a message (or the socket's end) is there or ``seconds`` have passed; whether it is.
-    The poll is registered once: ``multiprocessing.connection.wait`` makes and fills a selector each
-    call (at N = 128 with 15 workers, a tenth of this process's exchange)."""
-    return bool(poller.poll(max(0, math.ceil(seconds * 1000))))
-
-
-def _spin(poller: Any, seconds: float) -> bool:
-    """Poll until a message (or the socket's end) is there or ``seconds`` have passed; whether it is."""
-    end = time.perf_counter() + seconds
-    while not poller.poll(0):
-        if time.perf_counter() >= end:
-            return False
-    return True
-
-
-def _send_error(conn: Connection, exc: BaseException) -> None:
-    text = "".join(traceback.format_exception(exc))
-    try:
-        pickle.dumps(exc)
-        conn.send(("error", (exc, text)))
-    except Exception:  # noqa: BLE001 - an exception that does not pickle: its text only
-        conn.send(("error", (None, text)))
-

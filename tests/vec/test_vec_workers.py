@@ -300,34 +300,34 @@ def test_worker_stats_count_the_steps_and_their_time(layout: dict) -> None:
 def test_by_default_this_process_steps_a_share_and_a_worker_each_other_core(monkeypatch) -> None:
     """A share per core: K cores, K - 1 worker processes and this process's share; one core, or nodes
     placed by hand, all in this process."""
-    import multiros.envs.worker_vector as wv
+    import multiros.envs.worker_layout as worker_layout
 
-    monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 2))
-    assert wv.default_layout(8) == (1, True)
-    assert wv.default_layout(1) == (0, False)
-    assert wv.default_layout(8, options={"num_nodes": 2}) == (0, False)
-    assert wv.default_layout(8, "existing") == (0, False)
-    monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 16))
-    assert wv.default_layout(128) == (15, True)
+    monkeypatch.setattr(worker_layout, "default_num_nodes", lambda n: min(n, 2))
+    assert worker_layout.default_layout(8) == (1, True)
+    assert worker_layout.default_layout(1) == (0, False)
+    assert worker_layout.default_layout(8, options={"num_nodes": 2}) == (0, False)
+    assert worker_layout.default_layout(8, "existing") == (0, False)
+    monkeypatch.setattr(worker_layout, "default_num_nodes", lambda n: min(n, 16))
+    assert worker_layout.default_layout(128) == (15, True)
 
 
 def test_process_mode_by_default_is_a_worker_per_node_and_none_in_this_process(monkeypatch) -> None:
     """``sim_mode="process"``: the nodes (one per core, or ``num_nodes``) are worker processes, none in
     this one; a node on a wire of the caller's or with a viewer, placed by hand, or a ``num_nodes``
     that is no count of nodes: this process calls them over Zenoh (``workers=0``)."""
-    import multiros.envs.worker_vector as wv
+    import multiros.envs.worker_layout as worker_layout
 
-    monkeypatch.setattr(wv, "default_num_nodes", lambda n: min(n, 2))
-    assert wv.default_layout(8, "process") == (2, False)
-    assert wv.default_layout(1, "process") == (1, False)  # one core or one env: still a child process
-    assert wv.default_layout(8, "process", {"num_nodes": 4}) == (4, False)
+    monkeypatch.setattr(worker_layout, "default_num_nodes", lambda n: min(n, 2))
+    assert worker_layout.default_layout(8, "process") == (2, False)
+    assert worker_layout.default_layout(1, "process") == (1, False)  # one core or one env: still a child process
+    assert worker_layout.default_layout(8, "process", {"num_nodes": 4}) == (4, False)
     for options, env_kwargs in [({}, {"transport": "zenoh"}), ({}, {"transport": "rclpy"}), ({}, {"gui": True}),
                                 ({"node_name": "sim"}, {}), ({"num_nodes": 9}, {}), ({"num_nodes": "2"}, {}),
                                 ({"num_nodes": 0}, {})]:
-        assert wv.default_layout(8, "process", options, env_kwargs) == (0, False), (options, env_kwargs)
-    assert wv.default_layout(8, "process", {}, {"transport": None, "gui": False}) == (2, False)
+        assert worker_layout.default_layout(8, "process", options, env_kwargs) == (0, False), (options, env_kwargs)
+    assert worker_layout.default_layout(8, "process", {}, {"transport": None, "gui": False}) == (2, False)
     monkeypatch.setenv("UNIROS_TRANSPORT", "rclpy")  # the wire a process-mode node would take
-    assert wv.default_layout(8, "process") == (0, False)
+    assert worker_layout.default_layout(8, "process") == (0, False)
 
 
 @pytest.mark.parametrize(("kwargs", "match"), [
@@ -412,7 +412,7 @@ def test_pinned_workers_each_run_on_a_core_of_their_own(layout: dict, monkeypatc
 
 @pytest.mark.skipif(not hasattr(os, "sched_setaffinity"), reason="needs CPU affinity")
 def test_pinning_more_shares_than_cores_or_a_non_bool_is_refused_before_any_process_starts(monkeypatch) -> None:
-    import multiros.envs.worker_vector as wv
+    import multiros.envs.worker_layout as worker_layout
 
     before = _census()
     cores = len(os.sched_getaffinity(0))
@@ -426,9 +426,9 @@ def test_pinning_more_shares_than_cores_or_a_non_bool_is_refused_before_any_proc
 
     with pytest.raises(ValueError, match=r"pin_workers must be true or false, got 1"):
         make_batched_vec_env(ENV, 2, pin_workers=1)
-    monkeypatch.delattr(wv.os, "sched_setaffinity")
+    monkeypatch.delattr(os, "sched_setaffinity")
     with pytest.raises(ValueError, match=r"needs CPU affinity"):
-        wv.worker_cores(1)
+        worker_layout.worker_cores(1)
     assert _census() == before
 
 
@@ -453,21 +453,21 @@ def test_both_sides_poll_before_they_sleep_only_where_each_share_has_a_core(monk
     share; not the parent of process mode (no share: it waits on a core a worker needs) nor with more
     shares than cores; a value given is checked and goes to both sides; the envs step alike with it
     or without."""
-    import multiros.envs.worker_vector as wv
+    import multiros.envs.spin_wait as spin_wait
 
-    monkeypatch.setattr(wv.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
-    assert wv._spin_wait(None, 2, True) == wv.SPIN_WAIT_SEC
-    assert wv._spin_wait(None, 3, True) == 0.0  # more shares than cores
-    assert wv._spin_wait(None, 2, False) == 0.0  # no share here: the parent waits on a core a worker needs
-    assert wv._spin_wait(0, 2, True) == 0.0 and wv._spin_wait(0.001, 3, False) == 0.001
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    assert spin_wait._spin_wait(None, 2, True) == spin_wait.SPIN_WAIT_SEC
+    assert spin_wait._spin_wait(None, 3, True) == 0.0  # more shares than cores
+    assert spin_wait._spin_wait(None, 2, False) == 0.0  # no share here: the parent waits on a core a worker needs
+    assert spin_wait._spin_wait(0, 2, True) == 0.0 and spin_wait._spin_wait(0.001, 3, False) == 0.001
     process = uniros.make_vec(ENV, 2, sim_mode="process")  # 2 nodes, 2 workers, no share here
     try:
-        assert (process.spin_wait_sec, process.worker_spin_wait_sec) == (0.0, wv.SPIN_WAIT_SEC)
+        assert (process.spin_wait_sec, process.worker_spin_wait_sec) == (0.0, spin_wait.SPIN_WAIT_SEC)
     finally:
         process.close()
     for bad in (-1e-6, 0.5, "0.001", True):
         with pytest.raises(ValueError, match="spin_wait_sec must be a number of seconds from 0 to 0.01"):
-            wv._spin_wait(bad, 2, True)
+            spin_wait._spin_wait(bad, 2, True)
     monkeypatch.undo()
     with pytest.raises(ValueError, match="spin_wait_sec must be"):
         uniros.make_vec(ENV, 2, vector_kwargs={"workers": 1, "spin_wait_sec": -1})
@@ -487,16 +487,17 @@ def test_a_share_that_waits_for_a_core_sleeps_at_once(monkeypatch) -> None:
     core more than ``QUEUED_TO_SPIN`` per step, it no longer polls for the workers' answers (it sleeps
     at once), and polls again once the waits are gone; the steps go on alike."""
     import multiros.envs.worker_vector as wv
+    from multiros.envs.spin_wait import QUEUED_TO_SPIN
 
     spins: list[float] = []
-    real_spin = wv._spin
+    real_spin = wv._spin  # the parent's poll, patched where WorkerVectorEnv looks it up
     monkeypatch.setattr(wv, "_spin", lambda poller, seconds: spins.append(seconds) or real_spin(poller, seconds))
     vec = WorkerVectorEnv(ENV, 2, workers=1, in_parent=True, spin_wait_sec=0.001)
     try:
         vec.reset(seed=0)
         queued = vec._workers.local.queued
         queued.sample = lambda: None  # hold the mean where the test puts it
-        for per_step, polled in ((0.0, 1), (2 * wv.QUEUED_TO_SPIN, 0), (0.0, 1)):
+        for per_step, polled in ((0.0, 1), (2 * QUEUED_TO_SPIN, 0), (0.0, 1)):
             queued.per_step = per_step
             spins.clear()
             obs = vec.step(np.zeros((2, 5), np.float32))[0]
@@ -513,7 +514,7 @@ def test_run_queue_delay_counts_the_time_a_thread_waits_for_its_core(monkeypatch
     twice that; where the file is missing it stays 0 and says nothing."""
     import subprocess
 
-    from multiros.envs.worker_vector import RunQueueDelay
+    from multiros.envs.spin_wait import RunQueueDelay
 
     core = min(os.sched_getaffinity(0))
     before = os.sched_getaffinity(0)
