@@ -23,11 +23,11 @@ from pathlib import Path
 
 import rl_environments
 from uniros.evaluation import EVAL_SEED, evaluate, format_success
+from uniros.model_files import load_for_eval
+from uniros.run_envs import make_env
 from uniros.training import (
     default_config_for,
-    load_for_eval,
     load_training_config,
-    make_env,
     note_updates_per_env_step,
     run_training,
     start_run,

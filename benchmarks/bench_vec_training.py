@@ -13,7 +13,7 @@ N > 1 an SB3 ``uniros.vec_env.BatchedVecEnv`` of N envs (one composed simulation
 
 One setting must grow with N: HER samples only from ended episodes, so ``learning_starts`` is at
 least N episodes' steps (N x 100 for the reach IDs: N >= 6 with the shipped 500), as ``uniros train``
-raises it (``uniros.training.fit_learning_starts``).
+raises it (``uniros.run_envs.fit_learning_starts``).
 
 For every run: env steps and training seconds (evaluation excluded) to the first evaluation with
 success >= ``--target`` (evaluation every ``--eval-freq`` env steps, ``--eval-episodes`` episodes of
@@ -37,8 +37,8 @@ from dataclasses import dataclass
 
 from bench_training import _spread, _Watched
 
+from uniros.run_envs import fit_learning_starts, make_train_env
 from uniros.train_config import TrainingConfig, default_config_for
-from uniros.training import fit_learning_starts, make_train_env
 
 
 @dataclass

@@ -84,7 +84,8 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
 
 def _cmd_train(args: argparse.Namespace) -> int:
     from uniros.run_dir import check_run_name
-    from uniros.training import TrainingError, check_env_id, default_config_for, load_training_config, open_run
+    from uniros.run_envs import check_env_id
+    from uniros.training import TrainingError, default_config_for, load_training_config, open_run
 
     if args.resume:
         if args.config or args.name:
@@ -107,14 +108,13 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
     """``uniros train`` once the config is known: ``run`` is the resumed run (locked), or ``None``."""
     from uniros.evaluation import EVAL_SEED, format_success
+    from uniros.model_files import load_for_eval
+    from uniros.run_envs import fit_learning_starts, make_env
     from uniros.training import (
         TrainingError,
         TrainingInterrupted,
         check_before_run,
         evaluate,
-        fit_learning_starts,
-        load_for_eval,
-        make_env,
         note_updates_per_env_step,
         record_run_video,
         run_training,
@@ -208,7 +208,9 @@ def _choose_device(args: argparse.Namespace, config: Any) -> None:
 
 def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
     """The env ID and model file of ``uniros eval`` from what was typed (ID MODEL, MODEL, MODEL --env ID)."""
-    from uniros.training import TrainingError, check_env_id, resolve_model_path, trained_env_id
+    from uniros.model_files import resolve_model_path, trained_env_id
+    from uniros.run_envs import check_env_id
+    from uniros.training import TrainingError
 
     first, second = args.env_id, args.model
     if second is None:  # one positional: a model (or a run directory), or an env ID without its model
@@ -242,7 +244,7 @@ def _register_run_arm_near(model: Path, typed: str | None) -> bool:
     """Register the arm file of the run ``model`` belongs to (a run directory, or a model in one), if
     its ``run.json`` names one this process lacks and ``typed`` (the ID given, if any) is the run's ID or
     its Real twin; whether it did."""
-    from uniros.training import register_run_arm
+    from uniros.run_envs import register_run_arm
 
     meta = (model if model.is_dir() else model.parent) / "run.json"
     try:
@@ -268,7 +270,9 @@ def _registered(env_id: str) -> bool:
 
 def _cmd_eval(args: argparse.Namespace) -> int:
     from uniros.evaluation import format_success
-    from uniros.training import evaluate, load_for_eval, make_env, saved_env_kwargs
+    from uniros.model_files import load_for_eval, saved_env_kwargs
+    from uniros.run_envs import make_env
+    from uniros.training import evaluate
 
     env_id, model_path = _eval_target(args)
     kwargs = {**saved_env_kwargs(model_path, env_id), **_env_overrides(args)}

@@ -58,7 +58,7 @@ def test_eval_on_an_env_with_other_spaces_is_a_clear_error(tmp_path: Path, capsy
 def test_a_sim_models_task_options_carry_over_to_its_real_twin(tmp_path: Path) -> None:
     import json
 
-    from uniros.training import saved_env_kwargs
+    from uniros.model_files import saved_env_kwargs
 
     model = tmp_path / "best_model.zip"
     model.write_bytes(b"")

@@ -223,8 +223,9 @@ def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_d
     registered it (no UNIROS_ARMS) registers it from there; a file gone is one line saying so."""
     import json
 
+    from uniros.run_envs import arm_file_of, check_env_id, register_run_arm
     from uniros.train_config import TrainingConfig
-    from uniros.training import TrainingError, arm_file_of, check_env_id, open_run, register_run_arm, start_run
+    from uniros.training import TrainingError, open_run, start_run
 
     assert arm_file_of("UR5eReacherGoalSim-v0") is None and arm_file_of("RX200PushGoalReal-v0") is None
     ur5e_data["name"] = "RunArm"

@@ -12,8 +12,9 @@ import yaml
 
 import uniros
 from uniros.cli import main as cli_main
+from uniros.run_envs import check_n_envs, fit_learning_starts, make_train_env
 from uniros.train_config import TrainingConfig, TrainingConfigError, parse_training_config
-from uniros.training import check_n_envs, fit_learning_starts, make_train_env, start_run
+from uniros.training import start_run
 
 TINY = (
     "algorithm: sac\ntraining_steps: 800\neval_freq: 200\neval_episodes: 2\nsave_freq: 100\nnormalize: true\n"

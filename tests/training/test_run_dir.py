@@ -175,7 +175,8 @@ def test_module_colon_id_env_from_the_cli(tmp_path, capsys, monkeypatch):
 def test_module_colon_id_imports_from_the_working_directory(tmp_path, monkeypatch):
     """The ``uniros`` console script's sys.path has its bin directory, not the working directory: a
     user's package in the directory they run from still imports, and only then is the directory added."""
-    from uniros.training import TrainingError, resolve_env_id
+    from uniros.run_envs import resolve_env_id
+    from uniros.train_config import TrainingError
 
     (tmp_path / "my_cwd_pkg").mkdir()
     (tmp_path / "my_cwd_pkg" / "__init__.py").write_text(

@@ -19,9 +19,9 @@ from typing import Any
 
 from uniros.devices import check_device, resolve_device
 from uniros.run_dir import load_replay_buffer, normalizer_path, save_model_with_stats, save_replay_buffer
+from uniros.run_envs import fit_learning_starts, reports_success
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError, load_training_config
 from uniros.trainer import Paths, Session, load_model
-from uniros.training import fit_learning_starts, reports_success
 
 _logger = logging.getLogger(__name__)
 

@@ -1,0 +1,143 @@
+"""Saved models: finding the file a user named, what it was trained on, and loading it for evaluation.
+
+A model is uniros' (``<model>.zip`` with ``<model>.vecnormalize.pkl``, and the run's ``run.json``
+or ``<model>.env.json``) or rl-zoo3's (``<run>/<env id>.zip``, ``<run>/<env id>/vecnormalize.pkl``
+and ``args.yml``).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from multiros.envs.real.core import SIMULATION_KNOBS
+from rl_environments import SIM_TO_REAL
+from uniros.checkpoints import normalizer_path
+from uniros.trainer import ModelFileError, load_model
+
+
+def find_normalizer(model_path: Path) -> Path | None:
+    """The ``VecNormalize`` statistics of a model: uniros' ``<model>.vecnormalize.pkl``, or rl-zoo3's
+    ``vecnormalize.pkl`` (``<run>/<env id>/vecnormalize.pkl`` next to ``<run>/<env id>.zip``)."""
+    own = normalizer_path(model_path)
+    folder = model_path.parent
+    candidates = [own, folder / model_path.stem / "vecnormalize.pkl", folder / "vecnormalize.pkl"]
+    candidates += sorted(folder.glob("*/vecnormalize.pkl"))
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def resolve_model_path(model: str | Path) -> Path:
+    """A model ``.zip`` from what a user typed: a file, a file without ``.zip``, or a run directory.
+
+    Raises:
+        ModelFileError: nothing there (the message says what was looked for).
+    """
+    path = Path(model)
+    if path.is_dir():
+        for name in ("best_model.zip", "final_model.zip"):
+            if (path / name).is_file():
+                return path / name
+        zips = sorted(path.glob("*.zip"))
+        if len(zips) == 1:
+            return zips[0]
+        raise ModelFileError(f"{str(path)!r} is a directory without best_model.zip or final_model.zip"
+                             + (f"; models in it: {[z.name for z in zips]}" if zips else ""))
+    if path.is_file():
+        return path
+    if path.suffix != ".zip" and path.with_name(path.name + ".zip").is_file():
+        return path.with_name(path.name + ".zip")
+    raise ModelFileError(f"model file {str(path)!r} not found")
+
+
+def trained_env_id(model_path: Path) -> str | None:
+    """The env ID a model was trained on, from its run's ``run.json`` (or ``<model>.env.json``)."""
+    for meta in (model_path.parent / "run.json", model_path.with_suffix(".env.json")):
+        try:
+            env_id = json.loads(meta.read_text()).get("env_id")
+        except (OSError, ValueError, AttributeError):
+            continue
+        if isinstance(env_id, str) and env_id:
+            return env_id
+    return None
+
+
+def saved_env_kwargs(model_path: Path, env_id: str | None = None) -> dict[str, Any]:
+    """The env kwargs a model was trained with: uniros' run.json / .env.json, or rl-zoo3's args.yml.
+
+    None when the model was trained on another env than ``env_id`` (its kwargs may not apply).
+    """
+    for meta in (model_path.parent / "run.json", model_path.with_suffix(".env.json")):
+        if meta.is_file():
+            try:
+                data = json.loads(meta.read_text())
+            except ValueError:
+                continue
+            trained_on = str(data.get("env_id", "")).rpartition(":")[2]
+            kwargs = dict(data.get("env_kwargs") or {})
+            target = None if env_id is None else env_id.rpartition(":")[2]
+            if target is not None and trained_on and trained_on != target:
+                if SIM_TO_REAL.get(trained_on) != target:
+                    return {}
+                # The Real twin of the training env: the same task options, none of the simulation's
+                # (its transport included: a robot is reached over the user's Zenoh graph).
+                return {k: v for k, v in kwargs.items() if k not in SIMULATION_KNOBS and k != "transport"}
+            return kwargs
+    for folder in [model_path.parent / model_path.stem, *sorted(model_path.parent.glob("*/"))]:
+        args = folder / "args.yml"
+        if args.is_file():
+            data = _zoo_yaml(args)
+            kwargs = data.get("env_kwargs") if isinstance(data, dict) else None
+            return dict(kwargs or {})
+    return {}
+
+
+def _zoo_yaml(path: Path) -> Any:
+    """rl-zoo3's args.yml/config.yml (OrderedDicts dumped as python tags), read without running code."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def ordered(loader: Any, node: Any) -> dict[str, Any]:
+        seq = loader.construct_sequence(node.value[0], deep=True) if node.value else []
+        return {k: v for k, v in seq}
+
+    Loader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", ordered)
+    Loader.add_multi_constructor("tag:yaml.org,2002:python/", lambda loader, suffix, node: None)
+    try:
+        data = yaml.load(path.read_text(), Loader=Loader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError:
+        return {}
+    return dict(data) if isinstance(data, dict) else (dict(data) if isinstance(data, list) else {})
+
+
+def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None,
+                  device: str | None = None) -> tuple[Any, Any]:
+    """Load a model and its normalisation statistics for ``env`` (uniros' or rl-zoo3's layout);
+    the model onto ``device`` (``auto`` by default, :mod:`uniros.devices`), the statistics (numpy,
+    applied to observations before they reach the device) as they are.
+
+    Returns:
+        ``(model, normalizer)``; ``normalizer`` is a frozen ``VecNormalize`` or ``None``.
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    normalizer = None
+    stats = find_normalizer(model_path)
+    from uniros.image_spaces import images_channel_first
+
+    venv = images_channel_first(DummyVecEnv([lambda: env]))
+    if stats is not None:
+        try:
+            normalizer = VecNormalize.load(str(stats), venv)
+        except (AssertionError, ValueError) as exc:
+            raise ModelFileError(f"{stats} does not fit this env ({exc}); "
+                                 "evaluate on the env the model was trained on") from exc
+        except Exception as exc:
+            raise ModelFileError(f"{stats} cannot be read ({type(exc).__name__}: {exc})") from exc
+        normalizer.training = False
+        normalizer.norm_reward = False
+    # HER models need an env to rebuild their replay buffer, even for prediction.
+    model = load_model(model_path, normalizer if normalizer is not None else venv, algorithm=algorithm, device=device)
+    return model, normalizer
