@@ -10,8 +10,8 @@ only for an arm with a gripper) and each one's ``<ARM><task>Real-v0`` twin, entr
 Besides: FRobs_RL's reacher on the IRB120's arm file, ``ABBIRB120ReacherEnv-v0`` and
 ``ABBIRB120ReacherGoalEnv-v0`` (``rl_environments.frobs_reach``) with their Real twins
 ``ABBIRB120ReacherRealEnv-v0`` and ``ABBIRB120ReacherGoalRealEnv-v0``; and the RX200's six tasks
-observed through a Zed2 camera, ``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``,
-``rl_environments.rx200.sim.zed2``).
+observed through a Zed2 camera, ``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``: the arm file
+``rx200_zed2.yaml``, which extends the RX200's).
 
 ``ENV_IDS``/``GOAL_ENV_IDS`` are the simulated envs (they run anywhere); ``REAL_ENV_IDS``/
 ``REAL_GOAL_ENV_IDS`` the real ones (they need a robot or a stand-in, see ``docs/real_robots.md``),
@@ -49,8 +49,9 @@ ARMS: dict[str, str] = {}
 #: The six tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper).
 ARM_TASKS: tuple[str, ...] = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
 #: The shipped arm files (in ``rl_environments.config``, ``config/arms/`` of a checkout).
-SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml", "irb120.yaml")
-#: The RX200's tasks observed through a Zed2 stereo camera (rl_environments.rx200.sim.zed2).
+SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml", "irb120.yaml",
+                                      "rx200_zed2.yaml")
+#: The RX200's tasks observed through a Zed2 stereo camera (its arm file ``rx200_zed2.yaml`` extends the RX200's).
 ZED2_TASKS: tuple[str, ...] = ARM_TASKS
 CAMERA_ENV_IDS: tuple[str, ...] = tuple(f"RX200Zed2{task}Sim-v0" for task in ZED2_TASKS)
 
@@ -96,10 +97,6 @@ add_ids({"ABBIRB120ReacherGoalRealEnv-v0": "rl_environments.frobs_reach:ABBIRB12
         real=True)
 SIM_TO_REAL.update({"ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
                     "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0"})
-for _task in ZED2_TASKS:
-    add_ids({f"RX200Zed2{_task}Sim-v0": f"rl_environments.rx200.sim.zed2:RX200Zed2{_task}Env"},
-            goal=_task.endswith("Goal"), manipulation=not _task.startswith("Reacher"),
-            steps=None if _task.startswith("Reacher") else MANIPULATION_EPISODE_STEPS)
 register_envs()
 
 __all__ = [

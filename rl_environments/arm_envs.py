@@ -150,6 +150,8 @@ def _build(class_name: str) -> type | None:
                 attrs["TASK"] = kind
             elif not real:
                 attrs["NUM_SIM_STEPS"] = REACH_NUM_SIM_STEPS
+            if registered_arms()[name].camera_defaults:  # a camera the arm observes through by default
+                attrs["CAMERA_DEFAULTS"] = dict(registered_arms()[name].camera_defaults)
             return type(class_name, bases, attrs)
     return None
 

@@ -36,11 +36,16 @@ The layout (``docs/add_your_arm.md`` explains every key)::
       controller: gripper_position_controller
       independent: false        # true: both joints driven (no <mimic>), the second commanded at mimic x the first
     camera: {render_camera: render_camera, view: {lookat: [...], distance: .., azimuth: .., elevation: ..}}
+    #        (and defaults: {camera_name: .., rgb_plus_depth_plus_normal_obs: true}: camera keywords by default)
     reach: {...}                # rl_environments.arm_reach.reach_schema's keys (arm_joints left out)
     manipulation: {...}         # arm_manipulation.manipulation_schema's keys and the scene's
     scene: {table: URI, object: URI}   # the push / pick-and-place MJCF files (default: made from the scene's sizes)
     real: {namespace: ..., arm_controller: ..., ...}
     training: {ReacherGoal: {...}}     # overrides of the derived training configs, per task
+
+A variant of an arm (another camera, xacro arguments) is a file that says ``extends: <arm file>`` (a path
+relative to it) and the keys it changes: mappings merge key by key, anything else is replaced
+(``config/arms/rx200_zed2.yaml``: the RX200 observed through its Zed2).
 
 Validation is strict: an unknown key names the nearest valid one, a wrong type names the key and
 what it must be, a newer ``format`` says to upgrade. Nothing is registered from a file that fails.
@@ -144,6 +149,9 @@ class ArmFile:
     training: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     #: The end effector: this point of ``ee_link`` (metres, in its frame); zeros: the link's origin.
     tcp_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: Camera keywords the arm's envs take by default (:mod:`rl_environments.camera_obs`: a camera it
+    #: observes through, the observation's mode).
+    camera_defaults: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def has_gripper(self) -> bool:
@@ -260,7 +268,7 @@ _ARM = ("joints", "base_link", "ee_link", "tcp_offset", "home", "controller", "c
 _IK = ("solver", "shoulder_height", "upper_arm", "forearm", "tip")
 _GRIPPER = ("joints", "mimic", "closed", "open", "controller", "reset_mimic", "independent")
 _MAX_TCP_OFFSET = 0.5  # m: a tool centre point further from its link is a mistake (units, a wrong link)
-_CAMERA = ("render_camera", "view", "topics")
+_CAMERA = ("render_camera", "view", "topics", "defaults")
 _VIEW = ("lookat", "distance", "azimuth", "elevation")
 _SCENE_FILES = ("table", "object")
 _REAL = ("namespace", "arm_controller", "controllers", "command_interface", "check_controllers", "joint_states_topic",
@@ -377,6 +385,18 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
     if not isinstance(topics, dict) or not all(
             isinstance(v, (list, tuple)) and len(v) == 2 and all(isinstance(t, str) for t in v) for v in pairs):
         cam.fail("camera.topics", f"must map a camera name to its [rgb, depth] topics, got {topics!r}")
+    camera_defaults = cam.raw("defaults", {})
+    from rl_environments.camera_obs import CAMERA_KEYWORDS
+
+    if not isinstance(camera_defaults, dict) or not all(
+            isinstance(v, (bool, int, str)) or (isinstance(v, float) and math.isfinite(v))
+            for v in camera_defaults.values()):
+        cam.fail("camera.defaults", f"must map camera keywords to values, got {camera_defaults!r}")
+    unknown = [k for k in camera_defaults if k not in CAMERA_KEYWORDS]
+    if unknown:
+        close = difflib.get_close_matches(str(unknown[0]), CAMERA_KEYWORDS, n=1, cutoff=0.6)
+        hint = f"did you mean {close[0]!r}?" if close else f"camera keywords: {', '.join(CAMERA_KEYWORDS)}"
+        cam.fail(f"camera.defaults.{unknown[0]}", f"is not a camera keyword; {hint}")
 
     reach = _task_section(top, "reach", {k: v for k, v in reach_schema(n).items() if k != "arm_joints"}, {})
     reach["arm_joints"] = list(joints)
@@ -451,7 +471,7 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         camera_topics={k: (v[0], v[1]) for k, v in topics.items()},
         reach=reach, manipulation=manipulation, scene_files=scene_files, real=real,
         training={str(k): dict(v) for k, v in training.items()},
-        tcp_offset=(tcp_offset[0], tcp_offset[1], tcp_offset[2]),
+        tcp_offset=(tcp_offset[0], tcp_offset[1], tcp_offset[2]), camera_defaults=dict(camera_defaults),
     )
 
 
@@ -462,10 +482,52 @@ def load_arm_file(path: str | os.PathLike[str]) -> ArmFile:
         ArmFileError: the file is missing, not YAML, or a key is unknown, missing or mistyped.
     """
     source = Path(path).expanduser()
+    return parse_arm_file(_read_extended(source, ()), source)
+
+
+_MAX_EXTENDS = 4  # files an arm file may extend, one through another
+_PATH_KEYS = (("description", "uri"), ("description", "controllers"), ("scene", "table"), ("scene", "object"))
+
+
+def _read_yaml(source: Path) -> Any:
     if not source.is_file():
         raise ArmFileError(f"{source}: arm file not found")
     try:
-        data = yaml.safe_load(source.read_text())
+        return yaml.safe_load(source.read_text())
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise ArmFileError(f"{source}: not valid YAML: {str(exc).splitlines()[0]}") from None
-    return parse_arm_file(data, source)
+
+
+def _read_extended(source: Path, chain: tuple[Path, ...]) -> Any:
+    """An arm file's YAML with the file it ``extends`` merged under it: its mappings key by key, anything
+    else replaced (a variant of an arm: another name, a camera, xacro arguments). The extended file's
+    relative paths stay relative to it."""
+    data = _read_yaml(source)
+    if not isinstance(data, dict) or "extends" not in data:
+        return data
+    ref = data.pop("extends")
+    if not isinstance(ref, str) or not ref.strip():
+        raise ArmFileError(f"{source}: key 'extends' must name an arm file (a path relative to this one), got {ref!r}")
+    base_path = (source.resolve().parent / Path(ref).expanduser()).resolve()
+    if base_path in chain or base_path == source.resolve():
+        raise ArmFileError(f"{source}: key 'extends' {ref!r} extends itself (through {[str(p) for p in chain]})")
+    if len(chain) >= _MAX_EXTENDS:
+        raise ArmFileError(f"{source}: key 'extends': more than {_MAX_EXTENDS} arm files extend one another")
+    base = _read_extended(base_path, (*chain, source.resolve()))
+    if not isinstance(base, dict):
+        raise ArmFileError(f"{source}: key 'extends' {ref!r}: {base_path} is not an arm file (a YAML mapping)")
+    for section, key in _PATH_KEYS:  # the extended file's paths, made absolute against it
+        part = base.get(section)
+        if isinstance(part, dict) and isinstance(part.get(key), str):
+            part[key] = _resolve(part[key], base_path.parent)
+    return _merged(base, data)
+
+
+def _merged(base: Any, over: Any) -> Any:
+    """``over`` on ``base``: mappings merged key by key (recursively), anything else from ``over``."""
+    if not isinstance(base, dict) or not isinstance(over, dict):
+        return over
+    out = dict(base)
+    for key, value in over.items():
+        out[key] = _merged(base.get(key), value)
+    return out

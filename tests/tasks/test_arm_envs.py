@@ -20,16 +20,19 @@ from multiros.sim.errors import RenderError
 from rl_environments import ARM_TASKS, ARMS
 from rl_environments.manipulation_scripted import run_episode, scripted_policy
 
-# Push and pick-and-place only for an arm with a gripper (not the IRB120).
-NEW_SIM = [i for i in (f"{arm}{task}Sim-v0" for arm in ARMS for task in ARM_TASKS) if i in rl_environments.ENV_IDS]
+# Push and pick-and-place only for an arm with a gripper (not the IRB120); the Zed2 variant apart.
+NEW_SIM = [i for i in (f"{arm}{task}Sim-v0" for arm in ARMS if arm != "RX200Zed2" for task in ARM_TASKS)
+           if i in rl_environments.ENV_IDS]
 ZED2 = list(rl_environments.CAMERA_ENV_IDS)
 Image = get_message("sensor_msgs/msg/Image")
 
 
 def test_ids_and_twins_are_registered_as_rl_environments_names_them():
     """multiros_uniros.md §5.1's names: 4 arms x 6 tasks and the IRB120's 2 x (Sim, Real), the RX200's Zed2
-    variants."""
+    variants (an arm file that extends the RX200's: their Real twins observe through the Zed2's topics)."""
     assert len(NEW_SIM) == 4 * 6 + 2
+    assert {rl_environments.SIM_TO_REAL[i] for i in rl_environments.CAMERA_ENV_IDS} == {
+        i.replace("Sim-v0", "Real-v0") for i in rl_environments.CAMERA_ENV_IDS}
     real = [i.replace("Sim-v0", "Real-v0") for i in NEW_SIM]
     assert set(NEW_SIM) | set(ZED2) <= set(rl_environments.ENV_IDS)
     assert set(real) <= set(rl_environments.REAL_ENV_IDS)
