@@ -4,7 +4,7 @@ Each simulated ID is registered with ``vector_entry_point="rl_environments.vecto
 ``gymnasium.make_vec(ID, num_envs=N)`` (mode ``"vector_entry_point"``, Gymnasium's default for an
 ID that has one) loads ``<ID>`` from this module and calls it with the env's keyword arguments and
 optional ``vector_options`` (``autoreset_mode``, ``copy``, ``num_nodes``, ``spacing``,
-``timeout_sec``, ...; see :func:`multiros.envs.vector.make_batched_vector_env`).
+``timeout_sec``, ...; see :func:`multiros.envs.vector_factory.make_batched_vector_env`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ class BatchedVectorEntryPoint:
         self.env_id = env_id
 
     def __call__(self, num_envs: int = 1, **kwargs: Any) -> Any:
-        from multiros.envs.vector import make_batched_vector_env
+        from multiros.envs.vector_factory import make_batched_vector_env
 
         return make_batched_vector_env(self.env_id, num_envs, **kwargs)
 

@@ -188,7 +188,7 @@ def make_vec(
     if vectorization_mode != "batched":
         return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode=vectorization_mode,
                             vector_kwargs=vector_kwargs, **kwargs)
-    from multiros.envs.vector import make_batched_vector_env
+    from multiros.envs.vector_factory import make_batched_vector_env
 
     options = dict(vector_kwargs or {})
     options.setdefault("workers", None if defaults else 0)

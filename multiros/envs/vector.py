@@ -23,7 +23,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space, concatenate, create_empty_array, iterate
 
-from multiros.envs.batch import EnvBatch, make_env_batch
+from multiros.envs.batch import EnvBatch
 
 
 def autoreset_mode_of(value: AutoresetMode | str) -> AutoresetMode:
@@ -309,50 +309,3 @@ def _merge_plain_infos(per_env: list[dict[str, Any] | None], num_envs: int) -> d
             mask[rows] = True
         infos[key], infos[f"_{key}"] = array, mask
     return infos
-
-
-def make_batched_vector_env(env_id: str, num_envs: int = 1, *, vector_options: dict[str, Any] | None = None,
-                            **kwargs: Any) -> VectorEnv:
-    """A batched vector env of ``num_envs`` envs of the registered ID ``env_id``.
-
-    ``vector_options`` holds ``autoreset_mode``, ``copy``, ``workers`` and the batch's options
-    (``num_nodes``, ``spacing``, ``timeout_sec``, ``node_name``, ``connect_kwargs``); ``kwargs`` go to
-    each env. ``workers=K`` (K >= 1) steps the envs in K worker processes, one composed node each,
-    exchanging actions and observations through shared memory
-    (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`), and ``in_parent=True`` makes this process
-    step one more share itself meanwhile; with ``sim_mode="process"`` those workers are the nodes' child
-    processes. ``pin_workers=True`` pins each worker process to a core of its own (none with no workers);
-    ``spin_wait_sec`` is how long both sides poll for each other's message before they sleep
-    (:class:`~multiros.envs.worker_vector.WorkerVectorEnv`).
-    ``workers=0`` (the default here) keeps the envs in this process (:class:`BatchedVectorEnv`),
-    process-mode nodes called over Zenoh. This is what ``uniros.make_vec`` (which by default puts a share
-    on each core: this process and a worker per other core, :func:`~multiros.envs.worker_layout.default_layout`)
-    and the IDs' Gymnasium ``vector_entry_point`` build.
-    """
-    options = dict(vector_options or {})
-    autoreset = options.pop("autoreset_mode", AutoresetMode.NEXT_STEP)
-    copy = options.pop("copy", True)
-    workers = options.pop("workers", 0)
-    in_parent = bool(options.pop("in_parent", False))
-    from multiros.envs.worker_layout import pin_option
-
-    pin_workers = pin_option(options.pop("pin_workers", False))
-    spin_wait_sec = options.pop("spin_wait_sec", None)
-    if workers is None:
-        from multiros.envs.worker_layout import default_layout
-
-        workers, in_parent = default_layout(num_envs, kwargs.get("sim_mode", "composed"), options, kwargs)
-    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 0:
-        raise ValueError(f"workers must be 0 (this process) or a number of worker processes, got {workers!r}")
-    if workers >= 1:
-        from multiros.envs.batch import BATCH_OPTIONS
-        from multiros.envs.worker_vector import WorkerVectorEnv
-
-        unknown = sorted(set(options) - set(BATCH_OPTIONS))
-        if unknown:
-            raise TypeError(f"unknown batched vector env option(s) {unknown}; accepted: {list(BATCH_OPTIONS)} "
-                            "and autoreset_mode, copy, workers, in_parent, pin_workers, spin_wait_sec")
-        return WorkerVectorEnv(env_id, num_envs, workers=workers, in_parent=in_parent, autoreset_mode=autoreset,
-                               copy=copy, batch_options=options, env_kwargs=kwargs, pin_workers=pin_workers,
-                               spin_wait_sec=spin_wait_sec)
-    return BatchedVectorEnv(make_env_batch(env_id, num_envs, options, **kwargs), autoreset_mode=autoreset, copy=copy)

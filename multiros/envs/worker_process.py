@@ -87,16 +87,17 @@ class _Share:
 
         import gymnasium as gym
 
-        from multiros.envs.vector import make_batched_vector_env
+        from multiros.envs.batch import make_env_batch
+        from multiros.envs.vector import BatchedVectorEnv
 
         spec, module = registration  # the ID's registration, and its entry point's module
         if module:  # the entry point's module: registers what its envs need (an upper layer's, an arm file's)
             importlib.import_module(module)
         if env_id not in gym.registry and spec is not None:
             gym.registry[env_id] = spec
-        self.vec: Any = make_batched_vector_env(env_id, num_envs, vector_options={
-            **options, "num_nodes": options.get("num_nodes", 1), "autoreset_mode": autoreset_mode,
-            "copy": False}, **env_kwargs)
+        # The share's own batched vector env (the factory checked the options: the batch's only)
+        batch = make_env_batch(env_id, num_envs, {**options, "num_nodes": options.get("num_nodes", 1)}, **env_kwargs)
+        self.vec: Any = BatchedVectorEnv(batch, autoreset_mode=autoreset_mode, copy=False)
         self.shared: SharedArrays | None = None
         self.owns_shared = False
         self.start = self.stop = 0
