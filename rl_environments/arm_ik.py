@@ -28,7 +28,8 @@ from typing import Protocol
 
 import numpy as np
 
-from multiros.utils.kinematics import KinematicChain, quat_from_matrix
+from multiros.utils.kinematics import KinematicChain
+from multiros.utils.rotations import quat_from_matrix
 
 __all__ = ["ChainTopDownIK", "NumericTopDownIK", "PlanarWristTopDownIK", "TopDownIK", "solve_each"]
 

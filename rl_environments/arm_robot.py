@@ -26,7 +26,8 @@ import numpy as np
 from multiros.envs import EnvError
 from multiros.envs.connection import SceneEntity
 from multiros.robot_state import RobotStates
-from multiros.utils.kinematics import KinematicChain, matrix_from_quat
+from multiros.utils.kinematics import KinematicChain
+from multiros.utils.rotations import matrix_from_quat
 from rl_environments.arm_ik import TopDownIK
 from rl_environments.arm_interface import ArmInterface
 

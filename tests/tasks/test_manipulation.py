@@ -209,7 +209,7 @@ def test_joint_delta_option(make):
 
 
 def test_top_down_ik_and_rotation_velocity():
-    from multiros.utils.kinematics import matrix_from_quat
+    from multiros.utils.rotations import matrix_from_quat
     from rl_environments.arm_registry import arm_of, chain_of, top_down_ik_of
 
     chain = chain_of(arm_of("RX200"))

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from multiros.utils.kinematics import KinematicChain, matrix_from_quat, quat_from_matrix
+from multiros.utils.kinematics import KinematicChain
+from multiros.utils.rotations import matrix_from_quat, quat_from_matrix
 from rl_environments.robots import abb_irb120_description as irb120
 from rl_environments.robots import rx200_description as rx200
 

@@ -30,7 +30,7 @@ from multiros.envs.real.robot_link import RobotLink
 from multiros.envs.real.safety import SafetyDecision, SafetyRules
 from multiros.envs.real.scene import RealScene, RealSceneOptions
 from multiros.robot_state import RobotState, RobotStates
-from multiros.utils.kinematics import quat_from_matrix
+from multiros.utils.rotations import quat_from_matrix
 
 __all__ = ["RealConnection"]
 
