@@ -61,8 +61,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 __all__ = ["ARM_FILE_FORMAT", "ArmFile", "ArmFileError", "GripperSpec", "RealSpec", "load_arm_file",
            "parse_arm_file"]
 
@@ -490,12 +488,17 @@ _PATH_KEYS = (("description", "uri"), ("description", "controllers"), ("scene", 
 
 
 def _read_yaml(source: Path) -> Any:
+    """The file's YAML within bounds (:mod:`multiros.utils.bounded_yaml`: size, depth, aliases expanded)."""
+    from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
+
     if not source.is_file():
         raise ArmFileError(f"{source}: arm file not found")
     try:
-        return yaml.safe_load(source.read_text())
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise ArmFileError(f"{source}: not valid YAML: {str(exc).splitlines()[0]}") from None
+        return read_yaml_bounded(source)
+    except YamlBoundsError as exc:
+        raise ArmFileError(f"{source}: {exc}") from None
+    except OSError as exc:
+        raise ArmFileError(f"{source}: cannot be read: {exc.strerror or type(exc).__name__}") from None
 
 
 def _read_extended(source: Path, chain: tuple[Path, ...]) -> Any:

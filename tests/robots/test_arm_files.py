@@ -120,6 +120,30 @@ def test_uniros_arms_registers_in_another_process(ur5e_data, tmp_path):
     assert first == "True" and f"Not registered: UNIROS_ARMS: {bad}: key 'description' is missing." in second
 
 
+def test_a_hostile_arm_file_is_one_quick_line(tmp_path):
+    """A 2 KB "billion laughs" (anchors whose aliases refer to each other), deep nesting and a huge file:
+    refused in one line before anything expands them, in UNIROS_ARMS too."""
+    import time
+
+    laughs = tmp_path / "laughs.yaml"
+    lol = ",".join(['"lol"'] * 9)
+    laughs.write_text(f"format: 1\nname: Laughs\na: &a [{lol}]\n" + "".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [{','.join(['*' + chr(97 + i)] * 9)}]\n" for i in range(8)))
+    deep = tmp_path / "deep.yaml"
+    deep.write_text("format: 1\nname: Deep\narm: " + "[" * 200 + "]" * 200 + "\n")
+    for path, message in ((laughs, "expands to more than 50,000 values"), (deep, "nested deeper than 64 levels")):
+        start = time.monotonic()
+        with pytest.raises(ArmFileError, match=message) as err:
+            load_arm_file(path)
+        assert str(err.value).startswith(str(path)) and "\n" not in str(err.value)
+        assert time.monotonic() - start < 5.0
+    code = "import uniros, rl_environments; print('ok')"
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "UNIROS_ARMS": str(laughs)},
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+    assert "expands to more than 50,000 values" in out.stderr and out.stderr.count("\n") == 1
+
+
 def test_a_broken_uniros_arms_entry_is_one_line_in_every_command(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("format: 1\nname: X\n")
