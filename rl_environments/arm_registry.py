@@ -257,17 +257,44 @@ def unregister_arm(name: str) -> None:
         env_ids.forget_arm_ids(sim_id, real_id)
     arm_envs.forget_arm(spec.name)
     if str(spec.path) in _ADDED_TO_ENVIRONMENT:
+        import json
+
         _ADDED_TO_ENVIRONMENT.discard(str(spec.path))
         kept = [p for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p and p != str(spec.path)]
         os.environ["UNIROS_ARMS"] = os.pathsep.join(kept)
+        if ARMS_JSON_VARIABLE in os.environ:
+            os.environ[ARMS_JSON_VARIABLE] = json.dumps([p for p in _json_paths() if p != str(spec.path)])
+
+
+#: Arm files for child processes whose paths hold ``os.pathsep`` (``UNIROS_ARMS`` cannot carry them): a JSON list.
+ARMS_JSON_VARIABLE = "UNIROS_ARMS_JSON"
+
+
+def _json_paths() -> list[str]:
+    import json
+
+    try:
+        value = json.loads(os.environ.get(ARMS_JSON_VARIABLE) or "[]")
+    except ValueError:
+        return []
+    return [p for p in value if isinstance(p, str) and p] if isinstance(value, list) else []
 
 
 def _remember_in_environment(path: Path) -> None:
-    """Add the file to ``UNIROS_ARMS`` so processes started from here (workers, child nodes) have it."""
+    """Add the file to ``UNIROS_ARMS`` so processes started from here (workers, child nodes) have it; a path
+    that holds ``os.pathsep`` (``:``) goes to ``UNIROS_ARMS_JSON`` instead, where no separator splits it."""
+    import json
+
+    text = str(path)
     current = [p for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p]
-    if str(path) not in current:
-        os.environ["UNIROS_ARMS"] = os.pathsep.join([*current, str(path)])
-        _ADDED_TO_ENVIRONMENT.add(str(path))
+    if os.pathsep in text:
+        listed = _json_paths()
+        if text not in listed:
+            os.environ[ARMS_JSON_VARIABLE] = json.dumps([*listed, text])
+            _ADDED_TO_ENVIRONMENT.add(text)
+    elif text not in current:
+        os.environ["UNIROS_ARMS"] = os.pathsep.join([*current, text])
+        _ADDED_TO_ENVIRONMENT.add(text)
 
 
 def registered_arms() -> dict[str, ArmFile]:
@@ -284,7 +311,8 @@ def arm_of(name: str) -> ArmFile:
 
 
 def register_env_arms(paths: str | None = None, *, strict: bool = True) -> list[str]:
-    """Register the arm files of ``UNIROS_ARMS`` (or ``paths``, separated by ``os.pathsep``); the IDs.
+    """Register the arm files of ``UNIROS_ARMS`` and ``UNIROS_ARMS_JSON`` (or ``paths``, separated by
+    ``os.pathsep``); the IDs.
 
     Args:
         strict: raise :class:`ArmFileError` on the first file that cannot be registered. Otherwise (at
@@ -293,7 +321,8 @@ def register_env_arms(paths: str | None = None, *, strict: bool = True) -> list[
     """
     text = os.environ.get("UNIROS_ARMS", "") if paths is None else paths
     out: list[str] = []
-    for item in text.split(os.pathsep):
+    items = [*text.split(os.pathsep), *(_json_paths() if paths is None else [])]
+    for item in items:
         if item.strip():
             path = Path(item.strip()).expanduser()
             if not any(spec.path == path.resolve() for spec in _ARMS.values()):  # not registered yet

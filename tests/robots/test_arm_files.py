@@ -120,6 +120,27 @@ def test_uniros_arms_registers_in_another_process(ur5e_data, tmp_path):
     assert first == "True" and f"Not registered: UNIROS_ARMS: {bad}: key 'description' is missing." in second
 
 
+def test_an_arm_file_whose_path_holds_the_separator_reaches_child_processes(ur5e_data, write, tmp_path):
+    """UNIROS_ARMS is split at ':'; a file in a folder named 'a:b' reaches the processes this one starts
+    (vector-env workers, nodes) through UNIROS_ARMS_JSON instead."""
+    ur5e_data["name"], ur5e_data["robot_name"] = "ColonArm", "colonarm"
+    folder = tmp_path / "runs:2026"
+    folder.mkdir()
+    path = folder / "colon.yaml"
+    path.write_text(yaml.safe_dump(ur5e_data, sort_keys=False))
+    register_arm(path)
+    try:
+        assert str(path) not in os.environ["UNIROS_ARMS"]
+        code = "import rl_environments, gymnasium as gym; print('ColonArmPnPSim-v0' in gym.registry)"
+        out = subprocess.run([sys.executable, "-c", code], env=dict(os.environ), capture_output=True, text=True,
+                             timeout=120)
+        assert out.returncode == 0 and out.stdout.strip() == "True", out.stderr
+        assert out.stderr == ""
+    finally:
+        unregister_arm("ColonArm")
+    assert str(path) not in os.environ.get("UNIROS_ARMS_JSON", "")
+
+
 def test_a_hostile_arm_file_is_one_quick_line(tmp_path):
     """A 2 KB "billion laughs" (anchors whose aliases refer to each other), deep nesting and a huge file:
     refused in one line before anything expands them, in UNIROS_ARMS too."""
