@@ -265,6 +265,7 @@ _ARM = ("joints", "base_link", "ee_link", "tcp_offset", "home", "controller", "c
         "closing_axis", "ik_seed", "top_down_ik")
 _IK = ("solver", "shoulder_height", "upper_arm", "forearm", "tip")
 _GRIPPER = ("joints", "mimic", "closed", "open", "controller", "reset_mimic", "independent")
+_MAX_JOINT_DELTA = 1.0  # rad: a per-command joint change above this is no safety cap
 _MAX_TCP_OFFSET = 0.5  # m: a tool centre point further from its link is a mistake (units, a wrong link)
 _CAMERA = ("render_camera", "view", "topics", "defaults")
 _VIEW = ("lookat", "distance", "azimuth", "elevation")
@@ -447,6 +448,13 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         floor_z=real_sec.number("floor_z", 0.02),
         max_joint_delta=real_sec.number("max_joint_delta", 0.15),
     )
+    if not 0 < real.max_joint_delta <= _MAX_JOINT_DELTA:  # the robot's per-command safety cap
+        real_sec.fail("real.max_joint_delta", f"is {real.max_joint_delta:g} rad: the largest joint change one "
+                                              f"command may ask of the robot must be in (0, {_MAX_JOINT_DELTA:g}]")
+    inverted = [i for i in range(3) if real.workspace_min[i] > real.workspace_max[i]]
+    if inverted:
+        real_sec.fail("real.workspace_min", f"is above real.workspace_max at index {inverted[0]}: the safety box "
+                                            "is inverted")
 
     training = top.raw("training", {})
     if not isinstance(training, dict):

@@ -6,6 +6,7 @@ Task configs live in the repository's top-level ``config/`` folder, installed as
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
@@ -38,13 +39,14 @@ def _check_value(value: Any, expected: Any, key: str, source: str | Path) -> Any
         if (
             not isinstance(value, list)
             or len(value) != length
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
         ):
-            raise TaskConfigError(f"{source}: key {key!r} must be a list of {length} numbers, got {value!r}")
+            raise TaskConfigError(f"{source}: key {key!r} must be a list of {length} finite numbers, got "
+                                  f"{_short(value)}")
         return [float(v) for v in value]
     if expected is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise TaskConfigError(f"{source}: key {key!r} must be a number, got {value!r}")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise TaskConfigError(f"{source}: key {key!r} must be a finite number, got {_short(value)}")
         return float(value)
     if expected is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -53,6 +55,34 @@ def _check_value(value: Any, expected: Any, key: str, source: str | Path) -> Any
     if not isinstance(value, expected):
         raise TaskConfigError(f"{source}: key {key!r} must be of type {expected.__name__}, got {value!r}")
     return value
+
+
+def _short(value: Any) -> str:
+    """A value as an error line shows it: at most 80 characters (a file may hold a million numbers)."""
+    text = repr(value)
+    return text if len(text) <= 80 else f"{text[:77]}..."
+
+
+#: Bounds a task config's values must keep, beyond their types: (low key, high key) element-wise, and
+#: keys that must be above zero. A value outside them registers and fails later in numpy or gymnasium.
+ORDERED_PAIRS = (("min_joint_pos", "max_joint_pos"), ("position_ee_min", "position_ee_max"),
+                 ("position_goal_min", "position_goal_max"), ("object_xy_min", "object_xy_max"),
+                 ("goal_xy_min", "goal_xy_max"))
+POSITIVE = ("delta_coeff", "ee_delta_coeff", "reach_tolerance", "object_half_size", "distance_threshold",
+            "max_joint_vel", "max_linear_velocity", "max_angular_velocity")
+
+
+def _check_bounds(out: Mapping[str, Any], source: str | Path) -> None:
+    for low, high in ORDERED_PAIRS:
+        if low in out and high in out and isinstance(out[low], list) and isinstance(out[high], list):
+            inverted = [i for i, (a, b) in enumerate(zip(out[low], out[high])) if a > b]
+            if inverted:
+                i = inverted[0]
+                raise TaskConfigError(f"{source}: key {low!r} is above {high!r} at index {i} "
+                                      f"({out[low][i]:g} > {out[high][i]:g}): the box is inverted")
+    for key in POSITIVE:
+        if key in out and isinstance(out[key], float) and not out[key] > 0:
+            raise TaskConfigError(f"{source}: key {key!r} must be above zero, got {out[key]:g}")
 
 
 def vector(length: int) -> tuple[str, int]:
@@ -97,6 +127,7 @@ def check_task_config(data: Mapping[str, Any], schema: Mapping[str, Any], *, sou
         if key not in data:
             raise TaskConfigError(f"{source}: missing key {key!r}")
         out[key] = _check_value(data[key], expected, key, source)
+    _check_bounds(out, source)
     return out
 
 

@@ -209,13 +209,20 @@ BAD = [
     ("arm.approach_axis", "w", "must be one of x, y, z"),
     ("gripper.joints", ["left_finger_joint", "elbow_joint"], "names arm joints ['elbow_joint']"),
     ("reach.reach_tolerence", 0.02, "did you mean 'reach_tolerance'?"),
-    ("reach.delta_coeff", "big", "key 'delta_coeff' must be a number"),
+    ("reach.delta_coeff", "big", "key 'delta_coeff' must be a finite number"),
     ("real.gripper_interface", "magic", "real.gripper_interface' must be one of"),
     ("training.Reach", {}, "did you mean 'Reacher'?"),
     ("arm.tcp_offset", [0.0, 0.0], "key 'arm.tcp_offset' must be a list of 3 finite numbers"),
     ("arm.tcp_offset", [0.0, 0.0, 120.0], "more than 0.5 m from arm.ee_link along an axis; it is in metres"),
     ("arm.tcp_offset", [0.0, float("nan"), 0.0], "must be a list of 3 finite numbers"),
     ("gripper.independent", "yes", "key 'gripper.independent' must be true or false"),
+    ("reach.delta_coeff", float("inf"), "key 'delta_coeff' must be a finite number, got inf"),
+    ("reach.min_joint_pos", [0.0, 0.0, 0.0, float("nan"), 0.0, 0.0], "must be a list of 6 finite numbers"),
+    ("reach.reach_tolerance", -0.02, "key 'reach_tolerance' must be above zero"),
+    ("reach.position_goal_min", [2.0, 0.0, 0.0], "'position_goal_min' is above 'position_goal_max' at index 0"),
+    ("manipulation.object_xy_min", [9.0, 0.0], "'object_xy_min' is above 'object_xy_max' at index 0"),
+    ("real.max_joint_delta", 1.0e9, "must be in (0, 1]"),
+    ("real.workspace_min", [5.0, -1.0, 0.0], "real.workspace_min' is above real.workspace_max at index 0"),
 ]
 
 

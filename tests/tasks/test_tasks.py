@@ -239,7 +239,7 @@ def test_bad_task_config_names_key_and_file(tmp_path):
     with pytest.raises(TaskConfigError, match=r"cfg\.yaml.*'reach_tolerance'.*number"):
         load_task_config(bad, {"reach_tolerance": float}, section="rx200")
     bad.write_text("rx200:\n  position_goal_min: [0, 1]\n")
-    with pytest.raises(TaskConfigError, match="'position_goal_min'.*3 numbers"):
+    with pytest.raises(TaskConfigError, match="'position_goal_min'.*3 finite numbers"):
         load_task_config(bad, {"position_goal_min": vector(3)}, section="rx200")
     with pytest.raises(TaskConfigError, match="missing key 'reach_tolerance'"):
         load_task_config(bad, {"reach_tolerance": float}, section="rx200")
