@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import pytest
 import yaml
@@ -11,7 +10,7 @@ import yaml
 import rl_environments
 from rl_environments.arm_registry import register_arm, unregister_arm
 
-SHIPPED = Path(rl_environments.__file__).resolve().parent.parent / "config" / "arms"
+SHIPPED = rl_environments.shipped_arm_file("ur5e.yaml").parent  # type: ignore[union-attr] - a checkout's or an install's
 TUPLES = ("ENV_IDS", "REAL_ENV_IDS", "GOAL_ENV_IDS", "REAL_GOAL_ENV_IDS", "MANIPULATION_ENV_IDS")
 
 
