@@ -146,6 +146,13 @@ def arm_env_ids(spec: ArmFile) -> dict[str, tuple[str, str, str]]:
     return out
 
 
+def _first_line(exc: BaseException, limit: int = 300) -> str:
+    """An error's first line, at most ``limit`` characters: a message may quote a whole file."""
+    text = str(exc).strip()
+    line = text.splitlines()[0] if text else type(exc).__name__
+    return line if len(line) <= limit else f"{line[:limit - 3]}..."
+
+
 def check_description(spec: ArmFile) -> None:
     """The file's joints and links against its description: the chain exists and is the arm's joints."""
     try:
@@ -153,14 +160,14 @@ def check_description(spec: ArmFile) -> None:
     except ArmFileError:
         raise
     except ValueError as exc:  # a link that is not there, or no chain between them
-        msg = str(exc).strip().splitlines()[0]
+        msg = _first_line(exc)
         key = ("arm.ee_link" if "tip_link" in msg or "no kinematic chain" in msg else
                "arm.base_link" if msg.startswith("base_link") else
                "arm.joints" if "joint" in msg else "description.uri")
         raise ArmFileError(f"{spec.path}: key {key!r}: {msg}") from None
     except Exception as exc:  # xacro, a missing package, a broken URDF: one line naming the file and key
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ArmFileError(f"{spec.path}: key 'description.uri' ({spec.description_uri}): {first}") from None
+        raise ArmFileError(f"{spec.path}: key 'description.uri' ({spec.description_uri}): {_first_line(exc)}") \
+            from None
     if tuple(chain.joint_names) != spec.joints:
         raise ArmFileError(
             f"{spec.path}: key 'arm.joints' {list(spec.joints)} are not the moving joints from "

@@ -139,6 +139,8 @@ def _parse_joint(elem: ET.Element) -> _Joint:
 def _load_urdf_text(source: str | os.PathLike[str], xacro_args: dict[str, str] | None) -> str:
     if isinstance(source, str) and source.lstrip().startswith("<"):
         return source
+    if isinstance(source, str) and ("\n" in source or len(source) > 4096):  # text, not a path: never echo it whole
+        raise ValueError(f"URDF text is not XML: it starts with {source.lstrip()[:40]!r}")
     path = Path(source)
     if not path.is_file():
         raise FileNotFoundError(f"URDF file {str(path)!r} not found (pass a path or the URDF XML text)")

@@ -141,6 +141,18 @@ def test_an_arm_file_whose_path_holds_the_separator_reaches_child_processes(ur5e
     assert str(path) not in os.environ.get("UNIROS_ARMS_JSON", "")
 
 
+def test_a_description_that_is_not_xml_is_named_not_printed(ur5e_data, write, tmp_path):
+    """A description URI pointing at a 140 KB text file: one short line naming the key, not the file's text."""
+    (tmp_path / "notxml.urdf").write_text("SECRET " * 20_000)
+    ur5e_data["name"], ur5e_data["description"]["uri"], ur5e_data["description"]["xacro_args"] = (
+        "NotXml", "notxml.urdf", {})
+    with pytest.raises(ArmFileError) as err:
+        register_arm(write(ur5e_data, "notxml.yaml"))
+    message = str(err.value)
+    assert "key 'description.uri'" in message and "is not XML" in message
+    assert len(message) < 400 and message.count("SECRET") <= 6
+
+
 def test_a_hostile_arm_file_is_one_quick_line(tmp_path):
     """A 2 KB "billion laughs" (anchors whose aliases refer to each other), deep nesting and a huge file:
     refused in one line before anything expands them, in UNIROS_ARMS too."""
