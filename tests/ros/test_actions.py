@@ -329,3 +329,23 @@ def test_a_feedback_variant_must_share_goal_and_result(ctx: ros.Context) -> None
     with pytest.raises(ValueError, match="in more than its feedback"):
         ActionServer(node, SimulateSteps, "/variant", Behaviour(), feedback_variants=[(other, lambda fb: fb)])
     assert not [name for name, _ in node.get_topic_names_and_types() if name.startswith("/variant")]
+
+
+def test_a_feedback_flood_cannot_hold_a_result_back() -> None:
+    """At most MAX_QUEUED_FEEDBACK feedback messages wait (the oldest dropped); a result is never dropped,
+    so a flood of feedback for a live goal delays its result by at most that many callbacks."""
+    import threading as _threading
+
+    from multiros.ros.action.client import MAX_QUEUED_FEEDBACK, _FeedbackDelivery
+
+    delivery = _FeedbackDelivery("/flood")
+    gate, seen, done = _threading.Event(), [], _threading.Event()
+    delivery.put(lambda: gate.wait(10.0), feedback=True)  # the thread is busy while the flood arrives
+    for i in range(20_000):
+        delivery.put(lambda i=i: seen.append(i), feedback=True)
+    delivery.put(done.set)  # the goal's result, behind the flood
+    gate.set()
+    assert done.wait(10.0)
+    delivery.close()
+    assert delivery.dropped >= 20_000 - MAX_QUEUED_FEEDBACK
+    assert len(seen) <= MAX_QUEUED_FEEDBACK and seen == sorted(seen) and seen[-1] == 19_999  # the newest kept

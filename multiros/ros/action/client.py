@@ -45,6 +45,8 @@ if TYPE_CHECKING:
 __all__ = ["ActionClient", "ClientGoalHandle"]
 
 _log = logging.getLogger(__name__)
+#: Feedback messages that may wait for their callbacks; a newer one drops the oldest.
+MAX_QUEUED_FEEDBACK = 1000
 
 
 class _FeedbackDelivery:
@@ -59,18 +61,26 @@ class _FeedbackDelivery:
 
     def __init__(self, name: str) -> None:
         self._name = name
-        self._items: deque[Callable[[], None]] = deque()
+        self._items: deque[tuple[bool, Callable[[], None]]] = deque()  # (feedback, deliver)
+        self._feedback_queued = 0
+        self.dropped = 0  # feedback messages dropped because MAX_QUEUED_FEEDBACK were waiting
         self._cond = threading.Condition()
         self._thread: threading.Thread | None = None
         self._closed = False
 
-    def put(self, deliver: Callable[[], None]) -> None:
+    def put(self, deliver: Callable[[], None], *, feedback: bool = False) -> None:
         """Queue ``deliver`` behind everything queued before it (any thread; never blocks long).
-        Once closed, run it at once: feedback then finds no callback, and a result still completes."""
+        Once closed, run it at once: feedback then finds no callback, and a result still completes.
+        At most :data:`MAX_QUEUED_FEEDBACK` feedback messages wait: a newer one drops the oldest (a flood
+        of them, forged or not, must not hold a goal's result back); results are never dropped."""
         with self._cond:
             closed = self._closed
             if not closed:
-                self._items.append(deliver)
+                if feedback:
+                    if self._feedback_queued >= MAX_QUEUED_FEEDBACK:
+                        self._drop_oldest_feedback()
+                    self._feedback_queued += 1
+                self._items.append((feedback, deliver))
                 if self._thread is None:
                     self._thread = threading.Thread(target=self._run, name=f"feedback {self._name}", daemon=True)
                     self._thread.start()
@@ -85,11 +95,23 @@ class _FeedbackDelivery:
                     self._cond.wait()
                 if not self._items:
                     return  # closed, and everything queued before closing was delivered
-                deliver = self._items.popleft()
+                feedback, deliver = self._items.popleft()
+                self._feedback_queued -= feedback
             try:
                 deliver()
             except Exception:  # noqa: BLE001 - the thread must outlive a failing callback
                 _log.exception("a feedback callback of action '%s' raised", self._name)
+
+    def _drop_oldest_feedback(self) -> None:
+        for i, (feedback, _) in enumerate(self._items):
+            if feedback:
+                del self._items[i]
+                self._feedback_queued -= 1
+                if self.dropped == 0:
+                    _log.warning("action '%s': more than %d feedback messages waiting; dropping the oldest",
+                                 self._name, MAX_QUEUED_FEEDBACK)
+                self.dropped += 1
+                return
 
     def close(self) -> None:
         """Deliver what is queued, then stop the thread (waits for it unless called on it)."""
@@ -353,13 +375,15 @@ class ActionClient:
     # -- topics (run in the delivering thread) ------------------------------------------------
     def _on_feedback(self, msg: Any) -> None:
         gid = bytes(msg.goal_id.uuid)
+        if gid not in self._feedback_callbacks:  # no goal of ours waits for it (forged, or a goal that ended)
+            return
 
         def deliver() -> None:
             callback = self._feedback_callbacks.get(gid)
             if callback is not None:
                 callback(msg)
 
-        self._feedback.put(deliver)
+        self._feedback.put(deliver, feedback=True)
 
     def _on_status(self, msg: Any) -> None:
         self._last_status = msg
