@@ -10,7 +10,11 @@ which type it is. Nodes start them on transports whose graph ROS tools reach
 (``Transport.serves_parameters``); ``start_parameter_services=False`` leaves them out, as in rclpy.
 
 Requests are hostile input like any other: an unknown type code or a value that does not fit its
-type is a refused parameter with the reason, never an exception out of the service.
+type is a refused parameter with the reason, never an exception out of the service. What one request
+may cost is bounded, so a flood takes its turn without holding the node's other services back: at most
+:data:`MAX_NAMES` names or parameters a request (more: every one refused, or empty answers), values of
+at most :data:`MAX_ARRAY` elements and :data:`MAX_TEXT` characters, reasons of at most
+:data:`MAX_REASON` characters.
 """
 
 from __future__ import annotations
@@ -24,7 +28,8 @@ from multiros.ros.parameters import Parameter
 if TYPE_CHECKING:
     from multiros.ros.node import Node
 
-__all__ = ["PARAMETER_SERVICES", "ParameterServices", "from_value_msg", "to_value_msg"]
+__all__ = ["MAX_ARRAY", "MAX_NAMES", "MAX_REASON", "MAX_TEXT", "PARAMETER_SERVICES", "ParameterServices",
+           "from_value_msg", "to_value_msg"]
 
 #: Name under the node (``~/<name>``) -> service type.
 PARAMETER_SERVICES: dict[str, str] = {
@@ -36,6 +41,10 @@ PARAMETER_SERVICES: dict[str, str] = {
     "set_parameters_atomically": "rcl_interfaces/srv/SetParametersAtomically",
 }
 _SEPARATOR = "."
+MAX_NAMES = 256  # names or parameters one request may carry
+MAX_ARRAY = 10_000  # elements of an array value
+MAX_TEXT = 65_536  # characters of a string value, bytes of a byte array
+MAX_REASON = 300  # characters of a refusal's reason
 # ParameterValue's field for each type code (rcl_interfaces/msg/ParameterType).
 _FIELDS = {1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value", 5: "byte_array_value",
            6: "bool_array_value", 7: "integer_array_value", 8: "double_array_value", 9: "string_array_value"}
@@ -80,6 +89,25 @@ def from_value_msg(name: str, msg: Any) -> Parameter:
         return Parameter(name, Parameter.Type(code), value)
     except Exception as exc:  # noqa: BLE001 - whatever the value was, say so
         raise ValueError(f"parameter '{name}': {exc}") from exc
+
+
+def _short(reason: str) -> str:
+    return reason if len(reason) <= MAX_REASON else f"{reason[:MAX_REASON - 3]}..."
+
+
+def _check_size(name: str, msg: Any) -> None:
+    """Refuse a value larger than the bounds before it is decoded (the wire gave it already)."""
+    code = int(msg.type)
+    if code == 4 and len(msg.string_value) > MAX_TEXT:
+        raise ValueError(f"parameter '{name[:80]}': a string of {len(msg.string_value):,} characters; at most "
+                         f"{MAX_TEXT:,}")
+    if code in _FIELDS and code >= 5:
+        size = len(getattr(msg, _FIELDS[code]))
+        limit = MAX_TEXT if code == 5 else MAX_ARRAY
+        if size > limit:
+            raise ValueError(f"parameter '{name[:80]}': {size:,} elements; at most {limit:,}")
+        if code == 9 and any(len(v) > MAX_TEXT for v in msg.string_array_value):
+            raise ValueError(f"parameter '{name[:80]}': a string longer than {MAX_TEXT:,} characters")
 
 
 def list_names(names: Iterable[str], prefixes: list[str], depth: int) -> tuple[list[str], list[str]]:
@@ -127,6 +155,8 @@ class ParameterServices:
         return self.node._parameters
 
     def _describe(self, request: Any, response: Any) -> Any:
+        if len(request.names) > MAX_NAMES:  # refused: no descriptors (a request of at most MAX_NAMES is answered)
+            return response
         store = self._store()
         cls = get_message("rcl_interfaces/msg/ParameterDescriptor")
         for name in request.names:
@@ -142,11 +172,15 @@ class ParameterServices:
         return response
 
     def _types(self, request: Any, response: Any) -> Any:
+        if len(request.names) > MAX_NAMES:
+            return response
         values = self._store().values
         response.types = [int(values[n].type_) if n in values else 0 for n in request.names]
         return response
 
     def _get(self, request: Any, response: Any) -> Any:
+        if len(request.names) > MAX_NAMES:
+            return response
         values = self._store().values
         response.values = [to_value_msg(values[n]) if n in values else to_value_msg(Parameter(n))
                            for n in request.names]
@@ -163,6 +197,7 @@ class ParameterServices:
         errors: list[str] = []
         for msg in msgs:
             try:
+                _check_size(msg.name, msg.value)
                 param = from_value_msg(msg.name, msg.value)
                 if param.type_ == Parameter.Type.NOT_SET:
                     raise ValueError(f"parameter '{msg.name}': a value of type NOT_SET would undeclare it, which "
@@ -171,26 +206,36 @@ class ParameterServices:
                 errors.append("")
             except ValueError as exc:
                 params.append(None)
-                errors.append(str(exc))
+                errors.append(_short(str(exc)))
         return params, errors
 
     def _set(self, request: Any, response: Any) -> Any:
         cls = get_message("rcl_interfaces/msg/SetParametersResult")
+        if len(request.parameters) > MAX_NAMES:  # every one refused, at once
+            refused = cls(successful=False, reason=f"refused: a request sets at most {MAX_NAMES} parameters, this "
+                                                   f"one {len(request.parameters):,}")
+            response.results = [refused] * len(request.parameters)
+            return response
         params, errors = self._parameters(request.parameters)
         for param, error in zip(params, errors):
             if param is None:
                 response.results.append(cls(successful=False, reason=error))
                 continue
             result = self.node.set_parameters([param])[0]
-            response.results.append(cls(successful=bool(result.successful), reason=result.reason))
+            response.results.append(cls(successful=bool(result.successful), reason=_short(result.reason)))
         return response
 
     def _set_atomically(self, request: Any, response: Any) -> Any:
+        if len(request.parameters) > MAX_NAMES:
+            response.result.successful = False
+            response.result.reason = (f"refused: a request sets at most {MAX_NAMES} parameters, this one "
+                                      f"{len(request.parameters):,}")
+            return response
         params, errors = self._parameters(request.parameters)
         bad = [e for e in errors if e]
         if bad:
-            response.result.successful, response.result.reason = False, "; ".join(bad)
+            response.result.successful, response.result.reason = False, _short("; ".join(bad))
             return response
         result = self.node.set_parameters_atomically([p for p in params if p is not None])
-        response.result.successful, response.result.reason = bool(result.successful), result.reason
+        response.result.successful, response.result.reason = bool(result.successful), _short(result.reason)
         return response

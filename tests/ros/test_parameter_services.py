@@ -96,3 +96,29 @@ def test_nodes_serve_them_only_where_ros_tools_reach() -> None:
         assert ros.Node("n", context=ctx).get_service_names_and_types() == []
     finally:
         ctx.try_shutdown()
+
+
+def test_what_one_request_may_cost_is_bounded(served) -> None:
+    """A flood takes its turn: more than MAX_NAMES names or parameters is refused at once, huge values are
+    refused before they are decoded, and no reason is longer than MAX_REASON characters."""
+    import time
+
+    from multiros.ros.parameter_services import MAX_ARRAY, MAX_NAMES, MAX_REASON
+
+    node, call = served
+    many = [ParamMsg(name=f"flood.p{i}", value=Value(type=2, integer_value=i)) for i in range(10_000)]
+    start = time.monotonic()
+    results = call("set_parameters", parameters=many).results
+    assert len(results) == 10_000 and not any(r.successful for r in results)
+    assert f"at most {MAX_NAMES} parameters" in results[0].reason
+    assert not call("set_parameters_atomically", parameters=many).result.successful
+    assert list(call("get_parameters", names=[f"p{i}" for i in range(MAX_NAMES + 1)]).values) == []
+    assert list(call("describe_parameters", names=[f"p{i}" for i in range(MAX_NAMES + 1)]).descriptors) == []
+    assert time.monotonic() - start < 5.0
+    huge = ParamMsg(name="gains.kp", value=Value(type=7, integer_array_value=list(range(MAX_ARRAY + 1))))
+    (result,) = call("set_parameters", parameters=[huge]).results
+    assert not result.successful and f"at most {MAX_ARRAY:,}" in result.reason
+    long_name = ParamMsg(name="x" * 100_000, value=Value(type=1, bool_value=True))
+    (result,) = call("set_parameters", parameters=[long_name]).results
+    assert not result.successful and len(result.reason) <= MAX_REASON
+    assert node.get_parameter("gains.kp").value == 10.0 and "flood.p0" not in node._parameters.values
