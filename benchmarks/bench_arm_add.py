@@ -21,7 +21,7 @@ import time
 import numpy as np
 
 import uniros
-from rl_environments.arm_inspect import add_arm
+from rl_environments.arm_add import add_arm
 from rl_environments.manipulation_scripted import run_episode, scripted_policy
 
 

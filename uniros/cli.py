@@ -323,7 +323,7 @@ def _cmd_new(args: argparse.Namespace) -> int:
 # -- uniros arm add (issue 34) ------------------------------------------------------------------------
 def _cmd_arm_add(args: argparse.Namespace) -> int:
     from multiros.hardware.robot_spec import parse_xacro_args
-    from rl_environments.arm_inspect import add_arm
+    from rl_environments.arm_add import add_arm
 
     xacro_args = parse_xacro_args(args.xacro_arg)
     if not args.no_check:
