@@ -485,8 +485,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 128 + int(getattr(exc, "signum", 2))
     except (TrainingError, ValueError, LookupError, FileNotFoundError, EnvError, SimulationNodeError) as exc:
         # A user's mistake or a missing robot/node: one or two lines, no traceback.
-        print(f"uniros {args.command}: error: {_one_message(exc)}", file=sys.stderr)
+        print(f"uniros {args.command}: error: {_bounded(_one_message(exc))}", file=sys.stderr)
         return 2
+
+
+_MAX_ERROR = 2000  # characters of an error line: a message may quote something hostile a file or the wire held
+
+
+def _bounded(text: str) -> str:
+    """An error message cut to ``_MAX_ERROR`` characters, saying how much was left out."""
+    return text if len(text) <= _MAX_ERROR else f"{text[:_MAX_ERROR]}... ({len(text) - _MAX_ERROR:,} characters more)"
 
 
 def _one_message(exc: BaseException) -> str:
