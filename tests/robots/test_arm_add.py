@@ -354,33 +354,32 @@ def test_bad_descriptions_are_one_line_errors_and_write_nothing(workspace, capsy
     assert not out.exists() or not any(out.iterdir())
 
 
-def test_fingers_without_collision_geometry_are_reach_only_in_one_line(workspace, capsys, tmp_path):
-    """A vendor's hand whose fingers carry visuals only (franka_ros2's Panda at 0.1.13): nothing in the
-    simulation can touch the cube, so the file is reach only and arm add says why on its own line."""
-    workspace.append("ArmAddBareFingers")
-    code = cli(["arm", "add", PANDA, "--xacro-arg", "hand=true", "--xacro-arg", "finger_collision=false",
-                "--name", "ArmAddBareFingers", "--output", str(tmp_path)])
-    printed = capsys.readouterr()
-    assert code == 0, printed.err
-    line = [x for x in printed.out.splitlines() if x.startswith("reach only:")]
-    assert line == ["reach only: the fingers of ['panda_finger_joint1', 'panda_finger_joint2'] have no <collision> "
-                    "geometry, so the simulation cannot grasp with them: reach only; add collision geometry to the "
-                    "finger links"]
-    assert "ArmAddBareFingersPushSim-v0" not in printed.out and "ArmAddBareFingersReacherSim-v0" in printed.out
+REACH_ONLY = {  # a gripper arm add cannot make grasp: (description, xacro arguments, the line it prints)
+    # a vendor's hand whose fingers carry visuals only (franka_ros2's Panda at 0.1.13): nothing can touch the cube
+    "ArmAddBareFingers": (PANDA, ("hand=true", "finger_collision=false"),
+                          "the fingers of ['panda_finger_joint1', 'panda_finger_joint2'] have no <collision> geometry, "
+                          "so the simulation cannot grasp with them: reach only; add collision geometry to the finger "
+                          "links"),
+    # open fingers leaving less than the smallest cube needs (jaws colliding as their convex hulls, a short stroke)
+    "ArmAddNarrow": (TWOFINGER, ("finger_stroke=0.005",),
+                     "the open fingers' collision geometry leaves 1.2 cm between them (MuJoCo collides a mesh as its "
+                     "convex hull), too little for the smallest cube (1.6 cm): reach only; fix: give the finger links "
+                     "primitive <collision> pads on their inner faces"),
+}
 
 
-def test_fingers_that_leave_no_room_for_a_cube_are_reach_only_in_one_line(workspace, capsys, tmp_path):
-    """Fingers whose open geometry leaves less than the smallest cube needs (jaws colliding as their convex
-    hulls, a short stroke): reach only, and why, with the fix."""
-    workspace.append("ArmAddNarrow")
-    code = cli(["arm", "add", TWOFINGER, "--xacro-arg", "finger_stroke=0.005", "--name", "ArmAddNarrow",
+@pytest.mark.parametrize("name", list(REACH_ONLY))
+def test_a_gripper_that_cannot_grasp_is_reach_only_in_one_line(workspace, capsys, tmp_path, name):
+    """The file is written for reach, no push or pick-and-place ID exists, and arm add says why on a line
+    of its own, with the fix."""
+    uri, args, why = REACH_ONLY[name]
+    workspace.append(name)
+    code = cli(["arm", "add", uri, *(part for arg in args for part in ("--xacro-arg", arg)), "--name", name,
                 "--output", str(tmp_path)])
     printed = capsys.readouterr()
     assert code == 0, printed.err
-    line = [x for x in printed.out.splitlines() if x.startswith("reach only:")]
-    assert line == ["reach only: the open fingers' collision geometry leaves 1.2 cm between them (MuJoCo collides a "
-                    "mesh as its convex hull), too little for the smallest cube (1.6 cm): reach only; fix: give the "
-                    "finger links primitive <collision> pads on their inner faces"]
+    assert [x for x in printed.out.splitlines() if x.startswith("reach only:")] == [f"reach only: {why}"]
+    assert f"{name}PushSim-v0" not in printed.out and f"{name}ReacherSim-v0" in printed.out
 
 
 def test_missing_package_file_and_xacro_argument_are_one_line_errors(workspace, capsys, tmp_path):
