@@ -17,7 +17,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from rl_environments.arm_file import ArmFileError
+from rl_environments.arm_file import ArmFileError, error_line
 
 __all__ = ["ArmCheck", "TaskCheck", "check_arm", "refusal", "CHECK_TASKS", "PASS_RATE"]
 
@@ -109,7 +109,7 @@ def check_arm(path: str | Path, *, seeds: Sequence[int] = (0, 1, 2), tasks: Sequ
             try:
                 env = uniros.make(result.env_id, ee_action_type=True)
             except Exception as exc:  # noqa: BLE001 - any failure to make it is the finding, in one line
-                result.error = f"cannot be made: {_first_line(exc)}"
+                result.error = f"cannot be made: {error_line(exc)}"
                 continue
             try:
                 policy = scripted_policy(env)
@@ -121,7 +121,7 @@ def check_arm(path: str | Path, *, seeds: Sequence[int] = (0, 1, 2), tasks: Sequ
                     else:
                         result.failures.append(outcome["truncated_reason"] or "goal not met in time")
             except Exception as exc:  # noqa: BLE001 - as above
-                result.error = f"failed in an episode: {_first_line(exc)}"
+                result.error = f"failed in an episode: {error_line(exc)}"
             finally:
                 env.close()
     finally:
@@ -130,11 +130,6 @@ def check_arm(path: str | Path, *, seeds: Sequence[int] = (0, 1, 2), tasks: Sequ
             if before is not None:
                 register_arm(before.path, replace=True, check_chain=False, tell_children=False)
     return ArmCheck(spec.name, results, time.perf_counter() - start)
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return (text.splitlines()[0] if text else type(exc).__name__)[:300]
 
 
 def refusal(check: ArmCheck) -> ArmFileError:

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from rl_environments.arm_file import ArmFileError
+from rl_environments.arm_file import MAX_MESSAGE_LINE, ArmFileError, error_line
 
 __all__ = ["Inspection", "inspect_description"]
 
@@ -36,11 +36,6 @@ _REVOLUTE = ("revolute", "continuous")
 
 def _fail(where: str, message: str) -> None:
     raise ArmFileError(f"{where}: {message}")
-
-
-def _first(exc: BaseException) -> str:
-    text = str(exc).strip()
-    return text.splitlines()[0] if text else type(exc).__name__
 
 
 @dataclass
@@ -182,13 +177,13 @@ def inspect_description(uri: str, xacro_args: Mapping[str, str] | None = None) -
     try:
         path = index.resolve_uri(uri) if "://" in uri else Path(uri).expanduser().absolute()
     except SimError as exc:
-        _fail(uri, _first(exc))
+        _fail(uri, error_line(exc, MAX_MESSAGE_LINE))
     if not path.is_file():
         _fail(uri, f"file {str(path)!r} not found; fix: give an existing URDF or xacro file")
     try:
         desc = load_description(str(path), args=args, index=index)
     except SimError as exc:
-        text = _first(exc)
+        text = error_line(exc, MAX_MESSAGE_LINE)
         missing = bool(getattr(exc, "missing_assets", False))
         fix = ("pass it: --xacro-arg NAME=VALUE" if "undefined argument" in text or "arg" in text.lower()
                and "xacro" in text.lower() else
@@ -196,7 +191,7 @@ def inspect_description(uri: str, xacro_args: Mapping[str, str] | None = None) -
                "fix the description (it must be URDF or xacro of one tree)")
         _fail(uri, f"{text}; fix: {fix}")
     except Exception as exc:  # noqa: BLE001 - xacro, XML and trimesh raise many kinds
-        _fail(uri, f"does not load: {_first(exc)}")
+        _fail(uri, f"does not load: {error_line(exc, MAX_MESSAGE_LINE)}")
     if desc.format != "urdf":
         _fail(uri, "is MJCF; uniros arm add reads URDF or xacro (the tasks need a URDF chain); fix: give the "
                    "URDF of the robot")

@@ -98,9 +98,8 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
     """The arm's trajectory controller (and the gripper's) from the controllers files of the packages
     the description names (``config/**/*.yaml``): the controller whose joints are the arm's, its
     controller manager's namespace (``/lbr/controller_manager:`` -> ``/lbr``)."""
-    import yaml
-
     from multiros.sim.packages import default_index
+    from multiros.utils.bounded_yaml import YamlBoundsError, load_yaml_bounded
 
     index = default_index()
     files: list[Path] = []
@@ -116,8 +115,8 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
         try:
             if path.stat().st_size > _MAX_CONTROLLER_FILE_BYTES:
                 continue
-            doc = yaml.safe_load(path.read_text(errors="replace"))
-        except (OSError, yaml.YAMLError):
+            doc = load_yaml_bounded(path.read_text(errors="replace"), max_bytes=_MAX_CONTROLLER_FILE_BYTES)
+        except (OSError, YamlBoundsError):  # unreadable, or a file no driver config is (aliases exploding, ...)
             continue
         if not isinstance(doc, dict):
             continue

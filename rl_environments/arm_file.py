@@ -61,8 +61,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ARM_FILE_FORMAT", "ArmFile", "ArmFileError", "GripperSpec", "RealSpec", "load_arm_file",
-           "parse_arm_file"]
+__all__ = ["ARM_FILE_FORMAT", "MAX_ERROR_LINE", "MAX_MESSAGE_LINE", "ArmFile", "ArmFileError", "GripperSpec",
+           "RealSpec", "error_line", "excerpt", "load_arm_file", "parse_arm_file"]
 
 #: The newest arm file format this uniros reads.
 ARM_FILE_FORMAT = 1
@@ -74,6 +74,24 @@ _GRIPPER_INTERFACES = ("forward", "trajectory", "gripper_action", "none", "niryo
 
 class ArmFileError(ValueError):
     """An arm file that cannot be used: the message names the file, the key and the fix."""
+
+
+#: Characters of an error line that quotes what a file held (a value, a key, another error's line).
+MAX_ERROR_LINE = 300
+#: Characters of an error line of our own that may quote a little of a file: room for the valid keys or
+#: the fixes it lists, not for a 50,000-number value.
+MAX_MESSAGE_LINE = 1000
+
+
+def excerpt(text: str, limit: int = MAX_ERROR_LINE) -> str:
+    """``text`` cut to ``limit`` characters: an error quoting a file's value or another error shows an excerpt."""
+    return text if len(text) <= limit else f"{text[:limit - 3]}..."
+
+
+def error_line(exc: BaseException, limit: int = MAX_ERROR_LINE) -> str:
+    """An exception's first line (its type when it says nothing), cut to ``limit`` characters."""
+    text = str(exc).strip()
+    return excerpt(text.splitlines()[0] if text else type(exc).__name__, limit)
 
 
 @dataclass(frozen=True)
@@ -89,11 +107,6 @@ class GripperSpec:
     #: Both finger joints are driven (the description ties them by no ``<mimic>``): the simulation's
     #: gripper controller and the real driver's take both, the second at ``mimic`` times the first.
     independent: bool = False
-
-    def targets(self, finger: float) -> tuple[float, ...]:
-        """The gripper controller's command for the first finger at ``finger``: one value, or both
-        fingers' when they are driven independently."""
-        return (finger, self.mimic * finger) if self.independent else (finger,)
 
 
 @dataclass(frozen=True)
@@ -181,7 +194,7 @@ class _Checker:
         return f"{self.where}.{key}" if self.where else key
 
     def fail(self, key: str, message: str) -> None:
-        raise ArmFileError(f"{self.source}: key {key!r} {message}")
+        raise ArmFileError(excerpt(f"{self.source}: key {key!r} {message}", MAX_MESSAGE_LINE))
 
     def has(self, key: str) -> bool:
         return self.data.get(key) is not None
@@ -518,15 +531,17 @@ def _read_extended(source: Path, chain: tuple[Path, ...]) -> Any:
         return data
     ref = data.pop("extends")
     if not isinstance(ref, str) or not ref.strip():
-        raise ArmFileError(f"{source}: key 'extends' must name an arm file (a path relative to this one), got {ref!r}")
+        raise ArmFileError(excerpt(f"{source}: key 'extends' must name an arm file (a path relative to this one), "
+                                   f"got {ref!r}"))
     base_path = (source.resolve().parent / Path(ref).expanduser()).resolve()
     if base_path in chain or base_path == source.resolve():
-        raise ArmFileError(f"{source}: key 'extends' {ref!r} extends itself (through {[str(p) for p in chain]})")
+        raise ArmFileError(excerpt(f"{source}: key 'extends' {ref!r} extends itself (through "
+                                   f"{[str(p) for p in chain]})"))
     if len(chain) >= _MAX_EXTENDS:
         raise ArmFileError(f"{source}: key 'extends': more than {_MAX_EXTENDS} arm files extend one another")
     base = _read_extended(base_path, (*chain, source.resolve()))
     if not isinstance(base, dict):
-        raise ArmFileError(f"{source}: key 'extends' {ref!r}: {base_path} is not an arm file (a YAML mapping)")
+        raise ArmFileError(excerpt(f"{source}: key 'extends' {ref!r}: {base_path} is not an arm file (a YAML mapping)"))
     for section, key in _PATH_KEYS:  # the extended file's paths, made absolute against it
         part = base.get(section)
         if isinstance(part, dict) and isinstance(part.get(key), str):

@@ -27,9 +27,10 @@ from typing import Any
 
 import numpy as np
 
-from rl_environments.arm_description_tree import _MOVING, Inspection, _fail, _first, _limits, _Tree
+from rl_environments.arm_description_tree import _MOVING, Inspection, _fail, _limits, _Tree
 from rl_environments.arm_draft import ArmDraft, _r, _rl, _rl_within
 from rl_environments.arm_driver_names import _real
+from rl_environments.arm_file import MAX_MESSAGE_LINE, error_line
 from rl_environments.arm_gripper import _MIN_OPEN_GAP, _PAD_BACK, _ee_link, _Gripper, _gripper, _Hand
 from rl_environments.arm_sim_controllers import _controllers
 
@@ -114,7 +115,7 @@ def draft_arm(ins: Inspection, name: str, *, seed: int = 0) -> ArmDraft:
     try:
         chain = KinematicChain.from_urdf(ins.description.text, base, ee, tip_offset=tcp)
     except ValueError as exc:
-        _fail(ins.uri, f"the chain {base!r} -> {ee!r}: {_first(exc)}")
+        _fail(ins.uri, f"the chain {base!r} -> {ee!r}: {error_line(exc, MAX_MESSAGE_LINE)}")
     if tuple(chain.joint_names) != joints:  # a moving joint between the base and the arm: not served
         _fail(ins.uri, f"the moving joints from {base!r} to {ee!r} are {list(chain.joint_names)}, not the arm's "
                        f"{list(joints)}; fix: write the arm file by hand")

@@ -24,10 +24,10 @@ from pathlib import Path
 from typing import Any
 
 from multiros.utils.kinematics import KinematicChain
-from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
+from rl_environments.arm_file import ArmFile, ArmFileError, error_line, load_arm_file
 from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
-__all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "env_arm_errors", "link_chain_of",
+__all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "env_arm_errors",
            "register_arm", "register_env_arms", "registered_arms", "top_down_ik_of", "unregister_arm"]
 
 #: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
@@ -35,7 +35,6 @@ ARM_TASKS: dict[str, tuple[bool, str | None]] = {
     "Reacher": (False, None), "ReacherGoal": (True, None), "Push": (False, "push"), "PushGoal": (True, "push"),
     "PnP": (False, "pnp"), "PnPGoal": (True, "pnp"),
 }
-ENV_MODULE = "rl_environments.arm_envs"
 _ARMS: dict[str, ArmFile] = {}
 _ENV_ARM_ERRORS: dict[str, str] = {}  # UNIROS_ARMS entries skipped at import: path -> why
 _ADDED_TO_ENVIRONMENT: set[str] = set()  # the UNIROS_ARMS entries register_arm added (unregister takes them out)
@@ -46,11 +45,6 @@ def chain_of(spec: ArmFile) -> KinematicChain:
     of its description (built once per process)."""
     chain = _chain(spec.description_uri, tuple(sorted(spec.xacro_args.items())), spec.base_link, spec.ee_link)
     return chain.with_tip_offset(spec.tcp_offset) if any(spec.tcp_offset) else chain
-
-
-def link_chain_of(spec: ArmFile) -> KinematicChain:
-    """The chain to ``arm.ee_link``'s own origin (no ``arm.tcp_offset``): the frame a simulation returns."""
-    return _chain(spec.description_uri, tuple(sorted(spec.xacro_args.items())), spec.base_link, spec.ee_link)
 
 
 def top_down_ik_of(spec: ArmFile, lower: Sequence[float] | None = None,
@@ -146,13 +140,6 @@ def arm_env_ids(spec: ArmFile) -> dict[str, tuple[str, str, str]]:
     return out
 
 
-def _first_line(exc: BaseException, limit: int = 300) -> str:
-    """An error's first line, at most ``limit`` characters: a message may quote a whole file."""
-    text = str(exc).strip()
-    line = text.splitlines()[0] if text else type(exc).__name__
-    return line if len(line) <= limit else f"{line[:limit - 3]}..."
-
-
 def check_description(spec: ArmFile) -> None:
     """The file's joints and links against its description: the chain exists and is the arm's joints."""
     try:
@@ -160,13 +147,13 @@ def check_description(spec: ArmFile) -> None:
     except ArmFileError:
         raise
     except ValueError as exc:  # a link that is not there, or no chain between them
-        msg = _first_line(exc)
+        msg = error_line(exc)
         key = ("arm.ee_link" if "tip_link" in msg or "no kinematic chain" in msg else
                "arm.base_link" if msg.startswith("base_link") else
                "arm.joints" if "joint" in msg else "description.uri")
         raise ArmFileError(f"{spec.path}: key {key!r}: {msg}") from None
     except Exception as exc:  # xacro, a missing package, a broken URDF: one line naming the file and key
-        raise ArmFileError(f"{spec.path}: key 'description.uri' ({spec.description_uri}): {_first_line(exc)}") \
+        raise ArmFileError(f"{spec.path}: key 'description.uri' ({spec.description_uri}): {error_line(exc)}") \
             from None
     if tuple(chain.joint_names) != spec.joints:
         raise ArmFileError(
@@ -214,7 +201,7 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
         ArmFileError: the file does not check, its description does not hold its chain, or another
             file already registered an arm of that name (or a shipped ID has it).
     """
-    from gymnasium.envs.registration import register, registry
+    from gymnasium.envs.registration import registry
 
     from rl_environments import env_ids
 
@@ -235,14 +222,12 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
         unregister_arm(spec.name)
     _ARMS[spec.name] = spec
     out: list[str] = []
-    for sim_id, (task, cls_name, real_id) in ids.items():
+    for sim_id, (task, _, real_id) in ids.items():
         kind = ARM_TASKS[task][1]
         steps = env_ids.MANIPULATION_EPISODE_STEPS if kind else env_ids.MAX_EPISODE_STEPS
-        register(id=sim_id, entry_point=f"{ENV_MODULE}:{cls_name}",
-                 vector_entry_point=f"{env_ids.VECTOR_ENTRY_MODULE}:{sim_id}", max_episode_steps=steps)
-        register(id=real_id, entry_point=f"{ENV_MODULE}:{spec.name}{task}RealEnv", max_episode_steps=steps)
         env_ids.note_arm_ids(sim_id, real_id, goal=ARM_TASKS[task][0], manipulation=kind is not None, steps=steps)
         out.append(sim_id)
+    env_ids.register_envs()  # the new rows with gymnasium, as every ID is
     out += [ids[i][2] for i in ids]
     if tell_children:
         _remember_in_environment(spec.path)

@@ -12,9 +12,12 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register, registry
 
-__all__ = ["ENV_SPECS", "EPISODE_STEPS", "MANIPULATION_EPISODE_STEPS", "MAX_EPISODE_STEPS", "REAL_ENV_SPECS",
-           "SIM_TO_REAL", "VECTOR_ENTRY_MODULE", "forget_arm_ids", "id_tuple", "note_arm_ids", "register_envs"]
+__all__ = ["ENV_MODULE", "ENV_SPECS", "EPISODE_STEPS", "MANIPULATION_EPISODE_STEPS", "MAX_EPISODE_STEPS",
+           "REAL_ENV_SPECS", "SIM_TO_REAL", "VECTOR_ENTRY_MODULE", "forget_arm_ids", "id_tuple", "note_arm_ids",
+           "register_envs"]
 
+#: The module whose ``__getattr__`` builds an arm file's env classes (``<NAME><task>Env``, ``...RealEnv``).
+ENV_MODULE = "rl_environments.arm_envs"
 #: Gymnasium loads "<module>:<ID>" vector entry points by name (JSON-able specs); the module makes each ID's.
 VECTOR_ENTRY_MODULE = "rl_environments.vector_entry"
 #: Episode lengths: reach 100 steps; push and pick-and-place Fetch's 50 steps of 40 ms.
@@ -48,8 +51,6 @@ def add_ids(specs: dict[str, str], *, goal: bool = False, manipulation: bool = F
 
 def note_arm_ids(sim_id: str, real_id: str, *, goal: bool, manipulation: bool, steps: int) -> None:
     """Add an arm file's simulated ID and its Real twin (:func:`~rl_environments.arm_registry.register_arm`)."""
-    from rl_environments.arm_registry import ENV_MODULE
-
     name = sim_id.removesuffix("Sim-v0")
     add_ids({sim_id: f"{ENV_MODULE}:{name}Env"}, goal=goal, manipulation=manipulation, steps=steps)
     add_ids({real_id: f"{ENV_MODULE}:{name}RealEnv"}, goal=goal, steps=steps, real=True)

@@ -35,13 +35,12 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import yaml
-
 from multiros.hardware import fake_robot as _fake
 from multiros.hardware.robot_spec import RobotSpec, load_robot_spec, parse_assignments
 from multiros.ros.names import split_ros_arguments
 from multiros.ros.processes import start_child_program
 from multiros.sim.errors import SimError
+from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
 if TYPE_CHECKING:  # imported when used: rl_environments registers every ID on import
     from rl_environments.arm_file import ArmFile
@@ -64,14 +63,15 @@ class ArmRobotError(ValueError):
 def _yaml_controllers(arm: ArmFile) -> dict[str, Any]:
     """The description's controllers YAML (``description.controllers``) as a mapping ({} if unreadable)."""
     from multiros.sim.packages import default_index
+    from rl_environments.arm_file import error_line
 
     uri = arm.controllers_file
     try:
         path = default_index().resolve_uri(uri) if uri.startswith("package://") else Path(uri)
-        data = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError, SimError) as exc:
+        data = read_yaml_bounded(path) or {}
+    except (OSError, YamlBoundsError, SimError) as exc:
         raise ArmRobotError(f"{arm.path}: key 'description.controllers' ({uri}): cannot be read: "
-                            f"{str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
+                            f"{error_line(exc)}") from None
     if not isinstance(data, dict):
         raise ArmRobotError(f"{arm.path}: key 'description.controllers' ({uri}) is not a ros2_control YAML mapping")
     return data
@@ -162,6 +162,8 @@ def arm_robot_spec(arm: ArmFile, *, start: str = "home", namespace: str | None =
     Raises:
         ArmRobotError: the description cannot be loaded, or the ``real:`` names do not fit it.
     """
+    from rl_environments.arm_file import error_line
+
     if start not in ("home", "init"):
         raise ArmRobotError(f"start must be 'home' or 'init', got {start!r}")
     pose = arm.home if start == "home" else tuple(arm.reach["init_joint_pos"])
@@ -175,8 +177,8 @@ def arm_robot_spec(arm: ArmFile, *, start: str = "home", namespace: str | None =
             raise ArmRobotError(f"--initial: {exc}") from None
         raise ArmRobotError(f"{arm.path}: key 'arm.joints': {exc}") from None
     except (OSError, SimError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ArmRobotError(f"{arm.path}: key 'description.uri' ({arm.description_uri}): {first}") from None
+        raise ArmRobotError(f"{arm.path}: key 'description.uri' ({arm.description_uri}): {error_line(exc)}") \
+            from None
     joints = [j.name for j in spec.joints]
     mimics = [m.name for m in spec.mimics]
     missing = [j for j in arm.joints if j not in joints]

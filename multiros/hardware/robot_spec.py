@@ -23,12 +23,11 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl
 
-import yaml
-
 from multiros.sim.errors import DescriptionError
 from multiros.sim.packages import PackageIndex, default_index
 from multiros.sim.urdf_model import parse_urdf
 from multiros.sim.xacro_runner import xacro_to_urdf
+from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
 __all__ = ["JointSpec", "MimicSpec", "RobotSpec", "Preset", "PRESETS", "load_robot_spec", "rename_controllers"]
 
@@ -234,8 +233,8 @@ def load_robot_spec(
     if controllers_file:
         yaml_path = _resolve(controllers_file, index)
         try:
-            config = yaml.safe_load(yaml_path.read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
+            config = read_yaml_bounded(yaml_path) or {}
+        except (OSError, YamlBoundsError) as exc:
             raise ValueError(f"controllers file '{controllers_file}' cannot be read: {exc}") from exc
         if not isinstance(config, Mapping):
             raise ValueError(f"controllers file '{controllers_file}' is not a ros2_control YAML mapping")

@@ -394,11 +394,11 @@ def load_controller_config(config: str | Path | Mapping | None) -> dict:
     if config is None:
         return {"update_rate": None, "types": {}, "params": {}}
     if not isinstance(config, Mapping):
-        import yaml
+        from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
         try:
-            config = yaml.safe_load(Path(config).read_text()) or {}
-        except (OSError, yaml.YAMLError) as exc:
+            config = read_yaml_bounded(Path(config)) or {}
+        except (OSError, YamlBoundsError) as exc:
             raise ControllerError(f"controllers file '{config}' cannot be read: {exc}") from exc
     if not isinstance(config, Mapping):
         raise ControllerError("controllers YAML must be a mapping at the top level")

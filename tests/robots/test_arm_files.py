@@ -235,6 +235,7 @@ BAD = [
     ("manipulation.object_xy_min", [9.0, 0.0], "'object_xy_min' is above 'object_xy_max' at index 0"),
     ("real.max_joint_delta", 1.0e9, "must be in (0, 1]"),
     ("real.workspace_min", [5.0, -1.0, 0.0], "real.workspace_min' is above real.workspace_max at index 0"),
+    ("arm.home", [0.5] * 40_000, "key 'arm.home' must be a list of 6 finite numbers, got [0.5, 0.5"),
 ]
 
 
@@ -246,6 +247,7 @@ def test_bad_keys_are_one_line_errors_and_register_nothing(ur5e_data, write, key
     with pytest.raises(ArmFileError) as err:
         register_arm(path)
     assert message in str(err.value) and str(path) in str(err.value) and "\n" not in str(err.value)
+    assert len(str(err.value)) <= 1000, "an excerpt of the value, not all of it"
     assert set(gym.registry) == before and "BadArm" not in registered_arms()
 
 

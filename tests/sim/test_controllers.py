@@ -47,6 +47,18 @@ def test_yaml_parsing():
         load_controller_config("/nonexistent/controllers.yaml")
 
 
+def test_a_hostile_controllers_file_is_refused_before_it_expands(tmp_path):
+    """A controllers file is read within bounds (multiros.utils.bounded_yaml): a "billion laughs" is one
+    short error, not an expansion."""
+    lol = ",".join(['"lol"'] * 9)
+    laughs = tmp_path / "laughs.yaml"
+    laughs.write_text(f"a: &a [{lol}]\n" + "".join(
+        f"{chr(98 + i)}: &{chr(98 + i)} [{','.join(['*' + chr(97 + i)] * 9)}]\n" for i in range(8)))
+    with pytest.raises(ControllerError, match="cannot be read: expands to more than 50,000 values") as err:
+        load_controller_config(laughs)
+    assert len(str(err.value)) < 400
+
+
 def test_default_yaml_from_description(make_world):
     w = make_world()
     w.spawn("arm", ARM_XACRO)  # the <gazebo><parameters> YAML: jsb + JTC active, position ctrl inactive

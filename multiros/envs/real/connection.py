@@ -501,8 +501,8 @@ class RealConnection(RobotConnection):
                 if missing:
                     raise EnvError(f"frame {frame!r}: robot {self.robot_name!r} reports no joints {missing}")
                 idx = index[states.names] = [where[j] for j in joints]
-            q = states.position[:, idx]
-            return chain.fk_position(q) + self._base, quat_from_matrix(chain.fk_matrix(q)[:, :3, :3])
+            tf = chain.fk_matrix(states.position[:, idx])  # one pass: position and orientation
+            return tf[:, :3, 3] + self._base, quat_from_matrix(tf[:, :3, :3])
 
         self.add_frame_source(frame, fk)
 
