@@ -316,9 +316,9 @@ def _ee_link(tree: _Tree, last_arm_joint: str, gripper: _Gripper | None) -> tupl
     wrist = tree.transform(tree.joints[last_arm_joint].child, {})[:3, 3]
     out = grasp - wrist
     reach_out = float(np.linalg.norm(out))
-    # How far the link lies short of the grasp point, along the wrist -> fingers direction.
-    short = reach_out - float(np.dot(tree.transform(best, {})[:3, 3] - wrist, out / max(reach_out, 1e-9)))
     tf = tree.transform(best, {})
+    # How far the link lies short of the grasp point, along the wrist -> fingers direction.
+    short = reach_out - float(np.dot(tf[:3, 3] - wrist, out / max(reach_out, 1e-9)))
     offset = tf[:3, :3].T.dot(grasp - tf[:3, 3])
     where = f"{_PAD_BACK * 100:g} cm short of the open fingertips' ends, between them"
     if candidates and short <= _TCP_SHORT:  # the vendor's tool frame: the grasp point it means

@@ -345,3 +345,21 @@ def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_d
         _eval_target(argparse.Namespace(env_id="TypoArmReacherGoalSim-v0", model=run_dir, env=None))
     with pytest.raises(TrainingError, match="which is gone"):  # the run's own ID: the file is what is missing
         _eval_target(argparse.Namespace(env_id=None, model=run_dir, env=None))
+
+
+def test_a_world_the_node_refuses_is_one_training_error_naming_the_arm_file(ur5e_data, write):
+    """uniros train / eval make their env through run_envs.make_env: a scene the simulation refuses to spawn
+    (here a table raised into the robot's base) is one line naming the ID, the node's reason and the arm
+    file, not a traceback."""
+    from uniros.run_envs import make_env
+    from uniros.train_config import TrainingError
+
+    ur5e_data["name"], ur5e_data["robot_name"] = "RaisedTable", "raisedtable"
+    ur5e_data["manipulation"]["table_center"] = [0.3, 0.0, 0.05]  # the table's top 25 cm above the base
+    path = write(ur5e_data, "raised.yaml")
+    register_arm(path)
+    with pytest.raises(TrainingError) as err:
+        make_env("RaisedTablePushGoalSim-v0")
+    message = str(err.value)
+    assert message.startswith("RaisedTablePushGoalSim-v0 cannot be made: /mujoco_sim/spawn_entity failed")
+    assert f"`uniros arm check {path}`" in message and "\n" not in message
