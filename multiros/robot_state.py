@@ -89,6 +89,12 @@ class RobotStates:
         return RobotState(self.sim_time, self.names, self.position[j], self.velocity[j], self.effort[j],
                           self.frame_positions[j], self.frame_orientations[j])
 
+    def batch_of_row(self, j: int) -> RobotStates:
+        """Robot ``j``'s state as a batch of one (views of these arrays)."""
+        k = slice(j, j + 1)
+        return RobotStates(self.sim_time, self.names, self.position[k], self.velocity[k], self.effort[k],
+                           self.frame_positions[k], self.frame_orientations[k])
+
     def put_row(self, j: int, state: RobotState) -> bool:
         """Make row ``j`` ``state`` (copied in); ``False``, changing nothing, when it is not alike."""
         if state.names != self.names or state.frame_positions.shape != self.frame_positions.shape[1:]:

@@ -33,6 +33,7 @@ from rl_environments.env_ids import (
     MAX_EPISODE_STEPS,
     REAL_ENV_SPECS,
     SIM_TO_REAL,
+    TASKS,
     VECTOR_ENTRY_MODULE,
     add_ids,
     forget_arm_ids,
@@ -46,8 +47,9 @@ _map_checkout_package("rl_environments.config", _Path(__file__).resolve().parent
 
 #: The arms whose IDs come from arm files (:mod:`rl_environments.arm_registry`): ID prefix -> robot name.
 ARMS: dict[str, str] = {}
-#: The six tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper).
-ARM_TASKS: tuple[str, ...] = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
+#: The tasks of an arm: ``<ARM><task>Sim-v0`` (push and pick-and-place only for an arm with a gripper), from the
+#: task table (:data:`rl_environments.env_ids.TASKS`).
+ARM_TASKS: tuple[str, ...] = tuple(f"{row.infix}{goal}" for row in TASKS.values() if row.infix for goal in ("", "Goal"))
 #: The shipped arm files (in ``rl_environments.config``, ``config/arms/`` of a checkout).
 SHIPPED_ARM_FILES: tuple[str, ...] = ("rx200.yaml", "vx300s.yaml", "ur5e.yaml", "ned2.yaml", "irb120.yaml",
                                       "rx200_zed2.yaml")
@@ -90,11 +92,12 @@ def _register_arm_files() -> None:
 
 _register_arm_files()
 # The static IDs, after the arm files' (ENV_IDS lists the arms' first).
-add_ids({"ABBIRB120ReacherEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherEnv"})
-add_ids({"ABBIRB120ReacherGoalEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalEnv"}, goal=True)
-add_ids({"ABBIRB120ReacherRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherRealEnv"}, real=True)
-add_ids({"ABBIRB120ReacherGoalRealEnv-v0": "rl_environments.frobs_reach:ABBIRB120ReacherGoalRealEnv"}, goal=True,
-        real=True)
+_FROBS = {"arm": "IRB120", "task": "frobs_reach"}
+add_ids({"ABBIRB120ReacherEnv-v0": "rl_environments.arm_env:ArmSimEnv"}, kwargs=_FROBS)
+add_ids({"ABBIRB120ReacherGoalEnv-v0": "rl_environments.arm_env:ArmSimGoalEnv"}, goal=True, kwargs=_FROBS)
+add_ids({"ABBIRB120ReacherRealEnv-v0": "rl_environments.arm_env:ArmRealEnv"}, real=True, kwargs=_FROBS)
+add_ids({"ABBIRB120ReacherGoalRealEnv-v0": "rl_environments.arm_env:ArmRealGoalEnv"}, goal=True, real=True,
+        kwargs=_FROBS)
 SIM_TO_REAL.update({"ABBIRB120ReacherEnv-v0": "ABBIRB120ReacherRealEnv-v0",
                     "ABBIRB120ReacherGoalEnv-v0": "ABBIRB120ReacherGoalRealEnv-v0"})
 register_envs()

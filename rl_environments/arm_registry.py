@@ -1,12 +1,12 @@
 """Arms as data: gymnasium IDs from arm files (:mod:`rl_environments.arm_file`).
 
-``register_arm(path)`` checks an arm file, builds its robot layers and task envs from the reach,
-push and pick-and-place tasks every arm shares, and registers its IDs: ``<NAME>ReacherSim-v0``,
-``<NAME>ReacherGoalSim-v0`` and, for an arm with a
-gripper, ``<NAME>PushSim-v0``, ``<NAME>PushGoalSim-v0``, ``<NAME>PnPSim-v0``, ``<NAME>PnPGoalSim-v0``,
-each with its ``...Real-v0`` twin. The env classes live in :mod:`rl_environments.arm_envs` (built on
-first use, one class per name, so entry points are plain ``module:Class`` strings and instances
-pickle). The arm files named by ``UNIROS_ARMS`` (paths separated by ``os.pathsep``) are registered
+``register_arm(path)`` checks an arm file and registers the IDs the tasks of the task table
+(:data:`rl_environments.env_ids.TASKS`) give it: ``<NAME>ReacherSim-v0``, ``<NAME>ReacherGoalSim-v0``,
+``<NAME>SlideSim-v0``, ``<NAME>SlideGoalSim-v0`` and, for an arm with a gripper, ``<NAME>PushSim-v0``,
+``<NAME>PushGoalSim-v0``, ``<NAME>PnPSim-v0``, ``<NAME>PnPGoalSim-v0``, each with its ``...Real-v0`` twin.
+Each ID is an arm env class (:mod:`rl_environments.arm_env`) made with keyword arguments (``arm=<NAME>``,
+``task=<task>``); :func:`arm_value` gives the arm as a value. The arm files named by ``UNIROS_ARMS``
+(paths separated by ``os.pathsep``) are registered
 when ``rl_environments`` is imported, so ``uniros train``/``eval``, rl-zoo3 and worker processes see
 them; ``register_arm`` adds its file to that variable for the processes this one starts.
 
@@ -27,14 +27,9 @@ from multiros.utils.kinematics import KinematicChain
 from rl_environments.arm_file import ArmFile, ArmFileError, error_line, load_arm_file
 from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
-__all__ = ["ARM_TASKS", "arm_env_ids", "arm_of", "chain_of", "check_description", "env_arm_errors",
+__all__ = ["arm_env_ids", "arm_of", "arm_value", "chain_of", "check_description", "env_arm_errors",
            "register_arm", "register_env_arms", "registered_arms", "top_down_ik_of", "unregister_arm"]
 
-#: The six tasks of an arm: ID infix -> (goal-conditioned, manipulation kind or None for reach).
-ARM_TASKS: dict[str, tuple[bool, str | None]] = {
-    "Reacher": (False, None), "ReacherGoal": (True, None), "Push": (False, "push"), "PushGoal": (True, "push"),
-    "PnP": (False, "pnp"), "PnPGoal": (True, "pnp"),
-}
 _ARMS: dict[str, ArmFile] = {}
 _ENV_ARM_ERRORS: dict[str, str] = {}  # UNIROS_ARMS entries skipped at import: path -> why
 _ADDED_TO_ENVIRONMENT: set[str] = set()  # the UNIROS_ARMS entries register_arm added (unregister takes them out)
@@ -78,66 +73,30 @@ def _chain(uri: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> 
     return KinematicChain.from_urdf(_urdf_text(uri, args), base, tip)
 
 
-def robot_constants(spec: ArmFile) -> dict[str, Any]:
-    """The :class:`~rl_environments.arm_robot.ArmRobot` class attributes an arm file gives."""
-    gripper = spec.gripper
-    scene = {k: tuple(v) if isinstance(v, list) else v for k, v in (spec.manipulation or {}).items()
-             if k != "arm_joints"}
-    return {
-        "ARM_FILE": spec,
-        "ROBOT_NAME": spec.robot_name,
-        "DESCRIPTION_PACKAGE": "",
-        "XACRO_ARGS": dict(spec.xacro_args),
-        "ARM_JOINTS": spec.joints,
-        "HOME": tuple(spec.home),
-        "BASE_LINK": spec.base_link,
-        "EE_LINK": spec.ee_link,
-        "TCP_OFFSET": tuple(spec.tcp_offset),
-        "ARM_CONTROLLER": spec.arm_controller,
-        "CONTROLLERS": spec.sim_controllers,
-        "GRIPPER_CONTROLLER": gripper.controller if gripper else "",
-        "FINGER_JOINTS": gripper.joints if gripper else (),
-        "FINGER_MIMIC": gripper.mimic if gripper else 1.0,
-        "RESET_MIMIC": gripper.reset_mimic if gripper else True,
-        "FINGERS_INDEPENDENT": gripper.independent if gripper else False,
-        "SCENE": scene,
-        "RENDER_CAMERA": spec.render_camera,
-        "CAMERA_VIEW": spec.camera_view,
-        "CAMERA_TOPICS": dict(spec.camera_topics),
-    }
-
-
-def real_constants(spec: ArmFile) -> dict[str, Any]:
-    """The Real twin's class attributes an arm file gives (:class:`~rl_environments.arm_robot.ArmRobot`'s REAL_*)."""
-    real = spec.real
-    attrs: dict[str, Any] = {
-        "REAL_NAMESPACE": real.namespace,
-        "REAL_ARM_CONTROLLER": real.arm_controller,
-        "REAL_CONTROLLERS": real.controllers,
-        "REAL_COMMAND_INTERFACE": real.command_interface,
-        "REAL_CHECK_CONTROLLERS": real.check_controllers,
-        "REAL_GRIPPER_CONTROLLER": real.gripper_controller,
-        "REAL_GRIPPER_INTERFACE": real.gripper_interface,
-        "REAL_GRIPPER_JOINT": real.gripper_joint,
-        "REAL_GRIPPER_RANGE": real.gripper_range,
-        "WORKSPACE_MIN": real.workspace_min,
-        "WORKSPACE_MAX": real.workspace_max,
-        "FLOOR_Z": real.floor_z,
-        "MAX_JOINT_DELTA": real.max_joint_delta,
-    }
-    if real.joint_states_topic:
-        attrs["REAL_JOINT_STATES_TOPIC"] = real.joint_states_topic
-    return attrs
-
-
 def arm_env_ids(spec: ArmFile) -> dict[str, tuple[str, str, str]]:
-    """``{sim ID: (task, sim class name, real ID)}`` of an arm file (manipulation only with a gripper)."""
+    """``{sim ID: (task infix, the env's earlier class name, real ID)}`` of an arm file (the tasks that need
+    a gripper only with one)."""
+    from rl_environments.env_ids import TASKS, arm_task_ids
+
     out = {}
-    for task, (_, kind) in ARM_TASKS.items():
-        if kind is not None and spec.gripper is None:
-            continue
-        out[f"{spec.name}{task}Sim-v0"] = (task, f"{spec.name}{task}Env", f"{spec.name}{task}Real-v0")
+    for sim_id, (task, goal, real_id) in arm_task_ids(spec.name, gripper=spec.gripper is not None).items():
+        infix = f"{TASKS[task].infix}{'Goal' if goal else ''}"
+        out[sim_id] = (infix, f"{spec.name}{infix}Env", real_id)
     return out
+
+
+_VALUES: dict[str, Any] = {}
+
+
+def arm_value(name: str) -> Any:
+    """The registered arm ``name`` as an :class:`~rl_environments.arm.Arm` (one per registration)."""
+    from rl_environments.arm import Arm
+
+    spec = arm_of(name)
+    value = _VALUES.get(name)
+    if value is None or value.file is not spec:
+        value = _VALUES[name] = Arm(spec)
+    return value
 
 
 def check_description(spec: ArmFile) -> None:
@@ -222,10 +181,8 @@ def register_arm(path: str | os.PathLike[str], *, replace: bool = False, check_c
         unregister_arm(spec.name)
     _ARMS[spec.name] = spec
     out: list[str] = []
-    for sim_id, (task, _, real_id) in ids.items():
-        kind = ARM_TASKS[task][1]
-        steps = env_ids.MANIPULATION_EPISODE_STEPS if kind else env_ids.MAX_EPISODE_STEPS
-        env_ids.note_arm_ids(sim_id, real_id, goal=ARM_TASKS[task][0], manipulation=kind is not None, steps=steps)
+    for sim_id, (task, goal, real_id) in env_ids.arm_task_ids(spec.name, gripper=spec.gripper is not None).items():
+        env_ids.note_arm_ids(spec.name, sim_id, real_id, task=task, goal=goal)
         out.append(sim_id)
     env_ids.register_envs()  # the new rows with gymnasium, as every ID is
     out += [ids[i][2] for i in ids]
@@ -238,16 +195,16 @@ def unregister_arm(name: str) -> None:
     """Remove an arm's IDs (its env classes are rebuilt if it is registered again)."""
     from gymnasium.envs.registration import registry
 
-    from rl_environments import arm_envs, env_ids
+    from rl_environments import env_ids
 
     spec = _ARMS.pop(name, None)
+    _VALUES.pop(name, None)
     if spec is None:
         return
     for sim_id, (_, _, real_id) in arm_env_ids(spec).items():
         registry.pop(sim_id, None)
         registry.pop(real_id, None)
         env_ids.forget_arm_ids(sim_id, real_id)
-    arm_envs.forget_arm(spec.name)
     if str(spec.path) in _ADDED_TO_ENVIRONMENT:
         import json
 

@@ -45,7 +45,7 @@ import logging
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -54,7 +54,7 @@ from multiros.envs.batch_task import StepResults
 from multiros.envs.connection import CameraRequest
 from multiros.sim.view_camera import VIEW_CAMERA, camera_entity_urdf, look_at_rpy
 
-__all__ = ["CAMERA_KEYWORDS", "CameraObservations", "CameraOptions", "MODES", "camera_entity_urdf", "look_at_rpy"]
+__all__ = ["CAMERA_KEYWORDS", "Cameras", "CameraOptions", "MODES", "camera_entity_urdf", "look_at_rpy"]
 
 _logger = logging.getLogger(__name__)
 
@@ -176,58 +176,42 @@ def parse_camera_options(kwargs: dict[str, Any], owner: str, *, real: bool,
                          float(max_depth), opts.get("rgb_topic"), opts.get("depth_topic"), float(timeout))
 
 
-class CameraObservations:
-    """Camera observations for a task class (see the module docstring): mix it in before the task.
+class Cameras:
+    """An env's camera observation, a component of the env (see the module docstring).
 
-    The task calls :meth:`take_camera_options` on its keyword arguments before the robot env's
-    constructor and :meth:`setup_cameras` once its state observation space is set; its batch
-    functions and ``_get_obs`` add the images through :meth:`add_images` and :meth:`with_images`.
+    The env makes it from the options it was given (:func:`parse_camera_options`) once its robot's
+    connection is up; :meth:`open` opens the camera (a simulation renders a camera of the world,
+    spawning the view camera first; a robot's connection subscribes to its driver's topics), reads a first
+    image (a camera that cannot render, or a topic that never publishes, fails now) and gives the
+    observation space with the images. Each step :meth:`add_images` puts them into N envs' results.
 
-    The robot layer's ``CAMERA_VIEW`` places the default camera and its ``CAMERA_TOPICS`` name a
-    described camera's topics (:class:`~rl_environments.arm_robot.ArmRobot`). An ID's
-    ``CAMERA_DEFAULTS`` are camera keywords it sets by default (the Zed2 variants' camera and mode).
+    Args:
+        options: the camera asked for.
+        connection: the robot's connection.
+        view: the default camera, ``((x, y, z) lookat, distance, azimuth, elevation)`` relative to the
+            robot base (metres, degrees): the arm file's ``camera.view``.
+        topics: a described camera's ``(rgb, depth)`` topics, relative to the robot's namespace, when not
+            ``<camera>/image_raw`` and ``<camera>/depth/image_raw`` (the arm file's ``camera.topics``).
+        base_position: the robot base's world position.
     """
 
-    CAMERA_DEFAULTS: ClassVar[Mapping[str, Any]] = {}
-    observation_space: spaces.Space[Any]  # the task's; the images join it in setup_cameras
+    def __init__(self, options: CameraOptions, connection: Any,
+                 view: tuple[tuple[float, float, float], float, float, float],
+                 topics: Mapping[str, tuple[str, str]], base_position: np.ndarray) -> None:
+        self.options, self.connection = options, connection
+        self.view, self.topics, self.base_position = view, dict(topics), np.asarray(base_position, dtype=np.float64)
+        self.source = ""  # the camera as the connection names it
+        self.image_size = (0, 0)  # (height, width)
 
-    if TYPE_CHECKING:  # the robot layer's members the cameras use (an arm's ArmRobot)
-        connection: Any
-        robot_name: str
-        node: Any
-        ON_ROBOT: ClassVar[bool]
-        CAMERA_VIEW: ClassVar[tuple[tuple[float, float, float], float, float, float]]
-        CAMERA_TOPICS: ClassVar[Mapping[str, tuple[str, str]]]
-
-        @property
-        def base_position(self) -> np.ndarray: ...
-    camera: CameraOptions | None = None
-    camera_source: str = ""  # the camera as the connection names it (opened by setup_cameras)
-    image_size: tuple[int, int] = (0, 0)  # (height, width)
-
-    # -- construction ---------------------------------------------------------------------------
-    def take_camera_options(self, kwargs: dict[str, Any]) -> CameraOptions | None:
-        """Pop and check the camera keywords (before the robot env's constructor sees the rest; which
-        keywords apply depends on the env core's side, ``ON_ROBOT``)."""
-        return parse_camera_options(kwargs, type(self).__name__, real=bool(getattr(type(self), "ON_ROBOT", False)),
-                                    defaults=type(self).CAMERA_DEFAULTS)
-
-    def setup_cameras(self, options: CameraOptions | None) -> None:
-        """Make the observation space hold the images and the camera ready: the connection opens it (a
-        simulation renders a camera of the world, spawning the view camera first; a robot's connection
-        subscribes to its driver's topics) and reads a first image (a camera that cannot render, or a topic
-        that never publishes, fails now)."""
-        self.camera = options
-        if options is None:
-            return
-        state = self.observation_space
-        self._state_space = state
-        self.camera_source, self.image_size = self.connection.open_camera(self.camera_request(options))
+    def open(self, state_space: spaces.Space[Any]) -> spaces.Dict:
+        """Open the camera and return the observation space: ``state_space`` with the images."""
+        options = self.options
+        self.source, self.image_size = self.connection.open_camera(self.request())
         h, w = self.image_size
         rgb = spaces.Box(0, 255, (h, w, 3), dtype=np.uint8)
         depth = spaces.Box(0.0, options.max_depth, (h, w), dtype=np.float32)
-        if isinstance(state, spaces.Dict):  # a goal env keeps its three keys
-            parts = dict(state.spaces)
+        if isinstance(state_space, spaces.Dict):  # a goal env keeps its three keys
+            parts = dict(state_space.spaces)
             if options.with_state:
                 parts["rgb"] = rgb
             else:
@@ -235,26 +219,27 @@ class CameraObservations:
             if options.depth:
                 parts["depth"] = depth
         else:
-            parts = {"observation": state, "rgb": rgb} if options.with_state else {"rgb": rgb}
+            parts = {"observation": state_space, "rgb": rgb} if options.with_state else {"rgb": rgb}
             if options.depth:
                 parts["depth"] = depth
-        self.observation_space = spaces.Dict(parts)
+        return spaces.Dict(parts)
 
-    def camera_request(self, options: CameraOptions) -> CameraRequest:
+    def request(self) -> CameraRequest:
         """The camera the options ask for, as the connection opens it: a described camera by name, or the
-        view camera placed by the arm's ``CAMERA_VIEW`` around its base (unless placed by the options), of
-        the observation's size; on a robot, the driver's topics (``CAMERA_TOPICS``, or the simulated
-        camera's ``<camera>/image_raw`` and ``<camera>/depth/image_raw``)."""
+        view camera placed by ``view`` around the base (unless placed by the options), of the observation's
+        size; on a robot, the driver's topics (``topics``, or the simulated camera's ``<camera>/image_raw``
+        and ``<camera>/depth/image_raw``)."""
+        options = self.options
         name = options.camera_name
         short = (name or CAMERA_ENTITY).strip("/").rsplit("/", 1)[-1]
-        rgb_default, depth_default = self.CAMERA_TOPICS.get(short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
+        rgb_default, depth_default = self.topics.get(short, (f"{short}/image_raw", f"{short}/depth/image_raw"))
         rgb_topic = options.rgb_topic or rgb_default
         depth_topic = (options.depth_topic or depth_default) if options.depth else None
         if name is not None:
             return CameraRequest(name, None, None, options.fovy, options.width, options.height, rgb_topic, depth_topic)
-        base = np.asarray(self.base_position, dtype=np.float64)
-        (lx, ly, lz), dist, az, el = self.CAMERA_VIEW
-        lookat = options.lookat if options.lookat is not None else tuple(float(v) for v in base + (lx, ly, lz))
+        (lx, ly, lz), dist, az, el = self.view
+        lookat = options.lookat if options.lookat is not None else tuple(float(v) for v in
+                                                                         self.base_position + (lx, ly, lz))
         if options.position is not None:
             position = options.position
         else:
@@ -267,13 +252,12 @@ class CameraObservations:
 
     # -- images ---------------------------------------------------------------------------------
     def read_images(self) -> tuple[np.ndarray, np.ndarray | None]:
-        """This env's RGB (H x W x 3 uint8) and depth (H x W float32 metres, or None) images now."""
-        options = self.camera
-        assert options is not None
+        """The RGB (H x W x 3 uint8) and depth (H x W float32 metres, or None) images now."""
+        options = self.options
         h, w = self.image_size
         # The same call on both sides: a simulation renders the camera; a robot's connection gives its
         # driver's newest images (a stale one stops the env, as stale joint states do).
-        frame = self.connection.read_camera(self.camera_source, rgb=True, depth=options.depth, width=w, height=h,
+        frame = self.connection.read_camera(self.source, rgb=True, depth=options.depth, width=w, height=h,
                                             max_age=options.image_timeout)
         rgb, depth = frame.rgb, frame.depth
         assert rgb is not None
@@ -284,15 +268,12 @@ class CameraObservations:
         return rgb, depth
 
     def with_images(self, obs: Any) -> Any:
-        """One env's observation with its images (the state observation unchanged without a camera)."""
-        if self.camera is None:
-            return obs
+        """One env's observation with its images."""
         rgb, depth = self.read_images()
-        return self._compose(obs, rgb, depth)
+        return self.compose(obs, rgb, depth)
 
-    def _compose(self, obs: Any, rgb: np.ndarray, depth: np.ndarray | None) -> Any:
-        options = self.camera
-        assert options is not None
+    def compose(self, obs: Any, rgb: np.ndarray, depth: np.ndarray | None) -> Any:
+        options = self.options
         if isinstance(obs, dict):
             out = dict(obs)
             if options.with_state:
@@ -305,14 +286,13 @@ class CameraObservations:
             out["depth"] = depth
         return out
 
-    @classmethod
-    def add_images(cls, envs: Sequence[Any], results: StepResults) -> StepResults:
+    @staticmethod
+    def add_images(cameras: Sequence[Cameras | None], results: StepResults) -> StepResults:
         """N envs' step results with their images (unchanged when the envs have no camera)."""
-        cameras = [env.camera is not None for env in envs]
-        if not any(cameras):
+        if all(c is None for c in cameras):
             return results
-        if not all(cameras):
-            raise ValueError(f"{cls.__name__}: a batch mixes envs with and without camera observations")
-        rows = [envs[j]._compose(results.obs_row(j), *envs[j].read_images()) for j in range(len(envs))]
+        if any(c is None for c in cameras):
+            raise ValueError("a batch mixes envs with and without camera observations")
+        rows = [c.compose(results.obs_row(j), *c.read_images()) for j, c in enumerate(cameras)]  # type: ignore[union-attr]
         results.obs = {k: np.stack([row[k] for row in rows]) for k in rows[0]}
         return results

@@ -25,14 +25,16 @@ position (3), joint angles (6), previous action (6); ``achieved_goal`` = flange 
 ## Episode end
 Terminated on success with ``info["is_success"] = True``; truncated after 100 steps.
 
-The task is FRobs_RL's, not the arm's: the arm (the IRB120, ``config/arms/irb120.yaml``) is the robot
-env of its arm file (:func:`rl_environments.arm_envs.robot_env_class`); the Real twins are the same
-task on that arm's real robot env, with equal spaces.
+The task is FRobs_RL's, not the arm's: a row of the task table (``frobs_reach``) composed with the
+IRB120's arm file (``config/arms/irb120.yaml``): ``ABBIRB120ReacherEnv-v0`` is
+``ArmSimEnv(arm="IRB120", task="frobs_reach")``; the Real twins are the same task on that arm's robot,
+with equal spaces.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import dataclasses
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -41,15 +43,13 @@ from gymnasium import spaces
 
 from multiros.envs.batch_task import StepResults
 from multiros.robot_state import RobotStates
-from rl_environments.arm_envs import robot_env_class
-from rl_environments.reach import parse_reward_type
-from rl_environments.reach_task import GoalReachTask, ReachTask, stack_rows
-from rl_environments.real_arm_kwargs import TaskJointLimits
+from rl_environments.arm import Arm
+from rl_environments.arm_task import TaskOptions, rows
+from rl_environments.reach_task import ReachTask
 from rl_environments.task_config import load_task_config, vector
 
-__all__ = ["FROBS_REACHER_SCHEMA", "FrobsReachTask", "FrobsGoalReachTask", "load_frobs_reacher_config",
-           "frobs_reach_settings", "ABBIRB120ReacherEnv", "ABBIRB120ReacherGoalEnv", "ABBIRB120ReacherRealEnv",
-           "ABBIRB120ReacherGoalRealEnv"]
+__all__ = ["FROBS_REACHER_SCHEMA", "FrobsReachOptions", "FrobsReachTask", "load_frobs_reacher_config",
+           "frobs_reach_settings"]
 
 #: The reacher config's keys (FRobs_RL's ``reacher_task.yaml``, metres and radians, world frame).
 FROBS_REACHER_SCHEMA = {
@@ -75,65 +75,80 @@ def load_frobs_reacher_config(name: str | Path = CONFIG_FILE, section: str = "ir
     return load_task_config(name, FROBS_REACHER_SCHEMA, section=section)
 
 
-def frobs_reach_settings(cfg: dict[str, Any]) -> dict[str, Any]:
-    """``ReachTask._setup_reach`` arguments from a reacher config (joint deltas; the goal box with
-    ``min_goal_height`` applied)."""
+def frobs_reach_settings(cfg: Mapping[str, Any]) -> dict[str, Any]:
+    """The reach's settings from a reacher config (joint deltas; the goal box with ``min_goal_height``
+    applied)."""
     low = list(cfg["position_goal_min"])
     low[2] = max(low[2], cfg["min_goal_height"])
-    return {
-        "delta_action": True,
-        "ee_action_type": False,
-        "delta_coeff": cfg["max_joint_delta"],
-        "ee_delta_coeff": 0.0,
-        "tolerance": cfg["tolerance_goal_pos"],
-        "goal_min": low,
-        "goal_max": list(cfg["position_goal_max"]),
-    }
+    return {"delta_action": True, "ee_action_type": False, "delta_coeff": cfg["max_joint_delta"],
+            "ee_delta_coeff": 0.0, "tolerance": cfg["tolerance_goal_pos"], "goal_min": low,
+            "goal_max": list(cfg["position_goal_max"])}
+
+
+@dataclasses.dataclass(frozen=True)
+class FrobsReachOptions(TaskOptions):
+    """The reacher's keyword arguments: ``reward_type`` (goal envs: ``"sparse"`` or ``"dense"``) and
+    ``config_file`` (default ``irb120_reacher_task_config.yaml``, keys under ``irb120:``)."""
 
 
 class FrobsReachTask(ReachTask):
-    """FRobs_RL's reacher (see the module docstring), written once for the simulated robot env and the
-    real one. Mix it in before the robot env.
+    """FRobs_RL's reacher (see the module docstring): the reach's goals and actions, its own observations
+    and reward."""
 
-    Args:
-        config_file: task config (file name in ``rl_environments.config`` or a path).
-        **kwargs: robot/base-env knobs (``sim_mode``, ``transport``, ``num_sim_steps``, ``seed``, ...).
-    """
+    NAME = "frobs_reach"
+    OPTIONS = FrobsReachOptions
+    NUM_SIM_STEPS = None  # the arm's 40 ms
+    GOAL_OBS_PARTS = ("ee_position", "arm_positions", "prev_action")
 
-    def __init__(self, config_file: str = CONFIG_FILE, **kwargs: Any) -> None:
-        cfg = load_frobs_reacher_config(config_file)
-        super().__init__(**kwargs)
-        self._setup_reach(cfg, **frobs_reach_settings(cfg))
+    @classmethod
+    def load_config(cls, arm: Arm, options: TaskOptions) -> dict[str, Any]:
+        return load_frobs_reacher_config(options.config_file or CONFIG_FILE)
+
+    def settings(self) -> dict[str, Any]:
+        return frobs_reach_settings(self.cfg)
+
+    def make_observation_space(self) -> spaces.Space[Any]:
+        if self.goal_conditioned:  # the end effector's box: the arm's safety box (its arm file's real: workspace)
+            real = self.arm.file.real
+            low, high = np.asarray(real.workspace_min), np.asarray(real.workspace_max)
+            act = self.action_space
+            return self.goal_spaces(np.concatenate([low + self.base_position, self.chain.lower, act.low]),
+                                    np.concatenate([high + self.base_position, self.chain.upper, act.high]),
+                                    slice(0, 3), self.goal_min, self.goal_max)
         obs_low = np.concatenate([-np.ones(3), self.goal_min, self.chain.lower])
         obs_high = np.concatenate([np.ones(3), self.goal_max, self.chain.upper])
-        self.observation_space = spaces.Box(obs_low.astype(np.float32), obs_high.astype(np.float32), dtype=np.float32)
+        return spaces.Box(obs_low.astype(np.float32), obs_high.astype(np.float32), dtype=np.float32)
 
-    # -- batch-first (multiros.envs.batch_task) ----------------------------------------------------------
     @classmethod
-    def batch_observe(cls, envs: Sequence[Any], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
-        """The observations of N envs and their goal distances."""
-        _, dist, unit = cls.goals_to(envs, cls.ee_positions_of(envs, states))
-        chains = [env.chain for env in envs]
-        q = np.clip(cls.arm_positions_of(states), np.array([c.lower for c in chains]),
+    def observe_rows(cls, tasks: Sequence[ReachTask], states: RobotStates) -> tuple[np.ndarray, np.ndarray,
+                                                                                      np.ndarray]:
+        """Plain envs: N observations (unit vector to the goal, goal, joints), end effectors and distances."""
+        arm = tasks[0].arm
+        ee = arm.ee_positions_of(tasks[0].connection, states)
+        _, dist, unit = cls.goals_to(tasks, ee)
+        chains = [task.chain for task in tasks]
+        q = np.clip(arm.positions_of(states), np.array([c.lower for c in chains]),
                     np.array([c.upper for c in chains]))
-        obs = np.concatenate([unit, stack_rows(envs, "goal"), q], axis=1)
-        spaces_ = [env.observation_space for env in envs]
-        low, high = np.array([sp.low for sp in spaces_]), np.array([sp.high for sp in spaces_])
-        return np.clip(obs, low, high).astype(np.float32), dist
+        obs = np.concatenate([unit, rows(tasks, "goal"), q], axis=1)
+        boxes = [task.observation_space for task in tasks]
+        low, high = np.array([b.low for b in boxes]), np.array([b.high for b in boxes])  # type: ignore[attr-defined]
+        return np.clip(obs, low, high).astype(np.float32), ee, dist
 
     @classmethod
-    def batch_results(cls, envs: Sequence[Any], states: RobotStates) -> StepResults:
-        obs, dist = cls.batch_observe(envs, states)
-        n = len(envs)
-        reward = np.array([env._score(float(dist[j])) for j, env in enumerate(envs)])
-        infos = [env.info for env in envs]
+    def results(cls, tasks: Sequence[ReachTask], states: RobotStates) -> StepResults:
+        if tasks[0].goal_conditioned:
+            return cls.goal_results(tasks, states)
+        obs, _, dist = cls.observe_rows(tasks, states)
+        n = len(tasks)
+        reward = np.array([task.frobs_score(float(dist[j])) for j, task in enumerate(tasks)])
+        infos = [task.info for task in tasks]
         for info in infos:
             info.setdefault("is_success", False)
-        done = np.array([float(dist[j]) <= env.tolerance for j, env in enumerate(envs)], dtype=bool)
+        done = np.array([float(dist[j]) <= task.tolerance for j, task in enumerate(tasks)], dtype=bool)
         return StepResults(obs, reward, done, np.zeros(n, dtype=bool), infos)
 
-    def _score(self, dist: float) -> float:
-        """FRobs_RL's reward of a step that left the end-effector ``dist`` from the goal."""
+    def frobs_score(self, dist: float) -> float:
+        """FRobs_RL's reward of a step that left the end effector ``dist`` from the goal."""
         self.info["distance"] = dist
         if dist <= self.tolerance:
             self.info["is_success"] = True
@@ -144,65 +159,22 @@ class FrobsReachTask(ReachTask):
             reward += self.cfg["joint_limits_reward"]
         return float(reward)
 
-    # -- the hooks of one env (MultiROS names), through the batch functions -----------------------------
-    def _get_obs(self) -> np.ndarray:
-        return type(self).batch_observe([self], self.connection.states)[0][0]
 
-    def _get_reward(self) -> float:
-        return self._score(float(np.linalg.norm(self.goal - self.ee_position())))
+def __getattr__(name: str) -> type:
+    """The env class names of earlier releases: the arm env classes with the IRB120 and this task set."""
+    from rl_environments.arm_env import arm_env_class
 
-    def _check_if_done(self) -> bool:
-        return float(np.linalg.norm(self.goal - self.ee_position())) <= self.tolerance
-
-
-class FrobsGoalReachTask(GoalReachTask):
-    """FRobs_RL's reacher, goal-conditioned (see the module docstring). Mix it in before the robot env.
-
-    Args:
-        reward_type: ``"sparse"`` or ``"dense"``.
-        config_file: task config (file name in ``rl_environments.config`` or a path).
-        **kwargs: robot/base-env knobs.
-    """
-
-    OBS_PARTS = ("ee_position", "arm_positions", "prev_action")
-
-    def __init__(self, reward_type: str = "sparse", config_file: str = CONFIG_FILE, **kwargs: Any) -> None:
-        cfg = load_frobs_reacher_config(config_file)
-        self.reward_type = parse_reward_type(reward_type)
-        super().__init__(**kwargs)
-        self._setup_reach(cfg, **frobs_reach_settings(cfg))
-        # The end-effector's observation box: the arm's safety box (its arm file's real: workspace).
-        real = self.ARM_FILE.real  # type: ignore[attr-defined]
-        low, high = np.asarray(real.workspace_min), np.asarray(real.workspace_max)
-        self._setup_goal_spaces(
-            np.concatenate([low + self.base_position, self.chain.lower, self.action_box.low]),
-            np.concatenate([high + self.base_position, self.chain.upper, self.action_box.high]),
-        )
+    kinds = {"ABBIRB120ReacherEnv": (False, False), "ABBIRB120ReacherGoalEnv": (False, True),
+             "ABBIRB120ReacherRealEnv": (True, False), "ABBIRB120ReacherGoalRealEnv": (True, True)}
+    if name not in kinds:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    cls = _ALIASES.get(name)
+    if cls is None:
+        real, goal = kinds[name]
+        cls = _ALIASES[name] = type(name, (arm_env_class(real=real, goal=goal),), {
+            "__module__": __name__, "__qualname__": name, "ARM": "IRB120", "TASK": "frobs_reach",
+            "__doc__": f"``{name}-v0``'s env: FRobs_RL's reacher on the IRB120."})
+    return cls
 
 
-# The IRB120's robot envs, from its arm file (config/arms/irb120.yaml).
-_SIM: Any = robot_env_class("IRB120")
-_SIM_GOAL: Any = robot_env_class("IRB120", goal=True)
-_REAL: Any = robot_env_class("IRB120", real=True)
-_REAL_GOAL: Any = robot_env_class("IRB120", goal=True, real=True)
-
-
-class ABBIRB120ReacherEnv(FrobsReachTask, _SIM):
-    """``ABBIRB120ReacherEnv-v0``: FRobs_RL's reacher on the IRB120, on the simulation node
-    (arguments: :class:`FrobsReachTask`)."""
-
-
-class ABBIRB120ReacherGoalEnv(FrobsGoalReachTask, _SIM_GOAL):
-    """``ABBIRB120ReacherGoalEnv-v0``: the goal-conditioned IRB120 reacher on the simulation node
-    (arguments: :class:`FrobsGoalReachTask`)."""
-
-
-class ABBIRB120ReacherRealEnv(TaskJointLimits, FrobsReachTask, _REAL):
-    """``ABBIRB120ReacherRealEnv-v0``: ``ABBIRB120ReacherEnv-v0``'s task on a real IRB 120 (or a stand-in),
-    with equal spaces (see ``docs/real_robots.md``). Task arguments: :class:`FrobsReachTask`."""
-
-
-class ABBIRB120ReacherGoalRealEnv(TaskJointLimits, FrobsGoalReachTask, _REAL_GOAL):
-    """``ABBIRB120ReacherGoalRealEnv-v0``: the goal-conditioned IRB120 reacher on a real IRB 120, with
-    ``ABBIRB120ReacherGoalEnv-v0``'s spaces, so a model trained in simulation runs here as it is.
-    Task arguments: :class:`FrobsGoalReachTask`."""
+_ALIASES: dict[str, type] = {}

@@ -142,20 +142,19 @@ class ScriptedReach:
         return _move(ee, goal, self.coeff).astype(np.float32)
 
 
-def scripted_policy(env: Any) -> ScriptedPush | ScriptedPickAndPlace | ScriptedReach:
-    """The scripted policy for a reach, push or pick-and-place env (its task and action scale)."""
-    task = env.unwrapped
-    if not getattr(task, "ee_action_type", False):
+def scripted_policy(env: Any) -> Any:
+    """The scripted policy of an arm env's task (reach, push, pick-and-place, slide), for its action scale."""
+    task = getattr(env.unwrapped, "task", None)
+    if task is None or not hasattr(task, "scripted_policy"):
+        raise ValueError(f"{type(env.unwrapped).__name__} is not an arm env with a task: no scripted policy for it")
+    return task.scripted_policy()
+
+
+def scripted_object_policy(task: Any) -> ScriptedPush | ScriptedPickAndPlace:
+    """Push's or pick-and-place's scripted policy for ``task`` (its action scale, cube and gripper)."""
+    if not task.ee_action_type:
         raise ValueError("the scripted policies drive end-effector actions; make the env with ee_action_type=True")
-    kind = getattr(task, "task", None)
-    if kind is None:  # a reach: no scene
-        if getattr(task, "SCENE_TASK", False):
-            raise ValueError(f"{type(task).__name__} has a scene but names no task: no scripted policy for it")
-        return ScriptedReach(ee_delta_coeff=task.ee_delta_coeff)
-    if kind not in ("push", "pnp"):
-        raise ValueError(f"no scripted policy for the task {kind!r} of {type(task).__name__} (scripted: reach, "
-                         "push, pnp)")
-    cls = ScriptedPush if task.task == "push" else ScriptedPickAndPlace
+    cls = ScriptedPush if task.KIND == "push" else ScriptedPickAndPlace
     ramp = FAST_CARRY_RAMP if task.ee_delta_coeff > FAST_EE_STEP else 0
     return cls(ee_delta_coeff=task.ee_delta_coeff, half=task.half, closed=task.gripper_range[0], carry_ramp=ramp,
                opened=task.gripper_range[1])

@@ -1,101 +1,332 @@
-"""The task layer of push and pick-and-place, for every arm: a table and an object next to the
-robot, per-episode object and goal poses, end-effector (or joint) actions plus a gripper command,
-Fetch-style observations, and the faults that end an episode.
+"""Push and pick-and-place, for every arm with a gripper, configured per arm by its arm file's
+``manipulation:`` section (:mod:`rl_environments.arm_file`; a ``config_file=`` of your own has the keys
+under ``<robot name>:``), checked by :func:`~rl_environments.task_config.manipulation_schema`.
 
-What is the arm's comes from its robot layer (:class:`~rl_environments.arm_robot.ArmRobot`'s
-constants): its top-down IK, finger joints, gripper controller and scene (table, cube, heights).
-How the scene exists is the robot layer's too. In simulation the table and the object are spawned
-through the node's SpawnEntity, placed through SetEntityState, and their poses come back with every
-step's single StepRobot round trip (the robot env asks each step for its end-effector frame plus
-``"<object entity>/object"`` and ``"<table entity>/table"``); on a real robot the object's pose
-comes from a tracker's topic (:mod:`multiros.envs.real.scene`). Velocities
-are finite differences of consecutive poses over the time between them.
+## Scene
+The arm stands on a table with a cube (made from the section's sizes, or the arm file's ``scene:``
+MJCF); both are free bodies. Each reset puts the arm at its start pose (the gripper above the table,
+pointing down, open), samples the cube's start (on the table, yawed within ``object_yaw_range`` of
+square to the fingers) and the goal, never closer than ``min_object_goal_distance``, and sets the cube
+there. Push goals lie on the table; pick-and-place goals are lifted up to ``target_height_max`` with
+probability ``target_in_the_air`` (Fetch's 0.5). In simulation the table and the cube are spawned
+through the node's SpawnEntity and placed through SetEntityState, and their poses come back with every
+step's single StepRobot round trip; on a real robot the object's pose comes from a tracker's topic
+(:mod:`multiros.envs.real.scene`) and an episode starts with the object where it lies.
 
-Faults (each truncates the episode with ``info["truncated_reason"]``):
+## Action space
+``Box(-1, 1, (4,))`` (default, ``ee_action_type=True``): end-effector deltas ``action[:3] *
+ee_delta_coeff`` in the base frame, the gripper kept pointing down by the arm's top-down IK, targets
+clipped into the workspace box (the finger tips stay above the table); ``action[3]`` the gripper, -1
+closed (``gripper_min``), +1 open (``gripper_max``), clipped to ``[-1, 1]``. ``ee_action_type=False``:
+``Box(-1, 1, (n + 1,))``, n joint deltas ``* delta_coeff`` and the gripper.
 
-* ``"object_fell_off_table"``: the object's centre is ``fall_margin`` below the table top;
-* ``"object_out_of_reach"``: it is farther than ``max_object_distance`` (horizontally) from the base;
-* ``"sim_diverged"`` (also ``info["sim_diverged"] = True``, set by the env core): MuJoCo diverged in
-  the step; the node restored the diverging entity at rest, and the next reset starts a clean episode.
+## Observation space
+Goal envs: ``Dict(observation=Box(25 + n), achieved_goal=Box(3), desired_goal=Box(3))``. ``observation``
+(Fetch's 25 values plus the n arm joints): EE position, object position, object minus EE, the two finger
+joints, object roll/pitch/yaw, object linear and angular velocity, EE velocity, finger velocities, arm
+joints. ``achieved_goal`` is the object's position, ``desired_goal`` the goal. Plain envs: ``Box(31 + n)``:
+the same values, the goal, and goal minus object. World frame throughout; velocities are finite
+differences of consecutive poses over the time between them; values are clipped into the declared
+bounds. Camera observations: ``rgb_obs_only``, ``rgb_plus_normal_obs``,
+``rgb_plus_depth_plus_normal_obs`` (:mod:`rl_environments.camera_obs`).
 
-The task is written batch-first (:mod:`multiros.envs.batch_task`): actions to commands
-(:meth:`ManipulationTask.batch_act`) and the raw observation (:meth:`ManipulationTask.batch_raw_observation`)
-for N envs in one numpy pass; the end-effector IK and the object's angular velocity go row by row.
+## Rewards
+``reward_type="sparse"`` (goal envs' default): 0 when the object is within ``distance_threshold`` (5 cm,
+Fetch's) of the goal, else -1; ``"dense"`` (plain envs' default): ``-distance(object, goal)``.
+``compute_reward`` is vectorised for HER.
 
-Gripper commands: the action's last value in ``[-1, 1]`` maps linearly to the finger target,
--1 closed (``gripper_min``), +1 open (``gripper_max``); values outside ``[-1, 1]`` are clipped to
-it (the action space's bounds, like every Box action).
+## Episode end
+50 steps of 40 ms (Fetch's), truncated. Success does not end the episode (``terminate_on_success=False``,
+Fetch's convention): ``is_success`` of the last step says whether the object is *at* the goal. Faults
+truncate early with ``info["truncated_reason"]``: ``"object_fell_off_table"`` (the object's centre
+``fall_margin`` below the table top), ``"object_out_of_reach"`` (farther than ``max_object_distance``
+from the base), ``"sim_diverged"`` (MuJoCo diverged; the node restored the entity at rest).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
 
-from multiros.envs.batch_task import BatchTask
+from multiros.envs.batch_task import StepResults
 from multiros.robot_state import RobotStates
-from multiros.utils.ros_markers import goal_marker
-from rl_environments.arm_interface import ArmInterface
-from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, rotation_velocities, yaw_quat
-from rl_environments.reach_task import column, stack_rows
+from rl_environments.arm import Arm
+from rl_environments.arm_task import ArmTask, TaskHost, TaskOptions, column, load_arm_task_config, rows
+from rl_environments.manipulation import (
+    ObjectGoalSampler,
+    is_success,
+    object_reward,
+    quat_to_euler,
+    rotation_velocities,
+    yaw_quat,
+)
+from rl_environments.reach import goal_distance, parse_reward_type, reward_from_distance
+from rl_environments.task_config import SCENE_KEYS, manipulation_schema
 
-TaskKind = Literal["push", "pnp"]
+__all__ = ["EPISODE_STEPS", "FETCH_OBS_SIZE", "ManipulationOptions", "ManipulationTask", "ObjectTask",
+           "PickAndPlaceTask", "PushTask"]
 
 #: Values of the raw observation besides the arm joints (Fetch's 25; see ManipulationTask.raw_observation).
 FETCH_OBS_SIZE = 25
+EPISODE_STEPS = 50
 
 
-class ManipulationTask(BatchTask, ArmInterface):
-    """Push / pick-and-place behaviour on top of an arm's robot env (see the module docstring).
+@dataclasses.dataclass(frozen=True)
+class ManipulationOptions(TaskOptions):
+    """Push's and pick-and-place's keyword arguments (the common ones: :class:`~rl_environments.arm_task.TaskOptions`).
 
-    The task env calls :meth:`_setup_manipulation` after the robot env's constructor.
+    Attributes:
+        ee_action_type: end-effector deltas + gripper (True, the default) or joint deltas + gripper.
+        distance_threshold: success distance in metres (default: the config's, 0.05).
+        terminate_on_success: end the episode on success (default False, as Fetch).
     """
 
-    #: The task needs the scene (a table and an object): the robot layers read it (a real one takes
-    #: the tracker's and the gripper's options then).
-    SCENE_TASK: ClassVar[bool] = True
-    task: TaskKind
-    cfg: dict[str, Any]
-    goal: np.ndarray
-    prev_action: np.ndarray
-    joint_targets: np.ndarray
-    gripper_target: float
+    ee_action_type: bool = True
+    distance_threshold: float | None = None
+    terminate_on_success: bool = False
+
+
+class ObjectTask(ArmTask):
+    """A task with an object on a table next to the arm: the scene, the object's pose and velocities, the
+    per-episode object and goal, and the faults that end an episode (push, pick-and-place, slide)."""
+
+    SCENE = True
+    options: ManipulationOptions
+    table_top: float
+    half: float
     _last: tuple[float, np.ndarray, np.ndarray, np.ndarray]
     _vel: np.ndarray  # EE linear, object linear, object angular velocity (9)
     _episode_start: bool
-    ik_key: tuple[type, bytes, bytes]  # envs with equal keys solve a batch's IK in one call
 
-    if TYPE_CHECKING:  # the simulated env core's, below the robot layer
-        @property
-        def sim_time(self) -> float: ...
+    @classmethod
+    def side_defaults(cls, cfg: Mapping[str, Any], kwargs: dict[str, Any]) -> None:
+        kwargs.setdefault("robot_pos_z", float(cfg["robot_height"]))  # the arm on its table
 
-        def frame_position(self, frame: str) -> np.ndarray: ...
+    def add_scene(self, rest_z: float, object_xy: Sequence[float], scene: Mapping[str, Any] | None = None) -> None:
+        """Spawn the table and the object (a robot's connection serves the tracker's object and the standing
+        table instead), the object resting at ``object_xy`` (base frame)."""
+        base = self.base_position
+        name = self.host.robot_name
+        self.table_entity, self.object_entity = f"{name}_table", f"{name}_object"
+        self.object_frame, self.table_frame = f"{self.object_entity}/object", f"{self.table_entity}/table"
+        self.table_pose = np.asarray(self.cfg["table_center"], dtype=np.float64) + base
+        self.connection.add_scene((
+            self.arm.scene_entity("table", self.table_entity, self.table_pose, movable=False, scene=scene),
+            self.arm.scene_entity("object", self.object_entity, np.array([*object_xy, rest_z]) + base,
+                                  movable=True, scene=scene)))
+        self.track_reset()
 
-        def frame_orientation(self, frame: str) -> np.ndarray: ...
+    def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
+        """Teleport the object (at rest) to its episode start; put the table back when knocked. On a robot
+        nothing moves (put it back by hand; ``reset_env_prompt=True`` asks before each reset)."""
+        table = self.connection.frame_positions(self.connection.states, self.table_frame)[0]
+        if np.linalg.norm(table - self.table_pose) > 1e-3:
+            self.connection.place_entity(self.table_entity, self.table_pose, np.array([1.0, 0, 0, 0]))
+        self.connection.place_entity(self.object_entity, position, quat)
+
+    def show_object_goal(self) -> None:
+        """A sphere the size of the object at the goal (in the shared world's frame), once per episode."""
+        to_world = getattr(self.connection, "to_world", None)  # a simulated robot's world slot
+        self.show_goal(self.goal if to_world is None else to_world(self.goal), 2 * self.half,
+                       ns=f"goal_{self.host.robot_name}")
+
+    # -- the object, rows of a batch ------------------------------------------------------------------
+    @staticmethod
+    def object_poses_of(tasks: Sequence[ObjectTask], states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
+        """``(N, 3)`` positions and ``(N, 4)`` orientations ``(w, x, y, z)`` of the objects (frames returned
+        with the step in simulation, a tracker's poses on a robot: the connection's)."""
+        return tasks[0].connection.frame_poses(states, tasks[0].object_frame)
 
     @staticmethod
-    def manipulation_kwargs(cfg: Mapping[str, Any], kwargs: dict[str, Any]) -> dict[str, Any]:
-        """Robot-env keyword arguments: the robot on the table (``robot_pos_z``) unless the user moved it."""
-        kwargs.setdefault("robot_pos_z", float(cfg["robot_height"]))
-        return kwargs
+    def velocities(tasks: Sequence[ObjectTask], t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """N envs' EE linear, object linear and object angular velocities (N x 9) since each env's previous
+        state (finite differences over the time between them, zero at an episode's first state); each env's
+        tracking moves on to this state (time ``t``, rows of ``ee``, ``p``, ``q``)."""
+        for j, task in enumerate(tasks):
+            if task._episode_start:
+                task._episode_start = False
+                task._last = (t, ee[j].copy(), p[j].copy(), q[j].copy())
+                task._vel = np.zeros(9)
+        vel = np.stack([task._vel for task in tasks])
+        moved = [j for j, task in enumerate(tasks) if task._last[0] != t]
+        if moved:
+            dt = np.array([t - tasks[j]._last[0] for j in moved])
+            ee0, p0, q0 = (np.stack([tasks[j]._last[k] for j in moved]) for k in (1, 2, 3))
+            step = np.where(dt > 0, dt, 1.0)[:, None]  # rows with dt <= 0 are zeroed below
+            new = np.concatenate([(ee[moved] - ee0) / step, (p[moved] - p0) / step,
+                                  rotation_velocities(q0, q[moved], dt)], axis=1)
+            new[dt <= 0] = 0.0
+            vel[moved] = new
+            for k, j in enumerate(moved):
+                tasks[j]._vel = new[k]
+                tasks[j]._last = (t, ee[j].copy(), p[j].copy(), q[j].copy())
+        return vel
 
-    def _setup_manipulation(self, cfg: Mapping[str, Any], task: TaskKind, *, ee_action_type: bool,
-                            distance_threshold: float | None = None) -> None:
-        self.cfg = dict(cfg)
-        self.task = task
-        self.chain = self.kinematic_chain()
-        self.ee_action_type = bool(ee_action_type)
+    @staticmethod
+    def check_faults(tasks: Sequence[ObjectTask], obj: np.ndarray) -> None:
+        """``info["truncated_reason"]`` of each env whose object (row of ``obj``) fell off the table or left
+        the arm's reach."""
+        base = rows(tasks, "base_position")
+        rel = obj - base
+        fell = rel[:, 2] + base[:, 2] < np.array([t.table_top - float(t.cfg["fall_margin"]) for t in tasks])
+        away = np.hypot(rel[:, 0], rel[:, 1]) > np.array([float(t.cfg["max_object_distance"]) for t in tasks])
+        for j in np.flatnonzero(fell | away).tolist():
+            info = tasks[j].info
+            if not info.get("truncated_reason"):
+                info["truncated_reason"] = "object_fell_off_table" if fell[j] else "object_out_of_reach"
+
+    # -- one env ----------------------------------------------------------------------------------------
+    def object_position(self) -> np.ndarray:
+        """World position of the object's centre after the last step."""
+        return self.object_poses_of([self], self.connection.states)[0][0].copy()
+
+    def object_orientation(self) -> np.ndarray:
+        """World orientation ``(w, x, y, z)`` of the object after the last step."""
+        return self.object_poses_of([self], self.connection.states)[1][0].copy()
+
+    def ee_position(self) -> np.ndarray:
+        """World position of the end effector after the last step."""
+        return self.arm.ee_positions_of(self.connection, self.connection.states)[0].copy()
+
+    def object_goal_distance(self) -> float:
+        """Distance of the object's centre from the goal."""
+        return float(np.linalg.norm(self.object_position() - self.goal))
+
+    def track_reset(self) -> None:
+        self._episode_start = False
+        self._last = (self.connection.observation_time(self.connection.states), self.ee_position(),
+                      self.object_position(), self.object_orientation())
+        self._vel = np.zeros(9)
+
+    # -- goal envs (HER) -------------------------------------------------------------------------------
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        return object_reward(achieved_goal, desired_goal, self.tolerance, self.reward_type)
+
+    def is_success(self, achieved_goal: Any, desired_goal: Any) -> Any:
+        return is_success(achieved_goal, desired_goal, self.tolerance)
+
+    def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        """Success ends the episode only with ``terminate_on_success=True``; vectorised."""
+        if self.options.terminate_on_success:
+            return is_success(achieved_goal, desired_goal, self.tolerance)
+        return np.zeros(np.shape(achieved_goal)[:-1], dtype=bool) if np.ndim(achieved_goal) > 1 else False
+
+    def compute_truncated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> Any:
+        """True where the info carries a fault (``truncated_reason``); reads only its arguments."""
+        if np.ndim(achieved_goal) > 1:
+            infos = list(info) if info is not None else []
+            out = np.zeros(np.shape(achieved_goal)[:-1], dtype=bool)
+            for i, item in enumerate(infos[: out.size]):
+                out.flat[i] = bool(isinstance(item, dict) and item.get("truncated_reason"))
+            return out
+        return bool(isinstance(info, dict) and info.get("truncated_reason"))
+
+    # -- scoring, rows of a batch --------------------------------------------------------------------------
+    @classmethod
+    def raw_rows(cls, tasks: Sequence[Any], states: RobotStates) -> np.ndarray:
+        """N raw state observations (the task's), before the goal."""
+        raise NotImplementedError
+
+    @classmethod
+    def results(cls, tasks: Sequence[Any], states: RobotStates) -> StepResults:
+        raw = cls.raw_rows(tasks, states)
+        cls.check_faults(tasks, raw[:, 3:6])
+        n = len(tasks)
+        if not tasks[0].goal_conditioned:
+            obs = cls.plain_observation(tasks, raw)
+            reward, done, truncated = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+            for j, task in enumerate(tasks):
+                d = task.object_goal_distance()
+                info = task.info
+                info["is_success"] = d <= task.tolerance
+                info["distance"] = d
+                reward[j] = float(object_reward(task.object_position(), task.goal, task.tolerance, task.reward_type))
+                done[j] = task.options.terminate_on_success and task.object_goal_distance() <= task.tolerance
+                truncated[j] = bool(info.get("truncated_reason"))
+                info.setdefault("is_success", False)
+            return StepResults(obs, reward, done, truncated, [task.info for task in tasks])
+        goal_obs = cls.goal_observation(tasks, raw)
+        distance = goal_distance(goal_obs["achieved_goal"], goal_obs["desired_goal"])
+        tolerance = rows(tasks, "tolerance")
+        success = distance <= tolerance
+        kinds = {task.reward_type for task in tasks}
+        if len(kinds) == 1:
+            reward = np.asarray(reward_from_distance(distance, tolerance, kinds.pop()), dtype=np.float64)
+        else:
+            reward = np.array([np.asarray(reward_from_distance(distance[j:j + 1], tolerance[j:j + 1],
+                                                               task.reward_type))[0] for j, task in enumerate(tasks)],
+                              dtype=np.float64)
+        terminated = success & np.array([task.options.terminate_on_success for task in tasks], dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        for j, task in enumerate(tasks):
+            info = task.info
+            info.setdefault("is_success", bool(success[j]))
+            truncated[j] = bool(info.get("truncated_reason"))
+        return StepResults(goal_obs, reward, terminated, truncated, [task.info for task in tasks])
+
+    @staticmethod
+    def plain_observation(tasks: Sequence[Any], raw: np.ndarray) -> np.ndarray:
+        goals = rows(tasks, "goal")
+        obs = np.concatenate([raw, goals, goals - raw[:, 3:6]], axis=1).astype(np.float32)
+        boxes = [task.observation_space for task in tasks]
+        return np.minimum(np.maximum(obs, np.array([b.low for b in boxes])), np.array([b.high for b in boxes]))
+
+    @staticmethod
+    def goal_observation(tasks: Sequence[Any], raw: np.ndarray) -> dict[str, np.ndarray]:
+        boxes = [task.observation_space["observation"] for task in tasks]
+        obs = np.minimum(np.maximum(raw.astype(np.float32), np.array([b.low for b in boxes])),
+                         np.array([b.high for b in boxes]))
+        return {"observation": obs, "achieved_goal": obs[:, 3:6].copy(),
+                "desired_goal": rows(tasks, "goal").astype(np.float32)}
+
+    def observe(self) -> Any:
+        raw = type(self).raw_rows([self], self.connection.states)
+        type(self).check_faults([self], raw[:, 3:6])
+        if self.goal_conditioned:
+            return {k: v[0] for k, v in self.goal_observation([self], raw).items()}
+        return self.plain_observation([self], raw)[0]
+
+    def object_spaces(self, low: np.ndarray, high: np.ndarray) -> spaces.Space[Any]:
+        """The env's space from the raw observation's bounds (the object's position at 3:6)."""
+        if self.goal_conditioned:
+            return self.goal_spaces(low, high, slice(3, 6), self.goal_low, self.goal_high)
+        rel = np.abs(self.goal_high - self.goal_low) + 1.0
+        return spaces.Box(np.concatenate([low, self.goal_low, -rel]).astype(np.float32),
+                          np.concatenate([high, self.goal_high, rel]).astype(np.float32), dtype=np.float32)
+
+
+class ManipulationTask(ObjectTask):
+    """Push or pick-and-place (see the module docstring): one env's goal, targets and velocity tracking."""
+
+    KIND: ClassVar[str]
+    OPTIONS = ManipulationOptions
+
+    @classmethod
+    def load_config(cls, arm: Arm, options: TaskOptions) -> dict[str, Any]:
+        scene = {k: v for k, v in (arm.file.manipulation or {}).items() if k in SCENE_KEYS}
+        return load_arm_task_config(arm, "manipulation", manipulation_schema(len(arm.joints)), options.config_file,
+                                    defaults=scene)
+
+    def __init__(self, host: TaskHost, arm: Arm, options: ManipulationOptions, cfg: Mapping[str, Any], *,
+                 goal_conditioned: bool) -> None:
+        super().__init__(host, arm, options, cfg, goal_conditioned=goal_conditioned)
+        cfg = self.cfg
+        self.reward_type = parse_reward_type(options.reward_type or ("sparse" if goal_conditioned else "dense"))
+        self.chain = arm.chain
+        self.ee_action_type = bool(options.ee_action_type)
         self.delta_coeff = float(cfg["delta_coeff"])
         self.ee_delta_coeff = float(cfg["ee_delta_coeff"])
-        self.tolerance = float(cfg["distance_threshold"] if distance_threshold is None else distance_threshold)
+        self.tolerance = float(cfg["distance_threshold"] if options.distance_threshold is None
+                               else options.distance_threshold)
         self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
         self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
         ik_lower = np.maximum(self.chain.lower, self.min_joint_pos)
         ik_upper = np.minimum(self.chain.upper, self.max_joint_pos)
-        self.ik = type(self).top_down_ik(ik_lower, ik_upper)
+        self.ik = arm.top_down_ik(ik_lower, ik_upper)
         # envs whose IKs are alike (same class and limits) solve a batch's targets in one call
         self.ik_key = (type(self.ik), ik_lower.tobytes(), ik_upper.tobytes())
         base = self.base_position
@@ -108,169 +339,92 @@ class ManipulationTask(BatchTask, ArmInterface):
         self.sampler = ObjectGoalSampler(
             tuple(cfg["object_xy_min"]), tuple(cfg["object_xy_max"]), tuple(cfg["goal_xy_min"]),
             tuple(cfg["goal_xy_max"]), rest_z,
-            air_probability=float(cfg["target_in_the_air"]) if task == "pnp" else 0.0,
+            air_probability=float(cfg["target_in_the_air"]) if self.KIND == "pnp" else 0.0,
             air_height=float(cfg["target_height_max"]), min_distance=float(cfg["min_object_goal_distance"]),
-            yaw_range=float(cfg["object_yaw_range"]),
-        )
+            yaw_range=float(cfg["object_yaw_range"]))
         self.init_joint_pos = self.ik.solve(np.asarray(cfg["init_ee_position"], dtype=np.float64))
-        n = len(self.ARM_JOINTS)
-        n_act = (3 if self.ee_action_type else n) + 1
+        n_act = (3 if self.ee_action_type else len(arm.joints)) + 1
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_act,), dtype=np.float32)
         self.prev_action = np.zeros(n_act)
-        # -- the scene (the robot layer's: spawned in simulation, a tracker's poses on a robot)
-        name = self.robot_name
-        self.table_entity, self.object_entity = f"{name}_table", f"{name}_object"
-        self.object_frame, self.table_frame = f"{self.object_entity}/object", f"{self.table_entity}/table"
-        self.table_pose = np.asarray(cfg["table_center"], dtype=np.float64) + base
         self.goal = np.array([*self.sampler.goal_low, rest_z]) + base
-        self.spawn_scene(self.table_entity, self.table_pose, self.object_entity,
-                         np.array([*self.sampler.object_low, rest_z]) + base)
-        self._track_reset()
+        if arm.gripper_controller:
+            self.connection.use_gripper(arm.gripper_controller, self.gripper_range)
+        self.add_scene(rest_z, self.sampler.object_low)
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
+        self.goal_sampler = _ObjectGoals(self)
+        self.goal_low = np.array([*self.sampler.goal_low, rest_z]) + base
+        self.goal_high = np.array([*self.sampler.goal_high, rest_z + float(cfg["target_height_max"])]) + base
+        self.observation_space = self.object_spaces(*self.observation_bounds())
 
-    # -- reset hooks (one env at a time) ----------------------------------------------------------------
-    def _set_init_pose(self) -> None:
-        self.move_to_initial_pose(self.ARM_JOINTS, self.init_joint_pos)
-        self.open_fingers_at_reset(self.gripper_range[1])
+    # -- the episode ------------------------------------------------------------------------------------
+    def reset_pose(self) -> None:
+        self.connection.move_to_initial_pose(self.arm.joints, self.init_joint_pos)
+        self.arm.open_gripper_at_reset(self.connection, self.gripper_range[1])
         self.joint_targets = self.init_joint_pos.copy()
         self.gripper_target = self.gripper_range[1]
-        type(self).command_grippers([self], [self.gripper_target])
+        self.arm.command_gripper(self.connection, self.gripper_target)
 
-    def _set_episode_init_params(self) -> None:
-        rng = self.np_random
+    def start_episode(self, rng: np.random.Generator) -> None:
         base = self.base_position
         obj, yaw, goal = self.sampler.sample(rng)
         self.goal = goal + base
         self.place_object(obj + base, yaw_quat(yaw))
-        self.prev_action = np.zeros(self.action_box.shape)
+        self.prev_action = np.zeros(self.action_space.shape)
         self._episode_start = True  # velocities restart from the first observation
-        self._show_goal()
+        self.show_object_goal()
 
-    def _show_goal(self) -> None:
-        """A sphere the size of the cube at the goal (rendered images, the viewer, RViz); once per episode."""
-        to_world = getattr(self.connection, "to_world", None)  # a simulated robot's world slot
-        at = self.goal if to_world is None else to_world(self.goal)
-        marker = getattr(self, "_goal_marker", None)
-        if marker is None:
-            self._goal_marker = goal_marker(self.node, at, diameter=2 * self.half, ns=f"goal_{self.robot_name}")
-        else:
-            marker.update(position=at)
-
-    # -- actions, batch-first -------------------------------------------------------------------------
+    # -- actions, rows of a batch ------------------------------------------------------------------------
     @classmethod
-    def batch_act(cls, envs: Sequence[Any], actions: np.ndarray, states: RobotStates) -> None:
-        """Joint targets (through each env's top-down IK for EE actions, row by row) and gripper targets
-        of N envs; both sent to each robot."""
-        current = cls.arm_positions_of(states)
-        if all(env.ee_action_type for env in envs):
-            ee = cls.ee_positions_of(envs, states)
-            goals = np.clip(ee - stack_rows(envs, "base_position") + actions[:, :3] * column(envs, "ee_delta_coeff"),
-                            stack_rows(envs, "ee_low"), stack_rows(envs, "ee_high"))
-            key = envs[0].ik_key
-            if all(env.ik_key == key for env in envs):  # one arm, one set of limits: one pass
-                targets = envs[0].ik.solve_rows(goals, q0=current)
+    def act(cls, tasks: Sequence[ManipulationTask], actions: np.ndarray, states: RobotStates) -> None:
+        """Joint targets (through each env's top-down IK for EE actions) and gripper targets of N envs."""
+        arm = tasks[0].arm
+        current = arm.positions_of(states)
+        if all(task.ee_action_type for task in tasks):
+            ee = arm.ee_positions_of(tasks[0].connection, states)
+            goals = np.clip(ee - rows(tasks, "base_position") + actions[:, :3] * column(tasks, "ee_delta_coeff"),
+                            rows(tasks, "ee_low"), rows(tasks, "ee_high"))
+            key = tasks[0].ik_key
+            if all(task.ik_key == key for task in tasks):  # one arm, one set of limits: one pass
+                targets = tasks[0].ik.solve_rows(goals, q0=current)
             else:
-                targets = np.array([env.ik.solve(goals[j], q0=current[j]) for j, env in enumerate(envs)])
-        elif not any(env.ee_action_type for env in envs):
-            targets = current + actions[:, :-1] * stack_rows(envs, "delta_coeff")[:, None]
+                targets = np.array([task.ik.solve(goals[j], q0=current[j]) for j, task in enumerate(tasks)])
+        elif not any(task.ee_action_type for task in tasks):
+            targets = current + actions[:, :-1] * rows(tasks, "delta_coeff")[:, None]
         else:
-            ee = cls.ee_positions_of(envs, states)
+            ee = arm.ee_positions_of(tasks[0].connection, states)
             targets = np.array([
-                env.ik.solve(np.clip(ee[j] - env.base_position + actions[j, :3] * env.ee_delta_coeff, env.ee_low,
-                                     env.ee_high), q0=current[j])
-                if env.ee_action_type else current[j] + actions[j, :-1] * env.delta_coeff
-                for j, env in enumerate(envs)])
-        targets = np.clip(targets, stack_rows(envs, "min_joint_pos"), stack_rows(envs, "max_joint_pos"))
-        cls.set_arm_targets_of(envs, targets)
-        for j, env in enumerate(envs):
-            env.joint_targets = targets[j]
-            lo, hi = env.gripper_range
-            env.gripper_target = lo + (float(np.clip(actions[j, -1], -1.0, 1.0)) + 1.0) * 0.5 * (hi - lo)
-            env.prev_action = actions[j]
-        cls.command_grippers(envs, [env.gripper_target for env in envs])
+                t.ik.solve(np.clip(ee[j] - t.base_position + actions[j, :3] * t.ee_delta_coeff, t.ee_low, t.ee_high),
+                           q0=current[j])
+                if t.ee_action_type else current[j] + actions[j, :-1] * t.delta_coeff
+                for j, t in enumerate(tasks)])
+        targets = np.clip(targets, rows(tasks, "min_joint_pos"), rows(tasks, "max_joint_pos"))
+        for task, row in zip(tasks, targets):
+            arm.command_arm(task.connection, row, task.info)
+        for j, task in enumerate(tasks):
+            task.joint_targets = targets[j]
+            lo, hi = task.gripper_range
+            task.gripper_target = lo + (float(np.clip(actions[j, -1], -1.0, 1.0)) + 1.0) * 0.5 * (hi - lo)
+            task.prev_action = actions[j]
+        for task in tasks:
+            arm.command_gripper(task.connection, task.gripper_target)
 
-    def _set_action(self, action: np.ndarray) -> None:
-        type(self).batch_act([self], np.asarray(action, dtype=np.float64)[None], self.connection.states)
-
-    # -- state, batch-first ---------------------------------------------------------------------------
+    # -- observations -------------------------------------------------------------------------------------
     @classmethod
-    def batch_raw_observation(cls, envs: Sequence[Any], states: RobotStates) -> np.ndarray:
-        """N envs' raw observations (25 values plus the arm joints each: see :meth:`raw_observation`),
-        and each env's velocity tracking moved on to this state."""
-        ee = cls.ee_positions_of(envs, states)
-        obj, obj_q = cls.object_poses_of(envs, states)
-        vel = cls.batch_velocities(envs, cls.observation_time(envs, states), ee, obj, obj_q)
-        finger_pos, finger_vel = cls.finger_states(states)
-        arm = cls.arm_positions_of(states)
+    def raw_rows(cls, tasks: Sequence[ManipulationTask], states: RobotStates) -> np.ndarray:
+        """N raw observations: Fetch's 25 values plus the arm joints (see the module docstring); each env's
+        velocity tracking moves on to this state."""
+        arm, connection = tasks[0].arm, tasks[0].connection
+        ee = arm.ee_positions_of(connection, states)
+        obj, obj_q = cls.object_poses_of(tasks, states)
+        vel = cls.velocities(tasks, connection.observation_time(states), ee, obj, obj_q)
+        finger_pos, finger_vel = arm.finger_states(states)
         return np.concatenate([ee, obj, obj - ee, finger_pos, quat_to_euler(obj_q), vel[:, 3:6],
-                               vel[:, 6:9], vel[:, 0:3], finger_vel, arm], axis=1)
-
-    @classmethod
-    def finger_states(cls, states: RobotStates) -> tuple[np.ndarray, np.ndarray]:
-        """Both fingers' positions and velocities (N x 2 each), in ``FINGER_JOINTS`` order.
-
-        A driver may publish only the commanded finger: a ros2_control mimic joint has no hardware
-        behind it (ROBOTIS' OpenManipulator-X driver declares ``gripper_right_joint`` in simulation
-        only). The mimicking finger is then the commanded one times ``FINGER_MIMIC``, as its URDF
-        ``<mimic>`` says; a simulation always has both.
-        """
-        where = {name: i for i, name in enumerate(states.names)}
-        lead = cls.FINGER_JOINTS[0]
-        if lead not in where:
-            raise KeyError(f"the robot's joint states have no {lead!r}, the gripper's commanded finger "
-                           f"(gripper.joints[0]); joints: {list(states.names)}")
-        pos, vel = states.position[:, where[lead]], states.velocity[:, where[lead]]
-        other = cls.FINGER_JOINTS[1] if len(cls.FINGER_JOINTS) > 1 else None
-        if other is not None and other in where:
-            return (np.stack([pos, states.position[:, where[other]]], axis=1),
-                    np.stack([vel, states.velocity[:, where[other]]], axis=1))
-        return np.stack([pos, cls.FINGER_MIMIC * pos], axis=1), np.stack([vel, cls.FINGER_MIMIC * vel], axis=1)
-
-    @staticmethod
-    def batch_velocities(envs: Sequence[Any], t: float, ee: np.ndarray, p: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """N envs' EE linear, object linear and object angular velocities (N x 9) since each env's
-        previous state (finite differences over the sim time between them, zero at an episode's first
-        state); each env's tracking moves on to this state (time ``t``, rows of ``ee``, ``p``, ``q``)."""
-        for j, env in enumerate(envs):
-            if env._episode_start:
-                env._episode_start = False
-                env._last = (t, ee[j].copy(), p[j].copy(), q[j].copy())
-                env._vel = np.zeros(9)
-        vel = np.stack([env._vel for env in envs])
-        moved = [j for j, env in enumerate(envs) if env._last[0] != t]
-        if moved:
-            dt = np.array([t - envs[j]._last[0] for j in moved])
-            ee0, p0, q0 = (np.stack([envs[j]._last[k] for j in moved]) for k in (1, 2, 3))
-            step = np.where(dt > 0, dt, 1.0)[:, None]  # rows with dt <= 0 are zeroed below
-            new = np.concatenate([(ee[moved] - ee0) / step, (p[moved] - p0) / step,
-                                  rotation_velocities(q0, q[moved], dt)], axis=1)
-            new[dt <= 0] = 0.0
-            vel[moved] = new
-            for k, j in enumerate(moved):
-                envs[j]._vel = new[k]
-                envs[j]._last = (t, ee[j].copy(), p[j].copy(), q[j].copy())
-        return vel
-
-    def object_position(self) -> np.ndarray:
-        """World position of the object's centre after the last step."""
-        return type(self).object_poses_of([self], self.connection.states)[0][0].copy()
-
-    def object_orientation(self) -> np.ndarray:
-        """World orientation ``(w, x, y, z)`` of the object after the last step."""
-        return type(self).object_poses_of([self], self.connection.states)[1][0].copy()
-
-    def _track_reset(self) -> None:
-        self._episode_start = False
-        self._last = (type(self).observation_time([self], self.connection.states), self.ee_position(),
-                      self.object_position(), self.object_orientation())
-        self._vel = np.zeros(9)
+                               vel[:, 6:9], vel[:, 0:3], finger_vel, arm.positions_of(states)], axis=1)
 
     def raw_observation(self) -> np.ndarray:
-        """Fetch's observation plus the arm joints (25 + arm joints values): EE position, object
-        position, object minus EE, the two finger positions, object roll/pitch/yaw, object linear and
-        angular velocity, EE velocity, finger velocities, arm joint positions."""
-        return type(self).batch_raw_observation([self], self.connection.states)[0]
+        """This env's raw observation now (see :meth:`raw_rows`)."""
+        return type(self).raw_rows([self], self.connection.states)[0]
 
     def observation_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of :meth:`raw_observation` (values outside are clipped into them)."""
@@ -280,7 +434,8 @@ class ManipulationTask(BatchTask, ArmInterface):
         pos_hi = base + np.array([reach, reach, 0.7])
         rel = np.array([2 * reach, 2 * reach, 1.2])
         g_lo, g_hi = sorted(self.gripper_range)  # a gripper may close towards either limit
-        m_lo, m_hi = sorted((self.FINGER_MIMIC * g_lo, self.FINGER_MIMIC * g_hi))  # the mimicking finger's range
+        mimic = self.arm.finger_mimic
+        m_lo, m_hi = sorted((mimic * g_lo, mimic * g_hi))  # the mimicking finger's range
         lin, ang = float(self.cfg["max_linear_velocity"]), float(self.cfg["max_angular_velocity"])
         fvel = float(self.cfg["max_joint_vel"])
         low = np.concatenate([pos_lo, pos_lo, -rel, [g_lo - 0.005, m_lo - 0.005], -np.pi * np.ones(3),
@@ -289,26 +444,32 @@ class ManipulationTask(BatchTask, ArmInterface):
         high = np.concatenate([pos_hi, pos_hi, rel, [g_hi + 0.005, m_hi + 0.005], np.pi * np.ones(3),
                                lin * np.ones(3), ang * np.ones(3), lin * np.ones(3), fvel * np.ones(2),
                                self.chain.upper])
-        assert low.shape == (FETCH_OBS_SIZE + len(self.ARM_JOINTS),)
+        assert low.shape == (FETCH_OBS_SIZE + len(self.arm.joints),)
         return low, high
 
-    def check_faults(self, obj: np.ndarray | None = None) -> None:
-        """Set ``info["truncated_reason"]`` when the object fell off the table or left the arm's reach
-        (``obj``: the object's position after the step, read from the state when not given)."""
-        type(self).batch_check_faults([self], np.asarray(self.object_position() if obj is None else obj)[None])
+    def scripted_policy(self) -> Any:
+        from rl_environments.manipulation_scripted import scripted_object_policy
 
-    @staticmethod
-    def batch_check_faults(envs: Sequence[Any], obj: np.ndarray) -> None:
-        """:meth:`check_faults` of N envs, their objects at the rows of ``obj`` (N x 3)."""
-        base = stack_rows(envs, "base_position")
-        rel = obj - base
-        fell = rel[:, 2] + base[:, 2] < np.array([env.table_top - float(env.cfg["fall_margin"]) for env in envs])
-        away = np.hypot(rel[:, 0], rel[:, 1]) > np.array([float(env.cfg["max_object_distance"]) for env in envs])
-        for j in np.flatnonzero(fell | away).tolist():
-            info = envs[j].info
-            if not info.get("truncated_reason"):
-                info["truncated_reason"] = "object_fell_off_table" if fell[j] else "object_out_of_reach"
+        return scripted_object_policy(self)
 
-    def object_goal_distance(self) -> float:
-        """Distance of the object's centre from the goal."""
-        return float(np.linalg.norm(self.object_position() - self.goal))
+
+class _ObjectGoals:
+    """``sample(rng)`` -> a world-frame goal, as the reach's ``goal_sampler`` gives one."""
+
+    def __init__(self, task: ManipulationTask) -> None:
+        self._task = task
+
+    def sample(self, rng: np.random.Generator) -> np.ndarray:
+        return self._task.sampler.sample(rng)[2] + self._task.base_position
+
+
+class PushTask(ManipulationTask):
+    """Push a cube to a goal on the table (see the module docstring)."""
+
+    NAME = KIND = "push"
+
+
+class PickAndPlaceTask(ManipulationTask):
+    """Pick a cube and place it at a goal on the table or in the air (see the module docstring)."""
+
+    NAME = KIND = "pnp"

@@ -58,10 +58,9 @@ def _accepted_kwargs(env_id: str) -> list[str]:
                       if n != "self" and p.kind in positional_or_named}
     names |= {n for n, p in inspect.signature(MujocoEnvCore._init_core).parameters.items()
               if n not in ("self", "legacy") and p.kind in positional_or_named}
-    if hasattr(cls, "take_camera_options"):
-        from rl_environments.camera_obs import CAMERA_KEYWORDS
-
-        names |= set(CAMERA_KEYWORDS)
+    own = getattr(cls, "accepted_keywords", None)  # an env whose keywords depend on its arguments (its task's)
+    if callable(own):
+        names |= set(own(spec.kwargs))
     return sorted(names)
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from multiros.envs.real.core import RealEnvCore
-from rl_environments.arm_registry import ARM_TASKS
+from rl_environments import ARM_TASKS
 from uniros.train_config import TrainingConfig, TrainingConfigError, TrainingError
 
 

@@ -66,9 +66,15 @@ def collect(build_spaces: bool = True) -> list[EnvInfo]:
         module_name, _, class_name = info.entry_point.partition(":")
         module = importlib.import_module(module_name)
         cls = getattr(module, class_name)
-        info.options = _task_options(cls)
-        info.class_doc = inspect.cleandoc(vars(cls).get("__doc__") or "")
-        info.docstrings = _docstrings(module, info.class_doc)
+        if "task" in spec.kwargs:  # an arm env: an arm and a task (rl_environments.arm_env)
+            task = rl_environments.env_ids.task_class(spec.kwargs["task"])
+            info.options = _arm_task_options(task, info.goal)
+            info.class_doc = _arm_env_doc(env_id, class_name, spec.kwargs, task, real, twin)
+            info.docstrings = _docstrings(importlib.import_module(task.__module__), info.class_doc)
+        else:
+            info.options = _task_options(cls)
+            info.class_doc = inspect.cleandoc(vars(cls).get("__doc__") or "")
+            info.docstrings = _docstrings(module, info.class_doc)
         if build_spaces and not real:
             env = uniros.make(env_id)
             try:
@@ -80,6 +86,42 @@ def collect(build_spaces: bool = True) -> list[EnvInfo]:
         info.observation_space, info.action_space = spaces.get(env_id, (None, None))
         infos.append(info)
     return infos
+
+
+#: What each task does, for the pages of the arms' IDs.
+_TASK_WORDS = {"reach": "reach", "push": "push", "pnp": "pick-and-place", "slide": "slide",
+               "frobs_reach": "FRobs_RL reacher"}
+
+
+def _arm_env_doc(env_id: str, class_name: str, kwargs: dict[str, Any], task: type, real: bool,
+                 twin: str | None) -> str:
+    """The first paragraph of an arm env's page: what it is made of and what it does."""
+    arm, name = kwargs["arm"], kwargs["task"]
+    first = (inspect.getdoc(task) or "").split("\n\n")[0].replace("\n", " ").replace(" (see the module docstring)", "")
+    ref = f"the task: :class:`~{task.__module__}.{task.__name__}`; the arm: :class:`~rl_environments.arm.Arm`"
+    made = f"``{class_name}(arm={arm!r}, task={name!r})``"
+    what = ("the goal-conditioned " if "Goal" in class_name else "the ") + f"{arm} {_TASK_WORDS.get(name, name)}"
+    if "Goal" in class_name:
+        what += ", for HER"
+    if not real:
+        return f"``{env_id}``: {what}, {made} ({ref}). {first}"
+    extra = (" The object's pose comes from a tracker (``geometry_msgs/PoseStamped``) and the gripper is "
+             "commanded through its driver (:meth:`~rl_environments.arm.Arm.real_kwargs`)." if task.SCENE else "")
+    return (f"``{env_id}``: ``{twin}``'s task on a real {arm}: {what}, {made} ({ref}; robot and loop knobs: "
+            f":meth:`~rl_environments.arm.Arm.real_kwargs`).{extra} {first}")
+
+
+def _arm_task_options(task: type, goal: bool) -> list[tuple[str, str]]:
+    """An arm task's keyword options (its ``OPTIONS`` record), with the default of its kind of env."""
+    import dataclasses
+
+    out = []
+    for f in dataclasses.fields(task.OPTIONS):
+        default = f.default
+        if f.name == "reward_type" and default is None:
+            default = "sparse" if goal else "dense"
+        out.append((f.name, repr(default)))
+    return out
 
 
 def _task_options(cls: type) -> list[tuple[str, str]]:

@@ -421,8 +421,10 @@ def make_env_batch(env_id: str, num_envs: int, batch_options: Mapping[str, Any] 
                         f"{creator.__name__}: use vectorization_mode='sync' or 'async' for it")
     sim_mode = kwargs.pop("sim_mode", "composed")
     max_steps = kwargs.pop("max_episode_steps", spec.max_episode_steps)
-    base = kwargs.pop("robot_name", getattr(creator, "ROBOT_NAME", "robot"))
     env_kwargs = {**spec.kwargs, **kwargs}
+    naming = getattr(creator, "entity_name", None)  # an env class that names its robot from its arguments
+    base = env_kwargs.pop("robot_name", naming(env_kwargs) if callable(naming) else getattr(creator, "ROBOT_NAME",
+                                                                                             "robot"))
     trusted = local_description_dirs(env_kwargs.get("robot_model_xml"), env_kwargs.get("controllers_file"))
     if env_kwargs.get("floor_color") is not None:  # the envs join the batch's nodes: they start with it
         options["connect_kwargs"] = {**dict(options.get("connect_kwargs") or {}),

@@ -102,9 +102,9 @@ _ROUTES: dict[type, type | None] = {}
 
 
 def batch_route(cls: type) -> type | None:
-    """The batch task class whose batch functions give ``cls``'s step, or ``None`` when ``cls``
-    steps through its own hooks: it is no :class:`BatchTask`, or a class more derived than the task,
-    or a robot layer, defines a step hook of its own (:data:`STEP_HOOKS`)."""
+    """The class whose batch functions (``batch_act``, ``batch_results``) give ``cls``'s step, or ``None``
+    when ``cls`` steps through its own hooks: it has no batch functions, or a class more derived than the
+    one that defines them, or a robot layer, defines a step hook of its own (:data:`STEP_HOOKS`)."""
     try:
         return _ROUTES[cls]
     except KeyError:
@@ -113,15 +113,15 @@ def batch_route(cls: type) -> type | None:
 
 
 def _route(cls: type) -> type | None:
-    if not issubclass(cls, BatchTask):
-        return None
     task = next((k for k in cls.__mro__ if "batch_results" in vars(k)), None)
     if task is None or task is BatchTask:
         return None
     allowed = set(task.__mro__) | set(getattr(cls, "_template", object).__mro__)
+    own = {id(value) for value in vars(task).values()}
     for name in STEP_HOOKS:
         owner = next((k for k in cls.__mro__ if name in vars(k)), None)
-        if owner is not None and owner not in allowed:
+        # a hook below the task steps through hooks, unless it is one of the task's own functions by another name
+        if owner is not None and owner not in allowed and id(vars(owner)[name]) not in own:
             return None
     return task
 

@@ -35,7 +35,6 @@ from gymnasium import spaces
 
 from multiros.envs.connection import RobotConnection, StepStatus
 from multiros.envs.errors import EnvError, ResetError
-from multiros.envs.joint_access import JointStateAccess
 from multiros.robot_state import RobotState
 
 __all__ = ["EnvCore", "EnvError", "ResetError", "hook_name", "call_hook"]
@@ -95,7 +94,7 @@ def call_hook(fn: Any, *args: Any) -> Any:
     return fn(*args) if n < 0 else fn(*args[:n])
 
 
-class EnvCore(JointStateAccess):
+class EnvCore:
     """What every env shares, over ``self.connection`` (see the module docstring).
 
     Subclasses set ``connection`` in their constructor and the class attributes below.
@@ -109,6 +108,7 @@ class EnvCore(JointStateAccess):
 
     connection: RobotConnection
     info: dict[str, Any]
+    robot_name: str
     render_mode: str | None = None
     out_of_range_action: str = "clip"
     #: The exception a refused action raises (a real robot's says nothing was sent).
@@ -131,6 +131,46 @@ class EnvCore(JointStateAccess):
     def joint_names(self) -> tuple[str, ...]:
         """Names of all the robot's joints, in the order of the joint arrays."""
         return self.connection.state.names
+
+    # -- joint arrays by name: all joints, or the ones named, in that order ------------------------
+    _joint_index_cache: dict[tuple[tuple[str, ...], tuple[str, ...]], np.ndarray]
+
+    def joint_positions(self, names: Sequence[str] | None = None) -> np.ndarray:
+        """Joint positions after the last step or reset (all joints, or ``names`` in that order)."""
+        return self._select(self.robot_state.position, names)
+
+    def joint_velocities(self, names: Sequence[str] | None = None) -> np.ndarray:
+        """Joint velocities after the last step or reset."""
+        return self._select(self.robot_state.velocity, names)
+
+    def joint_efforts(self, names: Sequence[str] | None = None) -> np.ndarray:
+        """Joint efforts after the last step or reset."""
+        return self._select(self.robot_state.effort, names)
+
+    def _select(self, values: np.ndarray, names: Sequence[str] | None) -> np.ndarray:
+        if names is None:
+            return values.copy()
+        return values[self._joint_indices(names)]
+
+    def _joint_indices(self, names: Sequence[str]) -> np.ndarray:
+        """Where the joints ``names`` sit in the joint arrays (EnvError for an unknown joint); cached
+        per order of the state's joints."""
+        order = self.robot_state.names
+        key = (order, tuple(names))
+        cache = self.__dict__.get("_joint_index_cache")
+        if cache is None:
+            cache = self._joint_index_cache = {}
+        idx = cache.get(key)
+        if idx is None:
+            where = {name: i for i, name in enumerate(order)}
+            try:
+                idx = np.array([where[n] for n in key[1]], dtype=np.intp)
+            except KeyError as exc:
+                raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: {order}") from None
+            if len(cache) >= 64:  # a few name lists per env; never grow without end
+                cache.clear()
+            cache[key] = idx
+        return idx
 
     # -- acting ---------------------------------------------------------------------------------
     def send_command(self, controller: str, command: Sequence[float] | np.ndarray) -> None:

@@ -50,11 +50,11 @@ def test_pages_say_what_the_code_does(env_pages, infos, tmp_path):
         env.close()
     page = env_pages.render_page(by_id["RX200ReacherSim-v0"], known, tmp_path)
     assert "`Box` of shape `(22,)`" in page and "| episode length | 100 steps" in page
-    assert "| `reward_type` | `'dense'` |" in page and "\n## Rewards" not in page and "\n#### Rewards" in page
-    assert "From {py:mod}`rl_environments.arm_reach`" in page and "arm_manipulation`" not in page
+    assert "| `reward_type` | `'dense'` |" in page and "\n## Rewards" not in page and "\n### Rewards" in page
+    assert "From the docstring of {py:mod}`rl_environments.reach_task`" in page and "manipulation_task`" not in page
     assert "[`RX200ReacherReal-v0`](RX200ReacherReal-v0.md)" in page
     push = env_pages.render_page(by_id["RX200PushGoalSim-v0"], known, tmp_path)
-    assert "50 steps" in push and "rl_environments.arm_manipulation" in push and "#### Rewards" in push
+    assert "50 steps" in push and "rl_environments.manipulation_task" in push and "### Rewards" in push
     real = by_id["ABBIRB120ReacherGoalRealEnv-v0"]
     assert real.observation_space == by_id["ABBIRB120ReacherGoalEnv-v0"].observation_space
     assert "Equal to [`ABBIRB120ReacherGoalEnv-v0`]" in env_pages.render_page(real, known, tmp_path)
@@ -80,8 +80,8 @@ def test_an_arms_page_has_its_class_and_its_task(env_pages, infos):
     known = set(by_id)
     page = env_pages.render_page(by_id["UR5ePnPGoalSim-v0"], known, DOCS)
     assert page.index("the goal-conditioned UR5e pick-and-place") < page.index("From the docstring of")  # class first
-    assert "rl_environments.arm_manipulation" in page and "#### Rewards" in page
-    assert "rl_environments.arm_reach`" not in page  # only the modules this ID refers to
+    assert "rl_environments.manipulation_task" in page and "### Rewards" in page
+    assert "rl_environments.reach_task`" not in page  # only the modules this ID refers to
     assert "![UR5ePnPGoalSim-v0](../_static/envs/UR5ePnPGoalSim-v0.png)" in page
     real = env_pages.render_page(by_id["UR5ePnPGoalReal-v0"], known, DOCS)
     assert "![UR5ePnPGoalSim-v0 (the simulated twin)]" in real and "PoseStamped" in real

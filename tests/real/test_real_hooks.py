@@ -18,8 +18,8 @@ from multiros.envs.real.robot_link import JointState
 from multiros.envs.RealBaseEnv import RealBaseEnv
 from multiros.envs.RealGoalEnv import RealGoalEnv
 from multiros.ros import Context, Node
-from rl_environments.arm_envs import IRB120RobotRealEnv, RX200ReacherGoalEnv, RX200ReacherGoalRealEnv
-from rl_environments.arm_interface import ARM_INTERFACE_MEMBERS
+from rl_environments.arm_env import ArmRealEnv, ArmRealGoalEnv, ArmSimGoalEnv
+from rl_environments.arm_envs import RX200ReacherGoalEnv, RX200ReacherGoalRealEnv
 
 
 @pytest.fixture
@@ -96,17 +96,18 @@ def test_knobs_that_would_launch_a_robot_are_refused() -> None:
 
 def test_no_robot_is_a_clear_error_within_the_startup_timeout() -> None:
     with Context(transport="inproc", env={}) as ctx, pytest.raises(RobotConnectionError, match="no joint_states"):
-        IRB120RobotRealEnv(context=ctx, startup_timeout=0.2)
+        ArmRealEnv(arm="IRB120", task="reach", context=ctx, startup_timeout=0.2)
 
 
-def test_both_robot_layers_provide_the_arm_interface() -> None:
-    for cls in (RX200ReacherGoalEnv, RX200ReacherGoalRealEnv):
-        missing = [m for m in ARM_INTERFACE_MEMBERS if m not in ("node", "info", "np_random") and not hasattr(cls, m)]
-        assert not missing, (cls, missing)
-    # The task logic is one class, shared.
-    from rl_environments.arm_reach import ArmGoalReachTask
+def test_the_names_of_earlier_releases_are_the_arm_envs_with_their_arm_and_task() -> None:
+    assert issubclass(RX200ReacherGoalEnv, ArmSimGoalEnv) and issubclass(RX200ReacherGoalRealEnv, ArmRealGoalEnv)
+    assert (RX200ReacherGoalEnv.ARM, RX200ReacherGoalEnv.TASK) == ("RX200", "reach") == (
+        RX200ReacherGoalRealEnv.ARM, RX200ReacherGoalRealEnv.TASK)
+    assert RX200ReacherGoalEnv.step is RX200ReacherGoalRealEnv.step  # one step, both sides
+    from rl_environments import arm_envs
 
-    assert RX200ReacherGoalEnv.__mro__[1] is ArmGoalReachTask and ArmGoalReachTask in RX200ReacherGoalRealEnv.__mro__
+    with pytest.raises(AttributeError, match="compose the arm with a task"):
+        arm_envs.IRB120RobotRealEnv  # noqa: B018 - an arm without a task is no env class any more
 
 
 def test_the_env_hears_only_the_publisher_it_checked(joint_states: Context) -> None:

@@ -15,10 +15,10 @@ from multiros.envs.real.safety import (
     WORKSPACE,
     description_joint_limits,
 )
-from rl_environments.arm_envs import RX200RealRobot
+from rl_environments.arm_registry import arm_value
 from rl_environments.robots.rx200_description import ARM_JOINTS, URDF_XACRO
 
-CHAIN = RX200RealRobot.kinematic_chain()
+CHAIN = arm_value("RX200").chain
 HOME = np.zeros(5)
 
 

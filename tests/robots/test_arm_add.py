@@ -114,14 +114,14 @@ def test_arm_add_writes_a_file_that_loads_and_registers_its_ids(written, name):
     assert list(gains) == list(spec.joints) and all(g["p"] > 0 and g["d"] > 0 for g in gains.values())
     error = float(text_after((path.parent / name / "controllers.yaml").read_text(), "largest tracking error"))
     assert error < 0.02, "the settle check holds both poses"
-    from rl_environments.arm_envs import ArmFileRobot
-    from rl_environments.arm_registry import registered_arms
+    from rl_environments.arm_registry import arm_value
 
-    robot = type("Robot", (ArmFileRobot,), {"ARM_FILE": registered_arms()[name]})
+    arm, at = arm_value(name), np.zeros(3)
+    cube = arm.scene_entity("object", "cube", at, movable=True)
     half = spec.scene["object_half_size"]
-    assert f'size="{half:g} {half:g} {half:g}"' in robot.scene_mjcf("cube") and robot.scene_uri("cube") == ""
+    assert f'size="{half:g} {half:g} {half:g}"' in cube.mjcf and cube.uri == ""
     hx, hy, hz = spec.scene["table_half_extents"]
-    assert f'size="{hx:g} {hy:g} {hz:g}"' in robot.scene_mjcf("table")
+    assert f'size="{hx:g} {hy:g} {hz:g}"' in arm.scene_entity("table", "table", at, movable=False).mjcf
 
 
 def text_after(text: str, marker: str) -> str:

@@ -74,7 +74,7 @@ def test_an_arm_file_under_another_name_registers_its_ids(ur5e_data, write):
     try:
         obs, _ = env.reset(seed=0)
         assert env.observation_space.contains(obs)
-        assert env.unwrapped.ROBOT_NAME == "myur" and env.spec.max_episode_steps == 100
+        assert env.unwrapped.arm.robot_name == "myur" and env.spec.max_episode_steps == 100
         obs, *_ = env.step(env.action_space.sample())
         assert env.observation_space.contains(obs)
     finally:

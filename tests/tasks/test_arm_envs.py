@@ -92,7 +92,7 @@ def test_camera_images_follow_the_arm_and_match_a_render_of_the_same_pose(make):
     names = list(u.robot_state.names)
     other.unwrapped.set_joint_positions(names, u.robot_state.position)
     other.unwrapped._refresh_state(0)
-    again = other.unwrapped.read_images()
+    again = other.unwrapped.cameras.read_images()
     assert _changed(obs["rgb"], again[0]) < 0.002
     np.testing.assert_allclose(obs["depth"], again[1], atol=1e-3)
 
@@ -208,7 +208,7 @@ def test_batched_envs_observe_each_through_its_own_camera():
         vec.reset(seed=0)
         obs, *_ = vec.step(vec.action_space.sample())
         assert obs["rgb"].shape == (2, 32, 32, 3) and obs["observation"].shape == (2, 21)
-        for j, images in enumerate(vec.call("read_images")):  # each env's camera sees its own world slot
-            np.testing.assert_array_equal(images[0], obs["rgb"][j])
+        for j, now in enumerate(vec.call("observe")):  # each env's camera sees its own world slot
+            np.testing.assert_array_equal(now["rgb"], obs["rgb"][j])
     finally:
         vec.close()

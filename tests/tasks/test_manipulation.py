@@ -47,7 +47,7 @@ def test_object_pose_in_the_observation_is_the_nodes_entity_state(make, env_id):
     policy = scripted_policy(env)
     for _ in range(20):  # grasp and move it: the pose must follow
         obs, *_ = env.step(policy(obs))
-        state = u.sim.get_entity_state(u.object_entity)  # the service, for the test only
+        state = u.sim.get_entity_state(u.task.object_entity)  # the service, for the test only
         p = state.pose.position
         # Frames are MuJoCo's body poses at the last physics step's start, one 4 ms step behind
         # the free joint's qpos that GetEntityState reads: within 3 mm at the carry speed (0.5 m/s).
@@ -55,16 +55,17 @@ def test_object_pose_in_the_observation_is_the_nodes_entity_state(make, env_id):
         np.testing.assert_array_equal(obs["observation"][3:6], obs["achieved_goal"])
     for _ in range(10):  # at rest they agree exactly (float32)
         obs, *_ = env.step(np.array([0, 0, 0, policy(obs)[3]], np.float32))
-    p = u.sim.get_entity_state(u.object_entity).pose.position
+    p = u.sim.get_entity_state(u.task.object_entity).pose.position
     np.testing.assert_allclose(obs["achieved_goal"], [p.x, p.y, p.z], atol=1e-5)
 
 
 def test_frames_of_another_entity_come_back_with_the_robot_step(make):
     env = make("RX200PushGoalSim-v0")
     u = env.unwrapped
-    assert u.object_frame in u.frames and u.table_frame in u.frames
-    state = u.sim.step_robot(u.robot_name, {}, 0, (u.EE_LINK, u.object_frame, "nosuchentity/x"[:0] or u.table_frame))
-    np.testing.assert_allclose(state.frame_positions[2], u.table_pose, atol=1e-3)
+    assert u.task.object_frame in u.frames and u.task.table_frame in u.frames
+    frames = (u.arm.ee_link, u.task.object_frame, "nosuchentity/x"[:0] or u.task.table_frame)
+    state = u.sim.step_robot(u.robot_name, {}, 0, frames)
+    np.testing.assert_allclose(state.frame_positions[2], u.task.table_pose, atol=1e-3)
     from multiros.sim.client import SimulationServiceError
 
     with pytest.raises(SimulationServiceError, match="another entity's frame"):
@@ -75,19 +76,19 @@ def test_frames_of_another_entity_come_back_with_the_robot_step(make):
 def test_reset_places_object_and_goal_as_specified(make, env_id):
     env = make(env_id)
     u = env.unwrapped
-    rest_z = u.table_top + u.half
+    rest_z = u.task.table_top + u.task.half
     lifted = 0
     for seed in range(12):
         obs, info = env.reset(seed=seed)
         obj, goal = obs["achieved_goal"], obs["desired_goal"]
-        assert np.linalg.norm(obj - goal) >= u.sampler.min_distance - 1e-6 > u.tolerance  # never on the goal
+        assert np.linalg.norm(obj - goal) >= u.task.sampler.min_distance - 1e-6 > u.task.tolerance  # never on the goal
         assert obj[2] == pytest.approx(rest_z, abs=2e-3)  # resting on the table
         assert not info["is_success"]
         assert env.observation_space.contains(obs)
         if env_id.startswith("RX200Push"):
             assert goal[2] == pytest.approx(rest_z, abs=1e-6)
         else:
-            assert rest_z - 1e-6 <= goal[2] <= rest_z + u.cfg["target_height_max"] + 1e-6
+            assert rest_z - 1e-6 <= goal[2] <= rest_z + u.task.cfg["target_height_max"] + 1e-6
             lifted += goal[2] > rest_z + 1e-6
     if env_id.startswith("RX200PnP"):
         assert 2 <= lifted <= 10  # about half in the air
@@ -128,8 +129,8 @@ def test_plain_env_observation_and_dense_reward(make):
     obs, _ = env.reset(seed=2)
     u = env.unwrapped
     assert obs.shape == (36,)
-    np.testing.assert_allclose(obs[30:33], u.goal, atol=1e-6)
-    np.testing.assert_allclose(obs[33:36], u.goal - obs[3:6], atol=1e-5)
+    np.testing.assert_allclose(obs[30:33], u.task.goal, atol=1e-6)
+    np.testing.assert_allclose(obs[33:36], u.task.goal - obs[3:6], atol=1e-5)
     _, reward, *_ , info = env.step(np.zeros(4, np.float32))
     assert reward == pytest.approx(-info["distance"], abs=1e-6)
 
@@ -138,24 +139,24 @@ def test_object_falling_off_the_table_truncates(make):
     env = make("RX200PushGoalSim-v0")
     u = env.unwrapped
     env.reset(seed=0)
-    u.sim.set_entity_pose(u.object_entity, (0.175, 0.6, 0.35))  # beyond the table's edge (y 0.40)
+    u.sim.set_entity_pose(u.task.object_entity, (0.175, 0.6, 0.35))  # beyond the table's edge (y 0.40)
     for _ in range(10):
         _, _, terminated, truncated, info = env.step(np.zeros(4, np.float32))
         if truncated:
             break
     assert truncated and not terminated and info["truncated_reason"] in ("object_fell_off_table", "object_out_of_reach")
-    u.sim.set_entity_pose(u.object_entity, (0.175, 0.6, 0.05))  # on the floor
+    u.sim.set_entity_pose(u.task.object_entity, (0.175, 0.6, 0.05))  # on the floor
     _, _, _, truncated, info = env.step(np.zeros(4, np.float32))
     assert truncated and info["truncated_reason"] == "object_fell_off_table"
     obs, info = env.reset()  # a clean episode again
-    assert "truncated_reason" not in info and obs["achieved_goal"][2] > u.table_top
+    assert "truncated_reason" not in info and obs["achieved_goal"][2] > u.task.table_top
 
 
 def test_object_out_of_reach_truncates(make):
     env = make("RX200PnPGoalSim-v0")
     u = env.unwrapped
     env.reset(seed=0)
-    u.sim.set_entity_pose(u.object_entity, (0.52, 0.0, 0.315))  # on the table, 52 cm from the base
+    u.sim.set_entity_pose(u.task.object_entity, (0.52, 0.0, 0.315))  # on the table, 52 cm from the base
     _, _, _, truncated, info = env.step(np.zeros(4, np.float32))
     assert truncated and info["truncated_reason"] == "object_out_of_reach"
 
@@ -166,9 +167,9 @@ def test_diverging_contact_truncates_with_a_flag(make):
     env.reset(seed=0)
     # A wild state: the cube moving at 1e12 m/s into the table. The node restores it; the env
     # ends the episode instead of raising.
-    req = u.sim.request("set_entity_state", entity=u.object_entity)
+    req = u.sim.request("set_entity_state", entity=u.task.object_entity)
     req.state.header.frame_id = "world"
-    p = u.object_position()
+    p = u.task.object_position()
     req.state.pose.position.x, req.state.pose.position.y, req.state.pose.position.z = (float(v) for v in p)
     req.state.pose.orientation.w = 1.0
     req.state.twist.linear.z = -1e12
@@ -188,13 +189,14 @@ def test_gripper_commands_are_clipped_and_map_to_the_finger_range(make):
     env = make("RX200PnPGoalSim-v0")
     u = env.unwrapped
     env.reset(seed=0)
-    for value, finger in ((5.0, u.gripper_range[1]), (-7.0, u.gripper_range[0]), (0.0, np.mean(u.gripper_range))):
+    closed, opened = u.task.gripper_range
+    for value, finger in ((5.0, opened), (-7.0, closed), (0.0, np.mean(u.task.gripper_range))):
         env.step(np.array([0, 0, 0, value], np.float32))
-        assert u.gripper_target == pytest.approx(finger)
+        assert u.task.gripper_target == pytest.approx(finger)
     for _ in range(10):
         obs, *_ = env.step(np.array([0, 0, 0, -1.0], np.float32))
     fingers = obs["observation"][9:11]
-    assert fingers[0] == pytest.approx(u.gripper_range[0], abs=1e-3)
+    assert fingers[0] == pytest.approx(u.task.gripper_range[0], abs=1e-3)
     assert fingers[1] == pytest.approx(-fingers[0], abs=1e-3)  # the URDF mimic: the right finger follows
 
 

@@ -41,7 +41,7 @@ def _camera(env):
 
 def _marker_radius(env) -> float:
     """Reach: a sphere of the goal tolerance; manipulation: of the object's size."""
-    return float(env.half) if hasattr(env, "half") else float(env.tolerance)
+    return float(env.task.half) if hasattr(env.task, "half") else float(env.task.tolerance)
 
 
 def _green(patch: np.ndarray) -> np.ndarray:

@@ -8,13 +8,16 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from rl_environments.arm_task import ArmTask
 from rl_environments.manipulation_scripted import (
     FAST_CARRY_RAMP,
     ScriptedPickAndPlace,
     ScriptedPush,
     ScriptedReach,
+    scripted_object_policy,
     scripted_policy,
 )
+from rl_environments.reach_task import ReachTask
 
 HALF = 0.024
 
@@ -69,22 +72,27 @@ def test_the_ramp_starts_again_after_the_cube_is_let_go():
 
 def test_scripted_policy_ramps_only_arms_whose_ee_moves_more_than_3_cm_a_step():
     def task(coeff: float, kind: str) -> SimpleNamespace:
-        unwrapped = SimpleNamespace(ee_action_type=True, task=kind, ee_delta_coeff=coeff, half=HALF,
-                                    gripper_range=(0.0, 0.04))
-        return SimpleNamespace(unwrapped=unwrapped)
+        return SimpleNamespace(ee_action_type=True, KIND=kind, ee_delta_coeff=coeff, half=HALF,
+                               gripper_range=(0.0, 0.04))
 
-    assert scripted_policy(task(0.04, "pnp")).carry_ramp == FAST_CARRY_RAMP  # UR5e, Panda
-    assert scripted_policy(task(0.025, "pnp")).carry_ramp == 0  # RX200, VX300S, NED2: unchanged
-    push = scripted_policy(task(0.04, "push"))
+    assert scripted_object_policy(task(0.04, "pnp")).carry_ramp == FAST_CARRY_RAMP  # UR5e, Panda
+    assert scripted_object_policy(task(0.025, "pnp")).carry_ramp == 0  # RX200, VX300S, NED2: unchanged
+    push = scripted_object_policy(task(0.04, "push"))
     assert isinstance(push, ScriptedPush) and push.carry_ramp == FAST_CARRY_RAMP
 
 
 def test_a_task_without_a_scripted_policy_is_refused_not_driven_as_a_reach():
-    unknown = SimpleNamespace(unwrapped=SimpleNamespace(ee_action_type=True, task="slide", ee_delta_coeff=0.04))
-    with pytest.raises(ValueError, match="no scripted policy for the task 'slide'"):
+    class Stack(ArmTask):  # a task of your own that writes no scripted policy
+        NAME = "stack"
+
+    unknown = SimpleNamespace(unwrapped=SimpleNamespace(task=object.__new__(Stack)))
+    with pytest.raises(ValueError, match="no scripted policy for the task 'stack'"):
         scripted_policy(unknown)
-    reach = SimpleNamespace(unwrapped=SimpleNamespace(ee_action_type=True, ee_delta_coeff=0.04))
-    assert isinstance(scripted_policy(reach), ScriptedReach)
+    with pytest.raises(ValueError, match="is not an arm env with a task"):
+        scripted_policy(SimpleNamespace(unwrapped=SimpleNamespace()))
+    reach = object.__new__(ReachTask)
+    reach.ee_action_type, reach.ee_delta_coeff = True, 0.04
+    assert isinstance(scripted_policy(SimpleNamespace(unwrapped=SimpleNamespace(task=reach))), ScriptedReach)
 
 
 def test_a_negative_ramp_is_refused():

@@ -100,18 +100,18 @@ def test_a_failed_first_reset_then_step_then_a_retry(make):
 def test_goals_are_reachable_and_in_the_goal_box(make, env_id):
     env = make(env_id).unwrapped
     rng = np.random.default_rng(0)
-    chain = env.chain
+    chain = env.task.chain
     low, high = env.observation_space["desired_goal"].low, env.observation_space["desired_goal"].high
     for _ in range(30):
-        goal = env.goal_sampler.sample(rng)
+        goal = env.task.goal_sampler.sample(rng)
         assert np.all(goal >= low - 1e-6) and np.all(goal <= high + 1e-6)
-        result = chain.ik(goal - env.base_position, restarts=8, rng=rng)
+        result = chain.ik(goal - env.task.base_position, restarts=8, rng=rng)
         assert result.converged, f"{env_id}: sampled goal {goal} is not reachable (IK error {result.error:.4f})"
 
 
 def test_goal_sampler_refuses_a_box_outside_the_workspace(make):
     env = make("RX200ReacherGoalSim-v0").unwrapped
-    sampler = GoalSampler(env.chain, [5, 5, 5], [6, 6, 6], max_tries=256)
+    sampler = GoalSampler(env.task.chain, [5, 5, 5], [6, 6, 6], max_tries=256)
     with pytest.raises(RuntimeError, match="does not overlap"):
         sampler.sample(np.random.default_rng(0))
 
@@ -119,7 +119,7 @@ def test_goal_sampler_refuses_a_box_outside_the_workspace(make):
 def test_reward_success_and_termination_semantics_goal_env(make):
     env = make("RX200ReacherGoalSim-v0").unwrapped
     obs, _ = env.reset(seed=3)
-    tol = env.tolerance
+    tol = env.task.tolerance
     dg = obs["desired_goal"]
     near = dg + np.array([tol * 0.5, 0, 0], np.float32)
     far = dg + np.array([tol * 2.0, 0, 0], np.float32)
@@ -136,13 +136,13 @@ def test_reaching_the_goal_ends_the_episode_with_success(make):
     """Drive the arm to the goal with IK through absolute joint actions: success and termination."""
     env = make("RX200ReacherGoalSim-v0", delta_action=False).unwrapped
     obs, _ = env.reset(seed=5)
-    q = env.chain.ik(obs["desired_goal"] - env.base_position, restarts=8).q
+    q = env.task.chain.ik(obs["desired_goal"] - env.task.base_position, restarts=8).q
     for _ in range(40):
         obs, reward, terminated, truncated, info = env.step(q.astype(np.float32))
         if terminated:
             break
     assert terminated and info["is_success"] and reward == 0.0
-    assert np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]) <= env.tolerance
+    assert np.linalg.norm(obs["achieved_goal"] - obs["desired_goal"]) <= env.task.tolerance
 
 
 def test_plain_rx200_rewards(make):
@@ -171,8 +171,8 @@ def test_irb120_frobs_rewards(make):
     action[0] = 1.0  # the base joint: nothing blocks it on the way to +2.88 rad
     for _ in range(40):
         _, reward, *_ = env.step(action)
-    assert env.at_joint_limits()
-    assert reward == pytest.approx(-1.0 * np.linalg.norm(env.goal - env.ee_position()) - 0.01 - 5.0, abs=1e-6)
+    assert env.task.at_joint_limits()
+    assert reward == pytest.approx(-1.0 * np.linalg.norm(env.task.goal - env.ee_position()) - 0.01 - 5.0, abs=1e-6)
 
 
 def test_ee_action_option(make):

@@ -80,7 +80,7 @@ def test_demonstrations_of_a_camera_env_go_into_the_buffer_channel_first():
         stored = buffer.observations["rgb"][:20, 0]
         assert stored.shape == (20, 3, 36, 48) and stored.any()
         demo.reset(seed=0)
-        np.testing.assert_array_equal(stored[0], np.transpose(demo.unwrapped._get_obs()["rgb"], (2, 0, 1)))
+        np.testing.assert_array_equal(stored[0], np.transpose(demo.unwrapped.observe()["rgb"], (2, 0, 1)))
     finally:
         train.close()
         demo.close()
