@@ -213,14 +213,13 @@ class Arm:
         connection.reset_gripper(gripper.controller, joints, positions)
 
     # -- the scene of tasks with objects ------------------------------------------------------------
-    def scene_entity(self, item: str, entity: str, position: np.ndarray, *, movable: bool,
-                     scene: Mapping[str, Any] | None = None) -> SceneEntity:
-        """The ``"table"`` or ``"object"`` as a spawnable entity: the file's ``scene:`` MJCF when it names
-        one, else made from the sizes in ``scene`` (default the file's ``manipulation`` section)."""
+    def scene_entity(self, item: str, entity: str, position: np.ndarray, *, movable: bool) -> SceneEntity:
+        """The ``"table"`` or ``"object"`` of push and pick-and-place as a spawnable entity: the file's
+        ``scene:`` MJCF when it names one, else made from its ``manipulation`` sizes."""
         from rl_environments.arm_scene import scene_mjcf
 
         uri = self.file.scene_files.get(item, "")
-        sizes = self.file.manipulation if scene is None else scene
+        sizes = self.file.manipulation
         mjcf = "" if uri or sizes is None else scene_mjcf(self.robot_name, sizes, item)
         x, y, z = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
         return SceneEntity(entity, uri, (x, y, z), f"{entity}/{item}", movable=movable, mjcf=mjcf)

@@ -53,6 +53,7 @@ import numpy as np
 from gymnasium import spaces
 
 from multiros.envs.batch_task import StepResults
+from multiros.envs.connection import SceneEntity
 from multiros.robot_state import RobotStates
 from rl_environments.arm import Arm
 from rl_environments.arm_task import ArmTask, TaskHost, TaskOptions, column, load_arm_task_config, rows
@@ -106,18 +107,24 @@ class ObjectTask(ArmTask):
     def side_defaults(cls, cfg: Mapping[str, Any], kwargs: dict[str, Any]) -> None:
         kwargs.setdefault("robot_pos_z", float(cfg["robot_height"]))  # the arm on its table
 
-    def add_scene(self, rest_z: float, object_xy: Sequence[float], scene: Mapping[str, Any] | None = None) -> None:
+    def add_scene(self, rest_z: float, object_xy: Sequence[float], mjcf: tuple[str, str] | None = None) -> None:
         """Spawn the table and the object (a robot's connection serves the tracker's object and the standing
-        table instead), the object resting at ``object_xy`` (base frame)."""
+        table instead), the object resting at ``object_xy`` (base frame). ``mjcf``: the table's and the
+        object's MJCF (default the arm file's scene)."""
         base = self.base_position
         name = self.host.robot_name
         self.table_entity, self.object_entity = f"{name}_table", f"{name}_object"
         self.object_frame, self.table_frame = f"{self.object_entity}/object", f"{self.table_entity}/table"
         self.table_pose = np.asarray(self.cfg["table_center"], dtype=np.float64) + base
-        self.connection.add_scene((
-            self.arm.scene_entity("table", self.table_entity, self.table_pose, movable=False, scene=scene),
-            self.arm.scene_entity("object", self.object_entity, np.array([*object_xy, rest_z]) + base,
-                                  movable=True, scene=scene)))
+        at = np.array([*object_xy, rest_z]) + base
+        if mjcf is None:
+            entities = (self.arm.scene_entity("table", self.table_entity, self.table_pose, movable=False),
+                        self.arm.scene_entity("object", self.object_entity, at, movable=True))
+        else:
+            entities = (SceneEntity(self.table_entity, "", _point(self.table_pose), self.table_frame, movable=False,
+                                    mjcf=mjcf[0]),
+                        SceneEntity(self.object_entity, "", _point(at), self.object_frame, movable=True, mjcf=mjcf[1]))
+        self.connection.add_scene(entities)
         self.track_reset()
 
     def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
@@ -297,6 +304,11 @@ class ObjectTask(ArmTask):
         rel = np.abs(self.goal_high - self.goal_low) + 1.0
         return spaces.Box(np.concatenate([low, self.goal_low, -rel]).astype(np.float32),
                           np.concatenate([high, self.goal_high, rel]).astype(np.float32), dtype=np.float32)
+
+
+def _point(position: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
+    return x, y, z
 
 
 class ManipulationTask(ObjectTask):

@@ -114,6 +114,8 @@ class RobotDescription:
         controllers_yaml: controller YAML referenced by a ``<gazebo><plugin><parameters>`` tag.
         free_root: the MJCF root body had a free joint: the entity is free-floating (the joint is
             taken out of ``spec``; the world adds its own when it spawns the entity).
+        free_damping: that free joint's damping (N s/m and N m s/rad on its six degrees of freedom: a puck
+            that glides and slows by drag), which the world's free joint keeps.
     """
 
     name: str
@@ -128,6 +130,7 @@ class RobotDescription:
     controllers_yaml: Path | None = None
     link_bodies: dict[str, str] = field(default_factory=dict)
     free_root: bool = False
+    free_damping: float = 0.0
     mimic_leaders: tuple[str, ...] = ()
 
     def body_name(self, link: str) -> str:
@@ -562,6 +565,7 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None, p
     # MuJoCo allows a free joint only on a top-level body, i.e. the root here: record it and take it
     # out, so the world's own free joint (with the spawn pose) is the only one.
     free = [j for j in root.joints if int(j.type) == int(mujoco.mjtJoint.mjJNT_FREE)]
+    free_damping = max((float(np.atleast_1d(j.damping)[0]) for j in free), default=0.0)
     for j in free:
         spec.delete(j)
     joints: list[JointInfo] = []
@@ -591,4 +595,5 @@ def mjcf_to_description(source: str | Path, *, source_name: str | None = None, p
             if spec.site(body.name) is None:
                 body.add_site(name=body.name, size=[0.005, 0.005, 0.005], group=4)
     return RobotDescription(name=spec.modelname or "mjcf", format="mjcf", spec=spec, source=name, text=text,
-                            root=root.name, joints=tuple(joints), links=tuple(links), free_root=bool(free))
+                            root=root.name, joints=tuple(joints), links=tuple(links), free_root=bool(free),
+                            free_damping=free_damping)

@@ -148,7 +148,9 @@ def add_to_spec(spec: mujoco.MjSpec, ent: EntityRecord, gravcomp: bool) -> dict:
     if ent.floating:
         frame = spec.worldbody.add_frame(pos=ent.spawn_pos, quat=ent.spawn_quat)
         root = frame.attach_body(src_root, ent.prefix, "")
-        root.add_freejoint(name=ent.prefix + "__free__")
+        free = root.add_freejoint(name=ent.prefix + "__free__")
+        if desc.free_damping:  # a free body that slows by drag (its MJCF free joint's damping)
+            free.damping = [desc.free_damping, 0.0, 0.0]
         holder = root
     else:
         holder = spec.worldbody.add_body(name=ent.name, pos=ent.spawn_pos, quat=ent.spawn_quat, mocap=True)

@@ -102,16 +102,16 @@ def test_object_pose_from_the_tracker_and_the_gripper_through_its_driver(graph, 
         u = env.unwrapped
         tracker.position = [0.31, -0.04, 0.02]
         tracked = u.connection.scene.object_pose
-        assert u.context.wait_for(lambda: np.allclose(u.object_position(), [0.31, -0.04, 0.02] + u.base_position,
+        assert u.context.wait_for(lambda: np.allclose(u.task.object_position(), [0.31, -0.04, 0.02] + u.task.base_position,
                                                       atol=1e-9) if tracked.received else False, 5.0)
         assert recorder.wait_matched()
         obs, _ = env.reset(seed=0)  # the arm moves to its start pose; the gripper opens
-        np.testing.assert_allclose(obs["achieved_goal"], np.add([0.31, -0.04, 0.02], u.base_position), atol=1e-6)
+        np.testing.assert_allclose(obs["achieved_goal"], np.add([0.31, -0.04, 0.02], u.task.base_position), atol=1e-6)
         obs, _, _, _, info = env.step(np.array([0, 0, 0, -1.0], np.float32))  # close the gripper
         assert recorder.wait_count(2)
         last = recorder.messages[-1]
         sent = last.points[0].positions[0] if kind == "trajectory" else last.data[0]
-        assert sent == pytest.approx(u.gripper_range[0]), "closed: the task's closed finger position"
+        assert sent == pytest.approx(u.task.gripper_range[0]), "closed: the task's closed finger position"
         # A malformed pose is dropped (and named); when only those arrive the pose goes stale.
         tracker.quat = [0.0, 0.0, 0.0, 0.0]
         time.sleep(0.7)  # longer than object_pose_timeout: the specification of staleness
@@ -150,14 +150,14 @@ def test_camera_observations_from_image_topics(graph, arm) -> None:
         env = _make(graph, "VX300SReacherGoalReal-v0", image_timeout=0.5, **kwargs)
         try:
             assert env.observation_space == _sim_spaces("VX300SReacherGoalSim-v0", **kwargs)[0]
-            obs = env.unwrapped._get_obs()
+            obs = env.unwrapped.observe()
             np.testing.assert_array_equal(obs["rgb"], pattern[1::2, 1::2])  # nearest pixel of the 2x smaller image
             np.testing.assert_array_equal(obs["depth"], np.full((12, 16), 1.25, np.float32))
             stop.set()
             thread.join(timeout=2.0)
             time.sleep(0.7)  # longer than image_timeout
             with pytest.raises(StaleSensorError, match="rgb image on /vx300s/camera/image_raw is stale"):
-                env.unwrapped._get_obs()
+                env.unwrapped.observe()
         finally:
             env.close()
     finally:

@@ -208,7 +208,7 @@ def test_the_reach_twin_resets_and_steps_against_the_fake_robot(graph: Context, 
         assert env.observation_space == obs_space and env.action_space == act_space
         assert u.robot_driver.startswith(f"{robot.namespace}/controller_manager")
         # The task's joint range tightened the description's in the safety rules.
-        assert np.all(u.safety.lower >= u.min_joint_pos) and np.all(u.safety.upper <= u.max_joint_pos)
+        assert np.all(u.safety.lower >= u.task.min_joint_pos) and np.all(u.safety.upper <= u.task.max_joint_pos)
         obs, _ = env.reset(seed=0)
         assert obs_space.contains(obs)
         # The fake robot started at arm.home; the reset moved it to the task's start pose.
@@ -249,7 +249,7 @@ def test_the_push_twin_drives_the_gripper_through_the_drivers_interface(graph: C
         assert obs_space.contains(obs) and info["safety"]["refused"] is False
         if served is None:
             return
-        lo, hi = u.gripper_range
+        lo, hi = u.task.gripper_range
         joint = served[2]
 
         def finger() -> float | None:

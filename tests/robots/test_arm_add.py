@@ -148,7 +148,7 @@ def test_scripted_reach_succeeds_on_the_written_arm(written, name):
     env = uniros.make(f"{name}ReacherGoalSim-v0", ee_action_type=True)
     try:
         env.reset(seed=0)
-        np.testing.assert_allclose(env.unwrapped.arm_positions(), env.unwrapped.init_joint_pos, atol=0.03)
+        np.testing.assert_allclose(env.unwrapped.arm_positions(), env.unwrapped.task.init_joint_pos, atol=0.03)
         policy = scripted_policy(env)
         assert isinstance(policy, ScriptedReach)
         results = [run_episode(env, policy, seed=s) for s in range(10)]

@@ -102,8 +102,8 @@ def _check_first_frames(env, view: _View, seeds, twin=None) -> int:
         image = env.render()
         if twin is not None:
             twin.reset(seed=seed)
-            assert np.allclose(twin.goal, env.goal), "the composed twin has another goal"
-        goal = np.asarray(env.goal, dtype=float)
+            assert np.allclose(twin.task.goal, env.task.goal), "the composed twin has another goal"
+        goal = np.asarray(env.task.goal, dtype=float)
         uv, r_px, depth = view.pixel(goal, radius)
         if depth > 0 and _inside(uv, r_px + 2) and view.visible(goal, radius):
             half = max(int(r_px * 0.4), 1)
@@ -159,13 +159,13 @@ def _goal_region(env, samples: int = 1500) -> np.ndarray:
     the base) reaches beyond the arm, and the sampler draws from its reachable part only."""
     rng = np.random.default_rng(0)
     if hasattr(env, "sampler"):  # manipulation: (object position, yaw, goal) relative to the base
-        draws = [env.sampler.sample(rng) for _ in range(samples)]
-        points = np.array([p for obj, _, goal in draws for p in (obj, goal)]) + env.base_position
+        draws = [env.task.sampler.sample(rng) for _ in range(samples)]
+        points = np.array([p for obj, _, goal in draws for p in (obj, goal)]) + env.task.base_position
         points = np.vstack([points, _corners(points.min(0), points.max(0))])
     else:
-        points = np.array([env.goal_sampler.sample(rng) for _ in range(samples)])
+        points = np.array([env.task.goal_sampler.sample(rng) for _ in range(samples)])
         if env.robot_name == "rx200":
-            points = np.vstack([points, _corners(env.goal_min, env.goal_max)])
+            points = np.vstack([points, _corners(env.task.goal_min, env.task.goal_max)])
     grow = np.vstack([np.eye(3), -np.eye(3)]) * _marker_radius(env)
     return (points[:, None, :] + grow[None]).reshape(-1, 3)
 

@@ -287,7 +287,7 @@ def _wait_for_goal_marker(env, timeout: float = 5.0) -> None:
     while True:
         renderer = node._renderer
         marker = None if renderer is None else renderer.markers.get("goal/0")
-        if marker is not None and np.allclose(marker.position, env.goal):
+        if marker is not None and np.allclose(marker.position, env.task.goal):
             return
         assert time.monotonic() < deadline, "the goal marker never reached the node"
         time.sleep(0.01)
