@@ -241,9 +241,11 @@ class Arm:
             kwargs["render_camera"] = f"{kwargs['robot_name']}/{spec.render_camera}"
         return kwargs
 
-    def real_kwargs(self, overrides: Mapping[str, Any], *, scene: bool) -> tuple[dict[str, Any], RealArmSetup]:
+    def real_kwargs(self, overrides: Mapping[str, Any], *, scene: tuple[Any, Any] | None = None,
+                    ) -> tuple[dict[str, Any], RealArmSetup]:
         """A robot driver's env-core arguments for this arm (``overrides``, the user's, win) and what its
-        connection is told once up. ``scene``: the task has a table and an object.
+        connection is told once up. ``scene``: a task with a table and an object gives its end-effector box
+        ``(low, high)`` (base frame).
 
         Arm options (taken here): ``base_position`` (default ``robot_pos_x/y/z``, the simulated twin's spawn
         position), ``workspace_min``/``workspace_max``/``floor_z`` (``None`` disables that check),
@@ -261,10 +263,8 @@ class Arm:
             raise ValueError(f"base_position must be 3 finite numbers, got {base.tolist()}")
         ws_default: tuple[Any, Any, Any] = (real.workspace_min, real.workspace_max, real.floor_z)
         scene_options = None
-        if scene:  # the end effector kept inside the scene's box, 5 cm around it, 5 mm above its lowest target
-            assert spec.manipulation is not None
-            ee_lo, ee_hi = (np.asarray(spec.manipulation[k], dtype=np.float64) + base
-                            for k in ("position_ee_min", "position_ee_max"))
+        if scene is not None:  # the end effector kept inside the task's box, 5 cm around it, 5 mm above its lowest
+            ee_lo, ee_hi = (np.asarray(v, dtype=np.float64) + base for v in scene)
             ws_default = (tuple(ee_lo - 0.05), tuple(ee_hi + 0.05), float(ee_lo[2] - 0.005))
             scene_options = self._real_scene_options(opts)
         ws_min = opts.pop("workspace_min", ws_default[0])
@@ -290,8 +290,7 @@ class Arm:
 
     def _real_scene_options(self, opts: dict[str, Any]) -> RealSceneOptions:
         real, gripper = self.file.real, self.file.gripper
-        assert gripper is not None
-        interface = opts.pop("gripper_interface", real.gripper_interface)
+        interface = opts.pop("gripper_interface", real.gripper_interface if gripper is not None else "none")
         if interface == "niryo_tool":
             raise ValueError(
                 f"{self.name}: the Ned2's gripper is Niryo's tool commander (/niryo_robot_tools_commander/"
@@ -311,11 +310,11 @@ class Arm:
         # Two independently driven fingers: a trajectory or forward command drives both (a GripperCommand
         # action's driver moves its fingers itself).
         followers = ((gripper.joints[1], float(gripper.mimic)),) if (
-            gripper.independent and interface in ("trajectory", "forward")) else ()
+            gripper is not None and gripper.independent and interface in ("trajectory", "forward")) else ()
         return RealSceneOptions(
             gripper_interface=interface,
             gripper_controller=opts.pop("gripper_controller", real.gripper_controller),
-            gripper_joint=opts.pop("gripper_joint", real.gripper_joint) or gripper.joints[0],
+            gripper_joint=opts.pop("gripper_joint", real.gripper_joint) or (gripper.joints[0] if gripper else ""),
             gripper_range=None if real_range is None else (float(real_range[0]), float(real_range[1])),
             gripper_max_effort=float(opts.pop("gripper_max_effort", 0.0)),
             gripper_followers=followers, object_pose_topic=topic,

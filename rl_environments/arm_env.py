@@ -99,7 +99,7 @@ class ArmEnv(EnvCore):
         task_cls.side_defaults(cfg, kwargs)
         camera = parse_camera_options(kwargs, type(self).__name__, real=self.ON_ROBOT,
                                       defaults=self.arm.camera_defaults)
-        self._open_side(task_cls, kwargs)
+        self._open_side(task_cls, cfg, kwargs)
         try:
             self.task = task_cls(self, self.arm, options, cfg, goal_conditioned=isinstance(self, GoalEnv))
             self.action_space = self.task.action_space
@@ -115,10 +115,11 @@ class ArmEnv(EnvCore):
             self.close()
             raise
 
-    def _open_side(self, task_cls: type[ArmTask], kwargs: dict[str, Any]) -> None:
+    def _open_side(self, task_cls: type[ArmTask], cfg: dict[str, Any], kwargs: dict[str, Any]) -> None:
         """The side's connection, from the arm's constructor arguments and the user's knobs."""
         if isinstance(self, RealEnvCore):
-            opts, setup = self.arm.real_kwargs(kwargs, scene=task_cls.SCENE)
+            box = (cfg["position_ee_min"], cfg["position_ee_max"]) if task_cls.SCENE else None
+            opts, setup = self.arm.real_kwargs(kwargs, scene=box)
             self._init_real(**opts)
             setup.apply(self.connection)
         elif isinstance(self, MujocoEnvCore):

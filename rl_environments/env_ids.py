@@ -54,6 +54,7 @@ TASKS: dict[str, TaskRow] = {
                     objects=True),
     "pnp": TaskRow("rl_environments.manipulation_task:PickAndPlaceTask", "PnP", MANIPULATION_EPISODE_STEPS,
                    gripper=True, objects=True),
+    "slide": TaskRow("rl_environments.slide_task:SlideTask", "Slide", MANIPULATION_EPISODE_STEPS, objects=True),
     "frobs_reach": TaskRow("rl_environments.frobs_reach:FrobsReachTask", None, MAX_EPISODE_STEPS),
 }
 

@@ -145,8 +145,13 @@ class SlideTask(ObjectTask):
             self.connection.use_gripper(gripper.controller, (gripper.closed, gripper.open))
         self.add_scene(rest_z, self.sampler.object_low, self.scene_mjcf())
         self.joint_targets = self.init_joint_pos.copy()
-        self.goal_low = np.array([*self.sampler.goal_low, rest_z]) + base
-        self.goal_high = np.array([*self.sampler.goal_high, rest_z]) + base
+        # goals lie on the table, out along rays through the puck's start box
+        ray = math.atan2(cfg["object_xy_max"][1], cfg["object_xy_min"][0])
+        reach = math.hypot(*cfg["goal_xy_max"]) + 0.01
+        low_x = cfg["goal_xy_min"][0] * math.cos(ray) - 0.01
+        side = reach * math.sin(ray) + 0.01
+        self.goal_low = np.array([low_x, -side, rest_z - 0.001]) + base
+        self.goal_high = np.array([reach, side, rest_z + 0.001]) + base
         self.observation_space = self.object_spaces(*self.observation_bounds())
 
     def scene_mjcf(self) -> tuple[str, str]:
@@ -236,7 +241,7 @@ class ScriptedSlide:
     """
 
     def __init__(self, ee_delta_coeff: float, glide: float, dt: float = 0.04, push: float = 0.5,
-                 release: float = 0.95, episode_steps: int = 50) -> None:
+                 release: float = 0.8, episode_steps: int = 50) -> None:
         self.coeff, self.glide, self.dt, self.push, self.release = ee_delta_coeff, glide, dt, push, release
         self.episode_steps = episode_steps
         self.released, self.phase, self.command, self.steps = False, "over", 0.0, 0
@@ -246,7 +251,7 @@ class ScriptedSlide:
 
     def __call__(self, obs: Any) -> np.ndarray:
         o = np.asarray(obs["observation"], dtype=np.float64)
-        ee, puck, vel = o[0:3], o[3:6], o[12:15]
+        ee, puck, vel, ee_vel = o[0:3], o[3:6], o[12:15], o[18:21]
         goal = np.asarray(obs["desired_goal"], dtype=np.float64)
         line = goal[:2] - puck[:2]
         dist = float(np.linalg.norm(line))
@@ -256,7 +261,9 @@ class ScriptedSlide:
         # the speed that carries it there by the episode's end: a glide slowed by drag covers v*glide*(1-e^(-t/glide))
         left = max(self.episode_steps - self.steps, 1) * self.dt
         wanted = max(dist, 0.0) / (self.glide * (1.0 - math.exp(-left / self.glide)))
-        if self.released or speed >= wanted * self.release:  # one more step of pushing adds the rest
+        # the tool, moving faster than the puck, gives it more as it is let go
+        touching = self.phase == "push" and speed >= 0.05
+        if self.released or (touching and max(speed, float(ee_vel[:2] @ u)) >= wanted * self.release):
             self.released = True  # it slides on: back and up, out of its way
             return self._move(ee, np.array([*(ee[:2] - 0.03 * u), puck[2] + 0.06]))
         behind = puck[:2] - u * (PUCK["radius"] + 0.035)  # clear of the tool's own width

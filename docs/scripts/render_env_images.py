@@ -64,7 +64,7 @@ def _apart(env, a: np.ndarray, b: np.ndarray, pixels: float) -> bool:
 
 
 def _object(env) -> np.ndarray | None:
-    return env.frame_position(env.object_frame) if hasattr(env, "object_frame") else None
+    return env.frame_position(env.task.object_frame) if hasattr(env.task, "object_frame") else None
 
 
 def render_env(env_id: str, width: int, height: int) -> tuple[np.ndarray, int]:
@@ -73,13 +73,14 @@ def render_env(env_id: str, width: int, height: int) -> tuple[np.ndarray, int]:
     view = {"render_camera": "rx200/zed2_left"} if "Zed2" in env_id else {}
     env = uniros.make(env_id, render_mode="rgb_array", render_width=width, render_height=height, **view).unwrapped
     try:
-        radius = float(env.half) if hasattr(env, "half") else float(env.tolerance)
+        task = env.task
+        radius = float(task.half) if hasattr(task, "half") else float(task.tolerance)
         for seed in SEEDS:
             env.reset(seed=seed)
             obj = _object(env)
-            if getattr(env, "task", "") == "pnp" and env.goal[2] < env.table_top + 0.08:
+            if task.NAME == "pnp" and task.goal[2] < task.table_top + 0.08:
                 continue  # show what sets pick-and-place apart: a goal in the air
-            if _visible(env, env.goal, radius) and (obj is None or _visible(env, obj, radius, env.object_frame)):
+            if _visible(env, task.goal, radius) and (obj is None or _visible(env, obj, radius, task.object_frame)):
                 return env.render(), seed
         raise RuntimeError(f"{env_id}: the robot hides the goal in every seed of {SEEDS}")
     finally:

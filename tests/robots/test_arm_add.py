@@ -23,6 +23,7 @@ from gymnasium.envs.registration import registry
 from gymnasium.utils.env_checker import check_env
 
 import uniros
+from rl_environments import ARM_TASKS
 from rl_environments.arm_file import ArmFileError, load_arm_file
 from rl_environments.arm_registry import unregister_arm
 from rl_environments.manipulation_scripted import ScriptedReach, run_episode, scripted_policy
@@ -33,7 +34,7 @@ PANDA = "package://uniros_test_panda_description/urdf/panda.urdf.xacro"
 OMX = "package://uniros_test_omx_description/urdf/omx.urdf.xacro"
 LINKAGE = "package://uniros_test_linkage_description/urdf/linkage_arm.urdf.xacro"
 TWOFINGER = "package://uniros_test_twofinger_description/urdf/twofinger_arm.urdf.xacro"
-TASKS = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
+TASKS = ARM_TASKS  # every task of the task table: a gripper arm has them all
 
 
 @pytest.fixture
@@ -292,8 +293,8 @@ def test_a_drafted_file_the_scripted_policies_fail_on_is_not_written(workspace, 
 
 def test_an_arm_without_a_gripper_is_reach_only_and_says_so(workspace, capsys, tmp_path):
     path, ids = _add(capsys, workspace, PANDA, "ArmAddPandaBare", tmp_path, "--xacro-arg", "hand=false")
-    assert ids == ["ArmAddPandaBareReacherSim-v0", "ArmAddPandaBareReacherGoalSim-v0",
-                   "ArmAddPandaBareReacherReal-v0", "ArmAddPandaBareReacherGoalReal-v0"]
+    reach_and_slide = ("Reacher", "ReacherGoal", "Slide", "SlideGoal")  # no push or pick-and-place
+    assert ids == [f"ArmAddPandaBare{t}{side}-v0" for side in ("Sim", "Real") for t in reach_and_slide]
     text = path.read_text()
     assert "gripper: null  # no actuated joint after the arm: reach only" in text
     spec = load_arm_file(path)
@@ -418,7 +419,7 @@ def test_force_replaces_the_file_and_its_folder_leaving_no_temporary_files(works
     err = _error(capsys, OMX, "--name", "ArmAddOmxTwice", "--output", str(tmp_path))
     assert "--force" in err and (tmp_path / "ArmAddOmxTwice.yaml").read_text() == "old"
     path, ids = _add(capsys, workspace, OMX, "ArmAddOmxTwice", tmp_path, "--force")
-    assert len(ids) == 12 and load_arm_file(path).name == "ArmAddOmxTwice" and not stale.exists()
+    assert len(ids) == 2 * len(ARM_TASKS) and load_arm_file(path).name == "ArmAddOmxTwice" and not stale.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ArmAddOmxTwice", "ArmAddOmxTwice.yaml"]
 
 
@@ -428,7 +429,7 @@ def test_a_path_uri_is_written_relative_to_the_arm_file(workspace, capsys, tmp_p
     out = tmp_path / "arms"
     path, ids = _add(capsys, workspace, str(copy / "urdf" / "omx.urdf.xacro"), "ArmAddOmxPath", out)
     assert yaml.safe_load(path.read_text())["description"]["uri"] == "../desc/urdf/omx.urdf.xacro"
-    assert len(ids) == 12
+    assert len(ids) == 2 * len(ARM_TASKS)
 
 
 def test_arm_file_error_is_a_value_error():

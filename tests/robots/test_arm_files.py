@@ -56,7 +56,7 @@ def test_shipped_arm_files_match_their_descriptions(name):
     assert chain.joint_names == spec.joints
     assert registered_arms()[spec.name].path == spec.path
     ids = arm_env_ids(spec)
-    assert len(ids) == (6 if spec.gripper else 2)  # a gripperless arm (the IRB120): the two reach tasks
+    assert len(ids) == (8 if spec.gripper else 4)  # a gripperless arm (the IRB120): reach and slide
     assert all(i in gym.registry and real in gym.registry for i, (_, _, real) in ids.items())
     # the home pose and the reach's start pose lie within the joint limits
     for pose in (spec.home, spec.reach["init_joint_pos"]):
@@ -66,7 +66,7 @@ def test_shipped_arm_files_match_their_descriptions(name):
 def test_an_arm_file_under_another_name_registers_its_ids(ur5e_data, write):
     ur5e_data["name"], ur5e_data["robot_name"] = "MyUR", "myur"
     ids = register_arm(write(ur5e_data))
-    tasks = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
+    tasks = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal", "Slide", "SlideGoal")
     assert ids == [f"MyUR{t}Sim-v0" for t in tasks] + [f"MyUR{t}Real-v0" for t in tasks]
     assert "MyURPnPGoalSim-v0" in rl_environments.GOAL_ENV_IDS
     assert rl_environments.SIM_TO_REAL["MyURPushSim-v0"] == "MyURPushReal-v0"
@@ -92,8 +92,9 @@ def test_a_gripperless_arm_gets_the_reach_only(ur5e_data, write):
     ur5e_data["gripper"] = None
     del ur5e_data["manipulation"], ur5e_data["scene"]
     ids = register_arm(write(ur5e_data))
-    assert ids == ["ArmNoGripReacherSim-v0", "ArmNoGripReacherGoalSim-v0", "ArmNoGripReacherReal-v0",
-                   "ArmNoGripReacherGoalReal-v0"]
+    assert ids == ["ArmNoGripReacherSim-v0", "ArmNoGripReacherGoalSim-v0", "ArmNoGripSlideSim-v0",
+                   "ArmNoGripSlideGoalSim-v0", "ArmNoGripReacherReal-v0", "ArmNoGripReacherGoalReal-v0",
+                   "ArmNoGripSlideReal-v0", "ArmNoGripSlideGoalReal-v0"]  # no push or pick-and-place
 
 
 def test_uniros_arms_registers_in_another_process(ur5e_data, tmp_path):

@@ -28,15 +28,16 @@ Image = get_message("sensor_msgs/msg/Image")
 
 
 def test_ids_and_twins_are_registered_as_rl_environments_names_them():
-    """multiros_uniros.md §5.1's names: 4 arms x 6 tasks and the IRB120's 2 x (Sim, Real), the RX200's Zed2
-    variants (an arm file that extends the RX200's: their Real twins observe through the Zed2's topics)."""
-    assert len(NEW_SIM) == 4 * 6 + 2
+    """multiros_uniros.md §5.1's names: 4 arms x 6 tasks and the IRB120's 2, each with the slide's 2 (every arm,
+    gripper or not), x (Sim, Real), the RX200's Zed2 variants (an arm file that extends the RX200's: their
+    Real twins observe through the Zed2's topics)."""
+    assert len(NEW_SIM) == 4 * 8 + 4
     assert {rl_environments.SIM_TO_REAL[i] for i in rl_environments.CAMERA_ENV_IDS} == {
         i.replace("Sim-v0", "Real-v0") for i in rl_environments.CAMERA_ENV_IDS}
     real = [i.replace("Sim-v0", "Real-v0") for i in NEW_SIM]
     assert set(NEW_SIM) | set(ZED2) <= set(rl_environments.ENV_IDS)
     assert set(real) <= set(rl_environments.REAL_ENV_IDS)
-    assert [f"RX200Zed2{t}Sim-v0" for t in ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")] == ZED2
+    assert [f"RX200Zed2{t}Sim-v0" for t in ARM_TASKS] == ZED2
     assert {"UR5ePnPGoalSim-v0", "NED2ReacherSim-v0", "VX300SPushReal-v0"} <= {*NEW_SIM, *real}
     for sim, twin in zip(NEW_SIM, real):
         assert rl_environments.SIM_TO_REAL[sim] == twin

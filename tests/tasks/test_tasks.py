@@ -23,8 +23,9 @@ GOAL_IDS = tuple(i for i in rl_environments.GOAL_ENV_IDS if i in ALL_IDS)
 
 def test_every_id_is_registered_on_import():
     arms = [f"{arm}{task}Sim-v0" for arm in ("VX300S", "UR5e", "NED2", "RX200Zed2")
-            for task in ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")]
-    arms += ["IRB120ReacherSim-v0", "IRB120ReacherGoalSim-v0"]  # no gripper: reach only
+            for task in ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal", "Slide", "SlideGoal")]
+    arms += ["IRB120ReacherSim-v0", "IRB120ReacherGoalSim-v0", "IRB120SlideSim-v0", "IRB120SlideGoalSim-v0",
+             "RX200SlideSim-v0", "RX200SlideGoalSim-v0"]  # the IRB120: no gripper, no push or pick-and-place
     assert set(rl_environments.ENV_IDS) == {*ALL_IDS, *arms}
     for env_id in rl_environments.ENV_IDS:
         spec = gym.spec(env_id)
