@@ -86,7 +86,8 @@ def check_arm(path: str | Path, *, seeds: Sequence[int] = (0, 1, 2), tasks: Sequ
     Raises:
         ArmFileError: the file does not load or register (one line naming the file and key).
     """
-    import uniros
+    import gymnasium as gym
+
     from rl_environments.arm_file import load_arm_file
     from rl_environments.arm_registry import register_arm, registered_arms, unregister_arm
     from rl_environments.manipulation_scripted import run_episode, scripted_policy
@@ -107,7 +108,7 @@ def check_arm(path: str | Path, *, seeds: Sequence[int] = (0, 1, 2), tasks: Sequ
             result = TaskCheck(f"{spec.name}{task}Sim-v0")
             results.append(result)
             try:
-                env = uniros.make(result.env_id, ee_action_type=True)
+                env = gym.make(result.env_id, ee_action_type=True)
             except Exception as exc:  # noqa: BLE001 - any failure to make it is the finding, in one line
                 result.error = f"cannot be made: {error_line(exc)}"
                 continue

@@ -98,8 +98,8 @@ def _vendor_driver(ins: Inspection, joints: Sequence[str], gripper: _Gripper | N
     """The arm's trajectory controller (and the gripper's) from the controllers files of the packages
     the description names (``config/**/*.yaml``): the controller whose joints are the arm's, its
     controller manager's namespace (``/lbr/controller_manager:`` -> ``/lbr``)."""
+    from multiros.bounded_yaml import YamlBoundsError, load_yaml_bounded
     from multiros.sim.packages import default_index
-    from multiros.utils.bounded_yaml import YamlBoundsError, load_yaml_bounded
 
     index = default_index()
     files: list[Path] = []

@@ -216,7 +216,8 @@ class ArmEnv(EnvCore):
         from rl_environments.arm_registry import arm_value
 
         arm = kwargs.get("arm") or cls.ARM
-        return str(kwargs.get("robot_name") or (arm.robot_name if isinstance(arm, Arm) else arm_value(arm).robot_name))
+        named = kwargs.get("robot_name")
+        return str(named or (arm.robot_name if isinstance(arm, Arm) else arm_value(str(arm)).robot_name))
 
     def __getattr__(self, name: str) -> Any:
         # The env classes of earlier releases were their task: code that reads a task's value from the env

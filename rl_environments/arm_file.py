@@ -509,8 +509,8 @@ _PATH_KEYS = (("description", "uri"), ("description", "controllers"), ("scene", 
 
 
 def _read_yaml(source: Path) -> Any:
-    """The file's YAML within bounds (:mod:`multiros.utils.bounded_yaml`: size, depth, aliases expanded)."""
-    from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
+    """The file's YAML within bounds (:mod:`multiros.bounded_yaml`: size, depth, aliases expanded)."""
+    from multiros.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
     if not source.is_file():
         raise ArmFileError(f"{source}: arm file not found")

@@ -16,16 +16,13 @@ before any ID is.
 
 from __future__ import annotations
 
-import functools
 import logging
 import os
-from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from multiros.utils.kinematics import KinematicChain
+from rl_environments.arm import _urdf_text, chain_of, top_down_ik_of
 from rl_environments.arm_file import ArmFile, ArmFileError, error_line, load_arm_file
-from rl_environments.arm_ik import ChainTopDownIK, PlanarWristTopDownIK, TopDownIK
 
 __all__ = ["arm_env_ids", "arm_of", "arm_value", "chain_of", "check_description", "env_arm_errors",
            "register_arm", "register_env_arms", "registered_arms", "top_down_ik_of", "unregister_arm"]
@@ -33,44 +30,6 @@ __all__ = ["arm_env_ids", "arm_of", "arm_value", "chain_of", "check_description"
 _ARMS: dict[str, ArmFile] = {}
 _ENV_ARM_ERRORS: dict[str, str] = {}  # UNIROS_ARMS entries skipped at import: path -> why
 _ADDED_TO_ENVIRONMENT: set[str] = set()  # the UNIROS_ARMS entries register_arm added (unregister takes them out)
-
-
-def chain_of(spec: ArmFile) -> KinematicChain:
-    """The arm's chain from ``arm.base_link`` to its end effector (``arm.ee_link``, moved by ``arm.tcp_offset``)
-    of its description (built once per process)."""
-    chain = _chain(spec.description_uri, tuple(sorted(spec.xacro_args.items())), spec.base_link, spec.ee_link)
-    return chain.with_tip_offset(spec.tcp_offset) if any(spec.tcp_offset) else chain
-
-
-def top_down_ik_of(spec: ArmFile, lower: Sequence[float] | None = None,
-                   upper: Sequence[float] | None = None) -> TopDownIK:
-    """The arm's top-down IK (its file's ``arm.top_down_ik`` solver, axes, seed and home) within joint
-    limits (default the chain's)."""
-    ik = spec.top_down_ik
-    if ik.get("solver") == "planar_wrist":
-        chain = chain_of(spec)
-        return PlanarWristTopDownIK(ik["shoulder_height"], ik["upper_arm"], ik["forearm"], ik["tip"], spec.joints,
-                                    chain.lower if lower is None else lower, chain.upper if upper is None else upper)
-    return ChainTopDownIK(chain_of(spec), spec.approach_axis, spec.closing_axis, spec.ik_seed, home=spec.home,
-                          lower=lower, upper=upper)
-
-
-@functools.lru_cache(maxsize=32)
-def _urdf_text(uri: str, args: tuple[tuple[str, str], ...]) -> str:
-    # xacro costs ~0.1 s; the text is immutable, so envs share it.
-    from multiros.sim.description import xacro_to_urdf
-    from multiros.sim.packages import default_index
-
-    index = default_index()
-    path = index.resolve_uri(uri)
-    if not path.is_file():
-        raise ArmFileError(f"description {uri!r}: file {str(path)!r} not found")
-    return xacro_to_urdf(path, dict(args), index=index) if path.name.endswith(".xacro") else path.read_text()
-
-
-@functools.lru_cache(maxsize=32)
-def _chain(uri: str, args: tuple[tuple[str, str], ...], base: str, tip: str) -> KinematicChain:
-    return KinematicChain.from_urdf(_urdf_text(uri, args), base, tip)
 
 
 def arm_env_ids(spec: ArmFile) -> dict[str, tuple[str, str, str]]:

@@ -135,6 +135,8 @@ class ArmTask:
     observation_space: spaces.Space[Any]
     goal: np.ndarray
     tolerance: float
+    min_joint_pos: np.ndarray  # the task's joint range (a robot's safety rules take it too)
+    max_joint_pos: np.ndarray
     _goal_marker: Any = None
 
     def __init__(self, host: TaskHost, arm: Arm, options: TaskOptions, cfg: Mapping[str, Any], *,
@@ -216,8 +218,9 @@ class ArmTask:
         """A sphere at the goal for rendered images, the viewer and RViz (once per episode, never from
         ``compute_reward``, which HER calls on batches)."""
         if self._goal_marker is None:
-            kwargs = {} if ns is None else {"ns": ns}
-            self._goal_marker = goal_marker(self.host.node, position, diameter=diameter, **kwargs)
+            node = self.host.node
+            self._goal_marker = (goal_marker(node, position, diameter=diameter) if ns is None else
+                                 goal_marker(node, position, diameter=diameter, ns=ns))
         else:
             self._goal_marker.update(position=position)
 

@@ -36,7 +36,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium import spaces
@@ -140,7 +140,7 @@ class FrobsReachTask(ReachTask):
             return cls.goal_results(tasks, states)
         obs, _, dist = cls.observe_rows(tasks, states)
         n = len(tasks)
-        reward = np.array([task.frobs_score(float(dist[j])) for j, task in enumerate(tasks)])
+        reward = np.array([cast(FrobsReachTask, task).frobs_score(float(dist[j])) for j, task in enumerate(tasks)])
         infos = [task.info for task in tasks]
         for info in infos:
             info.setdefault("is_success", False)

@@ -65,7 +65,7 @@ from rl_environments.manipulation import (
     rotation_velocities,
     yaw_quat,
 )
-from rl_environments.reach import goal_distance, parse_reward_type, reward_from_distance
+from rl_environments.reach import RewardType, goal_distance, parse_reward_type, reward_from_distance
 from rl_environments.task_config import SCENE_KEYS, manipulation_schema
 
 __all__ = ["EPISODE_STEPS", "FETCH_OBS_SIZE", "ManipulationOptions", "ManipulationTask", "ObjectTask",
@@ -97,6 +97,9 @@ class ObjectTask(ArmTask):
 
     SCENE = True
     options: ManipulationOptions
+    reward_type: RewardType
+    goal_low: np.ndarray
+    goal_high: np.ndarray
     table_top: float
     half: float
     _last: tuple[float, np.ndarray, np.ndarray, np.ndarray]

@@ -97,8 +97,8 @@ class ReachTask(ArmTask):
     """The reach (see the module docstring): one env's goal, previous action and joint targets."""
 
     NAME = "reach"
-    OPTIONS = ReachOptions
-    NUM_SIM_STEPS = REACH_NUM_SIM_STEPS
+    OPTIONS: ClassVar[type[TaskOptions]] = ReachOptions
+    NUM_SIM_STEPS: ClassVar[int | None] = REACH_NUM_SIM_STEPS
     #: A goal env's ``observation``, from :data:`OBS_PARTS`.
     GOAL_OBS_PARTS: ClassVar[tuple[str, ...]] = OBS_PARTS
     options: ReachOptions

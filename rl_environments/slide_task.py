@@ -45,7 +45,7 @@ from multiros.robot_state import RobotStates
 from rl_environments.arm import Arm
 from rl_environments.arm_task import TaskHost, TaskOptions, column, rows
 from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, yaw_quat
-from rl_environments.manipulation_task import ObjectTask
+from rl_environments.manipulation_task import ManipulationOptions, ObjectTask
 from rl_environments.reach import parse_reward_type
 
 __all__ = ["PUCK", "ScriptedSlide", "SlideOptions", "SlideTask", "slide_config"]
@@ -89,13 +89,9 @@ def _free_body(robot_name: str, item: str, body: str, joint: str, geom: str) -> 
 
 
 @dataclasses.dataclass(frozen=True)
-class SlideOptions(TaskOptions):
+class SlideOptions(ManipulationOptions):
     """The slide's keyword arguments: ``reward_type``, ``distance_threshold`` (success distance, default 5 cm)
     and ``terminate_on_success``. Actions are end-effector deltas (``ee_action_type`` must stay True)."""
-
-    ee_action_type: bool = True
-    distance_threshold: float | None = None
-    terminate_on_success: bool = False
 
 
 class SlideTask(ObjectTask):

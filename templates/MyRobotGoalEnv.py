@@ -5,7 +5,7 @@ inherits it and adds spaces, actions, observations and rewards. Create a copy wi
 filled in with ``uniros new MyArm`` (or copy this file by hand).
 
 Fill in the block between ``# BLANK(robot)`` and ``# END BLANK``. Every base-env knob
-(``multiros.envs.core.MujocoEnvCore``) can also be overridden at construction:
+(``multiros.envs.sim_env.MujocoEnvCore``) can also be overridden at construction:
 ``uniros.make("MyTaskGoalEnv-v0", num_sim_steps=10, sim_mode="process")``.
 
 Robot-layer hooks: ``_check_connection_and_readiness()`` (called on each reset before the episode

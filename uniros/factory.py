@@ -43,7 +43,7 @@ _MAKE_KEYWORDS = ("max_episode_steps", "disable_env_checker", "render_mode")
 def _accepted_kwargs(env_id: str) -> list[str]:
     """Every keyword ``make(env_id, ...)`` takes: the env classes' own, the core's knobs, the camera
     options of an env with camera observations, and ``gymnasium.make``'s."""
-    from multiros.envs.core import MujocoEnvCore
+    from multiros.envs.sim_env import MujocoEnvCore
 
     spec = gym.spec(env_id)
     cls = spec.entry_point if not isinstance(spec.entry_point, str) else gym.envs.registration.load_env_creator(

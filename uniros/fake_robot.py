@@ -35,12 +35,12 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from multiros.bounded_yaml import YamlBoundsError, read_yaml_bounded
 from multiros.hardware import fake_robot as _fake
 from multiros.hardware.robot_spec import RobotSpec, load_robot_spec, parse_assignments
 from multiros.ros.names import split_ros_arguments
 from multiros.ros.processes import start_child_program
 from multiros.sim.errors import SimError
-from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
 if TYPE_CHECKING:  # imported when used: rl_environments registers every ID on import
     from rl_environments.arm_file import ArmFile

@@ -310,12 +310,3 @@ class EnvCore:
         connection = getattr(self, "connection", None)
         if connection is not None:
             connection.close()
-
-
-def __getattr__(name: str) -> Any:
-    # ``multiros.envs.core.MujocoEnvCore`` (its knobs' documented place) lives in multiros.envs.sim_env.
-    if name == "MujocoEnvCore":
-        from multiros.envs.sim_env import MujocoEnvCore
-
-        return MujocoEnvCore
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -23,11 +23,11 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qsl
 
+from multiros.bounded_yaml import YamlBoundsError, read_yaml_bounded
 from multiros.sim.errors import DescriptionError
 from multiros.sim.packages import PackageIndex, default_index
 from multiros.sim.urdf_model import parse_urdf
 from multiros.sim.xacro_runner import xacro_to_urdf
-from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
 __all__ = ["JointSpec", "MimicSpec", "RobotSpec", "Preset", "PRESETS", "load_robot_spec", "rename_controllers"]
 

@@ -394,7 +394,7 @@ def load_controller_config(config: str | Path | Mapping | None) -> dict:
     if config is None:
         return {"update_rate": None, "types": {}, "params": {}}
     if not isinstance(config, Mapping):
-        from multiros.utils.bounded_yaml import YamlBoundsError, read_yaml_bounded
+        from multiros.bounded_yaml import YamlBoundsError, read_yaml_bounded
 
         try:
             config = read_yaml_bounded(Path(config)) or {}

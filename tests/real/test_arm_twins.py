@@ -102,8 +102,9 @@ def test_object_pose_from_the_tracker_and_the_gripper_through_its_driver(graph, 
         u = env.unwrapped
         tracker.position = [0.31, -0.04, 0.02]
         tracked = u.connection.scene.object_pose
-        assert u.context.wait_for(lambda: np.allclose(u.task.object_position(), [0.31, -0.04, 0.02] + u.task.base_position,
-                                                      atol=1e-9) if tracked.received else False, 5.0)
+        where = [0.31, -0.04, 0.02] + u.task.base_position
+        assert u.context.wait_for(lambda: np.allclose(u.task.object_position(), where, atol=1e-9)
+                                  if tracked.received else False, 5.0)
         assert recorder.wait_matched()
         obs, _ = env.reset(seed=0)  # the arm moves to its start pose; the gripper opens
         np.testing.assert_allclose(obs["achieved_goal"], np.add([0.31, -0.04, 0.02], u.task.base_position), atol=1e-6)

@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from multiros.envs.core import MujocoEnvCore
+from multiros.envs.sim_env import MujocoEnvCore
 from multiros.envs.vector import BatchedVectorEnv
 from uniros.rllib import EnvCreator, RunnerSeeds, register_envs
 

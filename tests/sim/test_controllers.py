@@ -48,7 +48,7 @@ def test_yaml_parsing():
 
 
 def test_a_hostile_controllers_file_is_refused_before_it_expands(tmp_path):
-    """A controllers file is read within bounds (multiros.utils.bounded_yaml): a "billion laughs" is one
+    """A controllers file is read within bounds (multiros.bounded_yaml): a "billion laughs" is one
     short error, not an expansion."""
     lol = ",".join(['"lol"'] * 9)
     laughs = tmp_path / "laughs.yaml"

@@ -1,4 +1,4 @@
-"""multiros.utils.bounded_yaml: hostile YAML is one quick error, ordinary YAML loads as safe_load loads it."""
+"""multiros.bounded_yaml: hostile YAML is one quick error, ordinary YAML loads as safe_load loads it."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import time
 import pytest
 import yaml
 
-from multiros.utils.bounded_yaml import YamlBoundsError, load_yaml_bounded, read_yaml_bounded
+from multiros.bounded_yaml import YamlBoundsError, load_yaml_bounded, read_yaml_bounded
 
 LAUGHS = 'a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n' + "".join(
     f"{chr(98 + i)}: &{chr(98 + i)} [{','.join(['*' + chr(97 + i)] * 9)}]\n" for i in range(8))

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -27,10 +27,25 @@ from multiros.envs.real.errors import RobotConnectionError, StaleStateError
 from multiros.envs.real.gripper import RealGripper
 from multiros.robot_state import RobotStates
 
-if TYPE_CHECKING:
-    from multiros.envs.real.connection import RealConnection
+__all__ = ["RealScene", "RealSceneOptions", "SceneConnection"]
 
-__all__ = ["RealScene", "RealSceneOptions"]
+
+class SceneConnection(Protocol):
+    """What a real scene uses of its robot's connection (:class:`~multiros.envs.real.connection.RealConnection`):
+    its node and driver link, the startup bound, where the base stands, the frames it serves, the
+    controllers it routes, and the fault that stops the env."""
+
+    node: Any
+    link: Any
+    startup_timeout: float
+    fault: BaseException | None
+
+    @property
+    def base_position(self) -> np.ndarray: ...
+
+    def add_frame_source(self, frame: str, poses: Callable[[RobotStates], Any]) -> None: ...
+
+    def route_controller(self, controller: str, send: Callable[[np.ndarray], None]) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -76,7 +91,7 @@ def _standing(position: Sequence[float]) -> Callable[[RobotStates], tuple[np.nda
 class RealScene:
     """One real robot's scene: its object tracker, its fixtures' frames and its gripper's driver."""
 
-    def __init__(self, connection: RealConnection, options: RealSceneOptions) -> None:
+    def __init__(self, connection: SceneConnection, options: RealSceneOptions) -> None:
         self.connection = connection
         self.options = options
         self.object_pose: Any = None  # the tracker's PoseTopic, once the scene is added
