@@ -13,8 +13,11 @@ from typing import Any
 
 from multiros.envs.real.core import SIMULATION_KNOBS
 from rl_environments import SIM_TO_REAL
+from uniros.algorithms import algorithm_class, algorithm_of_saved
 from uniros.checkpoints import normalizer_path
-from uniros.trainer import ModelFileError, load_model
+from uniros.devices import resolve_device
+from uniros.image_spaces import channel_first_space
+from uniros.train_config import TrainingError
 
 
 def find_normalizer(model_path: Path) -> Path | None:
@@ -141,3 +144,74 @@ def load_for_eval(model_path: Path, env: Any, *, algorithm: str | None = None,
     # HER models need an env to rebuild their replay buffer, even for prediction.
     model = load_model(model_path, normalizer if normalizer is not None else venv, algorithm=algorithm, device=device)
     return model, normalizer
+
+
+def spaces_mismatch(model_path: Path, env: Any) -> str | None:
+    """Why the model in ``model_path`` cannot act in ``env`` (observation or action space), or None."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, _, _ = load_from_zip_file(str(model_path), load_data=True, device="cpu")
+    for name in ("observation_space", "action_space"):
+        saved, current = (data or {}).get(name), getattr(env, name)
+        if name == "observation_space":  # the model holds camera images channel-first
+            current = channel_first_space(current)
+        if saved is not None and saved != current:
+            return (f"{model_path} was trained with {name} {saved}, but the env has {current}: "
+                    "evaluate it on the env ID and env kwargs it was trained with")
+    return None
+
+
+def load_model(path: Path, env: Any, *, algorithm: str | None = None, device: str | None = None,
+               **kwargs: Any) -> Any:
+    """Load a saved model for ``env``, with clear errors for a missing, corrupt or mismatched file.
+
+    ``device``: ``auto`` (default), ``cpu``, ``cuda`` or ``cuda:N`` (:func:`uniros.devices.resolve_device`
+    on ``env``'s observation space); the model's tensors, optimisers included, load onto it.
+    ``kwargs`` replace saved hyperparameters (SB3's ``load(**kwargs)``).
+
+    Raises:
+        ModelFileError: the file is missing, not an SB3 model, for another algorithm or another env.
+        TrainingConfigError: ``device`` names a GPU that is not there.
+    """
+    import zipfile
+
+    path = Path(path)
+    if not path.is_file() and path.with_name(path.name + ".zip").is_file():
+        path = path.with_name(path.name + ".zip")
+    if not path.is_file():
+        raise ModelFileError(f"model file {str(path)!r} not found")
+    algo = algorithm or algorithm_of(path)
+    try:
+        problem = spaces_mismatch(path, env)
+    except (zipfile.BadZipFile, ValueError, KeyError, EOFError, OSError) as exc:
+        raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
+    if problem:
+        raise ModelFileError(problem)
+    target = resolve_device(device, env.observation_space)
+    try:
+        return algorithm_class(algo).load(str(path), env=env, device=target, **kwargs)
+    except (zipfile.BadZipFile, ValueError, KeyError, EOFError, RuntimeError, TypeError) as exc:
+        raise ModelFileError(
+            f"{path} cannot be loaded as a {algo.upper()} model ({type(exc).__name__}: {exc})"
+        ) from exc
+
+
+class ModelFileError(TrainingError, ValueError):
+    """A saved model is missing, unreadable, for another algorithm, or for another env."""
+
+
+def algorithm_of(path: Path) -> str:
+    """The algorithm a saved ``.zip`` was trained with (from its policy class and saved attributes)."""
+    import json
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(path) as archive:
+            data = json.loads(archive.read("data"))
+    except (zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
+        raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
+    module = str((data.get("policy_class") or {}).get("__module__", ""))
+    algo = algorithm_of_saved(module, data)
+    if algo is None:
+        raise ModelFileError(f"cannot tell the algorithm of {path} (policy module {module!r}); pass --algo")
+    return algo

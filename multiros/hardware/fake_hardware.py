@@ -22,7 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from multiros.hardware.robot_spec import RobotSpec
-from multiros.sim.controllers import ControllerManager, JointMode, RobotHardware
+from multiros.sim.controller_manager import ControllerManager
+from multiros.sim.controllers import JointMode, RobotHardware
 
 __all__ = ["FakeHardware", "JointStateView", "DEFAULT_TIME_CONSTANT"]
 

@@ -38,7 +38,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from multiros.sim.controllers import ControllerManager
+from multiros.sim.controller_manager import ControllerManager
 from multiros.sim.description import MeshCache, RobotDescription, load_description
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError
 from multiros.sim.frames import FrameSet
@@ -498,7 +498,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
 
     # ------------------------------------------------------------------ controllers
     def controller_manager(self, name: str) -> ControllerManager:
-        """The robot's :class:`~multiros.sim.controllers.ControllerManager`.
+        """The robot's :class:`~multiros.sim.controller_manager.ControllerManager`.
 
         Load/configure/switch/unload on it directly; the world is told of switches through the
         manager's hooks. Commands given directly to a controller take effect at the next step.

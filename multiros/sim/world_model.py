@@ -24,7 +24,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from multiros.sim.controllers import ControllerManager, JointMode, RobotHardware
+from multiros.sim.controller_manager import ControllerManager
+from multiros.sim.controllers import JointMode, RobotHardware
 from multiros.sim.description import RobotDescription
 from multiros.sim.errors import EntityError
 from multiros.sim.world_types import EntityCategory, EntityRecord, EntityState, WorldOptions, check_vec3

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
-from multiros.sim.controllers import ControllerManager, RobotHardware
+from multiros.sim.controller_manager import ControllerManager
+from multiros.sim.controllers import RobotHardware
 from multiros.sim.description import RobotDescription
 
 __all__ = [

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from multiros.sim.controllers import ControllerManager, RobotHardware, load_controller_config
+from multiros.sim.controller_manager import ControllerManager, load_controller_config
+from multiros.sim.controllers import RobotHardware
 from multiros.sim.errors import CommandError, ControllerError
 
 ARM_XACRO = "package://test_arm_description/urdf/arm.urdf.xacro"
