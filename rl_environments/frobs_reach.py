@@ -102,6 +102,8 @@ class FrobsReachTask(ReachTask):
 
     @classmethod
     def load_config(cls, arm: Arm, options: TaskOptions) -> dict[str, Any]:
+        if options.ee_action_type:
+            raise ValueError("FRobs_RL's reacher acts in joint deltas: ee_action_type=True does not apply")
         return load_frobs_reacher_config(options.config_file or CONFIG_FILE)
 
     def settings(self) -> dict[str, Any]:

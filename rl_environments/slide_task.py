@@ -233,7 +233,8 @@ class ScriptedSlide:
     slow touch, then a push along its line to the goal, the command raised each step by ``push`` times what
     the puck's speed lacks, let go once it moves at ``release`` times that speed; then back and up.
 
-    Reads only the observation (EE at 0:3, puck at 3:6, puck velocity at 12:15, the goal).
+    Reads only the observation (EE at 0:3, puck at 3:6, puck velocity at 12:15, the goal), a goal env's or a
+    plain one's.
     """
 
     def __init__(self, ee_delta_coeff: float, glide: float, dt: float = 0.04, push: float = 0.5,
@@ -246,9 +247,12 @@ class ScriptedSlide:
         self.released, self.phase, self.command, self.steps = False, "over", 0.0, 0
 
     def __call__(self, obs: Any) -> np.ndarray:
-        o = np.asarray(obs["observation"], dtype=np.float64)
-        ee, puck, vel, ee_vel = o[0:3], o[3:6], o[12:15], o[18:21]
-        goal = np.asarray(obs["desired_goal"], dtype=np.float64)
+        if isinstance(obs, dict):
+            o, goal = np.asarray(obs["observation"], dtype=np.float64), np.asarray(obs["desired_goal"], np.float64)
+        else:  # a plain env's: the goal, then goal minus puck, after the raw observation
+            o = np.asarray(obs, dtype=np.float64)
+            goal = o[-6:-3]
+        ee, puck, vel = o[0:3], o[3:6], o[12:15]
         line = goal[:2] - puck[:2]
         dist = float(np.linalg.norm(line))
         u = line / max(dist, 1e-9)
@@ -257,9 +261,7 @@ class ScriptedSlide:
         # the speed that carries it there by the episode's end: a glide slowed by drag covers v*glide*(1-e^(-t/glide))
         left = max(self.episode_steps - self.steps, 1) * self.dt
         wanted = max(dist, 0.0) / (self.glide * (1.0 - math.exp(-left / self.glide)))
-        # the tool, moving faster than the puck, gives it more as it is let go
-        touching = self.phase == "push" and speed >= 0.05
-        if self.released or (touching and max(speed, float(ee_vel[:2] @ u)) >= wanted * self.release):
+        if self.released or (self.phase == "push" and speed >= wanted * self.release):
             self.released = True  # it slides on: back and up, out of its way
             return self._move(ee, np.array([*(ee[:2] - 0.03 * u), puck[2] + 0.06]))
         behind = puck[:2] - u * (PUCK["radius"] + 0.035)  # clear of the tool's own width

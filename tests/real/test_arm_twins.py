@@ -76,7 +76,7 @@ def _make(graph: Context, env_id: str, **kwargs: Any) -> Any:
 def test_every_twin_has_its_simulated_twins_spaces(graph, arm) -> None:
     name, _, _ = arm
     for task in ARM_TASKS:
-        extra = ARMS[name]["gripper"] if task.startswith(("Push", "PnP")) else {}
+        extra = ARMS[name]["gripper"] if task.startswith(("Push", "PnP", "Slide")) else {}
         env = _make(graph, f"{name}{task}Real-v0", **extra)
         try:
             obs_space, act_space = _sim_spaces(f"{name}{task}Sim-v0")

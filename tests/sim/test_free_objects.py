@@ -193,3 +193,22 @@ def test_spawn_entity_free_object_as_string_and_package_uri(sim):
     with pytest.raises(SimulationServiceError):
         client.get_entity_state("crate")
     assert client.get_entities() == ["box"]
+
+
+def test_a_free_joints_damping_is_kept_a_puck_that_glides_and_slows_by_drag(make_world):
+    """The world puts its own free joint on a free body; the MJCF's free-joint damping stays on it, so a body
+    that glides without friction (condim 1) slows by linear drag: v(t) = v0 exp(-t damping / mass)."""
+    puck = ("<mujoco><worldbody><body name='puck'><joint type='free' damping='1.5'/><geom type='box' "
+            "size='0.03 0.03 0.015' mass='1' condim='1'/></body></worldbody></mujoco>")
+    ice = ("<mujoco><worldbody><body name='ice'><freejoint/><geom type='box' size='2 2 0.05' mass='500' "
+           "condim='1'/></body></worldbody></mujoco>")  # frictionless against the puck (the larger condim wins)
+    world = make_world()
+    world.spawn("ice", ice, pose=([0, 0, 0.05], [1, 0, 0, 0]))
+    world.spawn("puck", puck, pose=([0, 0, 0.115], [1, 0, 0, 0]))
+    world.step(_steps(world, 0.2))
+    world.set_entity_state("puck", linear_velocity=[0.6, 0.3, 0], angular_velocity=[0, 0, 0])
+    world.step(_steps(world, 0.4))
+    v = world.get_entity_state("puck").linear_velocity
+    np.testing.assert_allclose(v[:2], np.array([0.6, 0.3]) * np.exp(-0.4 * 1.5), rtol=0.02)  # straight on
+    assert load_description(puck).free_damping == 1.5
+    assert load_description(BOX_MJCF).free_damping == 0.0  # a plain free body: no drag
