@@ -99,8 +99,8 @@ class ArmEnv(EnvCore):
         task_cls.side_defaults(cfg, kwargs)
         camera = parse_camera_options(kwargs, type(self).__name__, real=self.ON_ROBOT,
                                       defaults=self.arm.camera_defaults)
-        self._open_side(task_cls, cfg, kwargs)
         try:
+            self._open_side(task_cls, cfg, kwargs)
             self.task = task_cls(self, self.arm, options, cfg, goal_conditioned=isinstance(self, GoalEnv))
             self.action_space = self.task.action_space
             self.observation_space = self.task.observation_space

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar, cast
 
 import numpy as np
 from gymnasium import spaces
@@ -70,6 +70,8 @@ from rl_environments.task_config import SCENE_KEYS, manipulation_schema
 
 __all__ = ["EPISODE_STEPS", "FETCH_OBS_SIZE", "ManipulationOptions", "ManipulationTask", "ObjectTask",
            "PickAndPlaceTask", "PushTask"]
+
+TaskT = TypeVar("TaskT", bound="ObjectTask")
 
 #: Values of the raw observation besides the arm joints (Fetch's 25; see ManipulationTask.raw_observation).
 FETCH_OBS_SIZE = 25
@@ -237,12 +239,12 @@ class ObjectTask(ArmTask):
 
     # -- scoring, rows of a batch --------------------------------------------------------------------------
     @classmethod
-    def raw_rows(cls, tasks: Sequence[Any], states: RobotStates) -> np.ndarray:
+    def raw_rows(cls: type[TaskT], tasks: Sequence[TaskT], states: RobotStates) -> np.ndarray:
         """N raw state observations (the task's), before the goal."""
         raise NotImplementedError
 
     @classmethod
-    def results(cls, tasks: Sequence[Any], states: RobotStates) -> StepResults:
+    def results(cls: type[TaskT], tasks: Sequence[TaskT], states: RobotStates) -> StepResults:
         raw = cls.raw_rows(tasks, states)
         cls.check_faults(tasks, raw[:, 3:6])
         n = len(tasks)
@@ -279,15 +281,15 @@ class ObjectTask(ArmTask):
         return StepResults(goal_obs, reward, terminated, truncated, [task.info for task in tasks])
 
     @staticmethod
-    def plain_observation(tasks: Sequence[Any], raw: np.ndarray) -> np.ndarray:
+    def plain_observation(tasks: Sequence[ObjectTask], raw: np.ndarray) -> np.ndarray:
         goals = rows(tasks, "goal")
         obs = np.concatenate([raw, goals, goals - raw[:, 3:6]], axis=1).astype(np.float32)
-        boxes = [task.observation_space for task in tasks]
+        boxes = [cast(spaces.Box, task.observation_space) for task in tasks]
         return np.minimum(np.maximum(obs, np.array([b.low for b in boxes])), np.array([b.high for b in boxes]))
 
     @staticmethod
-    def goal_observation(tasks: Sequence[Any], raw: np.ndarray) -> dict[str, np.ndarray]:
-        boxes = [task.observation_space["observation"] for task in tasks]
+    def goal_observation(tasks: Sequence[ObjectTask], raw: np.ndarray) -> dict[str, np.ndarray]:
+        boxes = [cast(spaces.Box, cast(spaces.Dict, task.observation_space)["observation"]) for task in tasks]
         obs = np.minimum(np.maximum(raw.astype(np.float32), np.array([b.low for b in boxes])),
                          np.array([b.high for b in boxes]))
         return {"observation": obs, "achieved_goal": obs[:, 3:6].copy(),
