@@ -29,6 +29,7 @@ access; :class:`RealTimeRunner` holds its lock while it steps, and the node take
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import re
 import weakref
@@ -87,6 +88,9 @@ __all__ = [
 ]
 
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+#: Entities taken out of the spec before the world builds it afresh (see World._rebuild_spec).
+_REBUILD_EVERY = 10
+_logger = logging.getLogger(__name__)
 
 
 class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
@@ -114,6 +118,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         self._frame_sets: weakref.WeakSet[FrameSet] = weakref.WeakSet()
         self._callbacks: list[Callable[[], None]] = []
         self._spec = base_spec(self.options)
+        self._removals = 0  # entities taken out of the spec since it was last copied
         self._model = self._spec.compile()
         self._data = mujoco.MjData(self._model)
         self._varying: tuple[EntityRecord, ...] = ()
@@ -206,7 +211,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
             self._recompile()
         except Exception as exc:
             del self._entities[name]
-            remove_from_spec(self._spec, ent, added)
+            self._remove_from_spec(ent, added)
             self._recompile()
             raise DescriptionError(f"spawn '{name}': the model does not compile: {exc}",
                                    source=ent.desc.source) from exc
@@ -299,9 +304,47 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         """Names of the launched world's entities (what ``reset(ResetScope.ALL)`` brings back)."""
         return tuple(self._launched)
 
+    def _remove_from_spec(self, ent: EntityRecord, added: dict | None = None) -> None:
+        remove_from_spec(self._spec, ent, added)
+        self._removals += 1
+
     def _recompile(self) -> None:
         self._model, self._data = self._spec.recompile(self._model, self._data)
+        if self._removals >= _REBUILD_EVERY:
+            self._rebuild_spec()
         self._rebind()
+
+    def _rebuild_spec(self) -> None:
+        """Replace the spec by one built afresh from the live entities, the state moved across.
+
+        MuJoCo's spec keeps memory for what was attached and then deleted (about 210 KB for each RX200
+        spawned and deleted, with MuJoCo 4.0; its copy keeps it too): a node whose clients spawn and delete
+        for weeks would grow without end. A spec made anew from the same entities, in their order, lays the
+        model out as the live one; the state (``mjSTATE_INTEGRATION``: time, positions, velocities, controls,
+        mocap poses, warm starts) moves to it unchanged, and the bindings after it write the actuators again.
+        Where the layouts differ (they should not) the live spec stays.
+        """
+        self._removals = 0
+        spec = base_spec(self.options)
+        spec.option.timestep, spec.option.gravity = self._spec.option.timestep, list(self._spec.option.gravity)
+        for ent in self._entities.values():
+            requested = bool(ent.recipe.get("gravity_compensation", self.options.gravity_compensation))
+            add_to_spec(spec, ent, self._gravcomp(ent, requested))
+        model = spec.compile()
+        old = self._model
+        sizes = ("nq", "nv", "nu", "na", "nbody", "njnt", "ngeom", "nsite", "nmocap", "neq", "nsensordata")
+        if any(getattr(model, k) != getattr(old, k) for k in sizes) or any(
+                model.body(i).name != old.body(i).name for i in range(old.nbody)):
+            _logger.warning("world: the rebuilt spec lays the model out otherwise; the live spec stays")
+            return
+        data = mujoco.MjData(model)
+        which = int(mujoco.mjtState.mjSTATE_INTEGRATION)
+        state = np.empty(mujoco.mj_stateSize(old, which))
+        mujoco.mj_getState(old, self._data, state, which)
+        mujoco.mj_setState(model, data, state, which)
+        model.opt.timestep, model.opt.gravity[:] = old.opt.timestep, old.opt.gravity
+        mujoco.mj_forward(model, data)
+        self._spec, self._model, self._data = spec, model, data
 
     def _rebind(self) -> None:
         """After the world's model was replaced: ids bound again, then the change callbacks."""
@@ -324,7 +367,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
     def delete(self, name: str) -> None:
         """Remove an entity; the others keep their state. Raises EntityError if unknown."""
         ent = self._get(name)
-        remove_from_spec(self._spec, ent)
+        self._remove_from_spec(ent)
         del self._entities[name]
         self._recompile()
         mujoco.mj_forward(self._model, self._data)
@@ -364,7 +407,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
 
     def _forget_entity(self, ent: EntityRecord, reason: str) -> None:
         """Take an entity out of the spec and the world's records, remembering why (no recompile)."""
-        remove_from_spec(self._spec, ent)
+        self._remove_from_spec(ent)
         del self._entities[ent.name]
         self._removed.pop(ent.name, None)
         self._removed[ent.name] = reason
@@ -587,7 +630,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         if scope & ResetScope.SPAWNED:
             doomed = [n for n, e in self._entities.items() if not e.info.initial]
             for n in doomed:
-                remove_from_spec(self._spec, self._entities.pop(n))
+                self._remove_from_spec(self._entities.pop(n))
             if doomed:
                 self._recompile()
         d = self._data
@@ -643,7 +686,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
 
     def _relaunch(self) -> tuple[str, ...]:
         for ent in self._entities.values():
-            remove_from_spec(self._spec, ent)
+            self._remove_from_spec(ent)
         self._entities.clear()
         self._recompile()
         mujoco.mj_resetData(self._model, self._data)

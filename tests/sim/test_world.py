@@ -72,6 +72,45 @@ def test_delete_keeps_other_state(make_world):
     np.testing.assert_allclose(world.joint_state("keep").position, [0.4, -0.3, 0.2], atol=5e-3)
 
 
+def test_spawn_delete_cycles_rebuild_the_spec_and_keep_the_others_bit_for_bit(make_world, monkeypatch):
+    """Every 10 deletions the world builds its spec afresh (MuJoCo's spec keeps memory for what was deleted):
+    the entities that stay move on exactly as in a world that keeps its spec."""
+    import multiros.sim.world as world_module
+
+    rebuilds = []
+    original = world_module.World._rebuild_spec
+
+    def counted(self) -> None:
+        rebuilds.append(1)
+        original(self)
+
+    monkeypatch.setattr(world_module.World, "_rebuild_spec", counted)
+
+    def run(rebuild_every: int) -> tuple:
+        monkeypatch.setattr(world_module, "_REBUILD_EVERY", rebuild_every)
+        world = make_world()
+        world.spawn("keep", ARM_XACRO)
+        world.spawn("box", "<mujoco><worldbody><body name='b'><freejoint/><geom type='box' size='0.05 0.05 0.05' "
+                           "mass='0.2'/></body></worldbody></mujoco>", pose=([0.6, 0.3, 0.5], [1, 0, 0, 0]))
+        world.set_command("keep", "arm_controller", [0.4, -0.3, 0.2])
+        for k in range(23):
+            world.spawn("visitor", ARM_XACRO, pose=([1.5, 0, 0], [1, 0, 0, 0]))
+            world.step(7)
+            world.delete("visitor")
+            world.step(3 + k % 4)
+        world.set_command("keep", "arm_controller", [-0.2, 0.3, 0.1])
+        world.step(30)
+        arm, box = world.joint_state("keep"), world.get_entity_state("box")
+        return arm.position.copy(), arm.velocity.copy(), box.position.copy(), box.linear_velocity.copy(), world.time
+
+    rebuilt = run(10)
+    assert len(rebuilds) == 2  # 23 deletions
+    kept = run(10**9)
+    assert len(rebuilds) == 2
+    for a, b in zip(rebuilt, kept):
+        np.testing.assert_array_equal(a, b)
+
+
 def _wide_urdf(joints: int) -> str:
     """benchmarks/bench_entity_delete.py's robot: ``joints`` actuated revolute joints in chains of 50."""
     path = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_entity_delete.py"
