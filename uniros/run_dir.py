@@ -229,8 +229,7 @@ class RunDir:
             the folder it went to, or ``None`` when the attempt wrote nothing.
         """
         assert self.locked, "set_aside_for_restart needs the run's lock"
-        keep = {"config.yaml", "run.json", ".lock", EARLIER, "checkpoints"}
-        moves = [p for p in sorted(self.root.iterdir()) if p.name not in keep and _holds_something(p)]
+        moves = [p for p in sorted(self.root.iterdir()) if _written_by_a_run(p.name) and _holds_something(p)]
         if self.checkpoints.is_dir():
             moves += [p for p in sorted(self.checkpoints.iterdir()) if p.name != "unusable" and _holds_something(p)]
         target = None
@@ -246,6 +245,17 @@ class RunDir:
         for sub in ("monitor", "checkpoints", "tensorboard"):
             (self.root / sub).mkdir(exist_ok=True)
         return target
+
+
+#: What a run writes at its top level besides config.yaml and run.json (the layout above); anything else in
+#: the folder (notes, an arm file kept beside the run) is the user's, and a restart leaves it where it is.
+_RUN_FOLDERS = ("monitor", "tensorboard")
+_RUN_FILES = re.compile(r"^(evaluations\.csv|learning_curve\.png|best_model\.mp4|(best|final)_model\.zip|"
+                        r"(best|final)_model\.vecnormalize\.pkl|(best|final)_model\.env\.json)$")
+
+
+def _written_by_a_run(name: str) -> bool:
+    return name in _RUN_FOLDERS or bool(_RUN_FILES.match(name))
 
 
 def _holds_something(path: Path) -> bool:

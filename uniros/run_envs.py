@@ -125,7 +125,8 @@ def _shipped(path: Path) -> bool:
 
 def register_run_arm(meta: dict[str, Any], where: str, note: Callable[[str], None] | None = None) -> None:
     """Register the arm file a run was trained with (``run.json``'s ``arm_file``) when its env ID is
-    not registered in this process.
+    not registered in this process. ``where``: the ``run.json`` it came from; a relative ``arm_file`` is
+    relative to the run's folder (the run moved with its arm file beside it), not to the working folder.
 
     Raises:
         TrainingError: the file is gone or no longer registers the ID.
@@ -138,6 +139,8 @@ def register_run_arm(meta: dict[str, Any], where: str, note: Callable[[str], Non
     path, env_id = meta.get("arm_file"), str(meta.get("env_id", "")).rpartition(":")[2]
     if not isinstance(path, str) or not path or not env_id or env_id in gym.registry:
         return
+    if not Path(path).is_absolute():
+        path = str(Path(where).parent / path)
     fix = "put it back, or register the arm yourself (UNIROS_ARMS=FILE, or uniros.register_arm(FILE))"
     if not Path(path).is_file():
         raise TrainingError(f"{where}: the run's env {env_id} comes from the arm file {path}, which is gone: {fix}")

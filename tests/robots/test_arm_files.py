@@ -364,3 +364,27 @@ def test_a_world_the_node_refuses_is_one_training_error_naming_the_arm_file(ur5e
     message = str(err.value)
     assert message.startswith("RaisedTablePushGoalSim-v0 cannot be made: /mujoco_sim/spawn_entity failed")
     assert f"`uniros arm check {path}`" in message and "\n" not in message
+
+
+def test_a_relative_arm_file_of_a_run_is_found_beside_the_run_not_in_the_working_folder(ur5e_data, tmp_path,
+                                                                                         monkeypatch):
+    """A run moved with its arm file beside it (run.json: "arm_file": "arm/movedarm.yaml") registers it from the
+    run's folder, wherever the command runs."""
+    from gymnasium.envs.registration import registry
+
+    from uniros.run_envs import register_run_arm
+
+    ur5e_data["name"], ur5e_data["robot_name"] = "MovedArm", "movedarm"
+    run = tmp_path / "runs" / "moved"
+    (run / "arm").mkdir(parents=True)
+    (run / "arm" / "movedarm.yaml").write_text(yaml.safe_dump(ur5e_data, sort_keys=False))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    monkeypatch.setenv("UNIROS_ARMS", os.environ.get("UNIROS_ARMS", ""))
+    meta = {"env_id": "MovedArmReacherGoalSim-v0", "arm_file": "arm/movedarm.yaml"}
+    try:
+        register_run_arm(meta, str(run / "run.json"))
+        assert "MovedArmReacherGoalSim-v0" in registry
+    finally:
+        unregister_arm("MovedArm")

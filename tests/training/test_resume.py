@@ -165,8 +165,13 @@ def test_all_models_truncated_starts_the_run_again_and_keeps_what_the_earlier_at
     (run / "checkpoints" / "unusable" / "model_5_steps.zip").write_bytes(b"set aside by an earlier resume")
     best, evaluations = (run / "best_model.zip").read_bytes(), (run / "evaluations.csv").read_text()
     monitor = (run / "monitor" / "train.monitor.csv").read_text()
+    (run / "arm").mkdir()  # the user's, kept in the run's folder: a restart moves only what a run writes
+    (run / "arm" / "myarm.yaml").write_text("format: 1\n")
+    (run / "notes.txt").write_text("mine")
     code, text = _resume(run, capsys)
     assert code == 0, text
+    assert (run / "arm" / "myarm.yaml").read_text() == "format: 1\n" and (run / "notes.txt").read_text() == "mine"
+    assert not (run / "earlier" / "1" / "arm").exists() and not (run / "earlier" / "1" / "notes.txt").exists()
     assert "no usable checkpoint" in text and "starting the run again from step 0" in text
     assert f"kept in {run / 'earlier' / '1'}" in text
     meta = _meta(run)
