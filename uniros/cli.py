@@ -232,12 +232,42 @@ def _eval_target(args: argparse.Namespace) -> tuple[str, Path]:
             check_env_id(typed)
     model_path = resolve_model_path(second)
     if not typed:
+        _confirm_run_env(model_path, trained_env_id(model_path), second)
         _register_run_arm_near(model_path, None)
     env_id = typed or trained_env_id(model_path)
     if env_id is None:
         raise TrainingError(f"cannot tell which env {model_path} was trained on: uniros eval ENV_ID {second}")
     check_env_id(env_id)
     return env_id, model_path
+
+
+def _confirm_run_env(model: Path, env_id: str | None, given: str) -> None:
+    """A run folder may come from anyone: the env its ``run.json`` names is evaluated without being typed only
+    when that runs no code and drives no robot (docs/trust.md). An ID that imports a module (``module:ID``),
+    a Real ID, or the ID of an arm file this process has not registered (its xacro may run code) has to be
+    typed: ``uniros eval ID RUN``."""
+    import rl_environments
+    from uniros.training import TrainingError
+
+    if env_id is None:
+        return
+    bare = env_id.rpartition(":")[2]
+    meta = (model if model.is_dir() else model.parent) / "run.json"
+    try:
+        arm_file = json.loads(meta.read_text()).get("arm_file")
+    except (OSError, ValueError, AttributeError):
+        arm_file = None
+    why = None
+    if ":" in env_id:
+        why = f"imports the module {env_id.rpartition(':')[0]!r} (its code runs)"
+    elif bare in rl_environments.REAL_ENV_SPECS:
+        why = "drives a real robot"
+    elif isinstance(arm_file, str) and arm_file and not _registered(bare) and (
+            (meta.parent / arm_file).is_file() if not Path(arm_file).is_absolute() else Path(arm_file).is_file()):
+        why = f"comes from the arm file {arm_file} (its xacro may run code)"
+    if why is not None:
+        raise TrainingError(f"{model}'s run.json names the env {env_id!r}, which {why}: evaluate it by typing the "
+                            f"ID yourself, `uniros eval {env_id} {given}`")
 
 
 def _register_run_arm_near(model: Path, typed: str | None) -> bool:

@@ -320,10 +320,16 @@ def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_d
 
     from uniros.cli import _eval_target
 
-    (tmp_path / "r" / "best_model.zip").write_bytes(b"")  # `uniros eval RUN` and `uniros eval REAL_ID RUN`
-    for first, second in ((str(tmp_path / "r"), None), ("RunArmReacherGoalReal-v0", str(tmp_path / "r"))):
-        target = _eval_target(argparse.Namespace(env_id=first, model=second, env=None))
-        assert target[0] == (first if second else "RunArmReacherGoalSim-v0")
+    (tmp_path / "r" / "best_model.zip").write_bytes(b"")
+    # `uniros eval RUN`: a run folder may come from anyone, and an arm file's xacro may run code: the ID is typed
+    with pytest.raises(TrainingError, match=r"comes from the arm file .*runarm.yaml \(its xacro may run code\): "
+                                            r"evaluate it by typing the ID yourself, `uniros eval RunArmReacherGoal"):
+        _eval_target(argparse.Namespace(env_id=str(tmp_path / "r"), model=None, env=None))
+    assert "RunArmReacherGoalSim-v0" not in gym.registry
+    # `uniros eval ID RUN` and `uniros eval REAL_ID RUN`: typed, the run's arm file registers
+    for first in ("RunArmReacherGoalSim-v0", "RunArmReacherGoalReal-v0"):
+        target = _eval_target(argparse.Namespace(env_id=first, model=str(tmp_path / "r"), env=None))
+        assert target[0] == first
         unregister_arm("RunArm")
 
     # The file renamed its arm: nothing of it stays registered, and the error says so.
