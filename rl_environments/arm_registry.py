@@ -24,7 +24,7 @@ from typing import Any
 from rl_environments.arm import _urdf_text, chain_of, top_down_ik_of
 from rl_environments.arm_file import ArmFile, ArmFileError, error_line, load_arm_file
 
-__all__ = ["arm_env_ids", "arm_of", "arm_value", "chain_of", "check_description", "env_arm_errors",
+__all__ = ["arm_env_ids", "arm_of", "arm_value", "env_arm_paths", "chain_of", "check_description", "env_arm_errors",
            "register_arm", "register_env_arms", "registered_arms", "top_down_ik_of", "unregister_arm"]
 
 _ARMS: dict[str, ArmFile] = {}
@@ -216,6 +216,11 @@ def arm_of(name: str) -> ArmFile:
         return _ARMS[name]
     except KeyError:
         raise ArmFileError(f"no arm {name!r} is registered; arms: {sorted(_ARMS)}") from None
+
+
+def env_arm_paths() -> list[str]:
+    """The arm files this process's environment names: ``UNIROS_ARMS``'s, then ``UNIROS_ARMS_JSON``'s."""
+    return [p.strip() for p in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if p.strip()] + _json_paths()
 
 
 def register_env_arms(paths: str | None = None, *, strict: bool = True) -> list[str]:

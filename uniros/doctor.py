@@ -140,10 +140,10 @@ def _versions() -> list[tuple[str, str]]:
 
 
 def _arms() -> list[tuple[str, str]]:
-    """The arm files of ``UNIROS_ARMS``: registered, or why not."""
-    from rl_environments.arm_registry import env_arm_errors, registered_arms
+    """The arm files of ``UNIROS_ARMS`` (and ``UNIROS_ARMS_JSON``, paths that hold ``:``): registered, or why not."""
+    from rl_environments.arm_registry import env_arm_errors, env_arm_paths, registered_arms
 
-    entries = [e for e in os.environ.get("UNIROS_ARMS", "").split(os.pathsep) if e.strip()]
+    entries = env_arm_paths()
     rows = [("UNIROS_ARMS", f"{len(entries) - len(env_arm_errors())} of {len(entries)} arm file(s) registered; "
                             f"arms: {', '.join(sorted(registered_arms()))}")]
     rows += [("UNIROS_ARMS error", why) for why in env_arm_errors()]

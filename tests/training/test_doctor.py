@@ -78,3 +78,13 @@ def test_a_reader_that_goes_away_is_no_traceback():
     proc.stdout.close()
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 1 and b"Traceback" not in err and b"BrokenPipe" not in err, err
+
+
+def test_arm_files_of_both_variables_are_counted(monkeypatch):
+    """Paths that hold ':' reach child processes through UNIROS_ARMS_JSON: the doctor counts them too."""
+    import json
+
+    monkeypatch.setenv("UNIROS_ARMS", "/nowhere/a.yaml")
+    monkeypatch.setenv("UNIROS_ARMS_JSON", json.dumps(["/runs:2026/b.yaml"]))
+    (label, text), *_ = doctor._arms()
+    assert label == "UNIROS_ARMS" and "of 2 arm file(s) registered" in text
