@@ -211,10 +211,21 @@ def make_train_env(env_id: str, config: TrainingConfig, factory: Callable[[], An
         from stable_baselines3.common.vec_env import DummyVecEnv
 
         return DummyVecEnv([factory] * n)
+    from multiros.envs.worker_vector import WorkerError
+    from multiros.sim.client import SimulationServiceError
     from uniros.vec_env import make_batched_vec_env
 
     check_n_envs(env_id, config)
-    return make_batched_vec_env(resolve_env_id(env_id), n, pin_workers=config.pin_workers, **config.env_kwargs)
+    try:
+        return make_batched_vec_env(resolve_env_id(env_id), n, pin_workers=config.pin_workers, **config.env_kwargs)
+    except SimulationServiceError as exc:  # the share stepped in this process
+        raise TrainingError(f"{env_id} cannot be made: {str(exc).splitlines()[0]}{_arm_hint(env_id)}") from None
+    except WorkerError as exc:  # a worker's: its traceback's last line says what the node refused
+        refused = [line for line in str(exc).splitlines() if line.startswith(SimulationServiceError.__module__)]
+        if not refused:
+            raise
+        reason = refused[-1].partition(": ")[2]
+        raise TrainingError(f"{env_id} cannot be made: {reason}{_arm_hint(env_id)}") from None
 
 
 def check_n_envs(env_id: str, config: TrainingConfig, origin: str | None = None) -> None:

@@ -370,6 +370,15 @@ def test_a_world_the_node_refuses_is_one_training_error_naming_the_arm_file(ur5e
     message = str(err.value)
     assert message.startswith("RaisedTablePushGoalSim-v0 cannot be made: /mujoco_sim/spawn_entity failed")
     assert f"`uniros arm check {path}`" in message and "\n" not in message
+    # the same with n_envs: 2, whose second env is made in a worker process (its traceback stays there)
+    from uniros.run_envs import make_train_env
+    from uniros.train_config import TrainingConfig
+
+    with pytest.raises(TrainingError) as err:
+        make_train_env("RaisedTablePushGoalSim-v0", TrainingConfig(n_envs=2))
+    message = str(err.value)
+    assert message.startswith("RaisedTablePushGoalSim-v0 cannot be made: ") and "spawn_entity failed" in message
+    assert f"`uniros arm check {path}`" in message and "\n" not in message and "Traceback" not in message
 
 
 def test_a_relative_arm_file_of_a_run_is_found_beside_the_run_not_in_the_working_folder(ur5e_data, tmp_path,
