@@ -3,22 +3,26 @@
 Arms are data: one arm file each (:mod:`rl_environments.arm_file`; the shipped ones in
 ``config/arms/``: the RX200, VX300S, UR5e, NED2 and IRB120; yours through ``uniros.register_arm`` or
 ``UNIROS_ARMS``). Each gives ``<ARM><task>Sim-v0`` for each ``<task>`` of ``ARM_TASKS``
-(``Reacher``, ``ReacherGoal``, ``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``; push and pick-and-place
-only for an arm with a gripper) and each one's ``<ARM><task>Real-v0`` twin, entry points
-``rl_environments.arm_envs:<ARM><task>Env`` and ``...RealEnv`` (:mod:`rl_environments.arm_registry`).
+(``Reacher``, ``ReacherGoal``, ``Push``, ``PushGoal``, ``PnP``, ``PnPGoal``, ``Slide``, ``SlideGoal``:
+the task table, :data:`rl_environments.env_ids.TASKS`; push and pick-and-place only for an arm with a
+gripper) and each one's ``<ARM><task>Real-v0`` twin. Every arm ID is an arm env of its side made with
+keyword arguments (:mod:`rl_environments.arm_env`: ``RX200PushGoalSim-v0`` is
+``ArmSimGoalEnv(arm="RX200", task="push")``); the class names of earlier releases stay in
+:mod:`rl_environments.arm_envs`.
 
 Besides: FRobs_RL's reacher on the IRB120's arm file, ``ABBIRB120ReacherEnv-v0`` and
-``ABBIRB120ReacherGoalEnv-v0`` (``rl_environments.frobs_reach``) with their Real twins
-``ABBIRB120ReacherRealEnv-v0`` and ``ABBIRB120ReacherGoalRealEnv-v0``; and the RX200's six tasks
+``ABBIRB120ReacherGoalEnv-v0`` (the task ``frobs_reach``, :mod:`rl_environments.frobs_reach`) with their Real
+twins ``ABBIRB120ReacherRealEnv-v0`` and ``ABBIRB120ReacherGoalRealEnv-v0``; and the RX200's eight tasks
 observed through a Zed2 camera, ``RX200Zed2<task>Sim-v0`` (``CAMERA_ENV_IDS``: the arm file
 ``rx200_zed2.yaml``, which extends the RX200's).
 
 ``ENV_IDS``/``GOAL_ENV_IDS`` are the simulated envs (they run anywhere); ``REAL_ENV_IDS``/
 ``REAL_GOAL_ENV_IDS`` the real ones (they need a robot or a stand-in, see ``docs/real_robots.md``),
 and ``SIM_TO_REAL`` maps each simulated ID to its real twin. The reach IDs have
-``max_episode_steps=100``, push and pick-and-place (``MANIPULATION_ENV_IDS``) 50 (``EPISODE_STEPS``),
-their Real twins alike. Robot description packages (``rx200_description``, ``abb_irb120_description``,
-``vx300s_description``, ``ur5e_description``, ``ned2_description``) live in ``rl_environments.robots``.
+``max_episode_steps=100``, push, pick-and-place and slide (``MANIPULATION_ENV_IDS``: the tasks with an object,
+whose scripted demonstrations fill replay buffers) 50 (``EPISODE_STEPS``), their Real twins alike. Robot
+description packages (``rx200_description``, ``abb_irb120_description``, ``vx300s_description``,
+``ur5e_description``, ``ned2_description``) live in ``rl_environments.robots``.
 """
 
 from __future__ import annotations

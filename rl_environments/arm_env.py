@@ -61,6 +61,10 @@ __all__ = ["ArmEnv", "ArmRealEnv", "ArmRealGoalEnv", "ArmSimEnv", "ArmSimGoalEnv
 StepResult = tuple[Any, float, bool, bool, dict[str, Any]]
 
 
+#: What a task reads of its env (arm_task.TaskHost): never looked up on the task (it would ask the env again).
+_HOST = frozenset({"connection", "info", "node", "np_random", "robot_name", "task", "arm", "cameras"})
+
+
 class TaskAttributeWarning(DeprecationWarning):
     """An arm env's task value read from the env (``env.goal``): it is the task's (``env.task.goal``)."""
 
@@ -223,7 +227,7 @@ class ArmEnv(EnvCore):
         # The env classes of earlier releases were their task: code that reads a task's value from the env
         # (``env.unwrapped.goal``) keeps working, with a warning naming where it lives now.
         task = self.__dict__.get("task")
-        if name.startswith(("_", "compute_")) or task is None or not hasattr(task, name):
+        if name.startswith(("_", "compute_")) or name in _HOST or task is None or not hasattr(task, name):
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         import warnings
 

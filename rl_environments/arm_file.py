@@ -37,8 +37,8 @@ The layout (``docs/add_your_arm.md`` explains every key)::
       independent: false        # true: both joints driven (no <mimic>), the second commanded at mimic x the first
     camera: {render_camera: render_camera, view: {lookat: [...], distance: .., azimuth: .., elevation: ..}}
     #        (and defaults: {camera_name: .., rgb_plus_depth_plus_normal_obs: true}: camera keywords by default)
-    reach: {...}                # rl_environments.arm_reach.reach_schema's keys (arm_joints left out)
-    manipulation: {...}         # arm_manipulation.manipulation_schema's keys and the scene's
+    reach: {...}                # rl_environments.task_config.reach_schema's keys (arm_joints left out)
+    manipulation: {...}         # task_config.manipulation_schema's keys and the scene's
     scene: {table: URI, object: URI}   # the push / pick-and-place MJCF files (default: made from the scene's sizes)
     real: {namespace: ..., arm_controller: ..., ...}
     training: {ReacherGoal: {...}}     # overrides of the derived training configs, per task

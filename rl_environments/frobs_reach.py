@@ -46,7 +46,7 @@ from multiros.robot_state import RobotStates
 from rl_environments.arm import Arm
 from rl_environments.arm_task import TaskOptions, rows
 from rl_environments.reach_task import ReachTask
-from rl_environments.task_config import load_task_config, vector
+from rl_environments.task_config import TaskConfigError, load_task_config, vector
 
 __all__ = ["FROBS_REACHER_SCHEMA", "FrobsReachOptions", "FrobsReachTask", "load_frobs_reacher_config",
            "frobs_reach_settings"]
@@ -104,7 +104,12 @@ class FrobsReachTask(ReachTask):
     def load_config(cls, arm: Arm, options: TaskOptions) -> dict[str, Any]:
         if options.ee_action_type:
             raise ValueError("FRobs_RL's reacher acts in joint deltas: ee_action_type=True does not apply")
-        return load_frobs_reacher_config(options.config_file or CONFIG_FILE)
+        name = options.config_file or CONFIG_FILE
+        cfg = load_frobs_reacher_config(name)
+        if tuple(cfg["arm_joints"]) != arm.joints:
+            raise TaskConfigError(f"{name}: arm_joints {list(cfg['arm_joints'])} are not the {arm.name}'s joints "
+                                  f"{list(arm.joints)}: FRobs_RL's reacher is the IRB120's")
+        return cfg
 
     def settings(self) -> dict[str, Any]:
         return frobs_reach_settings(self.cfg)

@@ -347,5 +347,7 @@ class ReachTask(ArmTask):
         from rl_environments.manipulation_scripted import ScriptedReach
 
         if not self.ee_action_type:
-            raise ValueError("the scripted policies drive end-effector actions; make the env with ee_action_type=True")
+            fix = "make the env with ee_action_type=True" if self.OPTIONS is ReachOptions else \
+                f"the task {self.NAME!r} acts in joint deltas"
+            raise ValueError(f"the scripted policies drive end-effector actions: {fix}")
         return ScriptedReach(ee_delta_coeff=self.ee_delta_coeff)

@@ -3,11 +3,13 @@ it slides to a goal beyond the arm's reach. No gripper is needed (an arm with on
 gripperless IRB120 slides too.
 
 ## Scene
-The arm stands at the end of a long table whose top is at its base, with a puck (a 5 cm disc, 3 cm high,
-100 g) on it; table and puck slide on each other with friction 0.02 (the puck glides about 1 m at 0.63 m/s).
-Everything is sized from the arm file's ``reach`` goal box (every arm file has one; base frame): the puck
-starts just beyond its near edge, the goal lies 10 to 30 cm past its far edge, where the end effector
-never goes (its box ends at the goal box's far edge), so the puck must be let go and slide there.
+The arm stands at the end of a long table whose top is at its base, with a puck on it: a square of 6 cm, 3 cm
+high, 1 kg (:data:`PUCK`; square, so that a flat face meets the tool). Table and puck touch without friction,
+and the puck slows by linear drag (its free joint's damping, a time constant of 0.67 s: let go at 0.63 m/s, it
+glides 0.42 m). Everything is sized from the arm file's ``reach`` goal box (every arm file has one; base
+frame): the puck starts a quarter to nearly half way into it, the goal lies 8 to 22 cm past its far edge, out
+along the ray from the base through the puck, where the end effector never goes (its box ends at the goal box's
+far edge), so the puck must be let go at the right speed.
 
 ## Action space
 ``Box(-1, 1, (3,))``: end-effector deltas ``action * ee_delta_coeff`` (2.5 cm per 40 ms step) in the base
@@ -247,10 +249,14 @@ class ScriptedSlide:
         self.released, self.phase, self.command, self.steps = False, "over", 0.0, 0
 
     def __call__(self, obs: Any) -> np.ndarray:
-        if isinstance(obs, dict):
-            o, goal = np.asarray(obs["observation"], dtype=np.float64), np.asarray(obs["desired_goal"], np.float64)
+        state = obs.get("observation") if isinstance(obs, dict) else obs
+        if state is None or np.ndim(state) != 1:
+            raise ValueError("the scripted slide reads the state observation: make the env with the state in it "
+                             "(not rgb_obs_only)")
+        o = np.asarray(state, dtype=np.float64)
+        if isinstance(obs, dict) and "desired_goal" in obs:
+            goal = np.asarray(obs["desired_goal"], dtype=np.float64)
         else:  # a plain env's: the goal, then goal minus puck, after the raw observation
-            o = np.asarray(obs, dtype=np.float64)
             goal = o[-6:-3]
         ee, puck, vel = o[0:3], o[3:6], o[12:15]
         line = goal[:2] - puck[:2]

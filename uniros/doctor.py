@@ -15,6 +15,7 @@ import os
 import subprocess
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 __all__ = ["GL_PROBE", "findings", "main"]
@@ -144,7 +145,9 @@ def _arms() -> list[tuple[str, str]]:
     from rl_environments.arm_registry import env_arm_errors, env_arm_paths, registered_arms
 
     entries = env_arm_paths()
-    rows = [("UNIROS_ARMS", f"{len(entries) - len(env_arm_errors())} of {len(entries)} arm file(s) registered; "
+    held = {spec.path for spec in registered_arms().values()}
+    registered = sum(1 for entry in entries if Path(entry).expanduser().resolve() in held)
+    rows = [("UNIROS_ARMS", f"{registered} of {len(entries)} arm file(s) registered; "
                             f"arms: {', '.join(sorted(registered_arms()))}")]
     rows += [("UNIROS_ARMS error", why) for why in env_arm_errors()]
     return rows

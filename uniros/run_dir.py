@@ -13,7 +13,8 @@ Layout (``uniros train``; never overwritten, one directory per run)::
       best_model.zip              the model with the best evaluation (+ .vecnormalize.pkl)
       final_model.zip             the model at the end (+ .vecnormalize.pkl)
       learning_curve.png          success rate and return against env steps
-      best_model.mp4              the best model, a few evaluation episodes at real-time speed
+      best_model.mp4              the best model, a few evaluation episodes at real-time speed (final_model.mp4
+                                  when no evaluation picked a best model)
       checkpoints/unusable/       checkpoints a resume found unusable (:mod:`uniros.resume`)
       earlier/<n>/                what an attempt wrote before a resume restarted the run from step 0
 
@@ -250,7 +251,7 @@ class RunDir:
 #: What a run writes at its top level besides config.yaml and run.json (the layout above); anything else in
 #: the folder (notes, an arm file kept beside the run) is the user's, and a restart leaves it where it is.
 _RUN_FOLDERS = ("monitor", "tensorboard")
-_RUN_FILES = re.compile(r"^(evaluations\.csv|learning_curve\.png|best_model\.mp4|(best|final)_model\.zip|"
+_RUN_FILES = re.compile(r"^(evaluations\.csv|learning_curve\.png|(best|final)_model\.mp4|(best|final)_model\.zip|"
                         r"(best|final)_model\.vecnormalize\.pkl|(best|final)_model\.env\.json)$")
 
 

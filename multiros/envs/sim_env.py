@@ -102,8 +102,11 @@ class MujocoEnvCore(EnvCore):
         return {"_ctor_args": (args, kwargs)}
 
     def __setstate__(self, state: dict[str, Any]) -> None:
+        # Built in place: what the env's parts hold of it (a task's env, a callback) is this object, not a
+        # temporary one whose attributes were copied over.
         args, kwargs = state["_ctor_args"]
-        self.__dict__.update(type(self)(*args, **kwargs).__dict__)
+        self._ctor_args = (args, dict(kwargs))
+        type(self).__init__(self, *args, **kwargs)
 
     def _init_core(
         self,

@@ -73,3 +73,25 @@ def test_composed_from_values_and_options_checked():
         ArmSimGoalEnv(arm="RX200", task="slide", ee_action_type=False)
     with pytest.raises(ValueError, match="no task 'slid'"):
         ArmSimGoalEnv(arm="RX200", task="slid")
+
+
+def test_the_scripted_slide_reads_a_plain_camera_envs_state_and_refuses_an_image_only_one():
+    env = uniros.make("RX200SlideSim-v0", rgb_plus_normal_obs=True, image_width=16, image_height=16)
+    try:  # the Zed2 slide's shipped config fills its replay buffer from such an env
+        assert run_episode(env, scripted_policy(env), seed=0)["steps"] == 50
+    finally:
+        env.close()
+    env = uniros.make("RX200SlideSim-v0", rgb_obs_only=True, image_width=16, image_height=16)
+    try:
+        obs, _ = env.reset(seed=0)
+        with pytest.raises(ValueError, match="reads the state observation"):
+            scripted_policy(env)(obs)
+    finally:
+        env.close()
+
+
+def test_frobs_reacher_is_the_irb120s_only():
+    from rl_environments.task_config import TaskConfigError
+
+    with pytest.raises(TaskConfigError, match="FRobs_RL's reacher is the IRB120's"):
+        ArmSimGoalEnv(arm="UR5e", task="frobs_reach")

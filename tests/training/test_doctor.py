@@ -87,4 +87,4 @@ def test_arm_files_of_both_variables_are_counted(monkeypatch):
     monkeypatch.setenv("UNIROS_ARMS", "/nowhere/a.yaml")
     monkeypatch.setenv("UNIROS_ARMS_JSON", json.dumps(["/runs:2026/b.yaml"]))
     (label, text), *_ = doctor._arms()
-    assert label == "UNIROS_ARMS" and "of 2 arm file(s) registered" in text
+    assert label == "UNIROS_ARMS" and "0 of 2 arm file(s) registered" in text  # both counted, neither there

@@ -100,7 +100,12 @@ def test_envs_pickle_and_deepcopy():
         for clone in clones:
             again, _ = clone.reset(seed=1)
             assert all(np.allclose(obs[k], again[k]) for k in obs)
+            assert clone.unwrapped.task.host is clone.unwrapped  # the copy's task is the copy's own
             clone.step(clone.action_space.sample())
+            task = clone.unwrapped.task
+            task.goal = clone.unwrapped.ee_position()  # at the goal: the step says so, in a fresh info
+            *_, terminated, _, info = clone.step(np.zeros(clone.action_space.shape, np.float32))
+            assert terminated and info["is_success"] is True
     finally:
         for e in [env, *clones]:
             e.close()
