@@ -112,6 +112,27 @@ class ObjectTask(ArmTask):
     def side_defaults(cls, cfg: Mapping[str, Any], kwargs: dict[str, Any]) -> None:
         kwargs.setdefault("robot_pos_z", float(cfg["robot_height"]))  # the arm on its table
 
+    def setup_tool(self) -> None:
+        """What an end-effector task keeps from its options and config: the reward, the success distance, the
+        joint range, the arm's top-down IK within it, the end effector's box and the table's height."""
+        cfg, options = self.cfg, self.options
+        self.reward_type = parse_reward_type(options.reward_type or ("sparse" if self.goal_conditioned else "dense"))
+        self.chain = self.arm.chain
+        self.ee_action_type = bool(options.ee_action_type)
+        self.ee_delta_coeff = float(cfg["ee_delta_coeff"])
+        self.tolerance = float(cfg["distance_threshold"] if options.distance_threshold is None
+                               else options.distance_threshold)
+        self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
+        self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
+        ik_lower = np.maximum(self.chain.lower, self.min_joint_pos)
+        ik_upper = np.minimum(self.chain.upper, self.max_joint_pos)
+        self.ik = self.arm.top_down_ik(ik_lower, ik_upper)
+        # envs whose IKs are alike (same class and limits) solve a batch's targets in one call
+        self.ik_key = (type(self.ik), ik_lower.tobytes(), ik_upper.tobytes())
+        self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
+        self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
+        self.table_top = float(cfg["table_top"]) + self.base_position[2]
+
     def add_scene(self, rest_z: float, object_xy: Sequence[float], mjcf: tuple[str, str] | None = None) -> None:
         """Spawn the table and the object (a robot's connection serves the tracker's object and the standing
         table instead), the object resting at ``object_xy`` (base frame). ``mjcf``: the table's and the
@@ -332,25 +353,10 @@ class ManipulationTask(ObjectTask):
                  goal_conditioned: bool) -> None:
         super().__init__(host, arm, options, cfg, goal_conditioned=goal_conditioned)
         cfg = self.cfg
-        self.reward_type = parse_reward_type(options.reward_type or ("sparse" if goal_conditioned else "dense"))
-        self.chain = arm.chain
-        self.ee_action_type = bool(options.ee_action_type)
+        self.setup_tool()
         self.delta_coeff = float(cfg["delta_coeff"])
-        self.ee_delta_coeff = float(cfg["ee_delta_coeff"])
-        self.tolerance = float(cfg["distance_threshold"] if options.distance_threshold is None
-                               else options.distance_threshold)
-        self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
-        self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
-        ik_lower = np.maximum(self.chain.lower, self.min_joint_pos)
-        ik_upper = np.minimum(self.chain.upper, self.max_joint_pos)
-        self.ik = arm.top_down_ik(ik_lower, ik_upper)
-        # envs whose IKs are alike (same class and limits) solve a batch's targets in one call
-        self.ik_key = (type(self.ik), ik_lower.tobytes(), ik_upper.tobytes())
         base = self.base_position
-        self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
-        self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
         self.gripper_range = (float(cfg["gripper_min"]), float(cfg["gripper_max"]))
-        self.table_top = float(cfg["table_top"]) + base[2]
         self.half = float(cfg["object_half_size"])
         rest_z = float(cfg["table_top"]) + self.half
         self.sampler = ObjectGoalSampler(

@@ -48,7 +48,6 @@ from rl_environments.arm import Arm
 from rl_environments.arm_task import TaskHost, TaskOptions, column, rows
 from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, yaw_quat
 from rl_environments.manipulation_task import ManipulationOptions, ObjectTask
-from rl_environments.reach import parse_reward_type
 
 __all__ = ["PUCK", "ScriptedSlide", "SlideOptions", "SlideTask", "slide_config"]
 
@@ -114,21 +113,8 @@ class SlideTask(ObjectTask):
                  goal_conditioned: bool) -> None:
         super().__init__(host, arm, options, cfg, goal_conditioned=goal_conditioned)
         cfg = self.cfg
-        self.reward_type = parse_reward_type(options.reward_type or ("sparse" if goal_conditioned else "dense"))
-        self.chain = arm.chain
-        self.ee_action_type, self.ee_delta_coeff = True, float(cfg["ee_delta_coeff"])
-        self.tolerance = float(cfg["distance_threshold"] if options.distance_threshold is None
-                               else options.distance_threshold)
-        self.min_joint_pos = np.asarray(cfg["min_joint_pos"], dtype=np.float64)
-        self.max_joint_pos = np.asarray(cfg["max_joint_pos"], dtype=np.float64)
-        lower = np.maximum(self.chain.lower, self.min_joint_pos)
-        upper = np.minimum(self.chain.upper, self.max_joint_pos)
-        self.ik = arm.top_down_ik(lower, upper)
-        self.ik_key = (type(self.ik), lower.tobytes(), upper.tobytes())
+        self.setup_tool()
         base = self.base_position
-        self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
-        self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
-        self.table_top = float(cfg["table_top"]) + base[2]
         self.half = PUCK["radius"]  # the goal marker: the puck's size
         rest_z = float(cfg["table_top"]) + PUCK["half_height"]
         self.sampler = ObjectGoalSampler(tuple(cfg["object_xy_min"]), tuple(cfg["object_xy_max"]),
