@@ -158,7 +158,7 @@ def _goal_region(env, samples: int = 1500) -> np.ndarray:
     the arm reaches everywhere (the RX200's): its corners. The IRB120's goal box (1 m, centred on
     the base) reaches beyond the arm, and the sampler draws from its reachable part only."""
     rng = np.random.default_rng(0)
-    if hasattr(env, "sampler"):  # manipulation: (object position, yaw, goal) relative to the base
+    if hasattr(env.task, "sampler"):  # manipulation: (object position, yaw, goal) relative to the base
         draws = [env.task.sampler.sample(rng) for _ in range(samples)]
         points = np.array([p for obj, _, goal in draws for p in (obj, goal)]) + env.task.base_position
         points = np.vstack([points, _corners(points.min(0), points.max(0))])

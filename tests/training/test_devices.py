@@ -167,8 +167,9 @@ def test_cli_device_is_recorded_and_kept_on_resume(monkeypatch, tmp_path, capsys
     assert cli_main(["train", "--resume", str(run), "--steps", "75", "--eval-episodes", "0"]) == 0
     assert "trained 75 steps" in capsys.readouterr().out
     assert json.loads((run / "run.json").read_text())["device"] == "cpu"
-    assert cli_main(["eval", str(run), "--episodes", "2", "--device", "cpu"]) == 0
-    assert cli_main(["eval", str(run), "--episodes", "2", "--device", "cuda"]) == 2
+    # a module:ID run is evaluated with its ID typed (docs/trust.md: its module's code runs)
+    assert cli_main(["eval", ENV, str(run), "--episodes", "2", "--device", "cpu"]) == 0
+    assert cli_main(["eval", ENV, str(run), "--episodes", "2", "--device", "cuda"]) == 2
     assert "no CUDA GPU" in capsys.readouterr().err
 
 
