@@ -27,6 +27,7 @@ named node on the user's domain (``uniros-sim`` with discovery on this machine o
 from __future__ import annotations
 
 import argparse
+import gc
 import itertools
 import logging
 import os
@@ -198,6 +199,12 @@ class SimulationConnection:
                 untrack_child(self.process)
             if self._owns_context:
                 self.context.try_shutdown()
+            if self.sim_node is not None:
+                # A composed node's world holds MuJoCo's native memory in reference cycles, which Python's
+                # collector counts as a few small objects: a process that makes and closes envs grew by
+                # ~0.3-0.7 MB a cycle until a full collection ran. Let go of the node and collect once now.
+                self.sim_node = None
+                gc.collect()
 
 
 def _wait_ready(client: SimulationClient, process: subprocess.Popen | None, timeout_sec: float) -> None:
