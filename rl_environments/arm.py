@@ -128,10 +128,6 @@ class Arm:
         return self.file.arm_controller
 
     @property
-    def has_gripper(self) -> bool:
-        return self.file.gripper is not None
-
-    @property
     def finger_joints(self) -> tuple[str, ...]:
         """The commanded finger joint and the one that follows it (empty without a gripper)."""
         return self.file.gripper.joints if self.file.gripper else ()

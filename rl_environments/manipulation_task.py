@@ -273,12 +273,13 @@ class ObjectTask(ArmTask):
             obs = cls.plain_observation(tasks, raw)
             reward, done, truncated = np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
             for j, task in enumerate(tasks):
-                d = task.object_goal_distance()
+                position = task.object_position()  # one read of the frame for the distance, reward and end
+                d = float(np.linalg.norm(position - task.goal))
                 info = task.info
                 info["is_success"] = d <= task.tolerance
                 info["distance"] = d
-                reward[j] = float(object_reward(task.object_position(), task.goal, task.tolerance, task.reward_type))
-                done[j] = task.options.terminate_on_success and task.object_goal_distance() <= task.tolerance
+                reward[j] = float(object_reward(position, task.goal, task.tolerance, task.reward_type))
+                done[j] = task.options.terminate_on_success and d <= task.tolerance
                 truncated[j] = bool(info.get("truncated_reason"))
                 info.setdefault("is_success", False)
             return StepResults(obs, reward, done, truncated, [task.info for task in tasks])

@@ -111,6 +111,9 @@ class ReachTask(ArmTask):
                  goal_conditioned: bool) -> None:
         super().__init__(host, arm, options, cfg, goal_conditioned=goal_conditioned)
         self.reward_type = parse_reward_type(options.reward_type or ("sparse" if goal_conditioned else "dense"))
+        parts = type(self).GOAL_OBS_PARTS
+        if goal_conditioned and any(name not in OBS_PARTS for name in parts):
+            raise ValueError(f"{type(self).__name__}.GOAL_OBS_PARTS names {list(parts)}; parts: {list(OBS_PARTS)}")
         self.setup(self.settings())
         self.observation_space = self.make_observation_space()
 
@@ -267,9 +270,7 @@ class ReachTask(ArmTask):
     def goal_observe_rows(cls, tasks: Sequence[ReachTask], states: RobotStates) -> dict[str, np.ndarray]:
         """Goal envs: N observation dicts, stacked; one clip into each env's bounds covers the EE box, the
         joint limits and the velocity bounds."""
-        parts = cls.GOAL_OBS_PARTS
-        if any(name not in OBS_PARTS for name in parts):
-            raise ValueError(f"{cls.__name__}.GOAL_OBS_PARTS names {list(parts)}; parts: {list(OBS_PARTS)}")
+        parts = cls.GOAL_OBS_PARTS  # checked when the task was made
         # cast to float32 as they are joined (the bits of a cast after), then clipped in place
         obs = np.concatenate([cls.obs_part(name, tasks, states) for name in parts], axis=1, dtype=np.float32)
         if len(tasks) == 1:
