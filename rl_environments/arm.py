@@ -312,7 +312,8 @@ class Arm:
             "namespace": real.namespace, "robot_name": spec.robot_name, "arm_joints": spec.joints,
             "arm_controller": real.arm_controller, "controllers_list": list(real.controllers),
             "command_interface": real.command_interface, "check_controllers": real.check_controllers,
-            "safety": safety,
+            "safety": safety, "reset_tolerance": real.reset_tolerance,
+            "reset_settle_tolerance": real.reset_settle_tolerance,
         }
         kwargs.update(opts)
         # The frame is served as a simulation serves it: the link's pose (ee_positions_of adds tcp_offset).

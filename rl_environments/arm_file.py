@@ -127,6 +127,33 @@ class RealSpec:
     workspace_max: tuple[float, float, float] = (1.0, 1.0, 1.2)
     floor_z: float = 0.02
     max_joint_delta: float = 0.15
+    #: rad: how close a reset's move must bring every arm joint to its initial pose.
+    reset_tolerance: float = 0.02
+    #: rad: a move that stopped short (a servo drooping under load) is accepted once still within this.
+    reset_settle_tolerance: float = 0.05
+
+
+@dataclass(frozen=True)
+class ArmDynamics:
+    """How the arm's joints follow position commands (``dynamics:``; ``uniros sysid`` writes it from a bag).
+
+    The model, per arm joint: ``time_constant * dy/dt = gain * u(t - latency) + offset - y``. The
+    simulation applies it to the arm's commands (:mod:`rl_environments.randomization` draws around it).
+    Lists are in ``arm.joints`` order.
+    """
+
+    latency: float = 0.0
+    time_constant: tuple[float, ...] = ()
+    gain: tuple[float, ...] = ()
+    offset: tuple[float, ...] = ()
+    fit_residual: float | None = None
+    source: str = ""
+
+    @property
+    def nominal(self) -> bool:
+        """The joints follow commands exactly (no section, or one that says so)."""
+        return (self.latency == 0 and not any(self.time_constant) and all(g == 1 for g in self.gain)
+                and not any(self.offset))
 
 
 @dataclass(frozen=True)
@@ -163,6 +190,8 @@ class ArmFile:
     #: Camera keywords the arm's envs take by default (:mod:`rl_environments.camera_obs`: a camera it
     #: observes through, the observation's mode).
     camera_defaults: Mapping[str, Any] = field(default_factory=dict)
+    #: How the joints follow commands (``dynamics:``); nominal when the file has none.
+    dynamics: ArmDynamics = field(default_factory=ArmDynamics)
 
     @property
     def has_gripper(self) -> bool:
@@ -272,7 +301,10 @@ def _resolve(uri: str, base: Path) -> str:
 
 
 _TOP = ("format", "name", "robot_name", "description", "arm", "gripper", "camera", "reach", "manipulation", "scene",
-        "real", "training")
+        "real", "training", "dynamics")
+_DYNAMICS = ("latency", "time_constant", "gain", "offset", "fit_residual", "source")
+#: Bounds of a ``dynamics:`` value a robot can have: seconds of latency and lag, gain, rad of offset.
+_DYNAMICS_BOUNDS = {"latency": (0.0, 2.0), "time_constant": (0.0, 5.0), "gain": (0.5, 1.5), "offset": (-0.2, 0.2)}
 _DESCRIPTION = ("uri", "xacro_args", "controllers")
 _ARM = ("joints", "base_link", "ee_link", "tcp_offset", "home", "controller", "controllers", "approach_axis",
         "closing_axis", "ik_seed", "top_down_ik")
@@ -285,7 +317,7 @@ _VIEW = ("lookat", "distance", "azimuth", "elevation")
 _SCENE_FILES = ("table", "object")
 _REAL = ("namespace", "arm_controller", "controllers", "command_interface", "check_controllers", "joint_states_topic",
          "gripper_controller", "gripper_interface", "gripper_joint", "gripper_range", "workspace_min",
-         "workspace_max", "floor_z", "max_joint_delta")
+         "workspace_max", "floor_z", "max_joint_delta", "reset_tolerance", "reset_settle_tolerance")
 
 
 def _task_section(top: _Checker, key: str, schema: Mapping[str, Any], defaults: Mapping[str, Any]) -> dict[str, Any]:
@@ -460,7 +492,14 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         workspace_max=real_sec.numbers("workspace_max", 3, (1.0, 1.0, 1.2)),
         floor_z=real_sec.number("floor_z", 0.02),
         max_joint_delta=real_sec.number("max_joint_delta", 0.15),
+        reset_tolerance=real_sec.number("reset_tolerance", 0.02),
+        reset_settle_tolerance=real_sec.number("reset_settle_tolerance", 0.05),
     )
+    if not 0 < real.reset_tolerance <= 0.5:
+        real_sec.fail("real.reset_tolerance", f"is {real.reset_tolerance:g} rad: it must be in (0, 0.5]")
+    if not 0 <= real.reset_settle_tolerance <= 0.5:
+        real_sec.fail("real.reset_settle_tolerance", f"is {real.reset_settle_tolerance:g} rad: it must be in "
+                                                     "[0, 0.5] (0: only reset_tolerance)")
     if not 0 < real.max_joint_delta <= _MAX_JOINT_DELTA:  # the robot's per-command safety cap
         real_sec.fail("real.max_joint_delta", f"is {real.max_joint_delta:g} rad: the largest joint change one "
                                               f"command may ask of the robot must be in (0, {_MAX_JOINT_DELTA:g}]")
@@ -480,6 +519,8 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         if not isinstance(settings, dict):
             top.fail(f"training.{task}", f"must be a mapping of training config keys, got {settings!r}")
 
+    dynamics = _dynamics(top, n)
+
     return ArmFile(
         path=source.resolve(), name=name, robot_name=robot_name, description_uri=uri, xacro_args=xacro,
         controllers_file=controllers_file, joints=joints, base_link=arm.string("base_link"),
@@ -491,7 +532,35 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         reach=reach, manipulation=manipulation, scene_files=scene_files, real=real,
         training={str(k): dict(v) for k, v in training.items()},
         tcp_offset=(tcp_offset[0], tcp_offset[1], tcp_offset[2]), camera_defaults=dict(camera_defaults),
+        dynamics=dynamics,
     )
+
+
+def _dynamics(top: _Checker, n: int) -> ArmDynamics:
+    """The ``dynamics:`` section checked: a number or ``n`` numbers per joint key, within a robot's bounds."""
+    sec = top.sub("dynamics", _DYNAMICS, {})
+    assert sec is not None
+    if not sec.data:
+        return ArmDynamics()
+    defaults = {"time_constant": 0.0, "gain": 1.0, "offset": 0.0}
+
+    def per_joint(key: str) -> tuple[float, ...]:
+        value = sec.raw(key, defaults[key])
+        values = sec.numbers(key, n) if isinstance(value, list) else (sec.number(key, defaults[key]),) * n
+        lo, hi = _DYNAMICS_BOUNDS[key]
+        bad = [v for v in values if not lo <= v <= hi]
+        if bad:
+            sec.fail(f"dynamics.{key}", f"has {bad[0]:g}, outside [{lo:g}, {hi:g}]")
+        return tuple(float(v) for v in values)
+
+    latency = sec.number("latency", 0.0)
+    if not _DYNAMICS_BOUNDS["latency"][0] <= latency <= _DYNAMICS_BOUNDS["latency"][1]:
+        sec.fail("dynamics.latency", f"is {latency:g} s, outside [0, {_DYNAMICS_BOUNDS['latency'][1]:g}]")
+    residual = sec.number("fit_residual", None)
+    source = sec.string("source", "", empty=True)
+    return ArmDynamics(latency=float(latency), time_constant=per_joint("time_constant"), gain=per_joint("gain"),
+                       offset=per_joint("offset"), fit_residual=None if residual is None else float(residual),
+                       source=source[:200])
 
 
 def load_arm_file(path: str | os.PathLike[str]) -> ArmFile:

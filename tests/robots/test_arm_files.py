@@ -237,6 +237,12 @@ BAD = [
     ("real.max_joint_delta", 1.0e9, "must be in (0, 1]"),
     ("real.workspace_min", [5.0, -1.0, 0.0], "real.workspace_min' is above real.workspace_max at index 0"),
     ("arm.home", [0.5] * 40_000, "key 'arm.home' must be a list of 6 finite numbers, got [0.5, 0.5"),
+    ("real.reset_tolerance", 0.0, "real.reset_tolerance' is 0 rad: it must be in (0, 0.5]"),
+    ("real.reset_settle_tolerance", -0.1, "must be in [0, 0.5]"),
+    ("dynamics.latency", 30.0, "key 'dynamics.latency' is 30 s, outside [0, 2]"),
+    ("dynamics.gain", [1.0, 1.0], "key 'dynamics.gain' must be a list of 6 finite numbers"),
+    ("dynamics.offset", 3.0, "key 'dynamics.offset' has 3, outside [-0.2, 0.2]"),
+    ("dynamics.lag", 0.1, "key 'dynamics.lag' is not a key of dynamics"),
 ]
 
 
@@ -403,3 +409,23 @@ def test_a_relative_arm_file_of_a_run_is_found_beside_the_run_not_in_the_working
         assert "MovedArmReacherGoalSim-v0" in registry
     finally:
         unregister_arm("MovedArm")
+
+
+def test_dynamics_and_reset_tolerances_reach_the_arm_and_its_real_twin(ur5e_data, write):
+    """``dynamics:`` (as ``uniros sysid`` writes it) is read per joint, a number standing for every joint;
+    the reset tolerances of ``real:`` become the Real twin's arguments."""
+    from rl_environments.arm import Arm
+
+    ur5e_data["name"] = "DynArm"
+    ur5e_data["dynamics"] = {"latency": 0.1, "time_constant": 0.25, "gain": [1.0, 0.98, 0.97, 1.0, 1.0, 1.0],
+                             "offset": [0.0, -0.03, 0.03, 0.0, 0.0, 0.0], "fit_residual": 0.002, "source": "a bag"}
+    ur5e_data["real"]["reset_settle_tolerance"] = 0.04
+    arm_file = load_arm_file(write(ur5e_data))
+    dyn = arm_file.dynamics
+    assert dyn.latency == 0.1 and dyn.time_constant == (0.25,) * 6 and dyn.gain[2] == 0.97
+    assert dyn.offset[1] == -0.03 and dyn.fit_residual == 0.002 and not dyn.nominal
+    assert load_arm_file(SHIPPED / "ur5e.yaml").dynamics.nominal
+    kwargs, _ = Arm(arm_file).real_kwargs({})
+    assert kwargs["reset_settle_tolerance"] == 0.04 and kwargs["reset_tolerance"] == 0.02
+    kwargs, _ = Arm(arm_file).real_kwargs({"reset_settle_tolerance": 0.0})
+    assert kwargs["reset_settle_tolerance"] == 0.0, "the user's argument wins over the file's"

@@ -35,6 +35,10 @@ from multiros.utils.rotations import quat_from_matrix
 __all__ = ["RealConnection"]
 
 _logger = logging.getLogger(__name__)
+#: Seconds of joint states a reset looks back over to tell an arm at rest (see :class:`_Settling`).
+_SETTLE_WINDOW = 0.5
+#: rad/s: slower than this, in every joint, the arm is at rest.
+_SETTLE_SPEED = 0.02
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,39 @@ def _interactive() -> bool:
         return sys.stdin is not None and sys.stdin.isatty()
     except (ValueError, OSError):
         return False
+
+
+class _Settling:
+    """Whether an arm that stopped short of its reset target has come to rest near it.
+
+    Samples of the last :data:`_SETTLE_WINDOW` seconds are kept; the arm is still when the mean of the
+    window's newer half differs from its older half's by less than :data:`_SETTLE_SPEED` rad/s in every
+    joint (means, so that joint-state noise of a few milliradians does not read as motion), and settled
+    when, still, the newer half's mean is within ``tolerance`` of the target.
+    """
+
+    def __init__(self, tolerance: float) -> None:
+        self.tolerance = float(tolerance)
+        self.times: list[float] = []
+        self.positions: list[np.ndarray] = []
+        self.still = False
+        self.last_error = float("inf")
+
+    def add(self, now: float, position: np.ndarray, goal: np.ndarray) -> float | None:
+        """Add a sample; the settled error (rad) once settled within the tolerance, else ``None``."""
+        self.times.append(now)
+        self.positions.append(np.array(position, dtype=np.float64))
+        while self.times and self.times[0] < now - _SETTLE_WINDOW:
+            self.times.pop(0)
+            self.positions.pop(0)
+        if self.tolerance <= 0 or len(self.times) < 6 or now - self.times[0] < 0.8 * _SETTLE_WINDOW:
+            return None
+        half = len(self.positions) // 2
+        older, newer = np.mean(self.positions[:half], axis=0), np.mean(self.positions[half:], axis=0)
+        span = max((self.times[-1] - self.times[0]) / 2, 1e-3)
+        self.still = bool(np.all(np.abs(newer - older) / span < _SETTLE_SPEED))
+        self.last_error = float(np.max(np.abs(newer - goal)))
+        return self.last_error if self.still and self.last_error <= self.tolerance else None
 
 
 class RealConnection(RobotConnection):
@@ -82,6 +119,7 @@ class RealConnection(RobotConnection):
         timeout_sec: float,
         reset_joint_speed: float,
         reset_tolerance: float,
+        reset_settle_tolerance: float,
         reset_timeout: float,
         reset_env_prompt: bool,
         close_env_prompt: bool,
@@ -107,6 +145,7 @@ class RealConnection(RobotConnection):
         self.timeout_sec = float(timeout_sec)
         self.reset_joint_speed = float(reset_joint_speed)
         self.reset_tolerance = float(reset_tolerance)
+        self.reset_settle_tolerance = float(reset_settle_tolerance)
         self.reset_timeout = float(reset_timeout)
         self.reset_env_prompt = bool(reset_env_prompt)
         self.close_env_prompt = bool(close_env_prompt)
@@ -660,18 +699,31 @@ class RealConnection(RobotConnection):
             if handle is not None:
                 self.link.check_goal_result(handle, f"moving {self.robot_name!r} to its initial pose",
                                             duration + self.reset_timeout)
+        settle = _Settling(self.reset_settle_tolerance)
         error = np.inf
         while True:
             sample = self.fresh_sample()
+            now = time.monotonic()
             error = float(np.max(np.abs(sample.position[idx] - goal)))
-            if error <= tol and time.monotonic() >= began + duration:  # the trajectory takes its time
-                self._accept(sample)
-                return
-            if time.monotonic() > deadline:
+            if now >= began + duration:  # the trajectory takes its time
+                if error <= tol:
+                    self._accept(sample)
+                    return
+                settled = settle.add(now, sample.position[idx], goal)
+                if settled is not None:
+                    _logger.warning("robot %r settled %.4g rad from its initial pose (> reset_tolerance %g, <= "
+                                    "reset_settle_tolerance %g): the episode starts where it settled",
+                                    self.robot_name, settled, tol, self.reset_settle_tolerance)
+                    self._accept(sample)
+                    return
+            if now > deadline:
+                hint = (f"it stopped {settle.last_error:.4g} rad short, beyond reset_settle_tolerance "
+                        f"{self.reset_settle_tolerance:g}" if settle.still else "check the controller is tracking "
+                        "(gains, limits)")
                 raise ResetError(
                     f"robot {self.robot_name!r} did not reach its initial pose {np.round(goal, 4).tolist()} within "
-                    f"{duration + self.reset_timeout:.1f} s (max joint error {error:.4g} rad > {tol:g}); check the "
-                    "controller is tracking (gains, limits) or raise reset_tolerance / reset_timeout")
+                    f"{duration + self.reset_timeout:.1f} s (max joint error {error:.4g} rad > {tol:g}); {hint}, or "
+                    "raise reset_tolerance / reset_settle_tolerance / reset_timeout")
             time.sleep(min(0.01, self.loop.tick))
 
     # -- closing ----------------------------------------------------------------------------

@@ -10,6 +10,7 @@ seeds and episodes are the one env core's (:mod:`multiros.envs.core`).
 from __future__ import annotations
 
 import itertools
+import math
 import os
 from collections.abc import Sequence
 from typing import Any
@@ -62,6 +63,9 @@ class RealEnvCore(EnvCore):
         timeout_sec: bound on each service call and action answer.
         reset_joint_speed: rad/s of the move to an episode's initial pose.
         reset_tolerance: how close (rad) that move must get; reset_timeout: extra seconds allowed.
+        reset_settle_tolerance: a move that stopped short (a stiff servo under gravity settles a few
+            hundredths of a radian from its target) is accepted once the arm is still and within this
+            many radians (default 0.05; 0: only ``reset_tolerance``); the episode starts where it settled.
         out_of_range_action: ``"error"`` (default: an action outside the action space raises and
             nothing is sent) or ``"clip"``.
         reset_env_prompt, close_env_prompt: ask the operator (Enter) before each reset / at close.
@@ -105,6 +109,7 @@ class RealEnvCore(EnvCore):
         timeout_sec: float = 5.0,
         reset_joint_speed: float = 0.5,
         reset_tolerance: float = 0.02,
+        reset_settle_tolerance: float = 0.05,
         reset_timeout: float = 10.0,
         out_of_range_action: str = "error",
         reset_env_prompt: bool = False,
@@ -131,6 +136,9 @@ class RealEnvCore(EnvCore):
             raise ValueError(f"command_interface {k['command_interface']!r} is not 'topic' or 'action'")
         if k["out_of_range_action"] not in ("error", "clip"):
             raise ValueError(f"out_of_range_action {k['out_of_range_action']!r} is not 'error' or 'clip'")
+        if not (math.isfinite(k["reset_settle_tolerance"]) and k["reset_settle_tolerance"] >= 0):
+            raise ValueError("reset_settle_tolerance must be a finite number >= 0 rad, got "
+                             f"{k['reset_settle_tolerance']!r}")
         if not k["joint_state_timeout"] > 0:
             raise ValueError(f"joint_state_timeout must be > 0 s, got {k['joint_state_timeout']!r}")
         self.out_of_range_action = k["out_of_range_action"]
@@ -168,6 +176,7 @@ class RealEnvCore(EnvCore):
                 loop=loop, safety=safety, joint_state_timeout=k["joint_state_timeout"],
                 startup_timeout=k["startup_timeout"], timeout_sec=k["timeout_sec"],
                 reset_joint_speed=k["reset_joint_speed"], reset_tolerance=k["reset_tolerance"],
+                reset_settle_tolerance=k["reset_settle_tolerance"],
                 reset_timeout=k["reset_timeout"], reset_env_prompt=k["reset_env_prompt"],
                 close_env_prompt=k["close_env_prompt"], use_sim_time=k["use_sim_time"],
                 log_internal_state=k["log_internal_state"])
