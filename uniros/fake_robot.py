@@ -21,7 +21,8 @@ what the arm's Real twins (``<NAME><task>Real-v0``) expect of the real driver, b
   listed active and claims no joint (the Real twin only checks that it is active).
 
 The joints start at the arm file's ``arm.home`` (``--start init``: ``reach.init_joint_pos``, the
-pose a reset moves to). Without ``--arm`` the command is the lower layer's, unchanged.
+pose a reset moves to). ``--gap PROFILE`` works as without ``--arm``, its ``droop_joints`` indexing
+``arm.joints``. Without ``--arm`` the command is the lower layer's, unchanged.
 """
 
 from __future__ import annotations
@@ -193,6 +194,7 @@ def arm_robot_spec(arm: ArmFile, *, start: str = "home", namespace: str | None =
                             f"(its ros2_control joints: {joints})")
     spec.controllers = vendor_controllers(arm)
     spec.name = arm.robot_name
+    spec.arm_joints = list(arm.joints)  # what --gap's droop_joints index into
     return spec
 
 

@@ -5,6 +5,12 @@ never faster than its URDF velocity limit, and stays inside its URDF position li
 commands are integrated (same caps); joints no controller commands hold where they are. Time is
 the wall clock (``time.time()``), as on a real robot.
 
+With a :class:`~multiros.hardware.gap.GapProfile` the joints are imperfect in known amounts
+(:class:`~multiros.hardware.gap.JointGap`): commands take effect ``latency`` late, the servo droops
+and the gear train has backlash, and the encoders (the hardware's positions) read the truth plus
+calibration offsets; :meth:`FakeHardware.true_state` is the truth. Without one the joints are as
+above, bit for bit.
+
 The controllers are uniros' ros2_control-style controllers (:mod:`multiros.sim.controllers`, plain
 numpy, no MuJoCo). :class:`FakeHardware` also offers the small "world" view that the simulation
 node's FollowJointTrajectory servers (:class:`multiros.sim.actions.TrajectoryActions`) use, so both
@@ -21,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from multiros.hardware.gap import GapProfile, JointGap, gap_generators
 from multiros.hardware.robot_spec import RobotSpec
 from multiros.sim.controller_manager import ControllerManager
 from multiros.sim.controllers import JointMode, RobotHardware
@@ -47,8 +54,15 @@ class FakeHardware:
     Args:
         spec: the robot (joints, limits, initial positions, controllers YAML).
         time_constant: first-order lag of position tracking in seconds (0 = reach the command at
-            the next update, velocity limits still apply).
+            the next update, velocity limits still apply); default: the gap's ``time_constant`` when
+            it is > 0, else :data:`DEFAULT_TIME_CONSTANT`.
         clock: wall-clock source (seconds).
+        gap: the reality gap of the joints (latency, backlash, droop, offsets; the profile's message
+            keys are the fake robot's business), ``None`` for none.
+        seed: seeds the gap's random parts (the offsets: :func:`~multiros.hardware.gap.gap_generators`).
+
+    Raises:
+        GapProfileError: ``droop_joints`` beyond the arm joints (:attr:`RobotSpec.arm`).
 
     Attributes:
         lock: held around every access to the hardware and its controllers.
@@ -56,8 +70,10 @@ class FakeHardware:
 
     hardware_plugin = "uniros/FakeSystem"  # the hardware component list_hardware_components names
 
-    def __init__(self, spec: RobotSpec, *, time_constant: float = DEFAULT_TIME_CONSTANT,
-                 clock: Callable[[], float] = time.time) -> None:
+    def __init__(self, spec: RobotSpec, *, time_constant: float | None = None,
+                 clock: Callable[[], float] = time.time, gap: GapProfile | None = None, seed: int | None = 0) -> None:
+        if time_constant is None:
+            time_constant = gap.time_constant if gap is not None and gap.time_constant > 0 else DEFAULT_TIME_CONSTANT
         if not math.isfinite(time_constant) or time_constant < 0:
             raise ValueError(f"time_constant must be a finite number >= 0 seconds, got {time_constant}")
         self.spec = spec
@@ -80,6 +96,16 @@ class FakeHardware:
         self._mimic_off = np.array([m.offset for m in spec.mimics])
         self._mimic_lo = np.array([m.lower for m in spec.mimics])
         self._mimic_hi = np.array([m.upper for m in spec.mimics])
+        self.gap = gap
+        self._gap: JointGap | None = None
+        if gap is not None and gap.acts_on_joints:
+            self._gap = JointGap(gap, self.hw.position, self.hw.indices(spec.arm, what="arm joint"),
+                                 gap_generators(seed)[0])
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """Calibration offsets per joint (encoder minus truth; zeros without a gap)."""
+        return self._gap.offsets.copy() if self._gap is not None else np.zeros(len(self.hw.joint_names))
 
     # -- the "world" view used by TrajectoryActions and ControllerInterfaces -----------------------
     @property
@@ -124,34 +150,50 @@ class FakeHardware:
             dt = min(max(float(dt), 0.0), _MAX_DT)
             self.cm.update(now)
             hw = self.hw
-            pos = hw.position
+            gap = self._gap
+            # With a gap: the command interface as it was `latency` ago, the servo's side of the joints.
+            command, mode = (hw.command, hw.mode) if gap is None else gap.delayed(now, hw.command, hw.mode)
+            pos = hw.position if gap is None else gap.servo
             if dt <= 0.0:
                 return
             target = pos.copy()
-            position_mode = hw.mode == int(JointMode.POSITION)
-            velocity_mode = hw.mode == int(JointMode.VELOCITY)
+            position_mode = mode == int(JointMode.POSITION)
+            velocity_mode = mode == int(JointMode.VELOCITY)
             alpha = 1.0 - math.exp(-dt / self.time_constant) if self.time_constant > 0 else 1.0
-            target[position_mode] += alpha * (hw.command[position_mode] - pos[position_mode])
-            target[velocity_mode] += hw.command[velocity_mode] * dt
+            setpoint = command if gap is None else gap.droop_target(command)
+            target[position_mode] += alpha * (setpoint[position_mode] - pos[position_mode])
+            target[velocity_mode] += command[velocity_mode] * dt
             step = target - pos
             capped = hw.velocity_limit > 0
             cap = hw.velocity_limit[capped] * dt
             step[capped] = np.clip(step[capped], -cap, cap)
             new = np.clip(pos + step, hw.lower, hw.upper)
-            hw.velocity[:] = (new - pos) / dt
+            if gap is not None:
+                new = gap.play(new, hw.position)  # the link, as the encoder reads it
+            hw.velocity[:] = (new - hw.position) / dt
             hw.position[:] = new
-            effort_mode = hw.mode == int(JointMode.EFFORT)
-            hw.effort[:] = np.where(effort_mode, hw.command, 0.0)
+            effort_mode = mode == int(JointMode.EFFORT)
+            hw.effort[:] = np.where(effort_mode, command, 0.0)
 
     def published_state(self) -> tuple[list[float], list[float], list[float]]:
-        """Positions, velocities and efforts of every published joint (mimic joints last)."""
+        """Positions, velocities and efforts of every published joint (mimic joints last), as the
+        encoders read them."""
         with self.lock:
             hw = self.hw
-            pos, vel, eff = hw.position, hw.velocity, hw.effort
-            if self._mimic_idx.size:
-                mpos = np.clip(self._mimic_mul * pos[self._mimic_idx] + self._mimic_off, self._mimic_lo,
-                               self._mimic_hi)
-                mvel = self._mimic_mul * vel[self._mimic_idx]
-                return (np.concatenate([pos, mpos]).tolist(), np.concatenate([vel, mvel]).tolist(),
-                        np.concatenate([eff, np.zeros(self._mimic_idx.size)]).tolist())
-            return pos.tolist(), vel.tolist(), eff.tolist()
+            return self._published(hw.position, hw.velocity, hw.effort)
+
+    def true_state(self) -> tuple[list[float], list[float], list[float]]:
+        """:meth:`published_state` as the joints truly are (encoders minus their calibration offsets)."""
+        with self.lock:
+            hw = self.hw
+            pos = hw.position if self._gap is None else self._gap.truth(hw.position)
+            return self._published(pos, hw.velocity, hw.effort)
+
+    def _published(self, pos: np.ndarray, vel: np.ndarray,
+                   eff: np.ndarray) -> tuple[list[float], list[float], list[float]]:
+        if self._mimic_idx.size:
+            mpos = np.clip(self._mimic_mul * pos[self._mimic_idx] + self._mimic_off, self._mimic_lo, self._mimic_hi)
+            mvel = self._mimic_mul * vel[self._mimic_idx]
+            return (np.concatenate([pos, mpos]).tolist(), np.concatenate([vel, mvel]).tolist(),
+                    np.concatenate([eff, np.zeros(self._mimic_idx.size)]).tolist())
+        return pos.tolist(), vel.tolist(), eff.tolist()

@@ -66,11 +66,27 @@ class RobotSpec:
     #: Parsed ros2_control YAML (controller names already renamed).
     controllers: dict[str, Any] = field(default_factory=dict)
     description: str = ""
+    #: The commanded arm joints, in the arm's order (empty: see :attr:`arm`).
+    arm_joints: list[str] = field(default_factory=list)
 
     @property
     def published_joints(self) -> list[str]:
         """Names in ``joint_states`` order: commandable joints, then mimic joints."""
         return [j.name for j in self.joints] + [m.name for m in self.mimics]
+
+    @property
+    def arm(self) -> list[str]:
+        """The commanded arm joints: :attr:`arm_joints` when set, else the joints of the controllers YAML's
+        first JointTrajectoryController (file order), else every commandable joint."""
+        if self.arm_joints:
+            return list(self.arm_joints)
+        cm = (self.controllers.get("controller_manager") or {}).get("ros__parameters") or {}
+        for name, entry in cm.items():
+            if isinstance(entry, Mapping) and str(entry.get("type", "")).endswith("/JointTrajectoryController"):
+                joints = ((self.controllers.get(name) or {}).get("ros__parameters") or {}).get("joints")
+                if isinstance(joints, list) and joints:
+                    return [str(j) for j in joints]
+        return [j.name for j in self.joints]
 
 
 @dataclass(frozen=True)
