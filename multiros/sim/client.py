@@ -450,6 +450,21 @@ class SimulationClient:
         res = self._call("set_physics_properties", req)
         _check(self.service_name("set_physics_properties"), res.result)
 
+    def set_entity_properties(self, entity: str, rows: Sequence[tuple[str, str, str, float]], *,
+                              restore: bool = False) -> int:
+        """Set an entity's physical properties apart from its description (domain randomisation): rows
+        ``(target, name, property, value)`` as :mod:`multiros.sim.entity_properties` lists them; ``restore``
+        first puts back its spawned values. Returns the model values written."""
+        req = self.request("set_entity_properties")
+        req.entity, req.restore = entity, bool(restore)
+        req.targets = [r[0] for r in rows]
+        req.names = [r[1] for r in rows]
+        req.properties = [r[2] for r in rows]
+        req.values = [float(r[3]) for r in rows]
+        res = self._call("set_entity_properties", req)
+        _check(self.service_name("set_entity_properties"), res.result)
+        return int(res.changed)
+
     # -- rendering --------------------------------------------------------------------------
     def render(self, camera: str = "", width: int = 640, height: int = 480, depth: bool = False) -> np.ndarray:
         """An image of the scene: HxWx3 uint8 RGB, or HxW float32 depth in metres."""

@@ -13,7 +13,7 @@ Services (``~`` = this node, default ``/mujoco_sim``):
 ``~/get_simulation_state``, ``~/set_simulation_state``, ``~/step_simulation``, and the project's own
 ``~/step_robot`` (the lockstep env step), ``~/step_robots`` (a batch of robots in one round trip),
 ``~/get_node_load`` (robots, limits, physics rate, memory), ``~/set_robot_joint_state``,
-``~/get_physics_properties``, ``~/set_physics_properties``, ``~/render_camera``.
+``~/get_physics_properties``, ``~/set_physics_properties``, ``~/render_camera``, ``~/set_entity_properties``.
 Topics: ``/clock`` while time advances; per robot ``joint_states``, ``robot_description``,
 controller command topics; ``/tf`` and ``/tf_static`` (every link by its URDF name,
 :mod:`multiros.sim.tf_publisher`); the cameras' images at their own rate, beside the physics
@@ -648,6 +648,24 @@ class SimulationNode(Node):
             robot.fill_joint_state(response.joint_state)
             response.sim_time = convert.time_msg(self.world.time)
         self.tf.changed()
+        ok(response.result)
+        return response
+
+    def _srv_set_entity_properties(self, request: Any, response: Any) -> Any:
+        from multiros.sim.entity_properties import PropertyError
+
+        with self.lock:
+            if not self.world.has_entity(request.entity):
+                fail(response.result, NOT_FOUND, self.world.unknown_entity_message(request.entity))
+                return response
+            try:
+                response.changed = self.world.set_entity_properties(
+                    request.entity, list(request.targets), list(request.names), list(request.properties),
+                    list(request.values), restore=bool(request.restore))
+            except PropertyError as exc:
+                code = response.UNKNOWN_NAME if " has no " in str(exc) else response.BAD_VALUE
+                fail(response.result, code, str(exc))
+                return response
         ok(response.result)
         return response
 

@@ -26,6 +26,7 @@ SIM_SERVICES: dict[str, str] = {
     "get_physics_properties": "uniros_interfaces/srv/GetPhysicsProperties",
     "set_physics_properties": "uniros_interfaces/srv/SetPhysicsProperties",
     "render_camera": "uniros_interfaces/srv/RenderCamera",
+    "set_entity_properties": "uniros_interfaces/srv/SetEntityProperties",
 }
 
 __all__ = ["SIM_SERVICES", "CONTROLLER_SERVICES"]

@@ -41,6 +41,7 @@ import numpy as np
 
 from multiros.sim.controller_manager import ControllerManager
 from multiros.sim.description import MeshCache, RobotDescription, load_description
+from multiros.sim.entity_properties import apply_rows, check_rows, reapply
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError
 from multiros.sim.frames import FrameSet
 from multiros.sim.packages import PackageIndex, default_index
@@ -52,6 +53,7 @@ from multiros.sim.world_model import (
     base_spec,
     bind_entity_ids,
     geom_bounds,
+    hold_here,
     initial_joint_positions,
     make_controller_manager,
     read_state,
@@ -134,15 +136,21 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         self._generation += 1
         for ent in self._entities.values():
             self._bind_entity(ent)
-        self._varying = tuple(e for e in self._entities.values() if e.cm is not None and e.cm.time_varying)
+        self._varying = self._varying_entities()
         self._sync_warn_counts()
         self._state_spec = int(mujoco.mjtState.mjSTATE_INTEGRATION)
         self._snap = np.zeros(mujoco.mj_stateSize(m, self._state_spec))
         for fs in list(self._frame_sets):
             fs._bind()
 
+    def _varying_entities(self) -> tuple[EntityRecord, ...]:
+        """Robots whose actuator targets change between step calls: time-varying controllers, shaped commands."""
+        return tuple(e for e in self._entities.values()
+                     if e.cm is not None and (e.cm.time_varying or e.shaping is not None))
+
     def _bind_entity(self, ent: EntityRecord) -> None:
         bind_entity_ids(self._model, ent)
+        reapply(self._model, ent)
         if ent.hw is not None:
             ent.hw.dirty = True
             write_actuators(self._model, self._data, ent)
@@ -266,7 +274,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
             apply_initial(self._model, self._data, ent)
             if category == EntityCategory.ROBOT and ent.actuated:
                 self._setup_controllers(ent, controllers, controllers_yaml)
-            self._varying = tuple(e for e in self._entities.values() if e.cm is not None and e.cm.time_varying)
+            self._varying = self._varying_entities()
             mujoco.mj_forward(self._model, self._data)
         except Exception:
             self.delete(name)
@@ -511,10 +519,8 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         d.qpos[ent.jnt_qadr[idx]] = pos
         d.qvel[ent.jnt_dadr[idx]] = vel
         mujoco.mj_forward(self._model, d)
-        if hold and ent.cm is not None:
-            read_state(self._data, ent)
-            ent.cm.hold(d.time)
-            write_actuators(self._model, self._data, ent)
+        if hold:
+            hold_here(self._model, d, ent)
 
     # ------------------------------------------------------------------ frames
     def frame_set(self, frames: Sequence[str], entity: str | None = None) -> FrameSet:
@@ -554,7 +560,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         self._controllers_changed(self._robot(name))
 
     def _controllers_changed(self, ent: EntityRecord) -> None:
-        self._varying = tuple(e for e in self._entities.values() if e.cm is not None and e.cm.time_varying)
+        self._varying = self._varying_entities()
         ent.countdown = 0
         write_actuators(self._model, self._data, ent)
 
@@ -646,12 +652,9 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
             d.time = 0.0
         mujoco.mj_forward(self._model, d)
         for ent in self._entities.values():
-            if ent.cm is not None:
-                ent.countdown = 0
-                if scope & (ResetScope.STATE | ResetScope.TIME):
-                    read_state(d, ent)
-                    ent.cm.hold(d.time)
-                    write_actuators(self._model, d, ent)
+            ent.countdown = 0
+            if scope & (ResetScope.STATE | ResetScope.TIME):
+                hold_here(self._model, d, ent)
         return ()
 
     def reset_entity(self, name: str) -> None:
@@ -673,11 +676,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
             d.qacc_warmstart[ent.dof_idx] = 0.0
         mujoco.mj_forward(m, d)
         for ent in ents:
-            if ent.cm is not None:
-                ent.countdown = 0
-                read_state(d, ent)
-                ent.cm.hold(d.time)
-                write_actuators(m, d, ent)
+            hold_here(m, d, ent)
 
     def entities_in_namespace(self, namespace: str) -> tuple[str, ...]:
         """The entities whose ROS namespace is ``namespace`` (a robot and the objects spawned into it)."""
@@ -695,6 +694,20 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
             self.spawn(name, initial=True, **recipe)
         mujoco.mj_forward(self._model, self._data)
         return tuple(self._launched)
+
+    def set_entity_properties(self, name: str, targets: Sequence[str], names: Sequence[str],
+                              properties: Sequence[str], values: Sequence[float], *, restore: bool = False) -> int:
+        """Set an entity's physical properties apart from its description (domain randomisation; rows and
+        their meaning: :mod:`multiros.sim.entity_properties`). ``restore`` first puts back its spawned values.
+        Returns the model values written. Raises EntityError (unknown entity) or PropertyError (a bad row:
+        nothing changes)."""
+        ent = self._get(name)
+        rows = check_rows(targets, names, properties, values)
+        changed = apply_rows(self._model, ent, rows, restore=restore)
+        if ent.hw is not None:
+            write_actuators(self._model, self._data, ent)
+        self._varying = self._varying_entities()
+        return changed
 
     # ------------------------------------------------------------------ physics properties
     @property

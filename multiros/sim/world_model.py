@@ -292,7 +292,20 @@ def write_actuators(m: mujoco.MjModel, d: mujoco.MjData, ent: EntityRecord) -> N
         pos = hw.mode == int(JointMode.POSITION)
         ent.ff_scale = np.where(pos, hw.kd / np.where(hw.kp > 0, hw.kp, 1.0), 0.0)
         hw.dirty = False
-    d.ctrl[ent.act_ids] = hw.command + ent.ff_scale * hw.command_velocity
+    command = hw.command if ent.shaping is None else ent.shaping.shape(hw.command, hw.mode, d.time)
+    d.ctrl[ent.act_ids] = command + ent.ff_scale * hw.command_velocity
+
+
+def hold_here(m: mujoco.MjModel, d: mujoco.MjData, ent: EntityRecord) -> None:
+    """After a teleport or reset: the robot's active controllers hold where it is, no command in flight."""
+    if ent.cm is None:
+        return
+    ent.countdown = 0
+    read_state(d, ent)
+    ent.cm.hold(d.time)
+    if ent.shaping is not None:
+        ent.shaping.clear()
+    write_actuators(m, d, ent)
 
 
 def root_state(d: mujoco.MjData, ent: EntityRecord) -> EntityState:

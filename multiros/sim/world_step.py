@@ -23,7 +23,7 @@ import numpy as np
 
 from multiros.sim.errors import StepInterruptedError, UnstableSimulationError
 from multiros.sim.limits import STEP_CHUNK
-from multiros.sim.world_model import apply_initial, read_state, write_actuators
+from multiros.sim.world_model import apply_initial, hold_here, write_actuators
 from multiros.sim.world_types import EntityRecord
 
 #: Why an entity was removed (the rest of a step call's error message, and of later requests naming it).
@@ -131,7 +131,8 @@ class WorldStepping:
                 if ent.countdown <= 0:
                     ent.cm.update(d.time)
                     hw = ent.hw
-                    d.ctrl[ent.act_ids] = hw.command + ent.ff_scale * hw.command_velocity
+                    command = hw.command if ent.shaping is None else ent.shaping.shape(hw.command, hw.mode, d.time)
+                    d.ctrl[ent.act_ids] = command + ent.ff_scale * hw.command_velocity
                     ent.countdown = ent.period
                 if ent.countdown < chunk:
                     chunk = ent.countdown
@@ -208,10 +209,7 @@ class WorldStepping:
                 good = np.empty_like(self._snap)
             mujoco.mj_forward(m, d)
             for ent in bad:
-                if ent.cm is not None:
-                    read_state(d, ent)
-                    ent.cm.hold(d.time)
-                    write_actuators(m, d, ent)
+                hold_here(m, d, ent)
             self._sync_warn_counts()
             if attempts > 3 * max(1, len(self._entities) + len(removed)):  # nobody to blame: all back at rest
                 mujoco.mj_setState(m, d, self._snap, self._state_spec)

@@ -10,6 +10,7 @@ import enum
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -56,6 +57,10 @@ class WorldOptions:
     gravity_compensation: bool = True
     camera: tuple[tuple[float, float, float], float, float, float] = ((0.0, 0.0, 0.3), 1.5, 135.0, -25.0)
     floor_color: str = "light"
+
+
+if TYPE_CHECKING:
+    from multiros.sim.entity_properties import CommandShaping, EntityProperties
 
 
 class EntityCategory(enum.IntEnum):
@@ -198,3 +203,6 @@ class EntityRecord:
         self.act_qadr = np.zeros(0, dtype=np.intp)
         self.act_dadr = np.zeros(0, dtype=np.intp)
         self.effort_slot = np.zeros(0, dtype=np.intp)  # joint index of each actuator
+        # set apart from the description (multiros.sim.entity_properties): rows given, command shaping
+        self.properties: EntityProperties | None = None
+        self.shaping: CommandShaping | None = None
