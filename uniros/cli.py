@@ -1,6 +1,8 @@
-"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim``, ``new``, ``arm add`` and ``arm check``.
+"""The ``uniros`` command: ``train``, ``eval``, ``list``, ``doctor``, ``sim``, ``new``, ``arm add``, ``arm check``,
+``export`` and ``deploy``.
 
-Each subcommand is a small function taking parsed arguments and returning an exit code.
+Each subcommand is a small function taking parsed arguments and returning an exit code; a group of
+subcommands adds its parser with a ``_<name>_parser(sub)`` function called from :func:`build_parser`.
 """
 
 from __future__ import annotations
@@ -407,6 +409,47 @@ def _cmd_arm_check(args: argparse.Namespace) -> int:
     return 0 if result.passed else 1
 
 
+# -- uniros export / uniros deploy (issue 51) ---------------------------------------------------------
+def _cmd_export(args: argparse.Namespace) -> int:
+    from uniros.policy_export import export_run
+
+    result = export_run(args.run, args.output, model=args.model)
+    meta = result.metadata
+    inputs = ", ".join(f"{i.name} {list(i.shape)}" for i in meta.inputs)
+    print(f"wrote {result.path}: {meta.algorithm.upper()} policy of {meta.env_id} (inputs {inputs}; action "
+          f"{list(meta.action_shape)}; observation normalisation {'inside' if meta.normalized else 'none'}), "
+          f"{meta.exporter}, opset {meta.opset}")
+    print(f"checked: onnxruntime's actions equal SB3's predict(deterministic=True) on {result.checked} sampled "
+          f"observations (largest difference {result.max_error:.2g})")
+    return 0
+
+
+def _cmd_deploy(args: argparse.Namespace) -> int:
+    from uniros.deploy import deploy
+
+    return deploy(args.target, env_id=args.env, arm=args.arm, episodes=args.episodes, transport=args.transport,
+                  router=args.router, say=lambda text: print(text, flush=True), note=_note)
+
+
+def _deploy_parsers(sub: Any) -> None:
+    p = sub.add_parser("export", help="write a run's policy as ONNX (normalisation and action scaling inside)")
+    p.add_argument("run", help="a run directory (the one `uniros train` printed)")
+    p.add_argument("--output", help="the .onnx file (default: RUN/<model>_model.onnx)")
+    p.add_argument("--model", choices=["best", "final"], default="best",
+                   help="which model of the run (default: %(default)s; final when the run has no best model)")
+    p.set_defaults(func=_cmd_export)
+    p = sub.add_parser("deploy", help="run an exported policy on a robot through its Real env (onnxruntime only)")
+    p.add_argument("target", metavar="RUN|MODEL.onnx", help="a run directory with an exported policy, or the .onnx")
+    p.add_argument("--env", help="the Real ID to drive (default: the Real twin of the policy's ID)")
+    p.add_argument("--arm", metavar="FILE", help="the arm file that registers the ID (an arm of uniros arm add)")
+    p.add_argument("--episodes", type=int, help="episodes to run (default: until Ctrl-C)")
+    p.add_argument("--transport", choices=["zenoh", "rclpy"],
+                   help="ROS transport to the robot (default: rclpy when importable, else zenoh)")
+    p.add_argument("--router", metavar="ENDPOINT", help="the Zenoh router to join (tcp/HOST:PORT; default: "
+                   "$UNIROS_ZENOH_ROUTER, else tcp/127.0.0.1:7447)")
+    p.set_defaults(func=_cmd_deploy)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``uniros`` argument parser."""
     from uniros.algorithms import ALGORITHMS
@@ -483,6 +526,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="template style: MultiROS (MyRobotEnv/MyTaskEnv) or FRobs_RL (CustomRobotEnv/CustomTaskEnv)")
     p.set_defaults(func=_cmd_new)
     _arm_parser(sub)
+    _deploy_parsers(sub)
     return parser
 
 
