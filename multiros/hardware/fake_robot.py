@@ -177,7 +177,7 @@ class FakeRobot:
         stalled = False
         while True:
             # The loop wakes for its tick; with a gap also for a jittered publish or a late message due.
-            wake = min(next_tick, pub_at) if jitter else next_tick
+            wake = min(next_tick, pub_at) if jitter and not stalled else next_tick
             if self._late:
                 wake = min(wake, self._late[0][0])
             if self._stop.wait(max(0.0, wake - time.monotonic())):

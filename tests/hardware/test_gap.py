@@ -10,6 +10,7 @@ port 7447, stopped by PID). The last test shows the stand-in reproduces the issu
 from __future__ import annotations
 
 import math
+import os
 import subprocess
 import sys
 import threading
@@ -344,3 +345,36 @@ def test_the_hard_gap_reproduces_the_reset_that_never_reaches_002_rad(graph: Con
     assert np.all((error[1:3] > 0.025) & (error[1:3] < 0.04)), f"settled errors {np.round(error, 4)}"
     assert np.all(error[[0, 3, 4]] < 0.006), f"settled errors {np.round(error, 4)}"
     assert error.max() > 0.02  # today's reset tolerance: a reset to this pose cannot succeed
+
+
+def _cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")  # utime + stime
+
+
+@pytest.mark.multiprocess
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads the child's CPU time from /proc")
+def test_a_stalled_robot_with_a_gap_stops_everything_and_idles(graph: Context) -> None:
+    args = ["--log-level", "ERROR", "--namespace", "stally", "--stall-after", "0.5", "--gap", "hard",
+            "--gap-set", "late=0.5", "--gap-set", "jitter=1"]
+    with FakeRobotProcess("rx200", context=graph, args=args, cwd=_CWD) as robot:
+        probe = Probe(graph, ns="/stally")
+        truth = Truth(probe, "/stally/controller_manager/ground_truth/joint_states")
+        try:
+            _wait(lambda: len(truth.messages) > 0, 10.0, "the truth")
+
+            def quiet() -> bool:  # nothing for 0.3 s: neither joint_states nor the truth
+                seen = (len(truth.messages), len(probe.states))
+                deadline = time.monotonic() + 0.3
+                while time.monotonic() < deadline:
+                    time.sleep(0.02)
+                return (len(truth.messages), len(probe.states)) == seen
+
+            _wait(quiet, 10.0, "joint_states and the truth stopped by --stall-after")
+            cpu, wall = _cpu_seconds(robot.pid), time.monotonic()
+            assert probe.controllers()["arm_controller"] == "active"  # the services still answer
+            _wait(lambda: time.monotonic() - wall > 1.0, 5.0, "a second")
+            busy = (_cpu_seconds(robot.pid) - cpu) / (time.monotonic() - wall)
+            assert busy < 0.2, f"the stalled fake robot used {busy:.0%} of a core (a loop waking for nothing)"
+        finally:
+            probe.close()
