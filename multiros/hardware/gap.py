@@ -179,7 +179,7 @@ def load_gap_profile(name_or_path: str | Path, overrides: Mapping[str, Any] | No
         GapProfileError: an unknown name or key, a file that cannot be read, a bad value (one line).
     """
     name = str(name_or_path)
-    if name in PROFILES and not Path(name).is_file():
+    if name in PROFILES and not isinstance(name_or_path, Path):  # a file called "hard": give it as ./hard
         profile = PROFILES[name]
     else:
         path = Path(name)

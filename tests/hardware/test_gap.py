@@ -100,9 +100,11 @@ def test_unknown_names_and_bad_assignments() -> None:
                          "late", "late_by", "jitter"}
 
 
-def test_the_command_line_refuses_a_bad_gap_with_exit_code_2() -> None:
-    out = subprocess.run([sys.executable, "-m", "multiros.hardware.fake_robot", "--robot", "rx200", "--router", "none",
-                          "--gap", "hard", "--gap-set", "drop=2"], capture_output=True, text=True, timeout=60, cwd=_CWD)
+@pytest.mark.parametrize("program", [["multiros.hardware.fake_robot", "--robot", "rx200"],
+                                     ["uniros.fake_robot", "--robot", "vx300s"]], ids=["plain", "arm-file"])
+def test_the_command_line_refuses_a_bad_gap_with_exit_code_2(program: list[str]) -> None:
+    out = subprocess.run([sys.executable, "-m", *program, "--router", "none", "--gap", "hard", "--gap-set", "drop=2"],
+                         capture_output=True, text=True, timeout=60, cwd=_CWD)
     assert out.returncode == 2
     assert out.stderr.strip() == "uniros-fake-robot: gap key 'drop': must be a fraction in [0, 1], got 2.0"
 
