@@ -54,6 +54,7 @@ from multiros.robot_state import RobotStates
 from rl_environments.arm import Arm
 from rl_environments.arm_task import ArmTask
 from rl_environments.camera_obs import Cameras, parse_camera_options
+from rl_environments.randomization import WorldRandomizer
 
 __all__ = ["ArmEnv", "ArmRealEnv", "ArmRealGoalEnv", "ArmSimEnv", "ArmSimGoalEnv", "TaskAttributeWarning",
            "arm_env_class"]
@@ -86,6 +87,7 @@ class ArmEnv(EnvCore):
     arm: Arm
     task: ArmTask
     cameras: Cameras | None
+    randomizer: WorldRandomizer | None
     _failed_reset: str | None = None  # the error of the last reset, while no reset has succeeded since
 
     def __init__(self, arm: str | Arm | None = None, task: str | type[ArmTask] | None = None, **kwargs: Any) -> None:
@@ -103,6 +105,8 @@ class ArmEnv(EnvCore):
         task_cls.side_defaults(cfg, kwargs)
         camera = parse_camera_options(kwargs, type(self).__name__, real=self.ON_ROBOT,
                                       defaults=self.arm.camera_defaults)
+        randomization = kwargs.pop("randomization", None)
+        self.randomizer = None
         try:
             self._open_side(task_cls, cfg, kwargs)
             self.task = task_cls(self, self.arm, options, cfg, goal_conditioned=isinstance(self, GoalEnv))
@@ -115,6 +119,7 @@ class ArmEnv(EnvCore):
                 self.observation_space = self.cameras.open(self.task.observation_space)
             if self.ON_ROBOT:  # the task's joint range tightens the safety rules' (the tighter bound wins)
                 self.connection.limit_joints(self.task.min_joint_pos, self.task.max_joint_pos)
+            self.randomizer = WorldRandomizer.for_env(self, randomization)
         except BaseException:
             self.close()
             raise
@@ -136,10 +141,13 @@ class ArmEnv(EnvCore):
     # -- an episode --------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         try:
-            super().reset(seed=self._take_seed(seed))  # type: ignore[misc]  # gymnasium's: the random stream
+            seed = self._take_seed(seed)
+            super().reset(seed=seed)  # type: ignore[misc]  # gymnasium's: the random stream
             self.info = {}
             self.connection.reset(self.info)
             self.arm.arm_index(self.robot_state.names)  # the robot reports the arm's joints
+            if self.randomizer is not None:  # this episode's world (rl_environments.randomization)
+                self.randomizer.apply(seed)
             self.task.reset_pose()
             self.task.start_episode(self.np_random)  # type: ignore[attr-defined]
             self.connection.start_episode(self.info)
@@ -212,7 +220,7 @@ class ArmEnv(EnvCore):
         task = kwargs.get("task") or cls.TASK
         task_cls = task_class(task) if isinstance(task, str) else task
         names = [f.name for f in dataclasses.fields(task_cls.OPTIONS)] if task_cls is not None else []
-        return ["arm", "task", *names, *CAMERA_KEYWORDS]
+        return ["arm", "task", "randomization", *names, *CAMERA_KEYWORDS]
 
     @classmethod
     def entity_name(cls, kwargs: dict[str, Any]) -> str:

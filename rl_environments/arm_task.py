@@ -195,6 +195,14 @@ class ArmTask:
         return False
 
     # -- scripted demonstrations and checks ------------------------------------------------------------
+    def scene_entities(self) -> tuple[str, ...]:
+        """The task's own entities a randomiser may change: its object's, then its table's (none here)."""
+        return ()
+
+    def tracked_frames(self) -> tuple[str, ...]:
+        """Frames a robot's tracker would report (their readings get the tracker's noise; none here)."""
+        return ()
+
     def scripted_policy(self) -> Any:
         """A policy that does the task from observations (``uniros arm check``, demonstrations)."""
         raise ValueError(f"no scripted policy for the task {self.NAME!r}")

@@ -153,6 +153,12 @@ class ObjectTask(ArmTask):
         self.connection.add_scene(entities)
         self.track_reset()
 
+    def scene_entities(self) -> tuple[str, ...]:
+        return (self.object_entity, self.table_entity)
+
+    def tracked_frames(self) -> tuple[str, ...]:
+        return (self.object_frame,)
+
     def place_object(self, position: np.ndarray, quat: np.ndarray) -> None:
         """Teleport the object (at rest) to its episode start; put the table back when knocked. On a robot
         nothing moves (put it back by hand; ``reset_env_prompt=True`` asks before each reset)."""

@@ -28,6 +28,7 @@ import numpy.typing as npt
 from multiros.envs.config import SpawnPose, StepConfig
 from multiros.envs.connection import STEP_OK, CameraRequest, RobotConnection, SceneEntity, StepStatus
 from multiros.envs.errors import EnvError, ResetError
+from multiros.envs.sensing import SensorModel
 from multiros.robot_state import RobotState, RobotStates
 from multiros.sim.cameras import CameraFrame
 from multiros.sim.client import RobotStepSpec, SimulationClient, SimulationNodeError
@@ -249,6 +250,25 @@ class SimConnection(RobotConnection):
             raise EnvError(f"frame {frame!r} is not in this env's frames {self._frames}; add it to `frames` so each "
                            "step returns it") from None
 
+    # -- randomisation (rl_environments.randomization draws it per episode) ---------------------
+    #: What the robot's sensors add to the truth (:mod:`multiros.envs.sensing`); ``None``: the truth.
+    sensors: SensorModel | None = None
+
+    @property
+    def control_period(self) -> float:
+        """Seconds of simulated time one env step advances (lockstep: ``num_sim_steps`` physics steps)."""
+        period = self.__dict__.get("_control_period")
+        if period is None:
+            period = self.step_config.num_sim_steps * float(self.sim.get_physics_properties()["time_step"])
+            self.__dict__["_control_period"] = period
+        return float(period)
+
+    def set_entity_properties(self, entity: str, rows: Sequence[tuple[str, str, str, float]], *,
+                              restore: bool = False) -> int:
+        """Set physical properties of the robot or one of its task's entities apart from their description
+        (:mod:`multiros.sim.entity_properties`); ``restore`` first puts back the spawned values."""
+        return self.sim.set_entity_properties(entity, rows, restore=restore)
+
     # -- the step seam (a batch steps many connections in one call) ---------------------------
     def step_spec(self, reset: bool = False) -> RobotStepSpec:
         """This robot's part of a step call: its queued commands (handed over) and its frames."""
@@ -260,6 +280,8 @@ class SimConnection(RobotConnection):
         are made relative to the world slot, in place (the reply's arrays are fresh)."""
         if self._slot is not None and len(state.frame_positions):
             np.subtract(state.frame_positions, self._slot, out=state.frame_positions)
+        if self.sensors is not None:
+            self.sensors.apply(state.position, state.frame_positions)
         self._state, self._states, self._row = state, None, None
 
     def refresh(self, steps: int = 0) -> StepStatus:
@@ -275,6 +297,8 @@ class SimConnection(RobotConnection):
         if stacked is not None:
             if self._slot is not None and stacked.frame_positions.shape[1]:
                 np.subtract(stacked.frame_positions[j], self._slot, out=stacked.frame_positions[j])
+            if self.sensors is not None:
+                self.sensors.apply(stacked.position[j], stacked.frame_positions[j])
             self._row, self._state = (stacked, j), None
             self._states = stacked if len(stacked) == 1 else None
         else:
@@ -287,6 +311,13 @@ class SimConnection(RobotConnection):
         return STEP_OK if code == 0 else StepStatus(code, reply.message[j])
 
     # -- acting and stepping -------------------------------------------------------------------
+    def command_arm(self, controller: str, targets: np.ndarray, info: dict[str, Any]) -> None:
+        """The arm's targets, as its encoders read (with calibration offsets, the model's frame differs)."""
+        sensors = self.sensors
+        if sensors is not None and sensors.offsets.any():
+            targets = targets - sensors.offsets
+        self.command(controller, targets)
+
     def command(self, controller: str, values: np.ndarray) -> None:
         """Queue a controller command: it travels with the next step (lockstep), or is applied at
         once in the other step modes."""
@@ -338,8 +369,12 @@ class SimConnection(RobotConnection):
             raise EnvError(f"robot {self.robot_name!r} has no joint {exc.args[0]!r}; joints: "
                            f"{self.state.names}") from None
         error = np.inf
+        truth, sensors = target, self.sensors
+        if sensors is not None:  # the pose as the encoders read it: the model's is off by their offsets
+            truth = sensors.to_model(idx, target)
+            tolerance = max(tolerance, 5.0 * sensors.joint_noise)
         for _ in range(self.max_reset_attempts):
-            self.set_joint_positions(names, target, hold=True)
+            self.set_joint_positions(names, truth, hold=True)
             self.refresh(0)
             error = float(np.max(np.abs(self.state.position[idx] - target)))
             if error <= tolerance:

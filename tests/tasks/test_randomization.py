@@ -1,0 +1,148 @@
+"""Domain randomisation of the arm envs (rl_environments.randomization): a checked mapping, worlds drawn
+per reset and seeded with the env (the same seed, the same worlds and trajectory), the node's command
+timing visible in the arm's motion, the sensors' offsets and noise in the readings only, a batch whose envs
+draw worlds of their own, and the arm file's ``dynamics:`` applied with no randomisation at all."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import uniros
+from rl_environments.randomization import Randomization, RandomizationError
+
+REACH = "RX200ReacherGoalSim-v0"
+PUSH = "RX200PushGoalSim-v0"
+FULL = {"link_mass": [0.8, 1.2], "joint_damping": [0.5, 2.0], "joint_friction": [0.5, 2.0],
+        "joint_armature": [0.8, 1.2], "actuator_gain": [0.8, 1.2], "action_latency": [0, 2], "control_jitter": 0.2,
+        "lag": [0.0, 0.2], "joint_noise": 0.004, "joint_offset": 0.01, "object_mass": [0.7, 1.3],
+        "object_friction": [0.7, 1.3], "object_size": [0.95, 1.05], "table_friction": [0.7, 1.3],
+        "object_position_noise": 0.005}
+
+
+@pytest.mark.parametrize(("data", "message"), [
+    ({"link_mas": [0.8, 1.2]}, "did you mean 'link_mass'?"),
+    ({"link_mass": [1.2, 0.8]}, "low is above high"),
+    ({"link_mass": [0.0, 1.0]}, "each value must be in [0.05, 20] (scale)"),
+    ({"action_latency": [0, 1.5]}, "whole control periods"),
+    ({"joint_noise": [0.0, 0.1]}, "must be one number (rad)"),
+    ({"lag": "slow"}, "must be [low, high] or one number (s)"),
+    ({"joint_offset": float("nan")}, "must be in [0, 0.1]"),
+    ([1, 2], "must be a mapping of keys to ranges"),
+])
+def test_a_bad_mapping_is_one_line_naming_the_key(data, message):
+    with pytest.raises(RandomizationError) as err:
+        Randomization.from_mapping(data)
+    assert message in str(err.value) and "\n" not in str(err.value)
+
+
+def _rollout(env, seed: int, steps: int = 15) -> np.ndarray:
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    out = [obs["observation"]]
+    for _ in range(steps):
+        obs, *_ = env.step(rng.uniform(-1, 1, env.action_space.shape))
+        out.append(obs["observation"])
+    return np.array(out)
+
+
+def test_the_same_seed_draws_the_same_worlds_and_another_seed_others():
+    env = uniros.make(PUSH, randomization=FULL)
+    try:
+        a, b, c = _rollout(env, 5), _rollout(env, 5), _rollout(env, 6)
+    finally:
+        env.close()
+    np.testing.assert_array_equal(a, b)
+    assert not np.allclose(a[1:], c[1:])
+
+
+def test_randomisation_leaves_the_tasks_own_random_stream_alone():
+    """The goal a seed samples is the same with and without randomisation (the draws have their own stream)."""
+    goals = []
+    for kwargs in ({}, {"randomization": FULL}):
+        env = uniros.make(REACH, **kwargs)
+        try:
+            goals.append(env.reset(seed=11)[0]["desired_goal"])
+        finally:
+            env.close()
+    np.testing.assert_array_equal(goals[0], goals[1])
+
+
+def test_action_latency_holds_the_arm_for_whole_control_periods():
+    def ee_track(randomization):
+        env = uniros.make(REACH, randomization=randomization)
+        try:
+            obs, _ = env.reset(seed=1)
+            track = [obs["achieved_goal"].copy()]
+            for _ in range(4):
+                obs, *_ = env.step(np.full(env.action_space.shape, 0.5))
+                track.append(obs["achieved_goal"].copy())
+            return np.linalg.norm(np.diff(np.array(track), axis=0), axis=1)
+        finally:
+            env.close()
+
+    prompt, late = ee_track(None), ee_track({"action_latency": 2})
+    assert prompt[0] > 5e-3, "the exact arm moves in the first step"
+    assert late[0] < 1e-3 and late[1] < 1e-3, "two control periods late: still for two steps"
+    assert late[2] > 5e-3
+
+
+def test_calibration_offsets_and_noise_are_in_the_readings_not_the_arm():
+    env = uniros.make(REACH, randomization={"joint_offset": 0.05})
+    try:
+        env.reset(seed=2)
+        u = env.unwrapped
+        sensors = u.connection.sensors
+        assert sensors is not None and np.max(np.abs(sensors.offsets)) > 0.01
+        read = u.arm_positions()
+        np.testing.assert_allclose(read, u.task.init_joint_pos, atol=1e-6), "the reset pose as the encoders read"
+        # the arm stands where the model puts the pose minus the offsets: its end effector is elsewhere
+        chain = u.arm.chain
+        truth = chain.fk_position(np.asarray(u.task.init_joint_pos) - sensors.offsets)
+        believed = chain.fk_position(np.asarray(u.task.init_joint_pos))
+        ee = u.ee_position() - u.connection.base_position
+        assert np.linalg.norm(ee - truth) < 2e-3 < np.linalg.norm(ee - believed)
+    finally:
+        env.close()
+
+
+def test_a_batch_draws_a_world_per_env():
+    vec = uniros.make_vec(PUSH, 2, vectorization_mode="batched", randomization={"object_mass": [0.5, 2.0],
+                                                                               "joint_offset": 0.02})
+    try:
+        vec.reset(seed=4)
+        offsets = [vec.envs[i].unwrapped.connection.sensors.offsets for i in range(2)]
+        assert not np.allclose(offsets[0], offsets[1])
+    finally:
+        vec.close()
+
+
+def test_the_arm_files_dynamics_apply_without_randomisation(tmp_path, monkeypatch):
+    """An arm file with ``dynamics:`` (as uniros sysid writes it): its envs' joints settle at gain * command
+    + offset, no ``randomization`` given."""
+    import yaml
+
+    from rl_environments.arm_registry import arm_of, register_arm, unregister_arm
+
+    monkeypatch.setenv("UNIROS_ARMS", "")
+    shipped = arm_of("RX200").path
+    data = yaml.safe_load(shipped.read_text())
+    data["name"] = "DroopRX200"
+    assert data["description"]["uri"].startswith("package://"), "the copy must find the description"
+    data["dynamics"] = {"time_constant": 0.05, "offset": [0.0, 0.03, -0.03, 0.0, 0.0]}
+    path = tmp_path / "droop.yaml"
+    path.write_text(yaml.safe_dump(data))
+    register_arm(path)
+    try:
+        env = uniros.make("DroopRX200ReacherGoalSim-v0", delta_action=False)  # actions: absolute joint targets
+        try:
+            env.reset(seed=0)
+            u = env.unwrapped
+            target = np.asarray(u.task.init_joint_pos, dtype=np.float64)
+            for _ in range(10):
+                env.step(target.astype(np.float32))
+            np.testing.assert_allclose(u.arm_positions() - target, [0.0, 0.03, -0.03, 0.0, 0.0], atol=5e-3)
+        finally:
+            env.close()
+    finally:
+        unregister_arm("DroopRX200")
