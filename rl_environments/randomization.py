@@ -12,7 +12,8 @@ timing
     ``action_latency``: ``[low, high]`` whole control periods a command waits before it acts (added to
     the arm file's ``dynamics.latency``); ``control_jitter``: fraction of a control period each command
     may come later still; ``lag``: seconds of first-order lag of the joints (default the arm file's
-    ``dynamics.time_constant``).
+    ``dynamics.time_constant``); ``command_offset`` (rad): each arm joint settles up to this far from its
+    target, drawn per episode in ``[-v, v]`` (a servo drooping under load; added to ``dynamics.offset``).
 sensing
     ``joint_noise`` (rad, standard deviation per reading), ``joint_offset`` (rad: each arm joint's
     calibration error, drawn per episode in ``[-v, v]``), ``object_position_noise`` (m, standard
@@ -48,14 +49,15 @@ _SCALES = ("link_mass", "joint_damping", "joint_friction", "joint_armature", "ac
 RANDOMIZATION_KEYS: dict[str, str] = {
     **dict.fromkeys(_SCALES, "scale"),
     "action_latency": "control periods", "control_jitter": "fraction of a control period", "lag": "s",
+    "command_offset": "rad",
     "joint_noise": "rad", "joint_offset": "rad", "object_position_noise": "m",
 }
 _BOUNDS: dict[str, tuple[float, float]] = {
     **dict.fromkeys(_SCALES, (0.05, 20.0)),
-    "action_latency": (0, 20), "control_jitter": (0.0, 1.0), "lag": (0.0, 2.0),
+    "action_latency": (0, 20), "control_jitter": (0.0, 1.0), "lag": (0.0, 2.0), "command_offset": (0.0, 0.2),
     "joint_noise": (0.0, 0.1), "joint_offset": (0.0, 0.1), "object_position_noise": (0.0, 0.1),
 }
-_SINGLE = ("control_jitter", "joint_noise", "joint_offset", "object_position_noise")
+_SINGLE = ("control_jitter", "command_offset", "joint_noise", "joint_offset", "object_position_noise")
 _SEED_TAG = 0x52414E44  # mixed into the env's seed: the randomiser's stream is not the task's
 
 
@@ -116,6 +118,8 @@ class Randomization:
             tc = rng.uniform(*r["lag"], n)
         gain = np.array(dyn.gain or (1.0,) * n, dtype=np.float64)
         offset = np.array(dyn.offset or (0.0,) * n, dtype=np.float64)
+        if "command_offset" in r:
+            offset = offset + rng.uniform(-r["command_offset"][1], r["command_offset"][1], n)
         calibration = np.zeros(n)
         if "joint_offset" in r:
             calibration = rng.uniform(-r["joint_offset"][1], r["joint_offset"][1], n)

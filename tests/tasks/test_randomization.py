@@ -146,3 +146,32 @@ def test_the_arm_files_dynamics_apply_without_randomisation(tmp_path, monkeypatc
             env.close()
     finally:
         unregister_arm("DroopRX200")
+
+
+def _sim2real_configs() -> list:
+    from importlib import resources
+    from pathlib import Path
+
+    root = Path(str(resources.files("rl_environments.config").joinpath("training", "sim2real")))
+    return sorted(root.glob("*.yaml"))
+
+
+@pytest.mark.parametrize("path", _sim2real_configs(), ids=lambda p: p.stem)
+def test_each_shipped_sim2real_config_loads_and_its_env_steps(path):
+    from uniros.train_config import load_training_config
+
+    config = load_training_config(path)
+    assert config.env_kwargs.get("randomization"), "a sim2real config randomises"
+    env = uniros.make(path.stem, **config.env_kwargs)
+    try:
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step(env.action_space.sample())
+    finally:
+        env.close()
+
+
+def test_the_sim2real_configs_cover_reach_on_every_shipped_arm_and_push_on_the_rx200():
+    names = {p.stem for p in _sim2real_configs()}
+    assert {"RX200ReacherGoalSim-v0", "VX300SReacherGoalSim-v0", "UR5eReacherGoalSim-v0", "NED2ReacherGoalSim-v0",
+            "IRB120ReacherGoalSim-v0", "RX200PushGoalSim-v0"} <= names
