@@ -2,7 +2,10 @@
 
 * raw ``mj_step`` rate of the RX200 model (``nstep=N`` per call, the physics limit);
 * ``StepRobot`` round trips (a position command + N physics steps + joint state + EE pose) with the
-  node composed in this process (in-process transport), and in a child process over Zenoh.
+  node composed in this process (in-process transport), and in a child process over Zenoh;
+* the composed case again with the robot randomised (:data:`RANDOMISED`: scaled masses, damping and
+  servo gains, and command shaping: latency, jitter, lag and offsets, :mod:`multiros.sim.entity_properties`),
+  what a randomised env's world costs per step.
 
 Each env-style rate is also printed as a fraction of the physics limit (raw rate / N).
 
@@ -38,8 +41,16 @@ def raw_rate(n: int, seconds: float) -> float:
     return steps / (time.perf_counter() - start)
 
 
-def lockstep_rate(client: SimulationClient, n: int, seconds: float) -> tuple[float, float]:
+#: A randomised RX200's rows, as rl_environments.randomization draws them for the sim2real configs.
+RANDOMISED = [("body", "", "mass", 1.1), ("joint", "", "damping", 1.5), ("actuator", "", "gain", 0.9),
+              ("command", "", "latency", 0.1), ("command", "", "jitter", 0.03), ("command", "", "seed", 3.0),
+              ("command", "", "time_constant", 0.2), ("command", "", "offset", 0.02)]
+
+
+def lockstep_rate(client: SimulationClient, n: int, seconds: float, rows: list | None = None) -> tuple[float, float]:
     client.spawn_entity("rx200", uri=f"{RX200}&__controllers={RX200_CONTROLLERS}", namespace="/rx200")
+    if rows:
+        client.set_entity_properties("rx200", rows)
     rng = np.random.default_rng(0)
     targets = rng.uniform(-0.5, 0.5, (256, 5))
     lat = []
@@ -70,6 +81,14 @@ def main() -> None:
         client = SimulationClient(Node("bench", context=ctx), "/mujoco_sim")
         rate, lat = lockstep_rate(client, n, args.seconds)
         rows.append(("StepRobot composed (inproc)", rate, rate / limit, lat))
+    finally:
+        ctx.try_shutdown()
+    ctx = Context(transport="inproc").init()
+    try:
+        compose("mujoco_sim", context=ctx)
+        client = SimulationClient(Node("bench", context=ctx), "/mujoco_sim")
+        rate, lat = lockstep_rate(client, n, args.seconds, RANDOMISED)
+        rows.append(("StepRobot composed, randomised", rate, rate / limit, lat))
     finally:
         ctx.try_shutdown()
 

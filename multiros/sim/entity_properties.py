@@ -47,8 +47,8 @@ import numpy as np
 from multiros.sim.controllers import JointMode
 from multiros.sim.world_types import EntityRecord
 
-__all__ = ["CommandShaping", "EntityProperties", "PropertyError", "PROPERTIES", "MAX_ROWS", "apply_rows", "check_rows",
-           "reapply"]
+__all__ = ["CommandShaping", "EntityProperties", "PropertyError", "PROPERTIES", "MAX_ROWS", "SHAPING_PERIOD",
+           "apply_rows", "check_rows", "reapply"]
 
 _POSITION = int(JointMode.POSITION)
 
@@ -60,6 +60,9 @@ PROPERTIES: dict[str, tuple[str, ...]] = {
     "actuator": ("gain",),
     "command": ("latency", "jitter", "time_constant", "gain", "offset", "seed"),
 }
+#: Seconds between the shaping's updates of a robot whose controllers hold constant commands (the world
+#: steps such a robot in chunks of this; time-varying controllers update at their own rate).
+SHAPING_PERIOD = 0.01
 #: Most rows one request may carry.
 MAX_ROWS = 4096
 #: Bounds of each value: scales (a factor of 100 either way is no robot) and command values.
@@ -92,40 +95,53 @@ class CommandShaping:
         self._queue: collections.deque[tuple[float, np.ndarray]] = collections.deque(maxlen=_MAX_QUEUE)
         self._due: np.ndarray | None = None
         self._target: np.ndarray | None = None
-        self._last_command: np.ndarray | None = None
+        self._last_key = b""
         self._t = -math.inf
+        self._alpha, self._alpha_dt = np.ones(n), math.nan
+        self._position, self._all_position, self._mode_key = np.zeros(n, dtype=bool), False, b""
 
     def clear(self) -> None:
         """Forget the commands in flight and the lag's state (a teleport, a reset)."""
         self._queue.clear()
-        self._due = self._target = self._last_command = None
+        self._due = self._target = None
+        self._last_key = b""
         self._t = -math.inf
+        self._alpha_dt = math.nan
 
     def shape(self, command: np.ndarray, modes: np.ndarray, now: float) -> np.ndarray:
-        """The actuators' targets at ``now`` for the controllers' ``command`` (a new array).
+        """The actuators' targets at ``now`` for the controllers' ``command`` (do not keep the array).
 
         A command that differs from the last one joins a first-in, first-out queue, due ``latency`` (plus
         up to ``jitter``) after it came; the latest due one, through the gain and offset, is the goal the
-        target lags toward."""
+        target lags toward. Called at every controller update of a shaped robot: kept to a few small numpy
+        operations (the lag's factor is cached per interval, the command compared as bytes)."""
         if self._due is None or now < self._t:
             self.clear()
             self._due, self._target, self._t = command.copy(), self.gain * command + self.offset, now
-        if self._last_command is None or not np.array_equal(command, self._last_command):
+        key = command.tobytes()
+        if key != self._last_key:
             delay = self.latency + (float(self.rng.uniform(0.0, self.jitter)) if self.jitter > 0 else 0.0)
             self._queue.append((now + delay, command.copy()))
-            self._last_command = command.copy()
-        while self._queue and self._queue[0][0] <= now:
-            self._due = self._queue.popleft()[1]
-        assert self._due is not None and self._target is not None
+            self._last_key = key
+        queue = self._queue
+        while queue and queue[0][0] <= now:
+            self._due = queue.popleft()[1]
+        target = self._target
+        assert target is not None and self._due is not None
         goal = self.gain * self._due + self.offset
-        lag = self.time_constant > 0
-        alpha = np.ones_like(goal)
-        if np.any(lag):
-            dt = now - self._t
+        dt = now - self._t
+        if dt != self._alpha_dt:
+            lag = self.time_constant > 0
+            alpha = np.ones_like(goal)
             alpha[lag] = 1.0 - np.exp(-dt / self.time_constant[lag]) if dt > 0 else 0.0
-        self._target = self._target + alpha * (goal - self._target)
+            self._alpha, self._alpha_dt = alpha, dt
+        target += self._alpha * (goal - target)
         self._t = now
-        return np.where(modes == _POSITION, self._target, command)
+        mode_key = modes.tobytes()
+        if mode_key != self._mode_key:
+            self._position, self._all_position, self._mode_key = modes == _POSITION, bool(np.all(modes == _POSITION)), \
+                mode_key
+        return target if self._all_position else np.where(self._position, target, command)
 
 
 @dataclass

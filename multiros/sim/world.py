@@ -41,7 +41,7 @@ import numpy as np
 
 from multiros.sim.controller_manager import ControllerManager
 from multiros.sim.description import MeshCache, RobotDescription, load_description
-from multiros.sim.entity_properties import apply_rows, check_rows, reapply
+from multiros.sim.entity_properties import SHAPING_PERIOD, apply_rows, check_rows, reapply
 from multiros.sim.errors import ControllerError, DescriptionError, EntityError
 from multiros.sim.frames import FrameSet
 from multiros.sim.packages import PackageIndex, default_index
@@ -160,6 +160,10 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         rate = ent.cm.update_rate if ent.cm is not None else None
         dt = self._model.opt.timestep
         ent.period = max(1, int(round(1.0 / (rate * dt)))) if rate else 1
+        if ent.shaping is not None and ent.cm is not None and not ent.cm.time_varying:
+            # constant commands, shaped: the shaping's rate, not the controllers' (a step call of 25 physics
+            # steps in 3 chunks rather than 25; a lag of tens of milliseconds and more is followed as well)
+            ent.period = max(ent.period, int(round(SHAPING_PERIOD / dt)))
         ent.countdown = 0
 
     # ------------------------------------------------------------------ entities
@@ -560,8 +564,8 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         self._controllers_changed(self._robot(name))
 
     def _controllers_changed(self, ent: EntityRecord) -> None:
+        self._update_period(ent)  # a shaped robot's chunks follow whether its commands vary in time
         self._varying = self._varying_entities()
-        ent.countdown = 0
         write_actuators(self._model, self._data, ent)
 
     def switch_controllers(self, name: str, activate: Sequence[str] = (), deactivate: Sequence[str] = (),
@@ -706,6 +710,7 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         changed = apply_rows(self._model, ent, rows, restore=restore)
         if ent.hw is not None:
             write_actuators(self._model, self._data, ent)
+        self._update_period(ent)
         self._varying = self._varying_entities()
         return changed
 
