@@ -187,15 +187,16 @@ def format_report(summary: BagSummary, fit: ArmFit, notes: Sequence[str] = ()) -
              f"  time: {summary.time_base}; {fit.duration:.1f} s on a {fit.dt * 1e3:.1f} ms grid",
              f"  skipped: {skipped or 'nothing'}",
              f"latency {fit.latency:.4f} s (one for the arm)",
-             f"{'joint':<20} {'tau s':>8} {'gain':>8} {'offset rad':>11} {'residual rad':>13} {'samples':>8} "
-             f"{'at v-limit':>10}"]
+             f"{'joint':<20} {'tau s':>8} {'gain':>8} {'offset rad':>11} {'droop rad':>10} {'residual rad':>13} "
+             f"{'samples':>8} {'at v-limit':>10}"]
     for j in fit.joints:
         if j.identified:
             lines.append(f"{j.joint[:20]:<20} {j.time_constant:>8.4f} {j.gain:>8.4f} {j.offset:>+11.5f} "
-                         f"{j.residual:>13.5f} {j.samples:>8,} {j.slewing:>10,}")
+                         f"{j.droop:>+10.5f} {j.residual:>13.5f} {j.samples:>8,} {j.slewing:>10,}")
         else:
-            lines.append(f"{j.joint[:20]:<20} {'-':>8} {'-':>8} {'-':>11} {'-':>13} {j.samples:>8,} {j.slewing:>10,}"
-                         f"  not identified: the command moved {j.command_range:.3g} rad (offset not identifiable)")
+            lines.append(f"{j.joint[:20]:<20} {'-':>8} {'-':>8} {'-':>11} {'-':>10} {'-':>13} {j.samples:>8,} "
+                         f"{j.slewing:>10,}  not identified: the command moved {j.command_range:.3g} rad "
+                         "(gain and offset not identifiable)")
     lines.append(f"fit residual {fit.residual:.5f} rad RMS (the model's free run against the bag, identified "
                  "joints; restarted after gaps and velocity-limited stretches)")
     lines += [f"note: {n}" for n in (*fit.notes, *notes)]
@@ -260,6 +261,11 @@ def dynamics_section(arm: ArmFile, fit: ArmFit, *, source: str, previous: dict[s
              f"  source: {json.dumps(source[:200])}"]
     if kept:
         lines.insert(1, f"  # not fitted or not identified, previous or nominal values: {', '.join(kept)}")
+    droops = [f"{name} {j.droop:+.4f}" for name in arm.joints if (j := by_name.get(name)) is not None
+              and j.identified and abs(j.droop) >= 0.002]
+    if droops:
+        lines.insert(1, "  # settles short of its target on the side it came from (droop, backlash; rad, not a key "
+                        f"of the section): {', '.join(droops)}")
     return "\n".join(lines) + "\n"
 
 
