@@ -18,6 +18,11 @@ sensing
     ``joint_noise`` (rad, standard deviation per reading), ``joint_offset`` (rad: each arm joint's
     calibration error, drawn per episode in ``[-v, v]``), ``object_position_noise`` (m, standard
     deviation of the tracker's reading of the object).
+cameras and colours (pixel observations)
+    ``camera_position`` (m: the observation camera moved up to this far along each axis, per episode),
+    ``camera_fovy`` (scale of its field of view), ``colour`` (each of the robot's, the object's and the
+    table's colours lighter or darker by up to this fraction, per episode). The lights are the world's,
+    not an entity's, and stay as they are.
 
 The arm file's ``dynamics:`` (``uniros sysid`` writes it) is the centre: with no ``randomization`` the
 simulated joints follow commands as it says, every episode. Physics and timing are values of the
@@ -49,15 +54,17 @@ _SCALES = ("link_mass", "joint_damping", "joint_friction", "joint_armature", "ac
 RANDOMIZATION_KEYS: dict[str, str] = {
     **dict.fromkeys(_SCALES, "scale"),
     "action_latency": "control periods", "control_jitter": "fraction of a control period", "lag": "s",
-    "command_offset": "rad",
+    "command_offset": "rad", "camera_position": "m", "camera_fovy": "scale", "colour": "fraction",
     "joint_noise": "rad", "joint_offset": "rad", "object_position_noise": "m",
 }
 _BOUNDS: dict[str, tuple[float, float]] = {
     **dict.fromkeys(_SCALES, (0.05, 20.0)),
     "action_latency": (0, 20), "control_jitter": (0.0, 1.0), "lag": (0.0, 2.0), "command_offset": (0.0, 0.2),
     "joint_noise": (0.0, 0.1), "joint_offset": (0.0, 0.1), "object_position_noise": (0.0, 0.1),
+    "camera_position": (0.0, 0.2), "camera_fovy": (0.5, 2.0), "colour": (0.0, 0.9),
 }
-_SINGLE = ("control_jitter", "command_offset", "joint_noise", "joint_offset", "object_position_noise")
+_SINGLE = ("control_jitter", "command_offset", "joint_noise", "joint_offset", "object_position_noise",
+           "camera_position", "colour")
 _SEED_TAG = 0x52414E44  # mixed into the env's seed: the randomiser's stream is not the task's
 
 
@@ -91,9 +98,10 @@ class Randomization:
 
     # -- one episode's world -----------------------------------------------------------------------------
     def draw(self, rng: np.random.Generator, arm: Arm, *, period: float, objects: Sequence[str] = (),
-             ) -> EpisodeWorld:
+             camera: tuple[str, str] | None = None, robot_entity: str = "") -> EpisodeWorld:
         """This episode's world: rows for the robot (physics, command timing) and the task's entities
-        (``objects``: the object's entity name, then the table's, those the task has), and the sensing."""
+        (``objects``: the object's entity name, then the table's, those the task has; ``camera``: the
+        observation camera's entity and name in it, ``""`` for its only one), and the sensing."""
         joints = arm.joints
         n = len(joints)
         dyn = arm.file.dynamics
@@ -142,6 +150,19 @@ class Randomization:
             table = scale("table_friction")
             if table is not None and len(objects) > 1:
                 entities[objects[1]] = [("geom", "", "friction", table)]
+        if "colour" in r:
+            v = r["colour"][1]
+            robot.append(("geom", "", "brightness", float(rng.uniform(1 - v, 1 + v))))
+            for entity in objects:
+                entities.setdefault(entity, []).append(("geom", "", "brightness", float(rng.uniform(1 - v, 1 + v))))
+        if camera is not None and ("camera_position" in r or "camera_fovy" in r):
+            entity, name = camera
+            rows = entities.setdefault(entity, []) if entity != robot_entity else robot
+            if "camera_position" in r:
+                v = r["camera_position"][1]
+                rows += [("camera", name, axis, float(rng.uniform(-v, v))) for axis in "xyz"]
+            if "camera_fovy" in r:
+                rows.append(("camera", name, "fovy", float(rng.uniform(*r["camera_fovy"]))))
         noise = r["joint_noise"][1] if "joint_noise" in r else 0.0
         tracker = r["object_position_noise"][1] if "object_position_noise" in r else 0.0
         return EpisodeWorld(robot, entities, calibration, noise, tracker)
@@ -196,9 +217,10 @@ class WorldRandomizer:
     """
 
     def __init__(self, randomization: Randomization, arm: Arm, connection: Any, objects: Sequence[str],
-                 object_frames: Sequence[int], period: float) -> None:
+                 object_frames: Sequence[int], period: float, camera: tuple[str, str] | None = None) -> None:
         self.randomization, self.arm, self.connection = randomization, arm, connection
         self.objects, self.object_frames, self.period = tuple(objects), tuple(object_frames), float(period)
+        self.camera = camera
         self.rng = randomizer_rng(None)
         self._touched: set[str] = set()
 
@@ -217,7 +239,11 @@ class WorldRandomizer:
         task = env.task
         objects = task.scene_entities()
         frames = [env.connection.frame_index(f) for f in task.tracked_frames()]
-        return cls(randomization, env.arm, env.connection, objects, frames, env.connection.control_period)
+        camera = None
+        if env.cameras is not None and env.cameras.source:
+            entity, _, name = env.cameras.source.partition("/")
+            camera = (entity, "" if entity != env.connection.robot_name else name)
+        return cls(randomization, env.arm, env.connection, objects, frames, env.connection.control_period, camera)
 
     def apply(self, seed: int | None) -> None:
         """This episode's world: drawn (a ``seed`` restarts the draws), set in the node, given to the sensors."""
@@ -225,7 +251,8 @@ class WorldRandomizer:
 
         if seed is not None:
             self.rng = randomizer_rng(seed)
-        world = self.randomization.draw(self.rng, self.arm, period=self.period, objects=self.objects)
+        world = self.randomization.draw(self.rng, self.arm, period=self.period, objects=self.objects,
+                                        camera=self.camera, robot_entity=self.connection.robot_name)
         connection = self.connection
         connection.set_entity_properties(connection.robot_name, world.robot, restore=True)
         for entity in set(world.entities) | self._touched:

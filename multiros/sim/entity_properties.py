@@ -12,6 +12,9 @@ joint      ``damping``, ``frictionloss``,        scale of the joint's value (of 
            ``armature``                          freedom)
 geom       ``friction``                          scale of the sliding friction
 geom       ``size``                              scale of the geom's size (and bounding radius)
+geom       ``brightness``                        scale of its colour (red, green, blue; at most 1)
+camera     ``x``, ``y``, ``z``                   metres the camera is moved from where it was spawned
+camera     ``fovy``                              scale of its vertical field of view
 actuator   ``gain``                              scale of the servo's gains (position and velocity)
 command    ``latency``                           seconds from a command to its effect
 command    ``jitter``                            seconds: each new command takes effect up to this
@@ -56,7 +59,8 @@ _POSITION = int(JointMode.POSITION)
 PROPERTIES: dict[str, tuple[str, ...]] = {
     "body": ("mass",),
     "joint": ("damping", "frictionloss", "armature"),
-    "geom": ("friction", "size"),
+    "geom": ("friction", "size", "brightness"),
+    "camera": ("x", "y", "z", "fovy"),
     "actuator": ("gain",),
     "command": ("latency", "jitter", "time_constant", "gain", "offset", "seed"),
 }
@@ -67,6 +71,7 @@ SHAPING_PERIOD = 0.01
 MAX_ROWS = 4096
 #: Bounds of each value: scales (a factor of 100 either way is no robot) and command values.
 _SCALE = (0.01, 100.0)
+_SHIFT = (-1.0, 1.0)  # m, a camera moved from where it was spawned
 _COMMAND_BOUNDS = {"latency": (0.0, 2.0), "jitter": (0.0, 1.0), "time_constant": (0.0, 5.0), "gain": (0.1, 10.0),
                    "offset": (-math.pi, math.pi), "seed": (0.0, 2.0 ** 32 - 1)}
 #: Most commands one robot's latency queue holds (a 2 s latency at a 1 kHz controller: 2,000).
@@ -211,9 +216,9 @@ def check_rows(targets: Sequence[str], names: Sequence[str], properties: Sequenc
         if prop not in PROPERTIES[target]:
             raise PropertyError(f"{target} has no property {prop[:40]!r}; it has {list(PROPERTIES[target])}")
         value = float(value)
-        lo, hi = _COMMAND_BOUNDS[prop] if target == "command" else _SCALE
+        lo, hi = _COMMAND_BOUNDS[prop] if target == "command" else _SHIFT if prop in ("x", "y", "z") else _SCALE
         if not (math.isfinite(value) and lo <= value <= hi):
-            kind = "value" if target == "command" else "scale"
+            kind = "value" if target == "command" else "shift (m)" if prop in ("x", "y", "z") else "scale"
             raise PropertyError(f"{target} {name[:60]!r} {prop}: {kind} {value!r} is outside [{lo:g}, {hi:g}]")
         if len(name) > 256:
             raise PropertyError(f"{target} name of {len(name)} characters; names are at most 256")
@@ -233,8 +238,8 @@ def _elements(m: mujoco.MjModel, ent: EntityRecord, target: str, name: str) -> n
             raise PropertyError(f"entity '{ent.name}' has no actuated joint {name[:60]!r}")
         return np.array([ent.actuated.index(name)])
     kind = {"body": mujoco.mjtObj.mjOBJ_BODY, "joint": mujoco.mjtObj.mjOBJ_JOINT,
-            "geom": mujoco.mjtObj.mjOBJ_GEOM}[target]
-    owner = {"body": None, "joint": m.jnt_bodyid, "geom": m.geom_bodyid}[target]
+            "geom": mujoco.mjtObj.mjOBJ_GEOM, "camera": mujoco.mjtObj.mjOBJ_CAMERA}[target]
+    owner = {"body": None, "joint": m.jnt_bodyid, "geom": m.geom_bodyid, "camera": m.cam_bodyid}[target]
     if name:
         index = mujoco.mj_name2id(m, kind, ent.prefix + name)
         body = index if owner is None else (owner[index] if index >= 0 else -1)
@@ -263,9 +268,20 @@ def _write(m: mujoco.MjModel, ent: EntityRecord, props: EntityProperties, row: t
         for g in ids:
             if prop == "friction":
                 props.write(m, "geom_friction", int(g), value, part=0)
+            elif prop == "brightness":  # the colour, lighter or darker (red, green and blue kept within 1)
+                nominal = props.stash(m, "geom_rgba", int(g))
+                m.geom_rgba[g, :3] = np.minimum(nominal[:3] * value, 1.0)
             else:
                 props.write(m, "geom_size", int(g), value)
                 props.write(m, "geom_rbound", int(g), value)
+    elif target == "camera":
+        for c in ids:
+            if prop == "fovy":
+                props.write(m, "cam_fovy", int(c), value)
+            else:
+                nominal = props.stash(m, "cam_pos", int(c))
+                axis = "xyz".index(prop)
+                m.cam_pos[c, axis] = nominal[axis] + value
     elif target == "actuator":
         if ent.hw is None:
             raise PropertyError(f"entity '{ent.name}' has no servos (actuator rows need a robot with controllers)")

@@ -167,3 +167,28 @@ def test_the_service_sets_rows_and_refuses_bad_ones(index, tmp_path):
     finally:
         client.close()
         ctx.try_shutdown()
+
+
+def test_camera_pose_field_of_view_and_colours(make_world):
+    from multiros.sim.view_camera import camera_entity_urdf
+
+    world = make_world()
+    world.spawn("arm", ARM_XACRO)
+    world.spawn("cam", camera_entity_urdf((0.8, 0.0, 0.6), (0.0, 0.0, 0.2), 64, 48, 45.0, "/cam"))
+    m = world.model
+    cams = [c for c in range(m.ncam) if m.body(m.cam_bodyid[c]).name.startswith("cam/")]
+    assert cams
+    c = cams[0]
+    pos, fovy = m.cam_pos[c].copy(), float(m.cam_fovy[c])
+    world.set_entity_properties("cam", ["camera", "camera", "camera"], ["", "", ""], ["x", "z", "fovy"],
+                                [0.05, -0.02, 1.1])
+    np.testing.assert_allclose(m.cam_pos[c], pos + [0.05, 0.0, -0.02])
+    assert m.cam_fovy[c] == pytest.approx(1.1 * fovy)
+    g = [g for g in range(m.ngeom) if m.body(m.geom_bodyid[g]).name.startswith("arm/")][0]
+    rgba = m.geom_rgba[g].copy()
+    world.set_entity_properties("arm", ["geom"], [""], ["brightness"], [3.0])
+    assert np.all(m.geom_rgba[g, :3] <= 1.0) and m.geom_rgba[g, 3] == rgba[3]
+    world.set_entity_properties("cam", [], [], [], [], restore=True)
+    np.testing.assert_array_equal(m.cam_pos[c], pos)
+    with pytest.raises(PropertyError, match="outside"):
+        world.set_entity_properties("cam", ["camera"], [""], ["x"], [5.0])

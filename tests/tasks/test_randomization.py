@@ -175,3 +175,20 @@ def test_the_sim2real_configs_cover_reach_on_every_shipped_arm_and_push_on_the_r
     names = {p.stem for p in _sim2real_configs()}
     assert {"RX200ReacherGoalSim-v0", "VX300SReacherGoalSim-v0", "UR5eReacherGoalSim-v0", "NED2ReacherGoalSim-v0",
             "IRB120ReacherGoalSim-v0", "RX200PushGoalSim-v0"} <= names
+
+
+def test_a_pixel_envs_camera_and_colours_change_its_images():
+    def first_image(randomization, seed):
+        env = uniros.make("RX200PushGoalSim-v0", rgb_plus_normal_obs=True, image_width=32, image_height=24,
+                          **({"randomization": randomization} if randomization else {}))
+        try:
+            obs, _ = env.reset(seed=seed)
+            return obs["rgb"].astype(int)
+        finally:
+            env.close()
+
+    pytest.importorskip("mujoco")
+    r = {"camera_position": 0.05, "camera_fovy": [0.9, 1.1], "colour": 0.3}
+    plain, a, b = first_image(None, 0), first_image(r, 0), first_image(r, 0)
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(plain - a).mean() > 1.0
