@@ -7,10 +7,12 @@ of a squashed action to the action space's bounds, or its clipping to them). The
 (:mod:`uniros.policy_metadata`) goes into the model's ``metadata_props``: the env ID, the arm file and env
 kwargs as ``run.json`` has them, the inputs and the action bounds, the control period of the Real twin.
 
-The exporter is ``torch.onnx.export``: its default (torch.export + onnxscript) when onnxscript is installed,
-else the TorchScript one (``dynamo=False``, deprecated by torch but still there). SB3's policies are traced
-through their own ``_predict``, so what is exported is SB3's code, not a rewrite of it; torch.distributions'
-argument checks (data-dependent, which torch.export cannot trace) are off while exporting. Every export is
+The exporter is ``torch.onnx.export`` with its default, torch.export (onnxscript writes the ONNX; both come
+with the ``train`` extra). SB3's policies are traced through their own ``_predict``, so what is exported is
+SB3's code, not a rewrite of it; torch.distributions' argument checks (data-dependent, which torch.export
+cannot trace) are off while exporting. (The TorchScript exporter, ``dynamo=False``, deprecated by torch,
+also exports these policies, but names a varargs ``forward``'s inputs after their first use and then fixes
+their batch size: it is not used.) Every export is
 checked: onnxruntime's actions on observations sampled from the space must equal SB3's to 1e-5.
 
 Supported: SAC, TD3, DDPG, TQC, CrossQ (squashed actors) and PPO, A2C, TRPO (Gaussian actors, clipped)
@@ -152,7 +154,7 @@ def _load_without_env(path: Path, algo: str) -> Any:
     from uniros.algorithms import algorithm_class
     from uniros.model_files import ModelFileError
 
-    custom = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1,
+    custom: dict[str, Any] = {"replay_buffer_class": None, "replay_buffer_kwargs": {}, "buffer_size": 1,
               "learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}
     try:
         return algorithm_class(algo).load(str(path), env=None, device="cpu", custom_objects=custom)
@@ -218,7 +220,8 @@ def _exported_policy_class() -> type:
             self.squash = bool(policy.squash_output)
             self.register_buffer("low", torch.as_tensor(spaces.low, dtype=torch.float32))
             self.register_buffer("high", torch.as_tensor(spaces.high, dtype=torch.float32))
-            self.normalized, self.normalized_keys = False, ()
+            self.normalized = False
+            self.normalized_keys: tuple[str, ...] = ()
             self.clip_obs: float | None = None
             self.epsilon: float | None = None
             self.norm_index: list[bool] = [False] * len(spaces.inputs)
@@ -246,16 +249,17 @@ def _exported_policy_class() -> type:
 
         def forward(self, *inputs: Any) -> Any:
             parts = []
+            clip = float(self.clip_obs or 0.0)
             for i, x in enumerate(inputs):
                 if self.norm_index[i]:
-                    x = ((x.double() - getattr(self, f"mean_{i}")) / getattr(self, f"std_{i}"))
-                    x = x.clamp(-self.clip_obs, self.clip_obs)
+                    x = ((x.double() - self.get_buffer(f"mean_{i}")) / self.get_buffer(f"std_{i}")).clamp(-clip, clip)
                 parts.append(x.float())
             obs = dict(zip(self.keys, parts)) if self.keys is not None else parts[0]
             action = self.policy._predict(obs, deterministic=True).reshape(-1, *self.action_shape)
+            low, high = self.get_buffer("low"), self.get_buffer("high")
             if self.squash:  # BasePolicy.unscale_action, in its order of operations
-                return self.low + (0.5 * (action + 1.0) * (self.high - self.low))
-            return torch.minimum(torch.maximum(action, self.low), self.high)
+                return low + (0.5 * (action + 1.0) * (high - low))
+            return torch.minimum(torch.maximum(action, low), high)
 
     return ExportedPolicy
 
@@ -299,24 +303,22 @@ def _to_onnx(module: Any, spaces: _Spaces) -> tuple[Any, str]:
 
 
 def _export(module: Any, example: tuple[Any, ...], names: list[str]) -> tuple[Any, str]:
-    """``torch.onnx.export``: its default exporter where onnxscript is installed, else the TorchScript one."""
+    """``torch.onnx.export`` with its default exporter (torch.export; onnxscript writes the ONNX)."""
     import importlib.util
     import io
 
-    import onnx
     import torch
 
-    if importlib.util.find_spec("onnxscript") is not None:
-        batch = torch.export.Dim("batch", min=1, max=1 << 16)
-        with contextlib.redirect_stdout(io.StringIO()):  # its progress lines
-            program = torch.onnx.export(module, example, dynamo=True, opset_version=OPSET, input_names=names,
-                                        output_names=[ACTION_OUTPUT],
-                                        dynamic_shapes=(tuple({0: batch} for _ in names),), verbose=False)
-        return program.model_proto, "torch.onnx.export (torch.export)"
-    buffer = io.BytesIO()
-    torch.onnx.export(module, example, buffer, dynamo=False, opset_version=OPSET, input_names=names,
-                      output_names=[ACTION_OUTPUT], dynamic_axes={n: {0: "batch"} for n in [*names, ACTION_OUTPUT]})
-    return onnx.load_from_string(buffer.getvalue()), "torch.onnx.export (TorchScript, dynamo=False)"
+    if importlib.util.find_spec("onnxscript") is None:
+        raise ExportError("uniros export needs onnxscript (torch.onnx.export's exporter): pip install onnxscript, or "
+                          "pip install 'uniros[train]'")
+    batch = torch.export.Dim("batch", min=1, max=1 << 16)
+    with contextlib.redirect_stdout(io.StringIO()):  # its progress lines
+        program = torch.onnx.export(module, example, dynamo=True, opset_version=OPSET, input_names=names,
+                                    output_names=[ACTION_OUTPUT], dynamic_shapes=(tuple({0: batch} for _ in names),),
+                                    verbose=False)
+    assert program is not None  # f=None: the program is returned
+    return program.model_proto, "torch.onnx.export (torch.export)"
 
 
 def _write(proto: Any, metadata: PolicyMetadata, output: Path) -> None:
