@@ -137,7 +137,8 @@ class RealSpec:
 class ArmDynamics:
     """How the arm's joints follow position commands (``dynamics:``; ``uniros sysid`` writes it from a bag).
 
-    The model, per arm joint: ``time_constant * dy/dt = gain * u(t - latency) + offset - y``. The
+    The model, per arm joint: ``time_constant * dy/dt = gain * u(t - latency) + offset - y``, and a joint
+    settles ``droop`` short of that target on the side it came from (a stiff servo under load). The
     simulation applies it to the arm's commands (:mod:`rl_environments.randomization` draws around it).
     Lists are in ``arm.joints`` order.
     """
@@ -146,6 +147,7 @@ class ArmDynamics:
     time_constant: tuple[float, ...] = ()
     gain: tuple[float, ...] = ()
     offset: tuple[float, ...] = ()
+    droop: tuple[float, ...] = ()
     fit_residual: float | None = None
     source: str = ""
 
@@ -153,7 +155,7 @@ class ArmDynamics:
     def nominal(self) -> bool:
         """The joints follow commands exactly (no section, or one that says so)."""
         return (self.latency == 0 and not any(self.time_constant) and all(g == 1 for g in self.gain)
-                and not any(self.offset))
+                and not any(self.offset) and not any(self.droop))
 
 
 @dataclass(frozen=True)
@@ -302,9 +304,10 @@ def _resolve(uri: str, base: Path) -> str:
 
 _TOP = ("format", "name", "robot_name", "description", "arm", "gripper", "camera", "reach", "manipulation", "scene",
         "real", "training", "dynamics")
-_DYNAMICS = ("latency", "time_constant", "gain", "offset", "fit_residual", "source")
+_DYNAMICS = ("latency", "time_constant", "gain", "offset", "droop", "fit_residual", "source")
 #: Bounds of a ``dynamics:`` value a robot can have: seconds of latency and lag, gain, rad of offset.
-_DYNAMICS_BOUNDS = {"latency": (0.0, 2.0), "time_constant": (0.0, 5.0), "gain": (0.5, 1.5), "offset": (-0.2, 0.2)}
+_DYNAMICS_BOUNDS = {"latency": (0.0, 2.0), "time_constant": (0.0, 5.0), "gain": (0.5, 1.5), "offset": (-0.2, 0.2),
+                    "droop": (0.0, 0.2)}
 _DESCRIPTION = ("uri", "xacro_args", "controllers")
 _ARM = ("joints", "base_link", "ee_link", "tcp_offset", "home", "controller", "controllers", "approach_axis",
         "closing_axis", "ik_seed", "top_down_ik")
@@ -542,7 +545,7 @@ def _dynamics(top: _Checker, n: int) -> ArmDynamics:
     assert sec is not None
     if not sec.data:
         return ArmDynamics()
-    defaults = {"time_constant": 0.0, "gain": 1.0, "offset": 0.0}
+    defaults = {"time_constant": 0.0, "gain": 1.0, "offset": 0.0, "droop": 0.0}
 
     def per_joint(key: str) -> tuple[float, ...]:
         value = sec.raw(key, defaults[key])
@@ -559,7 +562,8 @@ def _dynamics(top: _Checker, n: int) -> ArmDynamics:
     residual = sec.number("fit_residual", None)
     source = sec.string("source", "", empty=True)
     return ArmDynamics(latency=float(latency), time_constant=per_joint("time_constant"), gain=per_joint("gain"),
-                       offset=per_joint("offset"), fit_residual=None if residual is None else float(residual),
+                       offset=per_joint("offset"), droop=per_joint("droop"),
+                       fit_residual=None if residual is None else float(residual),
                        source=source[:200])
 
 

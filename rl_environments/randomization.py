@@ -132,13 +132,14 @@ class Randomization:
         if "joint_offset" in r:
             calibration = rng.uniform(-r["joint_offset"][1], r["joint_offset"][1], n)
         jitter = r["control_jitter"][1] * period if "control_jitter" in r else 0.0
-        shaped = latency > 0 or jitter > 0 or np.any(tc > 0) or np.any(gain != 1) or np.any(offset)
+        droop = np.array(dyn.droop or (0.0,) * n, dtype=np.float64)
+        shaped = latency > 0 or jitter > 0 or np.any(tc > 0) or np.any(gain != 1) or np.any(offset) or np.any(droop)
         if shaped:
             robot += [("command", "", "latency", float(latency)), ("command", "", "jitter", float(jitter)),
                       ("command", "", "seed", float(rng.integers(0, 2 ** 32 - 1)))]
             for j, name in enumerate(joints):
                 robot += [("command", name, "time_constant", float(tc[j])), ("command", name, "gain", float(gain[j])),
-                          ("command", name, "offset", float(offset[j]))]
+                          ("command", name, "offset", float(offset[j])), ("command", name, "droop", float(droop[j]))]
         entities: dict[str, list[tuple[str, str, str, float]]] = {}
         if objects:
             rows = [(t, "", p, v) for key, t, p in (("object_mass", "body", "mass"),

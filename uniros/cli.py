@@ -527,6 +527,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_new)
     _arm_parser(sub)
     _deploy_parsers(sub)
+    from uniros.sysid import add_sysid_parser
+
+    add_sysid_parser(sub)
     return parser
 
 

@@ -252,7 +252,7 @@ class RunDir:
 #: the folder (notes, an arm file kept beside the run) is the user's, and a restart leaves it where it is.
 _RUN_FOLDERS = ("monitor", "tensorboard")
 _RUN_FILES = re.compile(r"^(evaluations\.csv|learning_curve\.png|(best|final)_model\.mp4|(best|final)_model\.zip|"
-                        r"(best|final)_model\.vecnormalize\.pkl|(best|final)_model\.env\.json)$")
+                        r"(best|final)_model\.vecnormalize\.pkl|(best|final)_model\.env\.json|(best|final)_model\.onnx)$")
 
 
 def _written_by_a_run(name: str) -> bool:

@@ -234,8 +234,8 @@ def dynamics_section(arm: ArmFile, fit: ArmFit, *, source: str, previous: dict[s
     previous = previous or {}
     identified = [j for j in fit.joints if j.identified]
     median_tau = sorted(j.time_constant for j in identified)[len(identified) // 2] if identified else 0.1
-    old = {k: _per_joint(previous, k, n) for k in ("time_constant", "gain", "offset")}
-    nominal = {"time_constant": median_tau, "gain": 1.0, "offset": 0.0}
+    old = {k: _per_joint(previous, k, n) for k in ("time_constant", "gain", "offset", "droop")}
+    nominal = {"time_constant": median_tau, "gain": 1.0, "offset": 0.0, "droop": 0.0}
     values: dict[str, list[float]] = {k: [] for k in nominal}
     kept = []
     for i, name in enumerate(arm.joints):
@@ -257,15 +257,11 @@ def dynamics_section(arm: ArmFile, fit: ArmFit, *, source: str, previous: dict[s
              f"  time_constant: {numbers(values['time_constant'], 4)}",
              f"  gain: {numbers(values['gain'], 4)}",
              f"  offset: {numbers(values['offset'], 5)}",
+             f"  droop: {numbers([max(v, 0.0) for v in values['droop']], 5)}",
              f"  fit_residual: {fit.residual:.5f}",
              f"  source: {json.dumps(source[:200])}"]
     if kept:
         lines.insert(1, f"  # not fitted or not identified, previous or nominal values: {', '.join(kept)}")
-    droops = [f"{name} {j.droop:+.4f}" for name in arm.joints if (j := by_name.get(name)) is not None
-              and j.identified and abs(j.droop) >= 0.002]
-    if droops:
-        lines.insert(1, "  # settles short of its target on the side it came from (droop, backlash; rad, not a key "
-                        f"of the section): {', '.join(droops)}")
     return "\n".join(lines) + "\n"
 
 

@@ -21,6 +21,8 @@ command    ``jitter``                            seconds: each new command takes
                                                  much later still (uniform, seeded)
 command    ``time_constant``                     seconds of first-order lag of the joint's target
 command    ``gain``, ``offset``                  the target is ``gain * command + offset`` (rad)
+command    ``droop``                             rad the joint stops short of that target, on the side
+                                                 it came from (a stiff servo under load)
 command    ``seed``                              seeds the jitter (an integer, as a float)
 =========  ====================================  ==================================================
 
@@ -62,7 +64,7 @@ PROPERTIES: dict[str, tuple[str, ...]] = {
     "geom": ("friction", "size", "brightness"),
     "camera": ("x", "y", "z", "fovy"),
     "actuator": ("gain",),
-    "command": ("latency", "jitter", "time_constant", "gain", "offset", "seed"),
+    "command": ("latency", "jitter", "time_constant", "gain", "offset", "droop", "seed"),
 }
 #: Seconds between the shaping's updates of a robot whose controllers hold constant commands (the world
 #: steps such a robot in chunks of this; time-varying controllers update at their own rate).
@@ -73,7 +75,7 @@ MAX_ROWS = 4096
 _SCALE = (0.01, 100.0)
 _SHIFT = (-1.0, 1.0)  # m, a camera moved from where it was spawned
 _COMMAND_BOUNDS = {"latency": (0.0, 2.0), "jitter": (0.0, 1.0), "time_constant": (0.0, 5.0), "gain": (0.1, 10.0),
-                   "offset": (-math.pi, math.pi), "seed": (0.0, 2.0 ** 32 - 1)}
+                   "offset": (-math.pi, math.pi), "droop": (0.0, 0.5), "seed": (0.0, 2.0 ** 32 - 1)}
 #: Most commands one robot's latency queue holds (a 2 s latency at a 1 kHz controller: 2,000).
 _MAX_QUEUE = 4096
 
@@ -96,6 +98,7 @@ class CommandShaping:
         self.time_constant = np.zeros(n)
         self.gain = np.ones(n)
         self.offset = np.zeros(n)
+        self.droop = np.zeros(n)
         self.rng = np.random.default_rng(0)
         self._queue: collections.deque[tuple[float, np.ndarray]] = collections.deque(maxlen=_MAX_QUEUE)
         self._due: np.ndarray | None = None
@@ -134,6 +137,8 @@ class CommandShaping:
         target = self._target
         assert target is not None and self._due is not None
         goal = self.gain * self._due + self.offset
+        if self.droop.any():  # it heads for the nearest point within droop of the goal, and stays inside
+            goal = goal - np.clip(goal - target, -self.droop, self.droop)
         dt = now - self._t
         if dt != self._alpha_dt:
             lag = self.time_constant > 0
