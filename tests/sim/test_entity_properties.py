@@ -192,3 +192,14 @@ def test_camera_pose_field_of_view_and_colours(make_world):
     np.testing.assert_array_equal(m.cam_pos[c], pos)
     with pytest.raises(PropertyError, match="outside"):
         world.set_entity_properties("cam", ["camera"], [""], ["x"], [5.0])
+
+
+def test_droop_stops_a_joint_short_on_the_side_it_came_from_and_a_small_command_does_not_move_it() -> None:
+    shaping = CommandShaping(3)
+    shaping.droop[:] = 0.03
+    out = shaping.shape(np.zeros(3), POSITION, 0.0)
+    np.testing.assert_allclose(out, 0.0)
+    up = shaping.shape(np.array([0.5, 0.0, -0.5]), POSITION, 0.01)
+    np.testing.assert_allclose(up, [0.47, 0.0, -0.47])  # short, from below and from above
+    small = shaping.shape(np.array([0.49, 0.02, -0.49]), POSITION, 0.02)
+    np.testing.assert_allclose(small, [0.47, 0.0, -0.47]), "within the droop of where it stands: no motion"
