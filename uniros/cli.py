@@ -528,8 +528,10 @@ def build_parser() -> argparse.ArgumentParser:
     _arm_parser(sub)
     _deploy_parsers(sub)
     from uniros.sysid import add_sysid_parser
+    from uniros.teleop import add_teleop_parser
 
     add_sysid_parser(sub)
+    add_teleop_parser(sub)
     return parser
 
 
