@@ -314,6 +314,30 @@ def build_parser() -> argparse.ArgumentParser:
                                                        "real: section names them")
     parser.add_argument("--start", choices=["home", "init"], default=None,
                         help="with --arm: start at arm.home (default) or at reach.init_joint_pos")
+    physics = parser.add_argument_group(
+        "physics mode (with --arm)", "the robot in a MuJoCo world of its own with the task's table and object, "
+        "the object's pose on the tracker topic the Real twins read (docs/fake_robot.md, Physics mode)")
+    physics.add_argument("--physics", metavar="TASK", default=None,
+                         help="push, pnp or slide: the Sim twin's scene of that task")
+    physics.add_argument("--physics-perturb", action="append", default=[], metavar="KEY=SCALE",
+                         help="scale a physical value (KEY=SCALE or KEY=LOW:HIGH, drawn once from --physics-seed; "
+                              "keys: object_mass, object_friction, object_size, table_friction, link_mass, "
+                              "joint_damping, joint_friction, joint_armature, actuator_gain), a profile (mild, "
+                              "hard) or a YAML file of them; repeatable, later ones win")
+    physics.add_argument("--physics-seed", type=int, default=0, metavar="N",
+                         help="seed of the perturbations' draws, the object's start poses and the tracker's noise (0)")
+    physics.add_argument("--physics-reset", default="random", metavar="MODE",
+                         help="where the object is put back when the arm returns to the task's start pose: random "
+                              "(in the start box, default), spawn (the box's centre) or none")
+    physics.add_argument("--physics-timestep", type=float, default=0.004, metavar="SEC",
+                         help="physics time step (0.004 s, the Sim twins')")
+    physics.add_argument("--object-topic", default="/object_pose", metavar="TOPIC",
+                         help="the tracker's PoseStamped topic (%(default)s, the Real twins' object_pose_topic)")
+    physics.add_argument("--tracker-rate", type=float, default=50.0, metavar="HZ", help="tracker rate (%(default)s)")
+    physics.add_argument("--tracker-noise", type=float, default=0.0, metavar="M",
+                         help="std of Gaussian noise on the tracked position, m (0)")
+    physics.add_argument("--tracker-latency", type=float, default=0.0, metavar="SEC",
+                         help="seconds from a pose's capture to its message (0)")
     for action in parser._actions:
         if action.dest == "robot":
             action.help = f"{action.help}; also the shipped arm files' robots (vx300s, ur5e, ned2: as --arm <file>)"
@@ -332,6 +356,70 @@ def _attach(arm: ArmFile) -> Callable[[Any], Callable[[], None] | None]:
         return server.destroy
 
     return attach
+
+
+def _physics(arm: ArmFile, spec: RobotSpec, opts: argparse.Namespace,
+             fail: Callable[[str], None]) -> tuple[Callable[[Any, int], Any], Callable[[Any], Any]]:
+    """``--physics``: the hardware factory and the attach of the physics stand-in (bad options: ``fail``)."""
+    import numpy as np
+
+    from uniros import physics_stand_in as ps
+
+    try:
+        if opts.time_constant is not None:
+            raise ps.PhysicsOptionError("--time-constant: with --physics the physics' servos are the joints' own "
+                                        "(a lag: --gap-set time_constant=SEC)")
+        if opts.physics_reset not in ps.RESET_MODES:
+            raise ps.PhysicsOptionError(f"--physics-reset {opts.physics_reset!r}: one of {', '.join(ps.RESET_MODES)}")
+        if not (math.isfinite(opts.physics_timestep) and 1e-4 <= opts.physics_timestep <= 0.02):
+            raise ps.PhysicsOptionError(f"--physics-timestep must be within [0.0001, 0.02] s, got "
+                                        f"{opts.physics_timestep}")
+        for flag, value, lo, hi in (("--tracker-rate", opts.tracker_rate, 0.1, 1000.0),
+                                    ("--tracker-noise", opts.tracker_noise, 0.0, 1.0),
+                                    ("--tracker-latency", opts.tracker_latency, 0.0, 2.0)):
+            if not (math.isfinite(value) and lo <= value <= hi):
+                raise ps.PhysicsOptionError(f"{flag} must be within [{lo:g}, {hi:g}], got {value}")
+        if not opts.object_topic.strip("/") or any(c.isspace() for c in opts.object_topic):
+            raise ps.PhysicsOptionError(f"--object-topic {opts.object_topic!r} is not a topic name")
+        scene = ps.physics_scene(arm, opts.physics)
+        ranges = ps.parse_perturbation(opts.physics_perturb)
+    except ps.PhysicsOptionError as exc:
+        fail(str(exc))
+        raise  # not reached: fail exits
+    perturb, placing, tracking = np.random.SeedSequence(opts.physics_seed).spawn(3)
+    scales = ps.draw_scales(ranges, np.random.default_rng(perturb))
+    made: list[Any] = []
+
+    def hardware(gap: Any, seed: int) -> Any:
+        made.append(ps.physics_hardware(spec, arm, scene, scales, gap=gap, seed=seed,
+                                        timestep=opts.physics_timestep))
+        return made[-1]
+
+    def attach(robot: Any) -> Callable[[], None] | None:
+        from multiros.hardware.tracker import PoseTracker
+
+        close_gripper = _attach(arm)(robot)
+        hw = made[-1]
+        helper = ps.LabHelper(hw, scene, arm.joints, opts.physics_reset, np.random.default_rng(placing))
+        topic = opts.object_topic if opts.object_topic.startswith("/") else f"{robot.ns}/{opts.object_topic}"
+        tracker = PoseTracker(robot.node, hw, scene.object.name, topic, scene.frame_id, scene.base,
+                              rate=opts.tracker_rate, noise=opts.tracker_noise, latency=opts.tracker_latency,
+                              rng=np.random.default_rng(tracking), on_tick=helper.check)
+        unlisten = ps.place_object_listener(robot.node, f"{robot.ns}/physics/place_object", helper, scene.frame_id)
+        tracker.start()
+        print(f"uniros-fake-robot: physics {opts.physics}: object on {topic} (frame {scene.frame_id}), perturbed "
+              f"{ {k: round(v, 4) for k, v in scales.items()} }, put back: {opts.physics_reset}", file=sys.stderr)
+
+        def detach() -> None:
+            tracker.destroy()
+            unlisten()
+            if close_gripper is not None:
+                close_gripper()
+            hw.close()
+
+        return detach
+
+    return hardware, attach
 
 
 def _shipped_arm_as_arm(args: list[str]) -> list[str]:
@@ -363,6 +451,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not opts.arm:
         if opts.start is not None:
             parser.error("--start needs --arm")
+        if opts.physics is not None:
+            parser.error("--physics needs --arm")
         return _fake.main(args)
     given = [flag for key, flag in _ARM_ANSWERS.items() if getattr(opts, key)]
     if given:
@@ -377,8 +467,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         spec = arm_robot_spec(arm, start=opts.start or "home", namespace=opts.namespace, initial_positions=initial)
     except (ArmFileError, ArmRobotError, ValueError) as exc:
         parser.exit(2, f"uniros-fake-robot: {exc}\n")
-    return _fake.serve(spec, opts, parser, stop, joint_states_topic=arm.real.joint_states_topic, attach=_attach(arm),
-                       ros_args=ros_args)
+    if opts.physics is None:
+        return _fake.serve(spec, opts, parser, stop, joint_states_topic=arm.real.joint_states_topic,
+                           attach=_attach(arm), ros_args=ros_args)
+    hardware, attach = _physics(arm, spec, opts, lambda line: parser.exit(2, f"uniros-fake-robot: {line}\n"))
+    return _fake.serve(spec, opts, parser, stop, joint_states_topic=arm.real.joint_states_topic, attach=attach,
+                       ros_args=ros_args, hardware=hardware)
 
 
 if __name__ == "__main__":

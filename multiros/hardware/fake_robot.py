@@ -108,6 +108,9 @@ class FakeRobot:
         gap: a reality gap (:class:`~multiros.hardware.gap.GapProfile`); with one (``none`` included)
             the truth is published on ``<ns>/<node_name>/ground_truth/joint_states``.
         gap_seed: seeds the gap's random parts (offsets, noise, drops, late messages, jitter).
+        hardware: the joints to serve instead of a :class:`~multiros.hardware.fake_hardware.FakeHardware`
+            of ``spec`` (``time_constant`` is then unused): an object with its "world" view, e.g. a
+            :class:`~multiros.hardware.physics_hardware.PhysicsHardware` built with the same gap and seed.
     """
 
     def __init__(self, spec: RobotSpec, context: Context, *, rate: float = DEFAULT_RATE,
@@ -115,7 +118,7 @@ class FakeRobot:
                  activate: Sequence[str] | None = None, stall_after: float | None = None,
                  reject_goals: bool = False, node_name: str = "controller_manager",
                  joint_states_topic: str | None = None, gap: GapProfile | None = None,
-                 gap_seed: int | None = 0) -> None:
+                 gap_seed: int | None = 0, hardware: Any = None) -> None:
         if not rate > 0 or (update_rate is not None and not update_rate > 0):
             raise ValueError(f"rate ({rate}) and update_rate ({update_rate}) must be positive (Hz)")
         if stall_after is not None and not stall_after >= 0:
@@ -125,7 +128,8 @@ class FakeRobot:
         self.rate = float(rate)
         self.update_rate = max(float(update_rate or max(rate, 100.0)), self.rate)
         self.stall_after = stall_after
-        self.hardware = FakeHardware(spec, time_constant=time_constant, gap=gap, seed=gap_seed)
+        self.hardware = FakeHardware(spec, time_constant=time_constant, gap=gap, seed=gap_seed) \
+            if hardware is None else hardware
         self.gap = gap
         self._sensing = StateGap(gap, 1.0 / self.rate, gap_generators(gap_seed)[1]) \
             if gap is not None and gap.acts_on_messages else None
@@ -333,13 +337,17 @@ def gap_from_options(opts: argparse.Namespace) -> GapProfile | None:
 def serve(spec: RobotSpec, opts: argparse.Namespace, parser: argparse.ArgumentParser, stop: threading.Event, *,
           joint_states_topic: str | None = None,
           attach: Callable[[FakeRobot], Callable[[], None] | None] | None = None,
-          ros_args: Sequence[str] = ()) -> int:
+          ros_args: Sequence[str] = (),
+          hardware: Callable[[GapProfile | None, int], Any] | None = None) -> int:
     """Serve ``spec`` with the options of :func:`build_parser` until ``stop`` is set.
 
     ``ros_args`` are the ``--ros-args ...`` of the command line, for rcl (enclave, remaps).
 
     ``attach`` (the upper layer's) adds interfaces to the robot before it starts serving and returns
     what closes them (or ``None``); a ``ValueError`` from it is a bad robot: exit 2.
+
+    ``hardware(gap, gap_seed)`` (the upper layer's) makes the joints to serve (``FakeRobot``'s ``hardware``);
+    a ``ValueError`` from it is a bad robot: exit 2.
     """
     try:
         gap = gap_from_options(opts)
@@ -355,11 +363,13 @@ def serve(spec: RobotSpec, opts: argparse.Namespace, parser: argparse.ArgumentPa
     detach = None
     try:
         try:
+            joints = hardware(gap, opts.gap_seed) if hardware is not None else None
             robot = FakeRobot(spec, ctx, rate=opts.rate, update_rate=opts.update_rate,
                               time_constant=opts.time_constant,
                               activate=opts.activate.split(",") if opts.activate else None,
                               stall_after=opts.stall_after, reject_goals=opts.reject_goals,
-                              joint_states_topic=joint_states_topic, gap=gap, gap_seed=opts.gap_seed)
+                              joint_states_topic=joint_states_topic, gap=gap, gap_seed=opts.gap_seed,
+                              hardware=joints)
             detach = attach(robot) if attach is not None else None
         except (ValueError, ControllerError, TransportError) as exc:
             _logger.error("%s", exc)
