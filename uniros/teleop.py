@@ -144,7 +144,7 @@ class TeleopInput:
         elif key == " ":
             with self._lock:
                 self._gripper = -self._gripper
-            self.set(np.zeros(3))
+            self.set((0.0, 0.0, 0.0))
         elif key in moves:
             self.set(moves[key])
 
@@ -266,10 +266,11 @@ def run_teleop(opts: argparse.Namespace, say: Callable[[str], None]) -> int:
             threading.Thread(target=executor.spin, name="uniros-teleop-input", daemon=True).start()
         else:
             _keyboard(source, stop)
+        core: Any = env.unwrapped
         if opts.viewer:
-            env.unwrapped.connection.show_viewer()
+            core.connection.show_viewer()
         # A simulation steps as fast as it can: a person needs it at the robot's pace (a Real twin keeps its own).
-        period = 0.0 if env.unwrapped.ON_ROBOT else float(env.unwrapped.connection.control_period)
+        period = 0.0 if core.ON_ROBOT else float(core.connection.control_period)
         episode = 0
         while (opts.episodes is None or episode < opts.episodes) and not source.quit:
             obs, info = env.reset()
