@@ -31,8 +31,17 @@ Each attack runs against a victim RX200 holding its initial pose and prints what
   router's port (and every port the owner and its child listen on, as ``ss -ltnp`` shows them)
   and, as a raw Zenoh peer without the owner's secret, sends ``GetEntities`` and
   ``DeleteEntity(rx200)``: answered or refused?
+* ``params`` / ``params_rclpy``: the node a ``uniros-sim`` process (over Zenoh; over rclpy, which needs
+  the venv ``.ci/rclpy`` makes: ``.venv-rclpy/bin/python``), a neighbour (a process of its own, four
+  callers and 50 more) floods its parameter services for 8 s: SetParameters of 10,000, 1,000 and 256
+  undeclared names, Get/Describe/GetParameterTypes of 100,000 names, ListParameters with 100,000
+  prefixes, ``use_sim_time`` set to a 1,000,000-integer array, and 50 SetParameters of 1,000 names at
+  once, while the victim calls ``StepRobot(10)`` and ``list_controllers`` in turn: their median / p95 /
+  max alone, during and after the flood, each kind of request's slowest answer (the goal: answered or
+  refused within 1 s), and the node's RSS before, at its peak and after. Over Zenoh the node serves no
+  parameters (``Transport.serves_parameters``): the requests find no service.
 
-    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood boxes cameras intruder]
+    python benchmarks/bench_hostile_neighbour.py [--attacks stiff overlap drop flood boxes cameras intruder params]
                                                  [--boxes 200] [--seconds 10] [--unlimited-too]
 """
 
@@ -42,6 +51,9 @@ import argparse
 import json
 import os
 import struct
+import subprocess
+import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -177,6 +189,7 @@ class _RawPeer:
         self.session = zenoh.open(config)
         self.domain = domain
         self.seq = 0
+        self._payloads: dict[int, bytes] = {}
 
     def call(self, node: str, service: str, type_name: str, timeout: float = 5.0, **fields: object) -> object:
         srv = get_service(type_name)
@@ -188,6 +201,18 @@ class _RawPeer:
         if not replies or replies[0].ok is None:
             return None
         return deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response)
+
+    def call_request(self, node: str, service: str, type_name: str, request: Any, timeout: float = 5.0) -> bool:
+        """Send ``request`` (serialized once per request object) and wait: whether a reply came."""
+        payload = self._payloads.get(id(request))
+        if payload is None:
+            payload = self._payloads[id(request)] = serialize_message(request)
+        key = f"{self.domain}/{node}/{service}/{dds_type_name(type_name)}/{type_hash(get_service(type_name))}"
+        self.seq += 1
+        attachment = struct.pack("<qqB", self.seq, time.time_ns(), 16) + bytes(range(16))
+        replies = list(self.session.get(key, payload=payload, attachment=attachment,
+                                        target=zenoh.QueryTarget.ALL_COMPLETE, timeout=timeout))
+        return bool(replies) and replies[0].ok is not None
 
     def close(self) -> None:
         self.session.close()
@@ -467,19 +492,254 @@ def attack_cameras(sensors: int = 8, width: int = 1920, height: int = 1080, seco
         ctx.try_shutdown()
 
 
+# -- the parameter flood ----------------------------------------------------------------------------
+#: Each request of the flood: (what, service, its requests' count of names, values); see _param_payloads.
+PARAM_KINDS = ("set 10,000 undeclared", "set 1,000 undeclared", "set 256 undeclared", "get 100,000",
+               "describe 100,000", "types 100,000", "list 100,000 prefixes", "use_sim_time := 1,000,000 ints",
+               "get 256", "list")
+PARAM_TYPES = {"set": "rcl_interfaces/srv/SetParameters", "get": "rcl_interfaces/srv/GetParameters",
+               "describe": "rcl_interfaces/srv/DescribeParameters", "types": "rcl_interfaces/srv/GetParameterTypes",
+               "list": "rcl_interfaces/srv/ListParameters"}
+PARAM_SERVICES = {"set": "set_parameters", "get": "get_parameters", "describe": "describe_parameters",
+                  "types": "get_parameter_types", "list": "list_parameters"}
+
+
+def _param_requests(get_srv: Callable[[str], Any], get_msg: Callable[[str], Any]) -> dict[str, tuple[str, Any]]:
+    """Each kind of :data:`PARAM_KINDS`: (its service's short name, its request), built with ``get_srv`` and
+    ``get_msg`` (multiros' types for a raw Zenoh peer, rclpy's for an rclpy client)."""
+    param, value = get_msg("rcl_interfaces/msg/Parameter"), get_msg("rcl_interfaces/msg/ParameterValue")
+
+    def setting(n: int) -> Any:
+        return get_srv(PARAM_TYPES["set"]).Request(parameters=[
+            param(name=f"flood.p{i}", value=value(type=2, integer_value=i)) for i in range(n)])
+
+    names = [f"flood.p{i}" for i in range(100_000)]
+    big = get_srv(PARAM_TYPES["set"]).Request(parameters=[param(name="use_sim_time", value=value(
+        type=7, integer_array_value=list(range(1_000_000))))])
+    return {
+        "set 10,000 undeclared": ("set", setting(10_000)), "set 1,000 undeclared": ("set", setting(1_000)),
+        "set 256 undeclared": ("set", setting(256)),
+        "get 100,000": ("get", get_srv(PARAM_TYPES["get"]).Request(names=names)),
+        "describe 100,000": ("describe", get_srv(PARAM_TYPES["describe"]).Request(names=names)),
+        "types 100,000": ("types", get_srv(PARAM_TYPES["types"]).Request(names=names)),
+        "list 100,000 prefixes": ("list", get_srv(PARAM_TYPES["list"]).Request(prefixes=names)),
+        "use_sim_time := 1,000,000 ints": ("set", big),
+        "get 256": ("get", get_srv(PARAM_TYPES["get"]).Request(names=names[:256])),
+        "list": ("list", get_srv(PARAM_TYPES["list"]).Request()),
+    }
+
+
+def param_flooder(transport: str, where: str, seconds: float, out: str) -> None:
+    """Child mode of the ``params`` attack: the neighbour. Four callers each send every kind of
+    request in turn for ``seconds``, and once, 50 requests of 1,000 names at the same time; writes one
+    JSON object to the file ``out``: kind -> list of [seconds, answered] per request."""
+    flooders, in_flight = 4, 50
+    if transport == "zenoh":
+        from multiros.ros.interfaces import get_message as get_msg
+
+        peers = [_RawPeer(where, DOMAIN) for _ in range(flooders + in_flight)]
+
+        def caller(k: int) -> Callable[[str, str, Any], bool]:
+            def call(service: str, type_name: str, request: Any) -> bool:
+                return peers[k].call_request("mujoco_sim", service, type_name, request, timeout=60.0)
+            return call
+
+        requests = _param_requests(get_service, get_msg)
+        close: Callable[[], None] = lambda: [p.close() for p in peers]  # noqa: E731
+    else:
+        import importlib
+
+        from bench_rclpy_fairness import Peer  # a plain rclpy node (benchmarks/ is on sys.path)
+
+        def rtype(name: str) -> Any:
+            pkg, kind, cls = name.split("/")
+            return getattr(importlib.import_module(f"{pkg}.{kind}"), cls)
+
+        peers = [Peer(f"param_flooder_{k}") for k in range(flooders + 1)]  # the last: the 50 in flight
+        clients: dict[tuple[int, str], Any] = {}
+        for k, peer in enumerate(peers):
+            for short, service in PARAM_SERVICES.items():
+                clients[k, short] = peer.client(rtype(PARAM_TYPES[short]), f"/mujoco_sim/{service}", keep_all=True)
+
+        def caller(k: int) -> Callable[[str, str, Any], bool]:
+            k = min(k, flooders)
+            def call(service: str, type_name: str, request: Any) -> bool:
+                short = next(s for s, n in PARAM_SERVICES.items() if n == service)
+                return peers[k].call(clients[k, short], request, timeout=60.0) is not None
+            return call
+
+        requests = _param_requests(rtype, rtype)
+        close = lambda: [p.close() for p in peers]  # noqa: E731
+    times: dict[str, list[list[float]]] = {kind: [] for kind in PARAM_KINDS}
+    lock = threading.Lock()
+
+    def timed(k: int, kind: str) -> None:
+        short, request = requests[kind]
+        t = time.perf_counter()
+        answered = caller(k)(PARAM_SERVICES[short], PARAM_TYPES[short], request)
+        with lock:
+            times[kind].append([time.perf_counter() - t, float(answered)])
+
+    print("flooding", flush=True)
+    end = time.monotonic() + seconds
+
+    def flood(k: int) -> None:
+        i = k
+        while time.monotonic() < end:
+            timed(k, PARAM_KINDS[i % len(PARAM_KINDS)])
+            i += 1
+
+    threads = [threading.Thread(target=flood, args=(k,)) for k in range(flooders)]
+    burst = [threading.Thread(target=timed, args=(flooders + j, "set 1,000 undeclared")) for j in range(in_flight)]
+    for t in threads + burst:
+        t.start()
+    for t in threads + burst:
+        t.join(seconds + 120)
+    with open(out, "w") as f:
+        json.dump(times, f)
+    close()
+
+
+def _read(path: str) -> str:
+    with open(path) as f:
+        return f.read()
+
+
+def _rss_mb(pid: int) -> float:
+    with open(f"/proc/{pid}/status") as f:
+        return next(int(line.split()[1]) for line in f if line.startswith("VmRSS:")) / 1024
+
+
+def attack_params(transport: str = "zenoh", seconds: float = 8.0) -> None:
+    """A neighbour floods the node's parameter services (:func:`param_flooder`, a process of its own) while
+    the victim calls ``StepRobot(10)`` and ``list_controllers`` in turn: their latencies alone and meanwhile,
+    each parameter request's answer time, and the node's memory (a ``uniros-sim`` process) before and after."""
+    env = dict(os.environ)
+    endpoint = ""
+    ctx = None
+    if transport == "zenoh":
+        endpoint = free_loopback_endpoint()
+        ctx = Context(transport="zenoh", env={}, domain_id=DOMAIN, router="embedded", router_endpoint=endpoint).init()
+        env.update(ROS_DOMAIN_ID=str(DOMAIN), UNIROS_TRANSPORT="zenoh")
+        node_args = ["--transport", "zenoh", "--router", endpoint]
+    else:
+        env.update(ROS_DOMAIN_ID=str(DOMAIN), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        env.pop("RMW_IMPLEMENTATION", None)
+        os.environ.update(ROS_DOMAIN_ID=str(DOMAIN), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+        node_args = ["--transport", "rclpy"]
+    bindir = os.path.dirname(sys.executable)
+    log = tempfile.NamedTemporaryFile("w+", prefix="uniros-sim-", suffix=".log", delete=False)  # noqa: SIM115
+    node = subprocess.Popen([os.path.join(bindir, "uniros-sim"), *node_args, "--robot", f"rx200={RX200}",
+                             "--owner-pid", str(os.getpid())], env=env, stdout=log, stderr=subprocess.STDOUT,
+                            stdin=subprocess.DEVNULL)
+    flooder: subprocess.Popen | None = None
+    victim_ctx = None
+    try:
+        deadline = time.monotonic() + 120
+        while "ready" not in _read(log.name):
+            if node.poll() is not None or time.monotonic() > deadline:
+                raise RuntimeError(f"uniros-sim did not start:\n{_read(log.name)[-2000:]}")
+            time.sleep(0.1)
+        victim_ctx = (_session(endpoint) if transport == "zenoh"
+                      else Context(transport="rclpy", domain_id=DOMAIN).init())
+        client = SimulationClient(Node("victim", context=victim_ctx), "/mujoco_sim", timeout_sec=120.0)
+        client.wait_until_ready(60.0)
+        client.step_robot("rx200", {ARM: HOLD}, 200)
+
+        def victim(until: Callable[[], bool]) -> tuple[np.ndarray, np.ndarray]:
+            steps, lists = [], []
+            while not until():
+                t = time.perf_counter()
+                client.step_robot("rx200", {ARM: HOLD}, 10)
+                steps.append(time.perf_counter() - t)
+                t = time.perf_counter()
+                client.list_controllers("rx200")
+                lists.append(time.perf_counter() - t)
+            return np.array(steps), np.array(lists)
+
+        victim(_for_seconds(1.0))  # warm-up
+        alone = victim(_for_seconds(2.0))
+        before = _rss_mb(node.pid)
+        flooder = subprocess.Popen([sys.executable, __file__, "--param-flooder", transport, endpoint, str(seconds),
+                                    f"{log.name}.json"], stdout=subprocess.PIPE, text=True, stdin=subprocess.DEVNULL,
+                                   env=env)
+        assert flooder.stdout is not None
+        if flooder.stdout.readline().strip() != "flooding":
+            raise RuntimeError("the parameter flooder did not start")
+        peak, done = [before], threading.Event()
+
+        def sample() -> None:
+            while not done.wait(0.1):
+                peak[0] = max(peak[0], _rss_mb(node.pid))
+
+        sampler = threading.Thread(target=sample, daemon=True)
+        sampler.start()
+        during = victim(lambda: flooder.poll() is not None)  # until it printed its figures and exited
+        done.set()
+        flooder.wait(60)
+        with open(f"{log.name}.json") as f:
+            times = json.load(f)
+        after_lat = victim(_for_seconds(2.0))
+        after = _rss_mb(node.pid)
+
+        def figures(lat: np.ndarray) -> str:
+            if not len(lat):
+                return "no calls"
+            return (f"median {np.median(lat) * 1e3:.1f} ms, p95 {np.percentile(lat, 95) * 1e3:.1f} ms, "
+                    f"max {lat.max() * 1e3:.1f} ms, {len(lat)} calls")
+
+        served = "served" if transport == "rclpy" else "not served on Zenoh (Transport.serves_parameters)"
+        print(f"params over {transport} (parameter services {served}): victim StepRobot(10) alone {figures(alone[0])}; "
+              f"during the flood {figures(during[0])}; after {figures(after_lat[0])}")
+        print(f"  victim list_controllers alone {figures(alone[1])}; during {figures(during[1])}")
+        for kind in PARAM_KINDS:
+            rows = np.array(times[kind]) if times[kind] else np.zeros((0, 2))
+            if len(rows):
+                print(f"  {kind}: {len(rows)} requests, {int(rows[:, 1].sum())} answered, slowest "
+                      f"{rows[:, 0].max() * 1e3:.0f} ms, median {np.median(rows[:, 0]) * 1e3:.0f} ms")
+        print(f"  node memory (uniros-sim RSS): {before:.0f} MB before, peak {peak[0]:.0f} MB, {after:.0f} MB after "
+              f"({after - before:+.0f} MB)")
+        client.close()
+    finally:
+        for proc in (flooder, node):
+            if proc is not None and proc.poll() is None:
+                proc.terminate()
+                try:
+                    proc.wait(10)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+                    proc.wait(10)
+        if victim_ctx is not None:
+            victim_ctx.try_shutdown()
+        if ctx is not None:
+            ctx.try_shutdown()
+        log.close()
+        for path in (log.name, f"{log.name}.json"):
+            if os.path.exists(path):
+                os.unlink(path)
+
+
 ATTACKS = {"stiff": attack_stiff, "stiff_late": lambda: attack_stiff(late=True), "overlap": attack_overlap,
            "drop": attack_drop, "flood": attack_flood, "boxes": attack_boxes,
-           "refused": lambda: attack_boxes(refused_for=10.0), "intruder": attack_intruder, "cameras": attack_cameras}
+           "refused": lambda: attack_boxes(refused_for=10.0), "intruder": attack_intruder, "cameras": attack_cameras,
+           "params": attack_params, "params_rclpy": lambda: attack_params("rclpy")}
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--attacks", nargs="+", choices=sorted(ATTACKS), default=list(ATTACKS))
+    parser.add_argument("--attacks", nargs="+", choices=sorted(ATTACKS),
+                        default=[a for a in ATTACKS if a != "params_rclpy"])
     parser.add_argument("--boxes", type=int, default=200, help="boxes the neighbour of the 'boxes' attack asks for")
     parser.add_argument("--seconds", type=float, default=10.0, help="how long the 'refused' attack's neighbour loops")
     parser.add_argument("--unlimited-too", action="store_true",
                         help="run the 'boxes' attack also on a node without quotas, for comparison")
+    parser.add_argument("--param-flooder", nargs=4, metavar=("TRANSPORT", "ENDPOINT", "SECONDS", "OUT"),
+                        help=argparse.SUPPRESS)  # child mode: the neighbour of the 'params' attacks
     args = parser.parse_args()
+    if args.param_flooder:
+        transport, endpoint, seconds, out = args.param_flooder
+        param_flooder(transport, endpoint, float(seconds), out)
+        return
     for name in args.attacks:
         if name in ("boxes", "refused"):
             refused_for = args.seconds if name == "refused" else None

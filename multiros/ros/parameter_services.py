@@ -12,7 +12,7 @@ which type it is. Nodes start them on transports whose graph ROS tools reach
 Requests are hostile input like any other: an unknown type code or a value that does not fit its
 type is a refused parameter with the reason, never an exception out of the service. What one request
 may cost is bounded, so a flood takes its turn without holding the node's other services back: at most
-:data:`MAX_NAMES` names or parameters a request (more: every one refused, or empty answers), values of
+:data:`MAX_NAMES` names, prefixes or parameters a request (more: every one refused, or empty answers), values of
 at most :data:`MAX_ARRAY` elements and :data:`MAX_TEXT` characters, reasons of at most
 :data:`MAX_REASON` characters.
 """
@@ -187,6 +187,8 @@ class ParameterServices:
         return response
 
     def _list(self, request: Any, response: Any) -> Any:
+        if len(request.prefixes) > MAX_NAMES:  # refused: each name is matched against every prefix
+            return response
         names, prefixes = list_names(list(self._store().values), list(request.prefixes), int(request.depth))
         response.result.names = names
         response.result.prefixes = prefixes

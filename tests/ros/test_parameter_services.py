@@ -114,6 +114,8 @@ def test_what_one_request_may_cost_is_bounded(served) -> None:
     assert not call("set_parameters_atomically", parameters=many).result.successful
     assert list(call("get_parameters", names=[f"p{i}" for i in range(MAX_NAMES + 1)]).values) == []
     assert list(call("describe_parameters", names=[f"p{i}" for i in range(MAX_NAMES + 1)]).descriptors) == []
+    assert list(call("list_parameters", prefixes=[f"p{i}" for i in range(MAX_NAMES + 1)]).result.names) == []
+    assert list(call("list_parameters", prefixes=["gains"]).result.names) == ["gains.inner.ki", "gains.kp"]
     assert time.monotonic() - start < 5.0
     huge = ParamMsg(name="gains.kp", value=Value(type=7, integer_array_value=list(range(MAX_ARRAY + 1))))
     (result,) = call("set_parameters", parameters=[huge]).results
