@@ -12,8 +12,8 @@ which type it is. Nodes start them on transports whose graph ROS tools reach
 Requests are hostile input like any other: an unknown type code or a value that does not fit its
 type is a refused parameter with the reason, never an exception out of the service. What one request
 may cost is bounded, so a flood takes its turn without holding the node's other services back: at most
-:data:`MAX_NAMES` names, prefixes or parameters a request (more: every one refused, or empty answers), values of
-at most :data:`MAX_ARRAY` elements and :data:`MAX_TEXT` characters, reasons of at most
+:data:`MAX_NAMES` names, prefixes or parameters a request (more: one refused result that says so, or empty
+answers), values of at most :data:`MAX_ARRAY` elements and :data:`MAX_TEXT` characters, reasons of at most
 :data:`MAX_REASON` characters.
 """
 
@@ -213,10 +213,10 @@ class ParameterServices:
 
     def _set(self, request: Any, response: Any) -> Any:
         cls = get_message("rcl_interfaces/msg/SetParametersResult")
-        if len(request.parameters) > MAX_NAMES:  # every one refused, at once
-            refused = cls(successful=False, reason=f"refused: a request sets at most {MAX_NAMES} parameters, this "
-                                                   f"one {len(request.parameters):,}")
-            response.results = [refused] * len(request.parameters)
+        if len(request.parameters) > MAX_NAMES:  # refused at once, in one result: a result per parameter would
+            # make the answer as costly as the request (10,000 results: ~70 ms to encode and decode over rclpy)
+            response.results = [cls(successful=False, reason=f"refused: a request sets at most {MAX_NAMES} "
+                                                             f"parameters, this one {len(request.parameters):,}")]
             return response
         params, errors = self._parameters(request.parameters)
         for param, error in zip(params, errors):
