@@ -1,0 +1,406 @@
+"""LeRobot's v3.0 dataset format, written and read with pyarrow alone (no torch, LeRobot or pandas).
+
+Why not LeRobot's own ``LeRobotDataset`` writer: LeRobot 0.4.4 (the newest on PyPI) pins ``torch<2.11``
+and its dataset modules import ``torchvision`` at the top; the only torchvision for torch 2.13 on PyPI
+is the CUDA build, whose ``_C.so`` needs ``libc10_cuda.so`` and so cannot be imported next to the CPU
+torch these machines have (and it has no sdist to build). Its writer also costs ~1 ms a frame
+(``datasets`` per episode), as much as the simulation's step. This module writes the same files, which
+LeRobot's reader loads (``docs/datasets.md`` says how that is checked)::
+
+    DIR/meta/info.json                          codebase_version v3.0, fps, features, paths, totals
+    DIR/meta/stats.json                         per feature min/max/mean/std/count/q01..q99
+    DIR/meta/tasks.parquet                      task_index, indexed by the task string (pandas layout)
+    DIR/meta/episodes/chunk-000/file-000.parquet  one row per episode: length, tasks, data file, from/to
+                                                  index, per-episode stats; uniros adds ``success`` and
+                                                  ``final/<feature>`` (the observation after the last step)
+    DIR/data/chunk-000/file-000.parquet         one row per frame: the features, timestamp, frame_index,
+                                                episode_index, index, task_index
+
+A dataset is written under ``DIR.partial`` and renamed to ``DIR`` by :meth:`DatasetWriter.finalize`:
+an interrupted recording leaves no half dataset behind. :func:`read_dataset` reads one back, checking
+everything a file may lie about (sizes bounded, shapes and counts against ``info.json``) and raising
+:class:`DatasetFormatError` with a one-line message.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "CODEBASE_VERSION", "DATA_PATH", "DatasetFormatError", "DatasetWriter", "RecordedDataset", "RecordedEpisode",
+    "read_dataset",
+]
+
+CODEBASE_VERSION = "v3.0"
+DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+EPISODES_PATH = "meta/episodes/chunk-000/file-000.parquet"
+#: Bytes of ``info.json`` read at most.
+MAX_INFO_BYTES = 1 << 20
+#: Bytes of one parquet file read at most (the writer keeps the data in one file).
+MAX_PARQUET_BYTES = 4 << 30
+#: The frame columns LeRobot adds to every dataset.
+INDEX_FEATURES: dict[str, dict[str, Any]] = {
+    "timestamp": {"dtype": "float32", "shape": [1], "names": None},
+    "frame_index": {"dtype": "int64", "shape": [1], "names": None},
+    "episode_index": {"dtype": "int64", "shape": [1], "names": None},
+    "index": {"dtype": "int64", "shape": [1], "names": None},
+    "task_index": {"dtype": "int64", "shape": [1], "names": None},
+}
+_QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)
+_DTYPES = {"float32", "float64", "int64", "int32", "bool", "uint8"}
+
+
+class DatasetFormatError(ValueError):
+    """A dataset that is not a readable LeRobot v3.0 dataset: the message names the file and the fault."""
+
+
+def _pa() -> Any:
+    try:
+        import pyarrow as pa
+        import pyarrow.parquet  # noqa: F401 - pa.parquet
+    except ImportError as exc:  # pragma: no cover - the extra is missing
+        raise DatasetFormatError("LeRobot datasets need pyarrow: pip install 'uniros[datasets]'") from exc
+    return pa
+
+
+def _arrow_type(pa: Any, feature: dict[str, Any]) -> Any:
+    """A feature's arrow column type: a scalar for shape [1], else a fixed-size list (LeRobot's layout)."""
+    scalar = {"float32": pa.float32(), "float64": pa.float64(), "int64": pa.int64(), "int32": pa.int32(),
+              "bool": pa.bool_(), "uint8": pa.uint8()}[feature["dtype"]]
+    shape = list(feature["shape"])
+    if shape == [1]:
+        return scalar
+    t = scalar
+    for n in reversed(shape):
+        t = pa.list_(t, int(n))
+    return t
+
+
+def _hf_type(feature: dict[str, Any]) -> dict[str, Any]:
+    """The feature as Hugging Face ``datasets`` describes it in the parquet metadata."""
+    value: dict[str, Any] = {"dtype": feature["dtype"], "_type": "Value"}
+    if list(feature["shape"]) == [1]:
+        return value
+    for n in reversed(list(feature["shape"])):
+        value = {"feature": value, "length": int(n), "_type": "List"}
+    return value
+
+
+def _stats(values: np.ndarray) -> dict[str, np.ndarray]:
+    """One episode's statistics of a feature (LeRobot's ``compute_episode_stats`` keys), over axis 0."""
+    v = values.reshape(len(values), -1)
+    f = v.astype(np.float64)
+    out: dict[str, np.ndarray] = {"min": v.min(axis=0), "max": v.max(axis=0), "mean": f.mean(axis=0),
+                                  "std": f.std(axis=0), "count": np.array([len(v)], np.int64)}
+    for q in _QUANTILES:
+        out[f"q{round(q * 100):02d}"] = np.quantile(f, q, axis=0)
+    return out
+
+
+def _aggregate(per_episode: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Episode statistics pooled (counts weight the means, variances and quantiles, as LeRobot's do)."""
+    counts = np.array([int(s["count"][0]) for s in per_episode], np.float64)
+    w = counts / counts.sum()
+    mean = sum(wi * s["mean"] for wi, s in zip(w, per_episode, strict=True))
+    var = sum(wi * (s["std"] ** 2 + (s["mean"] - mean) ** 2) for wi, s in zip(w, per_episode, strict=True))
+    out = {"min": np.min([s["min"] for s in per_episode], axis=0),
+           "max": np.max([s["max"] for s in per_episode], axis=0), "mean": mean, "std": np.sqrt(var),
+           "count": np.array([int(counts.sum())], np.int64)}
+    for key in per_episode[0]:
+        if key.startswith("q"):
+            out[key] = sum(wi * s[key] for wi, s in zip(w, per_episode, strict=True))
+    return out
+
+
+def _jsonable(value: np.ndarray) -> list[Any]:
+    return np.asarray(value).tolist()  # type: ignore[no-any-return]
+
+
+class DatasetWriter:
+    """Writes episodes frame by frame into a new LeRobot v3.0 dataset (see the module docstring).
+
+    Args:
+        root: the dataset's folder; it must not exist (the writer fills ``root.partial`` and renames it).
+        fps: frames per second (``info.json``'s ``fps``; timestamps are ``frame_index / fps``).
+        features: ``{name: {"dtype", "shape", "names"}}`` of the recorded features (LeRobot's spelling);
+            the index columns are added.
+        robot_type: ``info.json``'s ``robot_type``.
+        extra_info: more keys for ``info.json`` (uniros writes ``"uniros": {...}``: the env ID and spaces).
+    """
+
+    def __init__(self, root: Path | str, fps: int, features: dict[str, dict[str, Any]], *,
+                 robot_type: str | None = None, extra_info: dict[str, Any] | None = None) -> None:
+        self.pa = _pa()
+        self.root = Path(root)
+        if self.root.exists():
+            raise DatasetFormatError(f"{self.root} exists: record into a new folder")
+        if fps <= 0:
+            raise DatasetFormatError(f"fps must be positive, got {fps}")
+        for name, ft in features.items():
+            if ft.get("dtype") not in _DTYPES or not all(int(n) > 0 for n in ft.get("shape", [])):
+                raise DatasetFormatError(f"feature {name!r}: unsupported dtype or shape {ft}")
+        self.fps = int(fps)
+        self.features = {k: {"dtype": v["dtype"], "shape": [int(n) for n in v["shape"]], "names": v.get("names")}
+                         for k, v in features.items()}
+        self.all_features = {**self.features, **INDEX_FEATURES}
+        self.robot_type, self.extra_info = robot_type, dict(extra_info or {})
+        self.partial = self.root.with_name(self.root.name + ".partial")
+        if self.partial.exists():
+            shutil.rmtree(self.partial)
+        (self.partial / "data" / "chunk-000").mkdir(parents=True)
+        self.schema = self._schema()
+        self._writer: Any = None
+        self._frames: dict[str, list[np.ndarray]] = {k: [] for k in self.features}
+        self._episodes: list[dict[str, Any]] = []
+        self._stats: list[dict[str, dict[str, np.ndarray]]] = []
+        self._tasks: dict[str, int] = {}
+        self._total = 0
+
+    def _schema(self) -> Any:
+        pa = self.pa
+        hf = json.dumps({"info": {"features": {k: _hf_type(v) for k, v in self.all_features.items()}}})
+        return pa.schema([pa.field(k, _arrow_type(pa, v)) for k, v in self.all_features.items()],
+                         metadata={"huggingface": hf})
+
+    @property
+    def num_episodes(self) -> int:
+        return len(self._episodes)
+
+    def add_frame(self, frame: dict[str, Any]) -> None:
+        """Buffer one frame (every feature, numpy-convertible to its dtype and shape); nothing is written
+        until :meth:`save_episode`."""
+        for key, buf in self._frames.items():
+            buf.append(frame[key])
+
+    def clear_episode(self) -> None:
+        """Drop the frames buffered since the last saved episode."""
+        for buf in self._frames.values():
+            buf.clear()
+
+    def save_episode(self, task: str, *, success: bool | None = None,
+                     final: dict[str, Any] | None = None) -> None:
+        """Write the buffered frames as one episode of ``task``; ``final``: the observation features after the
+        last step (kept in the episode's metadata, for replay buffers), ``success``: the episode's outcome."""
+        pa = self.pa
+        n = len(next(iter(self._frames.values()))) if self._frames else 0
+        if n == 0:
+            raise DatasetFormatError("an episode needs at least one frame")
+        ep = len(self._episodes)
+        task_index = self._tasks.setdefault(task, len(self._tasks))
+        cols: dict[str, np.ndarray] = {}
+        for key, ft in self.features.items():
+            arr = np.asarray(self._frames[key], dtype=ft["dtype"])
+            if arr.shape[1:] != tuple(ft["shape"]) and arr.reshape(n, -1).shape[1:] != (math.prod(ft["shape"]),):
+                raise DatasetFormatError(f"feature {key!r}: frames of shape {arr.shape[1:]}, declared {ft['shape']}")
+            cols[key] = arr.reshape((n, *ft["shape"]))
+        frame_index = np.arange(n, dtype=np.int64)
+        cols["timestamp"] = (frame_index / self.fps).astype(np.float32)
+        cols["frame_index"] = frame_index
+        cols["episode_index"] = np.full(n, ep, np.int64)
+        cols["index"] = np.arange(self._total, self._total + n, dtype=np.int64)
+        cols["task_index"] = np.full(n, task_index, np.int64)
+        arrays = []
+        for key, ft in self.all_features.items():
+            flat = cols[key].reshape(-1)
+            arr = pa.array(flat, type=_arrow_type(pa, {"dtype": ft["dtype"], "shape": [1]}))
+            for size in reversed(ft["shape"] if ft["shape"] != [1] else []):
+                arr = pa.FixedSizeListArray.from_arrays(arr, int(size))
+            arrays.append(arr)
+        table = pa.Table.from_arrays(arrays, schema=self.schema)
+        if self._writer is None:
+            self._writer = pa.parquet.ParquetWriter(str(self.partial / DATA_PATH.format(chunk_index=0, file_index=0)),
+                                                    self.schema)
+        self._writer.write_table(table)
+        stats = {k: _stats(cols[k]) for k in self.all_features}
+        self._stats.append(stats)
+        row: dict[str, Any] = {"episode_index": ep, "tasks": [task], "length": n, "data/chunk_index": 0,
+                               "data/file_index": 0, "dataset_from_index": self._total,
+                               "dataset_to_index": self._total + n}
+        for key, st in stats.items():
+            for name, value in st.items():
+                row[f"stats/{key}/{name}"] = _jsonable(value)
+        row["meta/episodes/chunk_index"], row["meta/episodes/file_index"] = 0, 0
+        row["success"] = None if success is None else bool(success)
+        for key, value in (final or {}).items():
+            row[f"final/{key}"] = np.asarray(value, dtype=np.float64).reshape(-1).tolist()
+        self._episodes.append(row)
+        self._total += n
+        self.clear_episode()
+
+    def finalize(self) -> Path:
+        """Write the metadata, close the data file and move the dataset to ``root``; returns ``root``."""
+        pa = self.pa
+        if not self._episodes:
+            self.abort()
+            raise DatasetFormatError("no episode was recorded: nothing written")
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        meta = self.partial / "meta"
+        (meta / "episodes" / "chunk-000").mkdir(parents=True)
+        pa.parquet.write_table(pa.Table.from_pylist(self._episodes), str(self.partial / EPISODES_PATH))
+        names = list(self._tasks)
+        pandas_meta = {"index_columns": ["__index_level_0__"], "column_indexes": [], "columns": [
+            {"name": "task_index", "field_name": "task_index", "pandas_type": "int64", "numpy_type": "int64",
+             "metadata": None},
+            {"name": None, "field_name": "__index_level_0__", "pandas_type": "unicode", "numpy_type": "object",
+             "metadata": None}], "creator": {"library": "pyarrow", "version": pa.__version__},
+            "pandas_version": "2.2.0"}
+        tasks = pa.table({"task_index": pa.array([self._tasks[t] for t in names], pa.int64()),
+                          "__index_level_0__": pa.array(names, pa.string())})
+        tasks = tasks.replace_schema_metadata({"pandas": json.dumps(pandas_meta)})
+        pa.parquet.write_table(tasks, str(meta / "tasks.parquet"))
+        stats = {k: {n: _jsonable(v) for n, v in _aggregate([s[k] for s in self._stats]).items()}
+                 for k in self.all_features}
+        (meta / "stats.json").write_text(json.dumps(stats, indent=4))
+        info = {"codebase_version": CODEBASE_VERSION, "robot_type": self.robot_type,
+                "total_episodes": len(self._episodes), "total_frames": self._total, "total_tasks": len(self._tasks),
+                "chunks_size": 1000, "data_files_size_in_mb": 100, "video_files_size_in_mb": 200, "fps": self.fps,
+                "splits": {"train": f"0:{len(self._episodes)}"}, "data_path": DATA_PATH, "video_path": None,
+                "features": self.all_features, **self.extra_info}
+        (meta / "info.json").write_text(json.dumps(info, indent=4))
+        self.partial.rename(self.root)
+        return self.root
+
+    def abort(self) -> None:
+        """Drop everything written (an interrupted recording)."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        shutil.rmtree(self.partial, ignore_errors=True)
+
+
+# -- reading -----------------------------------------------------------------------------------------
+@dataclass
+class RecordedEpisode:
+    """One episode read back: ``frames[feature]`` has a row per frame; ``final`` the observation features
+    after the last step (uniros datasets), ``success`` the recorded outcome (``None``: not recorded)."""
+
+    index: int
+    task: str
+    frames: dict[str, np.ndarray]
+    success: bool | None = None
+    final: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.frames["index"])
+
+
+@dataclass
+class RecordedDataset:
+    """A dataset read by :func:`read_dataset`: ``info`` is ``meta/info.json``."""
+
+    root: Path
+    info: dict[str, Any]
+    episodes: list[RecordedEpisode]
+
+    @property
+    def features(self) -> dict[str, dict[str, Any]]:
+        return dict(self.info["features"])
+
+
+def _read_info(root: Path) -> dict[str, Any]:
+    path = root / "meta" / "info.json"
+    if not root.is_dir():
+        raise DatasetFormatError(f"{root}: no such dataset folder")
+    if not path.is_file():
+        raise DatasetFormatError(f"{root}: not a LeRobot dataset (no meta/info.json)")
+    if path.stat().st_size > MAX_INFO_BYTES:
+        raise DatasetFormatError(f"{path}: larger than {MAX_INFO_BYTES} bytes")
+    try:
+        info = json.loads(path.read_bytes())
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise DatasetFormatError(f"{path}: not JSON ({exc})") from None
+    if not isinstance(info, dict):
+        raise DatasetFormatError(f"{path}: not a JSON object")
+    if info.get("codebase_version") != CODEBASE_VERSION:
+        raise DatasetFormatError(f"{path}: codebase_version {info.get('codebase_version')!r}, uniros reads "
+                                 f"{CODEBASE_VERSION} (convert older datasets with LeRobot)")
+    feats = info.get("features")
+    if not isinstance(feats, dict) or not all(
+            isinstance(v, dict) and isinstance(v.get("shape"), list)
+            and all(isinstance(n, int) and n > 0 for n in v["shape"]) for v in feats.values()):
+        raise DatasetFormatError(f"{path}: features must map names to {{dtype, shape}}")
+    for key in ("total_episodes", "total_frames", "fps"):
+        if not isinstance(info.get(key), int) or info[key] < 0:
+            raise DatasetFormatError(f"{path}: {key} must be a non-negative integer, got {info.get(key)!r}")
+    return info
+
+
+def _read_parquet(path: Path) -> Any:
+    pa = _pa()
+    if not path.is_file():
+        raise DatasetFormatError(f"{path}: missing")
+    if path.stat().st_size > MAX_PARQUET_BYTES:
+        raise DatasetFormatError(f"{path}: larger than {MAX_PARQUET_BYTES} bytes")
+    try:
+        return pa.parquet.read_table(str(path))
+    except (OSError, ValueError, pa.ArrowException) as exc:
+        raise DatasetFormatError(f"{path}: not a readable parquet file ({str(exc).splitlines()[0][:200]})") from None
+
+
+def _column(table: Any, name: str, feature: dict[str, Any], where: Path) -> np.ndarray:
+    if name not in table.column_names:
+        raise DatasetFormatError(f"{where}: no column {name!r} (info.json lists it)")
+    col = table.column(name).combine_chunks()
+    shape = [int(n) for n in feature["shape"]]
+    try:
+        while hasattr(col, "flatten") and col.type.num_fields:  # a (fixed-size) list column
+            col = col.flatten()
+        values = col.to_numpy(zero_copy_only=False)
+        return np.asarray(values).reshape((table.num_rows, *([] if shape == [1] else shape)))
+    except (ValueError, TypeError) as exc:
+        raise DatasetFormatError(f"{where}: column {name!r} does not hold {table.num_rows} x {shape} values "
+                                 f"({exc})") from None
+
+
+def read_dataset(root: Path | str, *, max_frames: int = 10_000_000) -> RecordedDataset:
+    """Read a LeRobot v3.0 dataset's frames (not its videos) into numpy; raises :class:`DatasetFormatError`."""
+    root = Path(root)
+    info = _read_info(root)
+    if info["total_frames"] > max_frames:
+        raise DatasetFormatError(f"{root}: {info['total_frames']} frames, more than the {max_frames} read at most")
+    feats = {k: v for k, v in info["features"].items() if v.get("dtype") not in ("video", "image")}
+    ep_files = sorted((root / "meta" / "episodes").glob("chunk-*/file-*.parquet"))
+    if not ep_files:
+        raise DatasetFormatError(f"{root}: no meta/episodes/chunk-*/file-*.parquet")
+    ep_rows: list[dict[str, Any]] = []
+    for f in ep_files:
+        ep_rows.extend(_read_parquet(f).to_pylist())
+    if len(ep_rows) != info["total_episodes"]:
+        raise DatasetFormatError(f"{root}: {len(ep_rows)} episode rows, info.json says {info['total_episodes']}")
+    data_path = info.get("data_path", DATA_PATH)
+    columns: dict[tuple[int, int], dict[str, np.ndarray]] = {}
+    episodes: list[RecordedEpisode] = []
+    for row in sorted(ep_rows, key=lambda r: int(r.get("episode_index", -1))):
+        try:
+            key = (int(row["data/chunk_index"]), int(row["data/file_index"]))
+            start, stop = int(row["dataset_from_index"]), int(row["dataset_to_index"])
+            index, tasks = int(row["episode_index"]), list(row["tasks"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DatasetFormatError(f"{root}: an episode row lacks {exc}") from None
+        if key not in columns:
+            if not all(0 <= k < 10_000 for k in key):
+                raise DatasetFormatError(f"{root}: episode {index}: data file index {key} out of range")
+            path = root / str(data_path).format(chunk_index=key[0], file_index=key[1])
+            table = _read_parquet(path)
+            columns[key] = {name: _column(table, name, ft, path) for name, ft in feats.items()}
+        cols = columns[key]
+        first = cols["index"]
+        at = np.flatnonzero((first >= start) & (first < stop))
+        if stop <= start or len(at) != stop - start or not np.all(cols["episode_index"][at] == index):
+            raise DatasetFormatError(f"{root}: episode {index}'s frames {start}:{stop} are not in its data file")
+        final = {k[len("final/"):]: np.asarray(v, np.float64) for k, v in row.items()
+                 if k.startswith("final/") and v is not None}
+        success = row.get("success")
+        episodes.append(RecordedEpisode(index=index, task=str(tasks[0]) if tasks else "",
+                                        frames={k: v[at] for k, v in cols.items()},
+                                        success=None if success is None else bool(success), final=final))
+    return RecordedDataset(root=root, info=info, episodes=episodes)

@@ -1,0 +1,257 @@
+"""``uniros record ID --policy scripted|RUN --episodes N --output DIR``: episodes written as a LeRobot dataset.
+
+Plays ``N`` episodes of the env ``ID`` (episode ``k`` reset with seed ``S + k``) with its task's scripted
+policy or a trained run (loaded as ``uniros eval`` loads it: the run's env kwargs, its spaces checked, its
+normalisation statistics) and writes every step as a frame of a LeRobot v3.0 dataset
+(:mod:`uniros.lerobot_dataset`)::
+
+    observation.state            the state observation (a goal env's "observation", or the plain vector)
+    observation.achieved_goal    a goal env's other keys, one feature each (observation.desired_goal, ...)
+    action                       the action taken, as the env took it
+    next.reward, next.done       the step's reward and whether the episode ended there
+    next.success                 the step's info["is_success"]
+
+Each episode carries its task string (the task's kind, e.g. "push the cube to the goal"), its success
+(the last step's ``is_success``) and the observation after its last step (for replay buffers:
+:mod:`uniros.demonstrations_io`). ``info.json`` names the env ID and its spaces under ``"uniros"``.
+Errors are one line, exit code 2 (docs/datasets.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["RecordError", "add_record_parser", "cmd_record", "dataset_features", "frame_of", "main", "record"]
+
+#: The task strings of the arm tasks' kinds (the episode's "task" in the dataset).
+TASK_TEXT = {
+    "push": "push the cube to the goal",
+    "pnp": "pick up the cube and place it at the goal",
+    "reach": "move the end effector to the goal",
+    "slide": "slide the puck to the goal",
+}
+
+
+class RecordError(ValueError):
+    """``uniros record`` cannot go on: the message names what and the fix."""
+
+
+def _feature(space: Any) -> dict[str, Any]:
+    shape = [int(n) for n in space.shape] or [1]
+    dtype = "uint8" if space.dtype == np.uint8 else "float32"
+    return {"dtype": dtype, "shape": shape, "names": None}
+
+
+def _is_image(space: Any) -> bool:
+    return len(getattr(space, "shape", ())) == 3 and getattr(space, "dtype", None) == np.uint8
+
+
+def dataset_features(observation_space: Any, action_space: Any) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
+    """The dataset's features for an env's spaces, and ``{feature: observation key}`` ("" for a plain Box).
+
+    Camera images are left out (``--images`` is not recorded yet); a goal env's ``observation`` is
+    ``observation.state``, its other keys ``observation.<key>``.
+    """
+    from gymnasium import spaces
+
+    feats: dict[str, dict[str, Any]] = {}
+    keys: dict[str, str] = {}
+    if isinstance(observation_space, spaces.Dict):
+        for key, sub in observation_space.spaces.items():
+            if _is_image(sub):
+                continue
+            if not isinstance(sub, spaces.Box):
+                raise RecordError(f"observation key {key!r} is a {type(sub).__name__}: only Box observations record")
+            name = "observation.state" if key in ("observation", "state") else f"observation.{key}"
+            feats[name], keys[name] = _feature(sub), key
+    elif isinstance(observation_space, spaces.Box) and not _is_image(observation_space):
+        feats["observation.state"], keys["observation.state"] = _feature(observation_space), ""
+    else:
+        raise RecordError(f"a {type(observation_space).__name__} observation space does not record as joint state")
+    if "observation.state" not in feats:
+        raise RecordError("the env's observations have no state vector (a camera-only env): record one with "
+                          "rgb_plus_normal_obs")
+    if not isinstance(action_space, spaces.Box):
+        raise RecordError(f"a {type(action_space).__name__} action space does not record: uniros records Box actions")
+    feats["action"] = {**_feature(action_space), "dtype": "float32"}
+    for name, dtype in (("next.reward", "float32"), ("next.done", "bool"), ("next.success", "bool")):
+        feats[name] = {"dtype": dtype, "shape": [1], "names": None}
+    return feats, keys
+
+
+def frame_of(obs: Any, keys: dict[str, str]) -> dict[str, Any]:
+    """An observation's features (``keys`` from :func:`dataset_features`)."""
+    return {name: (obs[key] if key else obs) for name, key in keys.items()}
+
+
+def task_text(env: Any, env_id: str) -> str:
+    """The episode's task string: the arm task's kind in words, else the env ID."""
+    kind = getattr(getattr(env.unwrapped, "task", None), "KIND", None)
+    return TASK_TEXT.get(str(kind), f"{env_id}")
+
+
+def _fps(env: Any) -> int:
+    fps = env.metadata.get("render_fps") if isinstance(getattr(env, "metadata", None), dict) else None
+    if not fps:
+        dt = getattr(env.unwrapped, "dt", None)
+        fps = round(1.0 / dt) if dt else 25
+    return max(1, int(round(float(fps))))
+
+
+def record(env: Any, policy: Callable[[Any], Any], episodes: int, output: Path, *, env_id: str, seed: int = 0,
+           progress: bool = True, reset: Callable[[], None] | None = None) -> dict[str, Any]:
+    """Play ``episodes`` episodes of ``env`` with ``policy`` and write them to the new dataset ``output``.
+
+    Returns ``{"episodes", "frames", "success_rate", "path"}``. On any error (or Ctrl-C) nothing is left
+    at ``output``.
+    """
+    from tqdm import tqdm
+
+    from uniros.lerobot_dataset import DatasetWriter
+
+    if episodes <= 0:
+        raise RecordError(f"--episodes must be at least 1, got {episodes}")
+    feats, keys = dataset_features(env.observation_space, env.action_space)
+    arm = getattr(getattr(env.unwrapped, "task", None), "arm", None)
+    robot = getattr(arm, "name", None) or env_id.split("-")[0]
+    extra = {"uniros": {"env_id": env_id, "observation_keys": keys,
+                        "action_shape": list(env.action_space.shape), "seed": seed}}
+    writer = DatasetWriter(output, _fps(env), feats, robot_type=str(robot), extra_info=extra)
+    task = task_text(env, env_id)
+    successes = frames = 0
+    bar = tqdm(total=episodes, unit="episode", desc=f"recording {env_id}", disable=not progress)
+    try:
+        for k in range(episodes):
+            obs, info = env.reset(seed=seed + k)
+            if reset is not None:
+                reset()
+            done = False
+            while not done:
+                action = np.asarray(policy(obs), dtype=np.float32)
+                next_obs, reward, terminated, truncated, info = env.step(action)
+                done = bool(terminated or truncated)
+                frame = frame_of(obs, keys)
+                frame["action"] = action
+                frame["next.reward"] = reward
+                frame["next.done"] = done
+                frame["next.success"] = bool(info.get("is_success", False))
+                writer.add_frame(frame)
+                obs = next_obs
+                frames += 1
+            success = bool(info.get("is_success", False))
+            successes += int(success)
+            writer.save_episode(task, success=success, final=frame_of(obs, keys))
+            bar.update(1)
+            bar.set_postfix(success=f"{successes}/{k + 1}")
+        path = writer.finalize()
+    except BaseException:
+        writer.abort()
+        raise
+    finally:
+        bar.close()
+    return {"episodes": episodes, "frames": frames, "success_rate": successes / episodes, "path": path}
+
+
+# -- policies ----------------------------------------------------------------------------------------
+def _scripted(env: Any) -> tuple[Callable[[Any], Any], Callable[[], None] | None]:
+    task = getattr(env.unwrapped, "task", None)
+    if task is None or not hasattr(task, "scripted_policy"):
+        raise RecordError(f"{type(env.unwrapped).__name__} has no task with a scripted policy: record a trained run")
+    try:
+        policy = task.scripted_policy()
+    except ValueError as exc:
+        raise RecordError(f"no scripted policy: {str(exc).splitlines()[0]}") from None
+    return policy, getattr(policy, "reset", None)
+
+
+def _trained(model_path: Path, env: Any, env_id: str, device: str | None) -> Callable[[Any], Any]:
+    from uniros.model_files import load_for_eval
+    from uniros.model_spaces import SpaceMismatchError, check_model_spaces
+
+    try:
+        check_model_spaces(model_path, env, env_id)
+    except SpaceMismatchError as exc:
+        raise RecordError(str(exc).splitlines()[0]) from None
+    model, normalizer = load_for_eval(model_path, env, device=device)
+
+    def act(obs: Any) -> Any:
+        return model.predict(obs if normalizer is None else normalizer.normalize_obs(obs), deterministic=True)[0]
+
+    return act
+
+
+# -- the command -------------------------------------------------------------------------------------
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("env_id", metavar="ID", help="the env to record (a registered ID, or module:ID)")
+    p.add_argument("--policy", required=True, metavar="scripted|RUN",
+                   help="'scripted' (the task's scripted policy) or a trained run (a run folder or model .zip)")
+    p.add_argument("--episodes", type=int, required=True, metavar="N", help="episodes to record")
+    p.add_argument("--output", required=True, metavar="DIR", help="the new dataset's folder (must not exist)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="episode k is reset with seed S + k (default 0)")
+    p.add_argument("--images", action="store_true",
+                   help="also record the camera images as video (not there yet: refused with a message)")
+    p.add_argument("--device", default=None, help="torch device of a trained run (default: auto)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def add_record_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``record`` to ``uniros``' subcommands (``args.func`` is :func:`cmd_record`)."""
+    p = subparsers.add_parser("record", help="record episodes (scripted or a trained run) as a LeRobot dataset "
+                                             "(docs/datasets.md)", description=__doc__.split("\n\n")[0])
+    _add_arguments(p)
+    p.set_defaults(func=cmd_record)
+    return p
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    """Run ``uniros record``; errors are raised (``main`` and the CLI print them in one line)."""
+    from uniros.run_envs import check_env_id, make_env
+
+    output = Path(args.output)
+    if output.exists():
+        raise RecordError(f"{output} exists: record into a new folder")
+    if args.images:
+        raise RecordError("--images: recording camera images as video is not there yet; record without --images")
+    env_id = check_env_id(args.env_id)
+    kwargs: dict[str, Any] = {}
+    model_path = None
+    if args.policy != "scripted":
+        from uniros.model_files import resolve_model_path, saved_env_kwargs
+
+        model_path = resolve_model_path(args.policy)
+        kwargs = saved_env_kwargs(model_path, env_id) or {}
+    env = make_env(env_id, **kwargs)
+    try:
+        if model_path is None:
+            policy, reset = _scripted(env)
+        else:
+            policy, reset = _trained(model_path, env, env_id, args.device), None
+        result = record(env, policy, args.episodes, output, env_id=env_id, seed=args.seed,
+                        progress=not args.no_progress, reset=reset)
+    finally:
+        env.close()
+    print(f"{result['path']}: {result['episodes']} episodes, {result['frames']} frames of {env_id}, "
+          f"success {result['success_rate']:.2f} (LeRobot v3.0 dataset)")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``uniros record`` on its own: ``main(["ID", "--policy", "scripted", ...])``; errors: one line, return 2."""
+    from uniros.errors import TrainingError
+    from uniros.lerobot_dataset import DatasetFormatError
+
+    parser = argparse.ArgumentParser(prog="uniros record", description=__doc__.split("\n\n")[0])
+    _add_arguments(parser)
+    args = parser.parse_args(list(sys.argv[1:] if argv is None else argv))
+    try:
+        return cmd_record(args)
+    except (RecordError, DatasetFormatError, TrainingError, ValueError, OSError) as exc:
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"uniros record: error: {text[:2000]}", file=sys.stderr)
+        return 2
