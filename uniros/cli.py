@@ -127,6 +127,13 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
         raise TrainingError(f"{run.root} is a run on {env_id!r}, not {args.env_id!r}")
     if args.steps is not None:
         config.training_steps = args.steps
+    if getattr(args, "demos", None):
+        from uniros.algorithms import is_off_policy
+
+        if not is_off_policy(config.algorithm):
+            raise TrainingError(f"--demos go into a replay buffer: {config.algorithm} has none (train an off-policy "
+                                "algorithm such as sac)")
+        config.demos = str(Path(args.demos).resolve())
     _choose_device(args, config)
     if args.seed is not None:
         config.seed = args.seed
@@ -479,6 +486,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a registered env ID (RX200ReacherGoalSim-v0) or module:ID (my_pkg.my_module:MyEnv-v0)")
     p.add_argument("--config", help="training YAML (default: the one shipped for the env ID)")
     p.add_argument("--steps", type=int, help="override training_steps")
+    p.add_argument("--demos", metavar="DATASET", help="a recorded dataset (uniros record) whose episodes go into the "
+                                                      "replay buffer before learning (off-policy algorithms)")
     p.add_argument("--seed", type=int, help="override the seed")
     p.add_argument("--n-envs", type=int, help="override n_envs: envs trained on at once, in one batched vector env")
     p.add_argument("--pin-workers", action=argparse.BooleanOptionalAction, default=None,
@@ -527,11 +536,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_new)
     _arm_parser(sub)
     _deploy_parsers(sub)
+    from uniros.recording import add_record_parser
     from uniros.sysid import add_sysid_parser
     from uniros.teleop import add_teleop_parser
 
     add_sysid_parser(sub)
     add_teleop_parser(sub)
+    add_record_parser(sub)
     return parser
 
 

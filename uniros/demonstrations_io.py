@@ -149,3 +149,25 @@ def fill_replay_buffer_from_dataset(model: Any, path: Path | str, env: Any) -> d
         successes += int(episode[-1].info["is_success"])
     return {"episodes": float(episodes), "transitions": float(transitions),
             "success_rate": successes / max(1, episodes)}
+
+
+def check_dataset_for(path: Path | str, env_id: str) -> None:
+    """Before a run is written: ``path`` is a recorded dataset (its ``meta/info.json`` reads) recorded from
+    ``env_id`` when it says where it came from. The frames are checked against the env when they are loaded.
+
+    Raises:
+        DemonstrationsError: no dataset there, or one recorded from another ID.
+    """
+    from uniros.lerobot_dataset import DatasetFormatError, read_info
+
+    root = Path(path)
+    try:
+        info = read_info(root)
+    except DatasetFormatError as exc:
+        raise DemonstrationsError(str(exc)) from None
+    meta = info.get("uniros")
+    recorded = meta.get("env_id") if isinstance(meta, dict) else None
+    bare = env_id.rpartition(":")[2]
+    if isinstance(recorded, str) and recorded.rpartition(":")[2] != bare:
+        raise DemonstrationsError(f"{root}: recorded from {recorded[:100]!r}, not {env_id!r}: record the episodes "
+                                  f"with uniros record {env_id}")

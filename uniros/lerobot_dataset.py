@@ -335,6 +335,11 @@ class RecordedDataset:
         return dict(self.info["features"])
 
 
+def read_info(root: Path) -> dict[str, Any]:
+    """A dataset's ``meta/info.json``, checked (DatasetFormatError otherwise)."""
+    return _read_info(Path(root))
+
+
 def _read_info(root: Path) -> dict[str, Any]:
     path = root / "meta" / "info.json"
     if not root.is_dir():

@@ -189,8 +189,15 @@ def _trained(model_path: Path, env: Any, env_id: str, device: str | None) -> Cal
 # -- the command -------------------------------------------------------------------------------------
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("env_id", metavar="ID", help="the env to record (a registered ID, or module:ID)")
-    p.add_argument("--policy", required=True, metavar="scripted|RUN",
-                   help="'scripted' (the task's scripted policy) or a trained run (a run folder or model .zip)")
+    p.add_argument("--policy", required=True, metavar="scripted|teleop|RUN",
+                   help="'scripted' (the task's scripted policy), 'teleop' (a person, through --joy or --twist: "
+                        "uniros teleop) or a trained run (a run folder or model .zip)")
+    p.add_argument("--joy", metavar="TOPIC", help="teleop: sensor_msgs/Joy topic")
+    p.add_argument("--twist", metavar="TOPIC", help="teleop: geometry_msgs/Twist topic")
+    p.add_argument("--joy-map", default="", metavar="MAP", help="teleop: x=1,y=0,z=4,close=0,open=1 (the default)")
+    p.add_argument("--twist-scale", type=float, default=0.5, help="teleop: speed meaning a full step (%(default)s)")
+    p.add_argument("--transport", choices=["zenoh", "rclpy"], help="teleop: ROS transport of the input topic")
+    p.add_argument("--router", metavar="ENDPOINT", help="teleop: the Zenoh router to join (tcp/HOST:PORT)")
     p.add_argument("--episodes", type=int, required=True, metavar="N", help="episodes to record")
     p.add_argument("--output", required=True, metavar="DIR", help="the new dataset's folder (must not exist)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="episode k is reset with seed S + k (default 0)")
@@ -221,6 +228,10 @@ def cmd_record(args: argparse.Namespace) -> int:
     env_id = check_env_id(args.env_id)
     kwargs: dict[str, Any] = {}
     model_path = None
+    if args.policy == "teleop":
+        return _record_teleop(args, env_id, output)
+    if args.joy or args.twist:
+        raise RecordError("--joy and --twist are teleop's inputs: give --policy teleop")
     if args.policy != "scripted":
         from uniros.model_files import resolve_model_path, saved_env_kwargs
 
@@ -237,6 +248,53 @@ def cmd_record(args: argparse.Namespace) -> int:
     finally:
         env.close()
     print(f"{result['path']}: {result['episodes']} episodes, {result['frames']} frames of {env_id}, "
+          f"success {result['success_rate']:.2f} (LeRobot v3.0 dataset)")
+    return 0
+
+
+def _record_teleop(args: argparse.Namespace, env_id: str, output: Path) -> int:
+    """``--policy teleop``: a person drives (:mod:`uniros.teleop`), the env at its control rate, every step written."""
+    import threading
+    import time
+
+    from multiros.ros import Context
+    from multiros.ros.executors import SingleThreadedExecutor
+    from multiros.ros.processes import discovery_environment
+    from multiros.ros.transport import wire_transport
+    from uniros.run_envs import make_env
+    from uniros.teleop import TeleopInput, TeleopPolicy, subscribe, teleop_env_kwargs
+
+    if not (args.joy or args.twist) or (args.joy and args.twist):
+        raise RecordError("--policy teleop reads one input: give --joy TOPIC or --twist TOPIC")
+    transport = wire_transport(args.transport)
+    options: dict[str, Any] = {"router": args.router} if args.router and transport == "zenoh" else {}
+    context = Context(transport=transport, env=discovery_environment(), **options).init()
+    env = None
+    try:
+        extra: dict[str, Any] = {"context": context} if "Real" in env_id else {}
+        env = make_env(env_id, **teleop_env_kwargs(env_id), **extra)
+        source = TeleopInput()
+        person = TeleopPolicy(source, env.action_space)
+        node = subscribe(context, source, args)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        threading.Thread(target=executor.spin, name="uniros-record-teleop", daemon=True).start()
+        core: Any = env.unwrapped
+        period = 0.0 if core.ON_ROBOT else float(core.connection.control_period)
+        clock = {"next": time.monotonic()}
+
+        def paced(obs: Any) -> Any:  # a person drives at the robot's pace, not the simulation's
+            clock["next"] = max(clock["next"] + period, time.monotonic())
+            time.sleep(max(0.0, clock["next"] - time.monotonic()))
+            return person(obs)
+
+        result = record(env, paced, args.episodes, output, env_id=env_id, seed=args.seed,
+                        progress=not args.no_progress, reset=None)
+    finally:
+        if env is not None:
+            env.close()
+        context.try_shutdown()
+    print(f"{result['path']}: {result['episodes']} episodes, {result['frames']} frames of {env_id} driven by hand, "
           f"success {result['success_rate']:.2f} (LeRobot v3.0 dataset)")
     return 0
 

@@ -38,7 +38,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["JoyMapping", "STALE_AFTER", "TeleopInput", "TeleopPolicy", "add_teleop_parser", "main", "parse_joy_map"]
+__all__ = ["JoyMapping", "STALE_AFTER", "TeleopInput", "TeleopPolicy", "add_teleop_parser", "main", "parse_joy_map",
+           "subscribe", "teleop_env_kwargs"]
 
 #: Seconds after the last message at which a silent input stops the arm.
 STALE_AFTER = 0.5
@@ -183,7 +184,8 @@ def add_teleop_parser(sub: Any) -> None:
     p.set_defaults(func=_cmd_teleop)
 
 
-def _env_kwargs(env_id: str) -> dict[str, Any]:
+def teleop_env_kwargs(env_id: str) -> dict[str, Any]:
+    """The keywords that give ``env_id`` end-effector actions (reach takes ``ee_action_type=True``)."""
     import gymnasium as gym
 
     spec = gym.spec(env_id)
@@ -255,7 +257,7 @@ def run_teleop(opts: argparse.Namespace, say: Callable[[str], None]) -> int:
     node = None
     try:
         extra: dict[str, Any] = {"context": context} if context is not None and "Real" in opts.env_id else {}
-        env = uniros.make(opts.env_id, **_env_kwargs(opts.env_id), **extra)
+        env = uniros.make(opts.env_id, **teleop_env_kwargs(opts.env_id), **extra)
         policy = TeleopPolicy(source, env.action_space)
         if context is not None:
             node = subscribe(context, source, opts)

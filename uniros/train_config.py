@@ -57,6 +57,7 @@ _TOP: dict[str, tuple[Any, Any]] = {
     "video_episodes": (int, 3),
     "progress_bar": (bool, True),
     "demonstrations": (int, 0),
+    "demos": (str, None),
     "keep_checkpoints": (int, 3),
     "keep_replay_buffers": (int, 1),
     # sb3_ros_support / FRobs_RL
@@ -171,6 +172,8 @@ class TrainingConfig:
     keep_checkpoints: int = 3
     keep_replay_buffers: int = 1
     demonstrations: int = 0
+    #: A recorded dataset (``uniros record``) whose episodes go into the replay buffer before learning.
+    demos: str | None = None
     video: bool = True
     video_episodes: int = 3
     progress_bar: bool = True
@@ -195,7 +198,7 @@ class TrainingConfig:
             "eval_episodes": self.eval_episodes, "stop_at_success": self.stop_at_success,
             "save_freq": self.save_freq, "save_prefix": self.save_prefix,
             "keep_checkpoints": self.keep_checkpoints, "keep_replay_buffers": self.keep_replay_buffers,
-            "demonstrations": self.demonstrations,
+            "demonstrations": self.demonstrations, "demos": self.demos,
             "trained_model_name": self.trained_model_name, "save_replay_buffer": self.save_replay_buffer,
             "log_interval": self.log_interval, "reset_num_timesteps": self.reset_num_timesteps,
             "use_HER": self.use_her, "her_params": dict(self.her_params),
@@ -394,6 +397,10 @@ def parse_training_config(
     if demonstrations and not is_off_policy(algo):
         raise TrainingConfigError(f"{source}: demonstrations go into a replay buffer: they need an off-policy "
                                   f"algorithm ({', '.join(names_where(is_off_policy))}), not {algo!r}")
+    demos = _typed(data, "demos", source)
+    if demos is not None and not is_off_policy(algo):
+        raise TrainingConfigError(f"{source}: demos go into a replay buffer: they need an off-policy "
+                                  f"algorithm ({', '.join(names_where(is_off_policy))}), not {algo!r}")
     keep = {k: _typed(data, k, source) for k in ("keep_checkpoints", "keep_replay_buffers")}
     for key, value in keep.items():
         if value is None or value < 0:
@@ -433,7 +440,7 @@ def parse_training_config(
         save_prefix=save_prefix,
         keep_checkpoints=keep["keep_checkpoints"],
         keep_replay_buffers=keep["keep_replay_buffers"],
-        demonstrations=demonstrations,
+        demonstrations=demonstrations, demos=demos,
         trained_model_name=_typed(data, "trained_model_name", source),
         save_replay_buffer=_typed(data, "save_replay_buffer", source),
         load_model=_typed(data, "load_model", source),

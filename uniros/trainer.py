@@ -383,24 +383,38 @@ class Session:
         return self.model
 
     def _add_demonstrations(self) -> None:
-        """Put ``config.demonstrations`` scripted episodes into the replay buffer (seeds ``seed + 10,000 + k``)."""
-        if not self.config.demonstrations:
+        """Put ``config.demonstrations`` scripted episodes (seeds ``seed + 10,000 + k``) and the episodes of the
+        recorded dataset ``config.demos`` (:mod:`uniros.demonstrations_io`) into the replay buffer."""
+        if not self.config.demonstrations and not self.config.demos:
             return
-        from rl_environments.manipulation_scripted import fill_replay_buffer
-
         if self.make_eval_env is None or self.model.n_envs != 1:
             raise TrainingConfigError(f"{self.config.source}: demonstrations need n_envs: 1 and an env to play them in")
-        env = self.make_eval_env()
-        try:
-            stats = fill_replay_buffer(self.model, env, self.config.demonstrations,
-                                       seed=(self.config.seed or 0) + 10_000)
-        except (AttributeError, ValueError) as exc:
-            raise TrainingConfigError(f"{self.config.source}: demonstrations: no scripted policy for this env "
-                                      f"({exc}); uniros has them for push and pick-and-place") from exc
-        finally:
-            env.close()
-        _logger.info("%d demonstration episodes (%d transitions, success %.2f) in the replay buffer",
-                     stats["episodes"], stats["transitions"], stats["success_rate"])
+        if self.config.demonstrations:
+            from rl_environments.manipulation_scripted import fill_replay_buffer
+
+            env = self.make_eval_env()
+            try:
+                stats = fill_replay_buffer(self.model, env, self.config.demonstrations,
+                                           seed=(self.config.seed or 0) + 10_000)
+            except (AttributeError, ValueError) as exc:
+                raise TrainingConfigError(f"{self.config.source}: demonstrations: no scripted policy for this env "
+                                          f"({exc}); uniros has them for push and pick-and-place") from exc
+            finally:
+                env.close()
+            _logger.info("%d demonstration episodes (%d transitions, success %.2f) in the replay buffer",
+                         stats["episodes"], stats["transitions"], stats["success_rate"])
+        if self.config.demos:
+            from uniros.demonstrations_io import DemonstrationsError, fill_replay_buffer_from_dataset
+
+            env = self.make_eval_env()
+            try:
+                stats = fill_replay_buffer_from_dataset(self.model, self.config.demos, env)
+            except DemonstrationsError as exc:
+                raise TrainingConfigError(f"demos: {exc}") from None
+            finally:
+                env.close()
+            _logger.info("%d recorded episodes (%d transitions, success %.2f) from %s in the replay buffer",
+                         stats["episodes"], stats["transitions"], stats["success_rate"], self.config.demos)
 
     def _refill_from(self, steps: int) -> None:
         """An off-policy model resumed without its replay buffer: updates wait until the empty buffer

@@ -170,6 +170,15 @@ def check_before_run(env_id: str, config: TrainingConfig, origin: str | None = N
         if config.n_envs > 1:
             raise TrainingConfigError(f"{config.source}: demonstrations fill one env's replay buffer: train with "
                                       "n_envs: 1, or set demonstrations: 0")
+    if config.demos:
+        from uniros.demonstrations_io import DemonstrationsError, check_dataset_for
+
+        if config.n_envs > 1:
+            raise TrainingConfigError(f"{config.source}: --demos fills one env's replay buffer: train with n_envs: 1")
+        try:
+            check_dataset_for(config.demos, env_id)
+        except DemonstrationsError as exc:
+            raise TrainingConfigError(f"--demos: {exc}") from None
 
 
 def note_updates_per_env_step(config: TrainingConfig) -> str | None:

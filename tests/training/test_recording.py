@@ -215,3 +215,30 @@ def test_lerobot_reads_every_frame_equal(recorded: tuple[Path, _Tape]) -> None:
         np.testing.assert_array_equal(item["action"].numpy(), tape.actions[i].astype(np.float32))
         assert float(item["next.reward"]) == np.float32(tape.rewards[i])
         assert item["task"] == "push the cube to the goal"
+
+
+@pytest.mark.slow
+def test_uniros_train_demos_puts_the_recorded_episodes_in_the_buffer(recorded: tuple[Path, _Tape], tmp_path: Path,
+                                                                    caplog: pytest.LogCaptureFixture,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """``uniros train ID --demos DATASET``: the run's config keeps the dataset and its episodes fill the replay
+    buffer before learning; a dataset of another ID, or none, is one line and exit code 2 before a run is written."""
+    import logging
+
+    from uniros.cli import main
+
+    path, _ = recorded
+    with caplog.at_level(logging.INFO, logger="uniros.trainer"):
+        assert main(["train", "RX200PushGoalSim-v0", "--demos", str(path), "--steps", "60", "--eval-episodes", "0",
+                     "--output", str(tmp_path / "runs")]) == 0
+    assert any("recorded episodes" in r.getMessage() and str(path) in r.getMessage() for r in caplog.records)
+    (run,) = (tmp_path / "runs").iterdir()
+    assert f"demos: {path}" in (run / "config.yaml").read_text()
+    for bad, message in ((path, "recorded from 'RX200PushGoalSim-v0', not 'RX200PnPGoalSim-v0'"),
+                         (tmp_path / "none", "no such dataset folder")):
+        before = set((tmp_path / "runs").iterdir())
+        capsys.readouterr()
+        assert main(["train", "RX200PnPGoalSim-v0", "--demos", str(bad), "--steps", "60",
+                     "--output", str(tmp_path / "runs")]) == 2
+        assert message in capsys.readouterr().err
+        assert set((tmp_path / "runs").iterdir()) == before

@@ -115,3 +115,44 @@ def test_a_script_publishing_joy_drives_a_push_episode_through_the_command() -> 
         if proc is not None and proc.poll() is None:
             stop_process(proc)
         ctx.try_shutdown()
+
+
+@pytest.mark.multiprocess
+@pytest.mark.slow
+def test_record_policy_teleop_writes_the_episodes_a_script_drives(tmp_path) -> None:
+    """``uniros record ID --policy teleop --joy /joy``: the episodes a Joy-publishing script drives are written as
+    a dataset whose actions are the pad's (x forward, the gripper closed)."""
+    from multiros.ros import Node
+    from multiros.ros.interfaces import get_message
+    from multiros.ros.processes import child_environment, private_context, stop_process
+    from uniros.lerobot_dataset import read_dataset
+
+    ctx = private_context()
+    proc = None
+    out = tmp_path / "teleop"
+    try:
+        env = {**os.environ, **child_environment(ctx)}
+        proc = subprocess.Popen([sys.executable, "-m", "uniros.cli", "record", "RX200PushGoalSim-v0", "--policy",
+                                 "teleop", "--joy", "/joy", "--episodes", "1", "--output", str(out), "--no-progress",
+                                 "--transport", "zenoh"], env=env, cwd=tempfile.gettempdir(),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        node = Node("joy_script", context=ctx)
+        Joy = get_message("sensor_msgs/msg/Joy")
+        pub = node.create_publisher(Joy, "/joy", 10)
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline:
+            msg = Joy()
+            msg.axes, msg.buttons = [0.0, 1.0, 0.0, 0.0, 0.0], [1, 0]
+            pub.publish(msg)
+            time.sleep(0.02)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == 0, err[-2000:]
+    finally:
+        if proc is not None and proc.poll() is None:
+            stop_process(proc)
+        ctx.try_shutdown()
+    (episode,) = read_dataset(out).episodes
+    actions = episode.frames["action"]
+    driven = actions[np.abs(actions[:, 0]) > 0]
+    assert len(driven) > len(actions) // 2, "most steps carry the pad's command"
+    np.testing.assert_allclose(driven[:, [0, 3]], np.tile([1.0, -1.0], (len(driven), 1)))
