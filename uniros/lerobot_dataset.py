@@ -15,6 +15,9 @@ LeRobot's reader loads (``docs/datasets.md`` says how that is checked)::
                                                   ``final/<feature>`` (the observation after the last step)
     DIR/data/chunk-000/file-000.parquet         one row per frame: the features, timestamp, frame_index,
                                                 episode_index, index, task_index
+    DIR/videos/<feature>/chunk-000/file-000.mp4 a camera's frames (features of dtype ``video``), episode
+                                                after episode; the episodes' rows say where
+                                                (``videos/<feature>/from_timestamp``; :mod:`uniros.lerobot_video`)
 
 A dataset is written under ``DIR.partial`` and renamed to ``DIR`` by :meth:`DatasetWriter.finalize`:
 an interrupted recording leaves no half dataset behind. :func:`read_dataset` reads one back, checking
@@ -33,6 +36,8 @@ from typing import Any
 
 import numpy as np
 
+from uniros.lerobot_video import VideoFileWriter, VideoFormatError, VideoSettings, decode_video, image_stats
+
 __all__ = [
     "CODEBASE_VERSION", "DATA_PATH", "DatasetFormatError", "DatasetWriter", "RecordedDataset", "RecordedEpisode",
     "read_dataset",
@@ -40,6 +45,13 @@ __all__ = [
 
 CODEBASE_VERSION = "v3.0"
 DATA_PATH = "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+VIDEO_PATH = "videos/{video_key}/chunk-{chunk_index:03d}/file-{file_index:03d}.mp4"
+#: Files a chunk folder holds (info.json's ``chunks_size``) and a video file's size before the next one
+#: begins (``video_files_size_in_mb``): LeRobot's defaults.
+CHUNKS_SIZE = 1000
+VIDEO_FILE_MB = 200
+#: Bytes of decoded images :func:`read_dataset` holds at most (``images=True``).
+MAX_IMAGE_BYTES = 8 << 30
 EPISODES_PATH = "meta/episodes/chunk-000/file-000.parquet"
 #: Bytes of ``info.json`` read at most.
 MAX_INFO_BYTES = 1 << 20
@@ -57,6 +69,7 @@ INDEX_FEATURES: dict[str, dict[str, Any]] = {
 ROW_GROUP_FRAMES = 5000
 _QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)
 _DTYPES = {"float32", "float64", "int64", "int32", "bool", "uint8"}
+_IMAGE_NAMES = ["height", "width", "channels"]
 
 
 class DatasetFormatError(ValueError):
@@ -146,13 +159,20 @@ class DatasetWriter:
         root: the dataset's folder; it must not exist (the writer fills ``root.partial`` and renames it).
         fps: frames per second (``info.json``'s ``fps``; timestamps are ``frame_index / fps``).
         features: ``{name: {"dtype", "shape", "names"}}`` of the recorded features (LeRobot's spelling);
-            the index columns are added.
+            the index columns are added. A feature of dtype ``video`` (shape ``[height, width, 3]``, uint8 RGB
+            frames) is written as the video ``videos/<name>/chunk-XXX/file-XXX.mp4``, not in the parquet file.
         robot_type: ``info.json``'s ``robot_type``.
         extra_info: more keys for ``info.json`` (uniros writes ``"uniros": {...}``: the env ID and spaces).
+        video: how the videos are encoded (default: h264, crf 23, a key frame every 2 frames).
+        video_file_mb: a video file's size (MB) after which the next episode begins a new file (LeRobot's 200).
+
+    A video feature's frames are kept in memory until their episode is saved (an episode can still be
+    dropped with :meth:`clear_episode`), then encoded: 1,000 frames of 640 x 480 hold 0.9 GB.
     """
 
     def __init__(self, root: Path | str, fps: int, features: dict[str, dict[str, Any]], *,
-                 robot_type: str | None = None, extra_info: dict[str, Any] | None = None) -> None:
+                 robot_type: str | None = None, extra_info: dict[str, Any] | None = None,
+                 video: VideoSettings | None = None, video_file_mb: float = VIDEO_FILE_MB) -> None:
         self.pa = _pa()
         self.root = Path(root)
         if self.root.exists():
@@ -160,11 +180,15 @@ class DatasetWriter:
         if fps <= 0:
             raise DatasetFormatError(f"fps must be positive, got {fps}")
         for name, ft in features.items():
-            if ft.get("dtype") not in _DTYPES or not all(int(n) > 0 for n in ft.get("shape", [])):
+            video_shape = ft.get("dtype") == "video" and len(ft.get("shape", [])) == 3 and ft["shape"][2] == 3
+            if (ft.get("dtype") not in _DTYPES and not video_shape) or not all(int(n) > 0 for n in ft.get("shape", [])):
                 raise DatasetFormatError(f"feature {name!r}: unsupported dtype or shape {ft}")
         self.fps = int(fps)
         self.features = {k: {"dtype": v["dtype"], "shape": [int(n) for n in v["shape"]], "names": v.get("names")}
-                         for k, v in features.items()}
+                         for k, v in features.items() if v["dtype"] != "video"}
+        self.video_features: dict[str, dict[str, Any]] = {
+            k: {"dtype": "video", "shape": [int(n) for n in v["shape"]], "names": _IMAGE_NAMES}
+            for k, v in features.items() if v["dtype"] == "video"}
         self.all_features = {**self.features, **INDEX_FEATURES}
         self.robot_type, self.extra_info = robot_type, dict(extra_info or {})
         self.partial = self.root.with_name(self.root.name + ".partial")
@@ -180,6 +204,12 @@ class DatasetWriter:
         self._total = 0
         self._pending: list[Any] = []  # episodes' tables not written yet (one row group per ROW_GROUP_FRAMES)
         self._pending_rows = 0
+        self.video = video or VideoSettings()
+        self._video_file_bytes = int(video_file_mb * (1 << 20))
+        self._images: dict[str, list[np.ndarray]] = {k: [] for k in self.video_features}
+        self._videos: dict[str, VideoFileWriter] = {}
+        self._video_at: dict[str, tuple[int, int]] = {}  # the (chunk, file) each camera writes now
+        self._video_info: dict[str, dict[str, Any]] = {}
 
     def _schema(self) -> Any:
         pa = self.pa
@@ -196,11 +226,15 @@ class DatasetWriter:
         until :meth:`save_episode`."""
         for key, buf in self._frames.items():
             buf.append(frame[key])
+        for key, images in self._images.items():
+            images.append(np.asarray(frame[key]))
 
     def clear_episode(self) -> None:
         """Drop the frames buffered since the last saved episode."""
         for buf in self._frames.values():
             buf.clear()
+        for images in self._images.values():
+            images.clear()
 
     def save_episode(self, task: str, *, success: bool | None = None,
                      final: dict[str, Any] | None = None) -> None:
@@ -236,10 +270,14 @@ class DatasetWriter:
         if self._pending_rows >= ROW_GROUP_FRAMES:
             self._flush()
         stats = _episode_stats(cols, self.all_features)
-        self._stats.append(stats)
         row: dict[str, Any] = {"episode_index": ep, "tasks": [task], "length": n, "data/chunk_index": 0,
                                "data/file_index": 0, "dataset_from_index": self._total,
                                "dataset_to_index": self._total + n}
+        for key in self.video_features:
+            images = self._episode_images(key, n)
+            row.update(self._write_video(key, images))
+            stats[key] = image_stats(images)
+        self._stats.append(stats)
         for key, st in stats.items():
             for name, value in st.items():
                 row[f"stats/{key}/{name}"] = _jsonable(value)
@@ -250,6 +288,45 @@ class DatasetWriter:
         self._episodes.append(row)
         self._total += n
         self.clear_episode()
+
+    def _episode_images(self, key: str, n: int) -> np.ndarray:
+        shape = tuple(self.video_features[key]["shape"])
+        images = self._images[key]
+        if len(images) != n or any(im.shape != shape or im.dtype != np.uint8 for im in images):
+            odd = next((im for im in images if im.shape != shape or im.dtype != np.uint8), None)
+            raise DatasetFormatError(f"feature {key!r}: {len(images)} frames for {n} steps" if odd is None else
+                                     f"feature {key!r}: an image of shape {odd.shape} ({odd.dtype}), declared "
+                                     f"uint8 {list(shape)}")
+        return np.stack(images)
+
+    def _write_video(self, key: str, images: np.ndarray) -> dict[str, Any]:
+        """Encode one episode's frames of the camera ``key`` (a new file when the current one is full); returns
+        the episode's ``videos/<key>/...`` columns."""
+        current = self._videos.get(key)
+        if current is not None and current.size_bytes() >= self._video_file_bytes:
+            self._close_video(key)
+            chunk, file = self._video_at[key]
+            self._video_at[key] = (chunk + 1, 0) if file + 1 >= CHUNKS_SIZE else (chunk, file + 1)
+            current = None
+        if current is None:
+            chunk, file = self._video_at.setdefault(key, (0, 0))
+            height, width = (int(n) for n in self.video_features[key]["shape"][:2])
+            path = self.partial / VIDEO_PATH.format(video_key=key, chunk_index=chunk, file_index=file)
+            try:
+                current = self._videos[key] = VideoFileWriter(path, width, height, self.fps, self.video)
+            except VideoFormatError as exc:
+                raise DatasetFormatError(f"feature {key!r}: {exc}") from None
+        start = current.frames
+        current.write(images)
+        chunk, file = self._video_at[key]
+        return {f"videos/{key}/chunk_index": chunk, f"videos/{key}/file_index": file,
+                f"videos/{key}/from_timestamp": start / self.fps,
+                f"videos/{key}/to_timestamp": current.frames / self.fps}
+
+    def _close_video(self, key: str) -> None:
+        writer = self._videos.pop(key)
+        writer.close()
+        self._video_info.setdefault(key, writer.info())
 
     def _flush(self) -> None:
         """Write the episodes buffered since the last flush as one row group of the data file."""
@@ -272,6 +349,8 @@ class DatasetWriter:
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+        for key in list(self._videos):
+            self._close_video(key)
         meta = self.partial / "meta"
         (meta / "episodes" / "chunk-000").mkdir(parents=True)
         pa.parquet.write_table(pa.Table.from_pylist(self._episodes), str(self.partial / EPISODES_PATH))
@@ -287,13 +366,16 @@ class DatasetWriter:
         tasks = tasks.replace_schema_metadata({"pandas": json.dumps(pandas_meta)})
         pa.parquet.write_table(tasks, str(meta / "tasks.parquet"))
         stats = {k: {n: _jsonable(v) for n, v in _aggregate([s[k] for s in self._stats]).items()}
-                 for k in self.all_features}
+                 for k in [*self.all_features, *self.video_features]}
+        videos = {k: {**ft, "info": self._video_info[k]} for k, ft in self.video_features.items()}
         (meta / "stats.json").write_text(json.dumps(stats, indent=4))
         info = {"codebase_version": CODEBASE_VERSION, "robot_type": self.robot_type,
                 "total_episodes": len(self._episodes), "total_frames": self._total, "total_tasks": len(self._tasks),
-                "chunks_size": 1000, "data_files_size_in_mb": 100, "video_files_size_in_mb": 200, "fps": self.fps,
-                "splits": {"train": f"0:{len(self._episodes)}"}, "data_path": DATA_PATH, "video_path": None,
-                "features": self.all_features, **self.extra_info}
+                "chunks_size": CHUNKS_SIZE, "data_files_size_in_mb": 100,
+                "video_files_size_in_mb": max(1, round(self._video_file_bytes / (1 << 20))), "fps": self.fps,
+                "splits": {"train": f"0:{len(self._episodes)}"}, "data_path": DATA_PATH,
+                "video_path": VIDEO_PATH if videos else None, "features": {**videos, **self.all_features},
+                **self.extra_info}
         (meta / "info.json").write_text(json.dumps(info, indent=4))
         self.partial.rename(self.root)
         return self.root
@@ -303,6 +385,9 @@ class DatasetWriter:
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+        for writer in self._videos.values():
+            writer.abort()
+        self._videos.clear()
         shutil.rmtree(self.partial, ignore_errors=True)
 
 
@@ -395,8 +480,73 @@ def _column(table: Any, name: str, feature: dict[str, Any], where: Path) -> np.n
                                  f"({exc})") from None
 
 
-def read_dataset(root: Path | str, *, max_frames: int = 10_000_000) -> RecordedDataset:
-    """Read a LeRobot v3.0 dataset's frames (not its videos) into numpy; raises :class:`DatasetFormatError`."""
+def _video_features(root: Path, info: dict[str, Any]) -> dict[str, tuple[int, int]]:
+    """``{feature: (height, width)}`` of the dataset's video features, checked."""
+    out: dict[str, tuple[int, int]] = {}
+    for key, ft in info["features"].items():
+        if ft.get("dtype") != "video":
+            continue
+        shape = ft["shape"]
+        if ft.get("names") in (["channels", "height", "width"], ["channel", "height", "width"]):
+            shape = [*shape[1:], shape[0]]
+        if len(shape) != 3 or shape[2] != 3 or not all(8 <= n <= 8192 for n in shape[:2]):
+            raise DatasetFormatError(f"{root}: video feature {key!r} of shape {ft['shape']}: uniros reads RGB "
+                                     "frames of 8 to 8192 pixels a side")
+        out[key] = (int(shape[0]), int(shape[1]))
+    if out and not isinstance(info.get("video_path"), str):
+        raise DatasetFormatError(f"{root}: info.json has video features but no video_path")
+    return out
+
+
+def _read_videos(root: Path, info: dict[str, Any], episodes: list[RecordedEpisode],
+                 rows: list[dict[str, Any]]) -> None:
+    """Decode every video feature's frames into its episodes' ``frames`` (``n x H x W x 3`` uint8)."""
+    sizes = _video_features(root, info)
+    fps = int(info["fps"])
+    total = sum(len(e) for e in episodes) * sum(h * w * 3 for h, w in sizes.values())
+    if total > MAX_IMAGE_BYTES:
+        raise DatasetFormatError(f"{root}: its images take {total} bytes decoded, more than the {MAX_IMAGE_BYTES} "
+                                 "read at most")
+    base = root.resolve()
+    for key, (height, width) in sizes.items():
+        spans: dict[tuple[int, int], list[tuple[RecordedEpisode, int]]] = {}
+        for ep, row in zip(episodes, rows, strict=True):
+            try:
+                at = (int(row[f"videos/{key}/chunk_index"]), int(row[f"videos/{key}/file_index"]))
+                start, stop = float(row[f"videos/{key}/from_timestamp"]), float(row[f"videos/{key}/to_timestamp"])
+            except (KeyError, TypeError, ValueError):
+                raise DatasetFormatError(f"{root}: episode {ep.index} has no videos/{key}/ columns") from None
+            first = round(start * fps)
+            if (not all(0 <= k < 10_000 for k in at) or not 0 <= first <= 10_000_000 or abs(start * fps - first) > 0.01
+                    or abs((stop - start) * fps - len(ep)) > 0.01):
+                raise DatasetFormatError(f"{root}: episode {ep.index}: videos/{key} from {start} to {stop} s is not "
+                                         f"its {len(ep)} frames at {fps} fps")
+            spans.setdefault(at, []).append((ep, first))
+        for (chunk, file), eps in spans.items():
+            try:
+                path = root / str(info["video_path"]).format(video_key=key, chunk_index=chunk, file_index=file)
+            except (KeyError, IndexError, ValueError):
+                raise DatasetFormatError(f"{root}: video_path {info['video_path']!r} is not a path template") from None
+            if not path.resolve().is_relative_to(base):
+                raise DatasetFormatError(f"{root}: video {path} lies outside the dataset")
+            count = max(first + len(ep) for ep, first in eps)
+            if count * height * width * 3 > MAX_IMAGE_BYTES:
+                raise DatasetFormatError(f"{path}: {count} frames, more than the images read at most")
+            try:
+                images = decode_video(path, width=width, height=height, fps=fps, max_frames=count)
+            except VideoFormatError as exc:
+                raise DatasetFormatError(str(exc)) from None
+            for ep, first in eps:
+                ep.frames[key] = images[first:first + len(ep)]
+
+
+def read_dataset(root: Path | str, *, max_frames: int = 10_000_000, images: bool = False) -> RecordedDataset:
+    """Read a LeRobot v3.0 dataset's frames into numpy; raises :class:`DatasetFormatError`.
+
+    ``images=True`` also decodes its videos: each video feature's frames (``n x height x width x 3`` uint8
+    RGB) in its episodes' ``frames`` (PyAV; the files' sizes, frame sizes and counts checked against
+    ``info.json`` and the episodes' rows, at most :data:`MAX_IMAGE_BYTES` decoded).
+    """
     root = Path(root)
     info = _read_info(root)
     if info["total_frames"] > max_frames:
@@ -413,7 +563,11 @@ def read_dataset(root: Path | str, *, max_frames: int = 10_000_000) -> RecordedD
     data_path = info.get("data_path", DATA_PATH)
     columns: dict[tuple[int, int], dict[str, np.ndarray]] = {}
     episodes: list[RecordedEpisode] = []
-    for row in sorted(ep_rows, key=lambda r: int(r.get("episode_index", -1))):
+    try:
+        ep_rows.sort(key=lambda r: int(r.get("episode_index", -1)))
+    except (TypeError, ValueError):
+        raise DatasetFormatError(f"{root}: an episode row's episode_index is not an integer") from None
+    for row in ep_rows:
         try:
             key = (int(row["data/chunk_index"]), int(row["data/file_index"]))
             start, stop = int(row["dataset_from_index"]), int(row["dataset_to_index"])
@@ -437,4 +591,6 @@ def read_dataset(root: Path | str, *, max_frames: int = 10_000_000) -> RecordedD
         episodes.append(RecordedEpisode(index=index, task=str(tasks[0]) if tasks else "",
                                         frames={k: v[at] for k, v in cols.items()},
                                         success=None if success is None else bool(success), final=final))
+    if images:
+        _read_videos(root, info, episodes, ep_rows)
     return RecordedDataset(root=root, info=info, episodes=episodes)

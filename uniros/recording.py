@@ -1,4 +1,5 @@
-"""``uniros record ID --policy scripted|RUN --episodes N --output DIR``: episodes written as a LeRobot dataset.
+"""``uniros record ID --policy scripted|teleop|RUN --episodes N --output DIR [--images]``: episodes written as
+a LeRobot dataset.
 
 Plays ``N`` episodes of the env ``ID`` (episode ``k`` reset with seed ``S + k``) with its task's scripted
 policy or a trained run (loaded as ``uniros eval`` loads it: the run's env kwargs, its spaces checked, its
@@ -10,7 +11,10 @@ normalisation statistics) and writes every step as a frame of a LeRobot v3.0 dat
     action                       the action taken, as the env took it
     next.reward, next.done       the step's reward and whether the episode ended there
     next.success                 the step's info["is_success"]
+    observation.images.rgb       with --images: the camera's RGB frames, as the dataset's MP4 video
 
+``--images`` makes the env with a camera (``rgb_plus_normal_obs=True``, ``--image-size WxH``) unless
+it already has one, and writes its frames as video (:mod:`uniros.lerobot_video`: h264 by default).
 Each episode carries its task string (the task's kind, e.g. "push the cube to the goal"), its success
 (the last step's ``is_success``) and the observation after its last step (for replay buffers:
 :mod:`uniros.demonstrations_io`). ``info.json`` names the env ID and its spaces under ``"uniros"``.
@@ -27,7 +31,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RecordError", "add_record_parser", "cmd_record", "dataset_features", "frame_of", "main", "record"]
+__all__ = ["RecordError", "add_record_parser", "cmd_record", "dataset_features", "frame_of", "image_env_kwargs", "main",
+           "record"]
 
 #: The task strings of the arm tasks' kinds (the episode's "task" in the dataset).
 TASK_TEXT = {
@@ -52,11 +57,13 @@ def _is_image(space: Any) -> bool:
     return len(getattr(space, "shape", ())) == 3 and getattr(space, "dtype", None) == np.uint8
 
 
-def dataset_features(observation_space: Any, action_space: Any) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
+def dataset_features(observation_space: Any, action_space: Any, *,
+                     images: bool = False) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """The dataset's features for an env's spaces, and ``{feature: observation key}`` ("" for a plain Box).
 
-    Camera images are left out (``--images`` is not recorded yet); a goal env's ``observation`` is
-    ``observation.state``, its other keys ``observation.<key>``.
+    A goal env's ``observation`` is ``observation.state``, its other keys ``observation.<key>``. Camera
+    images (uint8 H x W x 3 keys) are ``observation.images.<key>`` of dtype ``video`` with ``images``, and
+    left out without.
     """
     from gymnasium import spaces
 
@@ -65,6 +72,11 @@ def dataset_features(observation_space: Any, action_space: Any) -> tuple[dict[st
     if isinstance(observation_space, spaces.Dict):
         for key, sub in observation_space.spaces.items():
             if _is_image(sub):
+                if images:
+                    name = f"observation.images.{key}"
+                    feats[name] = {"dtype": "video", "shape": [int(n) for n in sub.shape or ()],
+                                   "names": ["height", "width", "channels"]}
+                    keys[name] = key
                 continue
             if not isinstance(sub, spaces.Box):
                 raise RecordError(f"observation key {key!r} is a {type(sub).__name__}: only Box observations record")
@@ -105,8 +117,10 @@ def _fps(env: Any) -> int:
 
 
 def record(env: Any, policy: Callable[[Any], Any], episodes: int, output: Path, *, env_id: str, seed: int = 0,
-           progress: bool = True, reset: Callable[[], None] | None = None) -> dict[str, Any]:
-    """Play ``episodes`` episodes of ``env`` with ``policy`` and write them to the new dataset ``output``.
+           progress: bool = True, reset: Callable[[], None] | None = None, images: bool = False,
+           video: Any = None) -> dict[str, Any]:
+    """Play ``episodes`` episodes of ``env`` with ``policy`` and write them to the new dataset ``output``;
+    ``images``: its camera images too, as video (``video``: a :class:`uniros.lerobot_video.VideoSettings`).
 
     Returns ``{"episodes", "frames", "success_rate", "path"}``. On any error (or Ctrl-C) nothing is left
     at ``output``.
@@ -117,13 +131,17 @@ def record(env: Any, policy: Callable[[Any], Any], episodes: int, output: Path, 
 
     if episodes <= 0:
         raise RecordError(f"--episodes must be at least 1, got {episodes}")
-    feats, keys = dataset_features(env.observation_space, env.action_space)
+    feats, keys = dataset_features(env.observation_space, env.action_space, images=images)
+    if images and not any(ft["dtype"] == "video" for ft in feats.values()):
+        raise RecordError(f"{env_id}'s observations have no camera image (uint8 H x W x 3): make it with "
+                          "rgb_plus_normal_obs=True, or record without --images")
     arm = getattr(getattr(env.unwrapped, "task", None), "arm", None)
     robot = getattr(arm, "name", None) or env_id.split("-")[0]
     extra = {"uniros": {"env_id": env_id, "observation_keys": keys,
                         "action_shape": list(env.action_space.shape), "seed": seed}}
-    writer = DatasetWriter(output, _fps(env), feats, robot_type=str(robot), extra_info=extra)
+    writer = DatasetWriter(output, _fps(env), feats, robot_type=str(robot), extra_info=extra, video=video)
     task = task_text(env, env_id)
+    state_keys = {k: v for k, v in keys.items() if feats[k]["dtype"] != "video"}  # the final obs: no image
     successes = frames = 0
     bar = tqdm(total=episodes, unit="episode", desc=f"recording {env_id}", disable=not progress)
     try:
@@ -146,7 +164,7 @@ def record(env: Any, policy: Callable[[Any], Any], episodes: int, output: Path, 
                 frames += 1
             success = bool(info.get("is_success", False))
             successes += int(success)
-            writer.save_episode(task, success=success, final=frame_of(obs, keys))
+            writer.save_episode(task, success=success, final=frame_of(obs, state_keys))
             bar.update(1)
             bar.set_postfix(success=f"{successes}/{k + 1}")
         path = writer.finalize()
@@ -202,9 +220,44 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--output", required=True, metavar="DIR", help="the new dataset's folder (must not exist)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="episode k is reset with seed S + k (default 0)")
     p.add_argument("--images", action="store_true",
-                   help="also record the camera images as video (not there yet: refused with a message)")
+                   help="also record the camera's RGB images, as the dataset's MP4 video (the env is made with "
+                        "rgb_plus_normal_obs=True unless it has a camera already)")
+    p.add_argument("--image-size", metavar="WxH", help="with --images: the camera's width x height (default 84x84; "
+                                                         "even numbers)")
+    p.add_argument("--video-codec", default="h264", metavar="CODEC",
+                   help="with --images: h264 (default), hevc or libsvtav1 (LeRobot's default: smaller, slower)")
+    p.add_argument("--crf", type=int, default=23, help="with --images: the video's quality, 0 best .. 51 (%(default)s)")
     p.add_argument("--device", default=None, help="torch device of a trained run (default: auto)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def image_env_kwargs(args: argparse.Namespace, kwargs: dict[str, Any]) -> dict[str, Any]:
+    """The env keywords ``--images`` and ``--image-size`` add to ``kwargs`` (a run's env kwargs): a camera
+    observation (``rgb_plus_normal_obs=True``) unless ``kwargs`` already asks for one, and its size."""
+    from rl_environments.camera_obs import MODES
+
+    if not args.images:
+        if args.image_size:
+            raise RecordError("--image-size is the size of the recorded images: give --images too")
+        return {}
+    extra: dict[str, Any] = {}
+    if not any(kwargs.get(mode) for mode in MODES):
+        extra["rgb_plus_normal_obs"] = True
+    if args.image_size:
+        width, sep, height = str(args.image_size).lower().partition("x")
+        if not (sep and width.isdigit() and height.isdigit()):
+            raise RecordError(f"--image-size {args.image_size!r}: give WIDTHxHEIGHT, e.g. 64x48")
+        extra["image_width"], extra["image_height"] = int(width), int(height)
+    return extra
+
+
+def _video_settings(args: argparse.Namespace) -> Any:
+    from uniros.lerobot_video import VideoFormatError, VideoSettings
+
+    try:
+        return VideoSettings(codec=args.video_codec, crf=args.crf)
+    except VideoFormatError as exc:
+        raise RecordError(f"--video-codec/--crf: {exc}") from None
 
 
 def add_record_parser(subparsers: Any) -> argparse.ArgumentParser:
@@ -223,13 +276,12 @@ def cmd_record(args: argparse.Namespace) -> int:
     output = Path(args.output)
     if output.exists():
         raise RecordError(f"{output} exists: record into a new folder")
-    if args.images:
-        raise RecordError("--images: recording camera images as video is not there yet; record without --images")
+    video = _video_settings(args)
     env_id = check_env_id(args.env_id)
     kwargs: dict[str, Any] = {}
     model_path = None
     if args.policy == "teleop":
-        return _record_teleop(args, env_id, output)
+        return _record_teleop(args, env_id, output, video)
     if args.joy or args.twist:
         raise RecordError("--joy and --twist are teleop's inputs: give --policy teleop")
     if args.policy != "scripted":
@@ -237,6 +289,7 @@ def cmd_record(args: argparse.Namespace) -> int:
 
         model_path = resolve_model_path(args.policy)
         kwargs = saved_env_kwargs(model_path, env_id) or {}
+    kwargs = {**kwargs, **image_env_kwargs(args, kwargs)}
     env = make_env(env_id, **kwargs)
     try:
         if model_path is None:
@@ -244,15 +297,15 @@ def cmd_record(args: argparse.Namespace) -> int:
         else:
             policy, reset = _trained(model_path, env, env_id, args.device), None
         result = record(env, policy, args.episodes, output, env_id=env_id, seed=args.seed,
-                        progress=not args.no_progress, reset=reset)
+                        progress=not args.no_progress, reset=reset, images=args.images, video=video)
     finally:
         env.close()
     print(f"{result['path']}: {result['episodes']} episodes, {result['frames']} frames of {env_id}, "
-          f"success {result['success_rate']:.2f} (LeRobot v3.0 dataset)")
+          f"success {result['success_rate']:.2f} (LeRobot v3.0 dataset{', images as video' if args.images else ''})")
     return 0
 
 
-def _record_teleop(args: argparse.Namespace, env_id: str, output: Path) -> int:
+def _record_teleop(args: argparse.Namespace, env_id: str, output: Path, video: Any) -> int:
     """``--policy teleop``: a person drives (:mod:`uniros.teleop`), the env at its control rate, every step written."""
     import threading
     import time
@@ -272,7 +325,8 @@ def _record_teleop(args: argparse.Namespace, env_id: str, output: Path) -> int:
     env = None
     try:
         extra: dict[str, Any] = {"context": context} if "Real" in env_id else {}
-        env = make_env(env_id, **teleop_env_kwargs(env_id), **extra)
+        kwargs = teleop_env_kwargs(env_id)
+        env = make_env(env_id, **kwargs, **image_env_kwargs(args, kwargs), **extra)
         source = TeleopInput()
         person = TeleopPolicy(source, env.action_space)
         node = subscribe(context, source, args)
@@ -289,7 +343,7 @@ def _record_teleop(args: argparse.Namespace, env_id: str, output: Path) -> int:
             return person(obs)
 
         result = record(env, paced, args.episodes, output, env_id=env_id, seed=args.seed,
-                        progress=not args.no_progress, reset=None)
+                        progress=not args.no_progress, reset=None, images=args.images, video=video)
     finally:
         if env is not None:
             env.close()
