@@ -12,9 +12,11 @@ which type it is. Nodes start them on transports whose graph ROS tools reach
 Requests are hostile input like any other: an unknown type code or a value that does not fit its
 type is a refused parameter with the reason, never an exception out of the service. What one request
 may cost is bounded, so a flood takes its turn without holding the node's other services back: at most
-:data:`MAX_NAMES` names, prefixes or parameters a request (more: one refused result that says so, or empty
-answers), values of at most :data:`MAX_ARRAY` elements and :data:`MAX_TEXT` characters, reasons of at most
-:data:`MAX_REASON` characters.
+:data:`MAX_REQUEST_BYTES` bytes a request where the transport sees its size before decoding it (rclpy's:
+a larger request is refused without being decoded, :meth:`~multiros.ros.service.Service.bound_requests`),
+at most :data:`MAX_NAMES` names, prefixes or parameters a request (more: one refused result that says so,
+or empty answers), values of at most :data:`MAX_ARRAY` elements and :data:`MAX_TEXT` characters, reasons
+of at most :data:`MAX_REASON` characters.
 """
 
 from __future__ import annotations
@@ -28,8 +30,8 @@ from multiros.ros.parameters import Parameter
 if TYPE_CHECKING:
     from multiros.ros.node import Node
 
-__all__ = ["MAX_ARRAY", "MAX_NAMES", "MAX_REASON", "MAX_TEXT", "PARAMETER_SERVICES", "ParameterServices",
-           "from_value_msg", "to_value_msg"]
+__all__ = ["MAX_ARRAY", "MAX_NAMES", "MAX_REASON", "MAX_REQUEST_BYTES", "MAX_TEXT", "PARAMETER_SERVICES",
+           "ParameterServices", "from_value_msg", "to_value_msg"]
 
 #: Name under the node (``~/<name>``) -> service type.
 PARAMETER_SERVICES: dict[str, str] = {
@@ -45,6 +47,10 @@ MAX_NAMES = 256  # names or parameters one request may carry
 MAX_ARRAY = 10_000  # elements of an array value
 MAX_TEXT = 65_536  # characters of a string value, bytes of a byte array
 MAX_REASON = 300  # characters of a refusal's reason
+# Bytes (CDR) of one request: MAX_NAMES parameters of names and small values (~20 KB), or one array of
+# MAX_ARRAY doubles (80 KB), or a string of MAX_TEXT, with room to spare. A SetParameters of 10,000
+# parameters is 720 KB, a GetParameters of 100,000 names 2 MB: refused before they are decoded.
+MAX_REQUEST_BYTES = 256 * 1024
 # ParameterValue's field for each type code (rcl_interfaces/msg/ParameterType).
 _FIELDS = {1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value", 5: "byte_array_value",
            6: "bool_array_value", 7: "integer_array_value", 8: "double_array_value", 9: "string_array_value"}
@@ -110,6 +116,17 @@ def _check_size(name: str, msg: Any) -> None:
             raise ValueError(f"parameter '{name[:80]}': a string longer than {MAX_TEXT:,} characters")
 
 
+def _refuse_oversize(size: int, response: Any) -> Any:
+    """The answer to a request of ``size`` bytes over :data:`MAX_REQUEST_BYTES`, never decoded: for a set,
+    one refused result that says so; for the other services an empty answer (as over :data:`MAX_NAMES`)."""
+    reason = f"refused: a request of {size:,} bytes; at most {MAX_REQUEST_BYTES:,}"
+    if hasattr(response, "results"):  # SetParameters
+        response.results = [get_message("rcl_interfaces/msg/SetParametersResult")(successful=False, reason=reason)]
+    elif hasattr(response, "result") and hasattr(response.result, "successful"):  # SetParametersAtomically
+        response.result.successful, response.result.reason = False, reason
+    return response
+
+
 def list_names(names: Iterable[str], prefixes: list[str], depth: int) -> tuple[list[str], list[str]]:
     """``(names, prefixes)`` of ``ListParameters``: the names under any of ``prefixes`` (all without
     one) at most ``depth`` levels below it (0: any depth), and the prefixes those names have."""
@@ -144,6 +161,8 @@ class ParameterServices:
         }
         self.services = [node.create_service(get_service(type_name), f"~/{name}", handlers[name])
                          for name, type_name in PARAMETER_SERVICES.items()]
+        for srv in self.services:
+            srv.bound_requests(MAX_REQUEST_BYTES, _refuse_oversize)
 
     def destroy(self) -> None:
         for srv in self.services:

@@ -20,6 +20,11 @@ whatever the peer put there. ``inproc:<node>#<n>`` for a client in the same cont
 ``dds:<guid hex>`` for the writer GUID of a request over rclpy; ``None`` where the transport does
 not tell (callers then share one anonymous identity). The prefixes keep one transport's callers
 from posing as another's.
+
+Bounded requests: :meth:`Service.bound_requests` names the most bytes (CDR) a request may have. A
+transport that sees a request's encoded size before decoding it (rclpy's) does not decode a larger
+one: the service's ``refuse`` answers it (a response saying so) or, without one, it is dropped with a
+throttled warning, so a flood of huge requests costs the node no decoding and no callback.
 """
 
 from __future__ import annotations
@@ -64,6 +69,27 @@ class Service:
         self._response_cls = srv_type.Response
         self._lock = node._callback_lock if callback_group is None else callback_group.lock
         self._wire: Any = None
+        self.max_request_bytes: int | None = None
+        self._refuse: Callable[[int, Any], Any] | None = None
+
+    def bound_requests(self, max_bytes: int, refuse: Callable[[int, Any], Any] | None = None) -> None:
+        """Requests of more than ``max_bytes`` bytes (CDR) are not decoded where the transport can tell
+        (see the module docstring): ``refuse(size, response) -> response`` answers them, or they are dropped."""
+        if max_bytes < 1:
+            raise ValueError(f"service '{self.srv_name}': max_bytes must be >= 1, not {max_bytes}")
+        self.max_request_bytes = int(max_bytes)
+        self._refuse = refuse
+
+    def _refused(self, size: int) -> Any:
+        """The answer to a request of ``size`` bytes over :attr:`max_request_bytes`: the refusal's
+        response, or None (dropped)."""
+        if self._refuse is None:
+            return None
+        try:
+            return self._refuse(size, self._response_cls())
+        except Exception as exc:
+            raise ServiceCallError(self.srv_name, f"refusing an oversize request raised {type(exc).__name__}: "
+                                                  f"{exc}") from exc
 
     @property
     def service_name(self) -> str:

@@ -124,3 +124,25 @@ def test_what_one_request_may_cost_is_bounded(served) -> None:
     (result,) = call("set_parameters", parameters=[long_name]).results
     assert not result.successful and len(result.reason) <= MAX_REASON
     assert node.get_parameter("gains.kp").value == 10.0 and "flood.p0" not in node._parameters.values
+
+
+def test_every_parameter_service_is_bounded_in_bytes_and_refuses_what_is_over() -> None:
+    """A transport that sees a request's size (rclpy's) asks the service for its refusal instead of decoding it:
+    a set gets one refused result with the size, an atomic set a refused result, the others empty answers."""
+    from multiros.ros.parameter_services import MAX_REQUEST_BYTES
+
+    ctx = ros.Context(transport="inproc").init()
+    try:
+        services = ParameterServices(ros.Node("sim", context=ctx))
+        by_name = {srv.srv_name.rsplit("/", 1)[1]: srv for srv in services.services}
+        assert all(srv.max_request_bytes == MAX_REQUEST_BYTES for srv in services.services)
+        (result,) = by_name["set_parameters"]._refused(720_052).results
+        assert not result.successful and result.reason == "refused: a request of 720,052 bytes; at most 262,144"
+        atomic = by_name["set_parameters_atomically"]._refused(10**7).result
+        assert not atomic.successful and "10,000,000 bytes" in atomic.reason
+        assert list(by_name["get_parameters"]._refused(2_000_000).values) == []
+        assert list(by_name["list_parameters"]._refused(2_000_000).result.names) == []
+        with pytest.raises(ValueError, match="max_bytes"):
+            services.services[0].bound_requests(0)
+    finally:
+        ctx.try_shutdown()

@@ -119,6 +119,25 @@ def test_the_node_s_settings_are_ros_parameters(sim) -> None:
         assert not result.successful and "read-only" in result.reason
 
 
+def test_an_oversize_parameter_request_is_refused_without_being_decoded(sim) -> None:
+    """Over 256 KiB (``MAX_REQUEST_BYTES``): a set answered with one refused result that gives the size, a
+    get with an empty answer, each in well under a second; a request of a usual size is answered after."""
+    import time
+
+    with PlainPeer("param_flooder") as peer:
+        flood = [Parameter(name=f"flood.p{i}", value=ParameterValue(type=ParameterType.PARAMETER_INTEGER,
+                                                                    integer_value=i)) for i in range(10_000)]
+        peer.call(GetParameters, f"{SIM}/get_parameters", GetParameters.Request(names=["use_sim_time"]))  # warm
+        start = time.monotonic()
+        (result,) = peer.call(SetParameters, f"{SIM}/set_parameters", SetParameters.Request(parameters=flood)).results
+        assert not result.successful and "bytes; at most 262,144" in result.reason, result.reason
+        names = [f"flood.p{i}" for i in range(100_000)]
+        assert list(peer.call(GetParameters, f"{SIM}/get_parameters", GetParameters.Request(names=names)).values) == []
+        assert time.monotonic() - start < 5.0  # both, with the client's own conversions (~0.2 s)
+        (value,) = peer.call(GetParameters, f"{SIM}/get_parameters", GetParameters.Request(names=["max_robots"])).values
+        assert value.integer_value == 4
+
+
 BOX = """<mujoco><worldbody><body name="box"><freejoint/><geom type="box" size="0.03 0.03 0.03" mass="0.1"/>
 </body></worldbody></mujoco>"""
 

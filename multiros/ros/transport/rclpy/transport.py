@@ -55,12 +55,14 @@ from typing import TYPE_CHECKING, Any
 
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError, TransportError
 from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
+from multiros.ros.logging import LogThrottle
 from multiros.ros.qos import DurabilityPolicy, HistoryPolicy, QoSProfile
 from multiros.ros.task import Future
 from multiros.ros.transport.base import Transport
 from multiros.ros.transport.rclpy import loop as wire_loop
 from multiros.ros.transport.rclpy.lanes import ServiceLanes
 from multiros.ros.transport.rclpy.loader import import_rclpy
+from multiros.ros.transport.rclpy.raw_service import raw_service_io
 from multiros.ros.transport.rclpy.types import PRIVATE_PACKAGES, InstalledTypes, MissingInterfacePackageError
 
 if TYPE_CHECKING:
@@ -441,17 +443,43 @@ class _SubscriptionHandle(_Entity):
 
 
 class _ServiceHandle(_Entity):
+    """A service: requests taken as CDR bytes (``raw_service.py``) where that can be set up, else as
+    rclpy messages; either way queued in their client's lane and served on a worker."""
+
     def __init__(self, transport: RclpyTransport, srv: Service, rcls: Any) -> None:
         super().__init__(transport, srv.node)
+        from multiros.ros.interfaces import deserialize_message, serialize_message
+
         self._srv_entity = srv
         self._rcls = rcls
         self._request_type = srv.srv_type.Request
+        self._decode = deserialize_message
+        self._encode = serialize_message
         self._srv = self.rnode.create_service(rcls, srv.srv_name, _never_called,
                                               qos_profile=transport.qos(srv.qos_profile, keep_all=True))
+        self._raw = raw_service_io(self._srv, rcls)
         self._what = f"a request of service '{srv.srv_name}'"
-        transport.loop.add(wire_loop.SERVICE, self._srv, self._on_ready)
+        self._oversize = LogThrottle()
+        on_ready = self._on_ready if self._raw is not None else self._on_ready_rclpy
+        transport.loop.add(wire_loop.SERVICE, self._srv, on_ready)
 
     def _on_ready(self) -> None:
+        """Take the waiting requests as bytes (the receive thread: the handle is entered); a request over
+        the service's bound is queued as its refusal, never decoded."""
+        assert self._raw is not None
+        take, lanes, srv = self._raw.take, self.transport.lanes, self._srv_entity
+        for _ in range(_TAKE_PER_WAKE):
+            request = take()
+            if request is None:
+                return
+            limit = srv.max_request_bytes
+            if limit is not None and len(request.data) > limit:
+                size, rid = len(request.data), request.request_id
+                lanes.submit(request.client, lambda n=size, r=rid: self._refuse(n, r), self._what)
+            else:
+                lanes.submit(request.client, lambda r=request: self._take_raw(r.data, r.request_id), self._what)
+
+    def _on_ready_rclpy(self) -> None:
         take = self._srv.handle.service_take_request
         request_type = self._rcls.Request
         for _ in range(_TAKE_PER_WAKE):
@@ -462,13 +490,38 @@ class _ServiceHandle(_Entity):
             lane = client_of(header.request_id)
             self.transport.lanes.submit(lane, lambda r=request, h=header, c=lane: self._take(r, h, c), self._what)
 
+    def _refuse(self, size: int, request_id: Any) -> None:
+        srv = self._srv_entity
+        try:
+            response = srv._refused(size)
+        except Exception as exc:  # noqa: BLE001 - a refusal that failed: nothing to send
+            _log.warning("%s (no reply sent)", exc)
+            return
+        if response is None:
+            self._oversize.log(_log, logging.WARNING, "service '%s': dropped a request of %d bytes (at most %d)",
+                               srv.srv_name, size, srv.max_request_bytes)
+            return
+        self._reply(response, request_id)
+
+    def _take_raw(self, data: bytes, request_id: Any) -> None:
+        try:
+            req = self._decode(data, self._request_type, trailing="ignore")
+        except Exception as exc:  # noqa: BLE001 - garbage from the wire must not kill the node
+            _log.warning("service '%s': dropped a malformed request: %s: %s", self._srv_entity.srv_name,
+                         type(exc).__name__, exc)
+            return
+        self._serve(req, request_id, bytes(bytearray(request_id.writer_guid)))
+
     def _take(self, request: Any, header: Any, lane: Hashable = None) -> None:
-        name = self._srv_entity.srv_name
         try:
             req = self.transport.from_rclpy(request, self._request_type)
         except Exception as exc:  # noqa: BLE001 - garbage from the wire must not kill the node
-            _log.warning("service '%s': dropped a malformed request: %s: %s", name, type(exc).__name__, exc)
+            _log.warning("service '%s': dropped a malformed request: %s: %s", self._srv_entity.srv_name,
+                         type(exc).__name__, exc)
             return
+        self._serve(req, header, lane)
+
+    def _serve(self, req: Any, header: Any, lane: Hashable) -> None:
         try:
             # The writer GUID names the caller for accounting only (current_caller); unknown: None.
             caller = "dds:" + lane.hex() if isinstance(lane, bytes) else None
@@ -490,16 +543,21 @@ class _ServiceHandle(_Entity):
         self._reply(done.result(), header)
 
     def _reply(self, response: Any, header: Any) -> None:
+        """Send ``response`` to the request of ``header`` (rclpy's header, or the raw request id)."""
         if self._closed:
             return
         name = self._srv_entity.srv_name
         try:
-            out = self.transport.to_rclpy(response, self._rcls.Response)
+            out = (self._encode(response) if self._raw is not None
+                   else self.transport.to_rclpy(response, self._rcls.Response))
         except Exception as exc:  # noqa: BLE001
             _log.warning("service '%s': could not encode the response: %s: %s", name, type(exc).__name__, exc)
             return
         try:
-            self._srv.send_response(out, header)
+            if self._raw is not None:
+                self._raw.send(out, header)
+            else:
+                self._srv.send_response(out, header)
         except Exception as exc:  # noqa: BLE001 - the client went away, or the transport closed
             _log.debug("service '%s': could not send the reply: %s", name, exc)
 
