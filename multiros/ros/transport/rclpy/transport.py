@@ -28,12 +28,13 @@ through fields:
   subscriptions are ``raw=True`` (measured for a 6-joint JointState: our serializer 5.9 us
   against 12.2 us to copy it into an rclpy message field by field, before rclpy converts that
   message to C again to publish it);
-* services: rclpy gives and takes message objects (it has no raw service API), so a request or
-  response crosses as ``rclpy.serialization`` CDR and our codec (23.8-27.2 us for a JointState
-  each way) where a field copy written for one type costs 3.4-12.2 us. We take the ~15 us: one
-  exact path for every type (bytes, ``char``, bounded and fixed arrays, nested sequences) instead
-  of a per-type field mapping, against a DDS service round trip of 0.3-3 ms. (Figures:
-  ``benchmarks/bench_rclpy.py --conversion``.)
+* services: rclpy gives and takes message objects (it has no raw service API), and converting a
+  large one holds the GIL for as long as it takes (a 10,000-parameter request: 170 ms to take, 63 ms
+  more to serialize). ``raw_service.py`` takes requests and sends responses as CDR bytes through rcl
+  and rmw themselves (ctypes, the GIL released), so a request's size is known before any decoding
+  (``Service.bound_requests``: the parameter services refuse one over 256 KiB without decoding it).
+  Where that cannot be set up, requests cross as rclpy messages, ``rclpy.serialization`` CDR and our
+  codec. Clients still send and take rclpy messages: our requests, our size.
 
 Topics within one context go through rclpy too (it delivers to subscriptions of its own process),
 not through the context's registry: rclpy cannot drop a process's own publications, so routing
