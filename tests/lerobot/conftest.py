@@ -9,6 +9,8 @@ The tests that need LeRobot skip where it is not installed (the project venv).
 
 from __future__ import annotations
 
+import importlib
+import importlib.metadata
 import os
 import sys
 from pathlib import Path
@@ -32,10 +34,14 @@ def _real_torchvision_imports() -> bool:
 def lerobot_path() -> str:
     """LeRobot importable (the torchvision stand-in first on the path if needed); returns the
     ``PYTHONPATH`` for LeRobot's own processes."""
-    # "lerobot.envs", not "lerobot": where LeRobot is not installed, this very folder (tests/lerobot, on
-    # sys.path through tests/) imports as a namespace package named "lerobot".
-    pytest.importorskip("lerobot.envs")
+    # The distribution, not ``import lerobot``: where LeRobot is not installed, this very folder
+    # (tests/lerobot, on sys.path through tests/) imports as a namespace package named "lerobot".
+    try:
+        importlib.metadata.version("lerobot")
+    except importlib.metadata.PackageNotFoundError:
+        pytest.skip("LeRobot is not installed (.ci/lerobot makes .venv-lerobot)")
     if not _real_torchvision_imports() and str(STUB) not in sys.path:
         sys.path.insert(0, str(STUB))
+    importlib.import_module("lerobot.envs")  # where LeRobot is installed, a failure here is the test's
     paths = [p for p in (str(STUB) if str(STUB) in sys.path else "", os.environ.get("PYTHONPATH", "")) if p]
     return os.pathsep.join(paths)
