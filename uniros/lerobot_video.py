@@ -53,12 +53,14 @@ def _av() -> Any:
 class VideoSettings:
     """How a dataset's videos are encoded: ``codec`` one of :data:`VIDEO_CODECS`, ``crf`` its quality
     (0 best .. 51; LeRobot's default is 30, x264's 23), ``gop`` frames between key frames (LeRobot: 2, so
-    that a reader seeks to any frame cheaply), ``pix_fmt`` ``yuv420p`` (what every decoder reads)."""
+    that a reader seeks to any frame cheaply), ``pix_fmt`` ``yuv420p`` (what every decoder reads),
+    ``preset`` the h264/hevc encoder's speed (files as small as with x264's "medium" at these sizes)."""
 
     codec: str = "h264"
     crf: int = 23
     gop: int = 2
     pix_fmt: str = "yuv420p"
+    preset: str = "veryfast"
 
     def __post_init__(self) -> None:
         if self.codec not in VIDEO_CODECS:
@@ -86,6 +88,8 @@ class VideoFileWriter:
         options = {"g": str(settings.gop), "crf": str(settings.crf)}
         if settings.codec == "libsvtav1":
             options["svtav1-params"] = "lp=1"  # one thread: the machine's other work goes on
+        else:  # x264/x265: "veryfast" costs 0.14 ms a 84 x 84 frame, "medium" (their default) 0.25, same size
+            options.update(preset=settings.preset, threads="1")
         self._time_base = Fraction(1, self.fps)
         self._container = av.open(str(self.path), "w", format="mp4")
         try:
@@ -148,16 +152,29 @@ class VideoFileWriter:
 def image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
     """LeRobot's statistics of an episode's frames (``n x H x W x 3`` uint8): per channel (shape 3 x 1 x 1),
     in [0, 1], over at most 100 evenly spaced frames (``compute_stats.sample_indices`` for short episodes;
-    ``count`` is the frames sampled)."""
+    ``count`` is the frames sampled). Computed from each channel's 256-bin histogram: the same values as
+    numpy's (its quantiles interpolated between order statistics), a few times cheaper than sorting."""
     n = len(frames)
     samples = min(n, max(100, min(int(n ** 0.75), 10_000)))
-    picked = frames[np.round(np.linspace(0, n - 1, samples)).astype(int)]
-    pixels = picked.reshape(-1, 3).astype(np.float64) / 255.0
-    out = {"min": pixels.min(axis=0), "max": pixels.max(axis=0), "mean": pixels.mean(axis=0),
-           "std": pixels.std(axis=0)}
-    for q, value in zip(_QUANTILES, np.quantile(pixels, _QUANTILES, axis=0), strict=True):
-        out[f"q{round(q * 100):02d}"] = value
-    stats = {k: v.reshape(3, 1, 1) for k, v in out.items()}
+    picked = frames[np.round(np.linspace(0, n - 1, samples)).astype(int)].reshape(-1, 3)
+    levels = np.arange(256, dtype=np.float64)
+    out: dict[str, list[float]] = {}
+    for c in range(3):
+        hist = np.bincount(picked[:, c], minlength=256).astype(np.float64)
+        total = hist.sum()
+        mean = float(levels @ hist / total)
+        nonzero = np.flatnonzero(hist)
+        values = {"min": float(nonzero[0]), "max": float(nonzero[-1]), "mean": mean,
+                  "std": float(np.sqrt(((levels - mean) ** 2) @ hist / total))}
+        ends = np.cumsum(hist)  # the sorted pixels' k-th value is the first level whose count passes k
+        for q in _QUANTILES:
+            at = (total - 1) * q
+            low = int(np.floor(at))
+            lo, hi = np.searchsorted(ends, [low + 1, min(low + 2, total)])
+            values[f"q{round(q * 100):02d}"] = float(lo + (at - low) * (hi - lo))
+        for key, value in values.items():
+            out.setdefault(key, []).append(value / 255.0)
+    stats = {k: np.array(v).reshape(3, 1, 1) for k, v in out.items()}
     stats["count"] = np.array([samples], np.int64)
     return stats
 

@@ -22,7 +22,7 @@ pytest.importorskip("pyarrow")
 pytest.importorskip("av")
 
 from uniros.lerobot_dataset import DatasetFormatError, DatasetWriter, read_dataset
-from uniros.lerobot_video import VideoSettings
+from uniros.lerobot_video import VideoSettings, image_stats
 from uniros.recording import main as record_main
 from uniros.recording import record
 from uniros.run_envs import make_env
@@ -115,6 +115,20 @@ def _gradient(n: int, height: int = 32, width: int = 48, shift: int = 0) -> np.n
     y, x = np.mgrid[0:height, 0:width]
     return np.stack([np.stack([np.minimum(x * 4 + 3 * (k + shift), 255), y * 6 + k, np.full_like(x, 40 + 2 * k)],
                               axis=-1).astype(np.uint8) for k in range(n)])
+
+
+def test_image_stats_are_numpys() -> None:
+    """The histogram statistics equal numpy's over the sampled pixels (LeRobot's layout: 3 x 1 x 1, in [0, 1])."""
+    frames = np.random.default_rng(0).integers(0, 256, (130, 12, 16, 3), dtype=np.uint8)
+    frames[:, :, :, 2] //= 7  # a channel of few levels: the quantiles fall between equal values
+    stats = image_stats(frames)
+    assert int(stats["count"][0]) == 100
+    pixels = frames[np.round(np.linspace(0, 129, 100)).astype(int)].reshape(-1, 3) / 255.0
+    expected = {"min": pixels.min(0), "max": pixels.max(0), "mean": pixels.mean(0), "std": pixels.std(0),
+                **{f"q{round(q * 100):02d}": np.quantile(pixels, q, axis=0) for q in (0.01, 0.1, 0.5, 0.9, 0.99)}}
+    for key, value in expected.items():
+        assert stats[key].shape == (3, 1, 1)
+        np.testing.assert_allclose(stats[key].ravel(), value, atol=1e-12, err_msg=key)
 
 
 def _write(root: Path, lengths: tuple[int, ...] = (6, 9), **kwargs: Any) -> list[np.ndarray]:
