@@ -189,6 +189,10 @@ class DatasetWriter:
         self.video_features: dict[str, dict[str, Any]] = {
             k: {"dtype": "video", "shape": [int(n) for n in v["shape"]], "names": _IMAGE_NAMES}
             for k, v in features.items() if v["dtype"] == "video"}
+        for name, ft in self.video_features.items():
+            if ft["shape"][0] % 2 or ft["shape"][1] % 2:
+                raise DatasetFormatError(f"feature {name!r}: images of {ft['shape'][1]} x {ft['shape'][0]}: video "
+                                         "needs an even width and height (e.g. --image-size 64x48)")
         self.all_features = {**self.features, **INDEX_FEATURES}
         self.robot_type, self.extra_info = robot_type, dict(extra_info or {})
         self.partial = self.root.with_name(self.root.name + ".partial")
@@ -244,6 +248,7 @@ class DatasetWriter:
         n = len(next(iter(self._frames.values()))) if self._frames else 0
         if n == 0:
             raise DatasetFormatError("an episode needs at least one frame")
+        images = {key: self._episode_images(key, n) for key in self.video_features}  # checked before anything is kept
         ep = len(self._episodes)
         task_index = self._tasks.setdefault(task, len(self._tasks))
         cols: dict[str, np.ndarray] = {}
@@ -273,10 +278,9 @@ class DatasetWriter:
         row: dict[str, Any] = {"episode_index": ep, "tasks": [task], "length": n, "data/chunk_index": 0,
                                "data/file_index": 0, "dataset_from_index": self._total,
                                "dataset_to_index": self._total + n}
-        for key in self.video_features:
-            images = self._episode_images(key, n)
-            row.update(self._write_video(key, images))
-            stats[key] = image_stats(images)
+        for key, frames in images.items():
+            row.update(self._write_video(key, frames))
+            stats[key] = image_stats(frames)
         self._stats.append(stats)
         for key, st in stats.items():
             for name, value in st.items():

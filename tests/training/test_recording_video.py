@@ -154,6 +154,23 @@ def test_a_full_video_file_goes_on_in_the_next(tmp_path: Path) -> None:
         assert np.abs(ep.frames[CAMERA].astype(np.int16) - frames).mean() < 2.0
 
 
+def test_a_dropped_episode_and_an_interrupted_recording_leave_no_frames(tmp_path: Path) -> None:
+    feats = {"observation.state": {"dtype": "float32", "shape": [2]}, CAMERA: {"dtype": "video", "shape": [32, 48, 3]}}
+    frames = _gradient(4)
+    writer = DatasetWriter(tmp_path / "ds", 10, feats)
+    for k in range(3):
+        writer.add_frame({"observation.state": np.zeros(2), CAMERA: frames[k]})
+    writer.clear_episode()  # dropped: its images with its state
+    for k in range(4):
+        writer.add_frame({"observation.state": np.zeros(2), CAMERA: frames[k]})
+    writer.save_episode("t")
+    writer.add_frame({"observation.state": np.zeros(2), CAMERA: frames[0][:16]})
+    with pytest.raises(DatasetFormatError, match="an image of shape"):
+        writer.save_episode("t")
+    writer.abort()  # an open video file, then Ctrl-C: nothing left
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("fault, expected", [
     ("garbage", "not a readable video"),
     ("missing", "file-000.mp4: missing"),
