@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def _source_packages() -> set[str]:
     found = set()
-    for top in ("multiros", "uniros", "rl_environments"):
+    for top in ("gym_uniros", "multiros", "uniros", "rl_environments"):
         for dirpath, dirnames, filenames in os.walk(ROOT / top):
             dirnames[:] = [d for d in dirnames if d != "__pycache__"]
             if "__init__.py" in filenames:

@@ -28,8 +28,10 @@ from docs_snippets import REPO, Block, all_blocks, pages, parse
 EXPECTED_SKIPS = {
     "docs/concepts.md": 1,      # sim_mode="existing": a uniros-sim started beforehand
     "docs/vector_envs.md": 2,   # nodes on other hosts; Ray RLlib (tested by tests/rllib in .venv-rllib)
+    "docs/datasets.md": 1,      # LeRobot's reader (tested by tests/lerobot in .venv-lerobot)
+    "docs/lerobot.md": 1,       # LeRobot's make_env (tested by tests/lerobot in .venv-lerobot)
 }
-MAX_SKIPS = 5
+MAX_SKIPS = 6
 TIMEOUT = 180.0
 VENV_BIN = Path(sys.executable).parent
 DESCRIPTION_STAND_INS = REPO / "tests" / "robots" / "arm_add_data" / "install"
