@@ -36,7 +36,14 @@ from typing import Any
 
 import numpy as np
 
-from uniros.lerobot_video import VideoFileWriter, VideoFormatError, VideoSettings, decode_video, image_stats
+from uniros.lerobot_video import (
+    QUANTILES,
+    VideoFileWriter,
+    VideoFormatError,
+    VideoSettings,
+    decode_video,
+    image_stats,
+)
 
 __all__ = [
     "CODEBASE_VERSION", "DATA_PATH", "DatasetFormatError", "DatasetWriter", "RecordedDataset", "RecordedEpisode",
@@ -67,7 +74,6 @@ INDEX_FEATURES: dict[str, dict[str, Any]] = {
 }
 #: Frames buffered before they are written as one row group of the data file.
 ROW_GROUP_FRAMES = 5000
-_QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)
 _DTYPES = {"float32", "float64", "int64", "int32", "bool", "uint8"}
 _IMAGE_NAMES = ["height", "width", "channels"]
 
@@ -118,7 +124,7 @@ def _episode_stats(cols: dict[str, np.ndarray],
     mat = np.concatenate([p.astype(np.float64) for p in parts], axis=1)
     lo, hi = mat.min(axis=0), mat.max(axis=0)
     mean, std = mat.mean(axis=0), mat.std(axis=0)
-    quantiles = np.quantile(mat, _QUANTILES, axis=0)
+    quantiles = np.quantile(mat, QUANTILES, axis=0)
     out: dict[str, dict[str, np.ndarray]] = {}
     at = 0
     for (key, ft), part in zip(features.items(), parts, strict=True):
@@ -127,7 +133,7 @@ def _episode_stats(cols: dict[str, np.ndarray],
         dtype = np.dtype(ft["dtype"])
         st = {"min": lo[cut].astype(dtype), "max": hi[cut].astype(dtype), "mean": mean[cut], "std": std[cut],
               "count": np.array([n], np.int64)}
-        for q, value in zip(_QUANTILES, quantiles, strict=True):
+        for q, value in zip(QUANTILES, quantiles, strict=True):
             st[f"q{round(q * 100):02d}"] = value[cut]
         out[key] = st
     return out

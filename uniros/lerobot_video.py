@@ -34,7 +34,8 @@ MAX_VIDEO_BYTES = 4 << 30
 #: Encoders a dataset may be written with (LeRobot's software choices): h264 (the default here: fast to
 #: encode, decoded everywhere), hevc, libsvtav1 (LeRobot's default: smaller files, ~6x slower to encode).
 VIDEO_CODECS = ("h264", "hevc", "libsvtav1")
-_QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)
+#: The quantiles LeRobot's stats hold (q01 ... q99), of state features and images alike.
+QUANTILES = (0.01, 0.10, 0.50, 0.90, 0.99)
 
 
 class VideoFormatError(ValueError):
@@ -167,7 +168,7 @@ def image_stats(frames: np.ndarray) -> dict[str, np.ndarray]:
         values = {"min": float(nonzero[0]), "max": float(nonzero[-1]), "mean": mean,
                   "std": float(np.sqrt(((levels - mean) ** 2) @ hist / total))}
         ends = np.cumsum(hist)  # the sorted pixels' k-th value is the first level whose count passes k
-        for q in _QUANTILES:
+        for q in QUANTILES:
             at = (total - 1) * q
             low = int(np.floor(at))
             lo, hi = np.searchsorted(ends, [low + 1, min(low + 2, total)])
