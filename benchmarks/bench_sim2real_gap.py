@@ -1,4 +1,4 @@
-"""A nominal and a sim-to-real (randomised) RX200 reach policy on the stand-in robot's reality gap.
+"""A nominal and a sim-to-real (randomised) reach policy on the stand-in robot's reality gap.
 
 Issue 51's first goal: on ``uniros-fake-robot --gap hard`` (latency, lag, backlash, droop of the
 shoulder and elbow, calibration offsets, noisy, dropped, late and jittered joint_states) RX200 reach
@@ -16,8 +16,14 @@ succeeds >= 0.9 over 20 episodes with the shipped sim2real config, the nominal p
    clock); the robot is stopped by PID; ROS domain ``$ROS_DOMAIN_ID``, never 0 (101-200 when unset);
 3. the success rates side by side, per profile, with any evaluation's failure (its last error line).
 
+The RX200 by default; ``--arm FILE`` plays another arm (a shipped one, or one added with ``uniros arm
+add``: the IDs are ``<name>ReacherGoalSim-v0`` / ``<name>ReacherGoalReal-v0`` from the file's ``name``, the
+sim2real config ``config/training/sim2real/<Sim ID>.yaml`` where one is shipped, else ``--sim2real-config``).
+
     python benchmarks/bench_sim2real_gap.py --nominal runs/A --sim2real runs/B [--profiles none mild hard]
                                             [--episodes 20] [--gap-seed 0]
+    AMENT_PREFIX_PATH=ws/install UNIROS_ARMS=arms/OMX.yaml python benchmarks/bench_sim2real_gap.py \
+        --arm arms/OMX.yaml --nominal runs/A --sim2real runs/B
     python benchmarks/bench_sim2real_gap.py --train [--output runs] [--sim2real-steps 30000]
 
 An evaluation that fails (the Real env's ResetError, a stale joint state, ...) is reported in its
@@ -38,8 +44,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "config" / "arms" / "rx200.yaml"
-SIM_ID, REAL_ID = "RX200ReacherGoalSim-v0", "RX200ReacherGoalReal-v0"
-SIM2REAL_CONFIG = ROOT / "config" / "training" / "sim2real" / f"{SIM_ID}.yaml"
+SIM2REAL_CONFIGS = ROOT / "config" / "training" / "sim2real"
 _RATE = re.compile(r"success rate ([0-9.]+) \[([0-9.]+), ([0-9.]+)\]")
 _LENGTH = re.compile(r"mean length ([0-9.]+)")
 _FINAL = re.compile(r"final evaluation .* success rate ([0-9.]+ \[[0-9.]+, [0-9.]+\])")
@@ -76,9 +81,18 @@ def _last_error(text: str) -> str:
     return lines[-1][:400] if lines else "(no output)"
 
 
-def train(output: Path, name: str, config: Path | None, steps: int | None, timeout: float) -> tuple[Path, float, str]:
+def reach_ids(arm: Path) -> tuple[str, str]:
+    """The arm file's goal-reach IDs: (Sim, Real)."""
+    from rl_environments.arm_file import load_arm_file
+
+    name = load_arm_file(arm).name
+    return f"{name}ReacherGoalSim-v0", f"{name}ReacherGoalReal-v0"
+
+
+def train(sim_id: str, output: Path, name: str, config: Path | None, steps: int | None,
+          timeout: float) -> tuple[Path, float, str]:
     """``uniros train`` one run into ``output/name``: its directory, wall seconds, final evaluation."""
-    args = ["train", SIM_ID, "--output", str(output), "--name", name, "--no-video", "--no-progress"]
+    args = ["train", sim_id, "--output", str(output), "--name", name, "--no-video", "--no-progress"]
     if config is not None:
         args += ["--config", str(config)]
     if steps is not None:
@@ -94,9 +108,9 @@ def train(output: Path, name: str, config: Path | None, steps: int | None, timeo
     return output / name, seconds, final.group(1) if final else "?"
 
 
-def evaluate_on_gap(run: Path, profile: str, *, episodes: int, gap_seed: int, arm: Path,
+def evaluate_on_gap(run: Path, profile: str, *, real_id: str, episodes: int, gap_seed: int, arm: Path,
                     timeout: float, log: Path | None) -> Cell:
-    """``uniros eval RUN --env RX200ReacherGoalReal-v0`` against a fresh fake robot with ``profile``."""
+    """``uniros eval RUN --env REAL_ID`` against a fresh fake robot with ``profile``."""
     from multiros.hardware.process import FakeRobotProcess
     from multiros.ros.processes import child_environment, private_context, private_environment
     from rl_environments.arm_file import load_arm_file
@@ -112,7 +126,7 @@ def evaluate_on_gap(run: Path, profile: str, *, episodes: int, gap_seed: int, ar
             env = private_environment()
             env.update(child_environment(ctx))  # UNIROS_TRANSPORT=zenoh, UNIROS_ZENOH_ROUTER, credentials
             env["MUJOCO_GL"] = os.environ.get("MUJOCO_GL", "egl")
-            args = ["eval", str(run), "--env", REAL_ID, "--episodes", str(episodes)]
+            args = ["eval", str(run), "--env", real_id, "--episodes", str(episodes)]
             t0 = time.perf_counter()
             try:
                 proc = subprocess.run(_cli(*args), env=env, cwd=ROOT, capture_output=True, text=True,
@@ -151,7 +165,9 @@ def main() -> None:
     parser.add_argument("--profiles", nargs="+", default=["none", "mild", "hard"], help="gap profiles")
     parser.add_argument("--episodes", type=int, default=20, help="evaluation episodes per run and profile")
     parser.add_argument("--gap-seed", type=int, default=0, help="the fake robot's --gap-seed")
-    parser.add_argument("--arm", type=Path, default=ARM, help="the arm file the fake robot plays")
+    parser.add_argument("--arm", type=Path, default=ARM, help="the arm file the fake robot plays (rx200.yaml)")
+    parser.add_argument("--sim2real-config", type=Path,
+                        help="the randomised run's config (--train; default: the one shipped for the arm's ID)")
     parser.add_argument("--eval-timeout", type=float, default=1800.0, help="seconds one evaluation may take")
     parser.add_argument("--retries", type=int, default=0,
                         help="evaluate a failed cell again up to this many times (each failure is still reported)")
@@ -161,12 +177,16 @@ def main() -> None:
     if os.environ.get("ROS_DOMAIN_ID", "0") == "0":
         os.environ["ROS_DOMAIN_ID"] = str(101 + os.getpid() % 100)
 
+    sim_id, real_id = reach_ids(args.arm)
     runs: dict[str, Path] = {}
     if args.train:
+        sim2real_config = args.sim2real_config or SIM2REAL_CONFIGS / f"{sim_id}.yaml"
+        if not sim2real_config.is_file():
+            parser.error(f"no sim2real config shipped for {sim_id}: give --sim2real-config FILE")
         stamp = time.strftime("%Y%m%d_%H%M%S")
         for label, config, steps in (("nominal", None, args.nominal_steps),
-                                     ("sim2real", SIM2REAL_CONFIG, args.sim2real_steps)):
-            run, secs, final = train(args.output, f"gap_{label}_{stamp}", config, steps, timeout=6 * 3600)
+                                     ("sim2real", sim2real_config, args.sim2real_steps)):
+            run, secs, final = train(sim_id, args.output, f"gap_{label}_{stamp}", config, steps, timeout=6 * 3600)
             print(f"{label}: {run} trained in {secs:.0f} s, final evaluation (simulation) {final}", flush=True)
             runs[label] = run
     else:
@@ -183,12 +203,12 @@ def main() -> None:
     for profile in args.profiles:
         for label, run in runs.items():
             print(f"$ uniros-fake-robot --arm {args.arm} --gap {profile} --gap-seed {args.gap_seed} &  "
-                  f"uniros eval {run} --env {REAL_ID} --episodes {args.episodes}", flush=True)
+                  f"uniros eval {run} --env {real_id} --episodes {args.episodes}", flush=True)
             errors: list[str] = []
             for attempt in range(1, args.retries + 2):
                 log = None if args.logs is None else args.logs / f"{label}_{Path(profile).stem}_{attempt}.log"
-                cell = evaluate_on_gap(run, profile, episodes=args.episodes, gap_seed=args.gap_seed, arm=args.arm,
-                                       timeout=args.eval_timeout, log=log)
+                cell = evaluate_on_gap(run, profile, real_id=real_id, episodes=args.episodes, gap_seed=args.gap_seed,
+                                       arm=args.arm, timeout=args.eval_timeout, log=log)
                 cell.tries = attempt
                 if cell.error:
                     errors.append(f"try {attempt}: {cell.error}")
@@ -202,7 +222,7 @@ def main() -> None:
                   + (f"  {cell.error}" if cell.error else ""), flush=True)
 
     labels = list(runs)
-    print(f"\n{REAL_ID} on uniros-fake-robot --arm {args.arm.name} --gap PROFILE --gap-seed {args.gap_seed}: "
+    print(f"\n{real_id} on uniros-fake-robot --arm {args.arm.name} --gap PROFILE --gap-seed {args.gap_seed}: "
           f"success over {args.episodes} episodes [95% CI], mean episode length in steps (evaluation wall seconds)")
     print(f"{'gap':<8}" + "".join(f"{label + ' (' + runs[label].name + ')':<48}" for label in labels))
     for profile in args.profiles:

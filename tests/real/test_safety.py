@@ -129,6 +129,51 @@ def test_a_bad_value_that_got_in_is_replaced_within_fresh_for() -> None:
     assert cache.sample(ARM_JOINTS).received == pytest.approx(t)  # the whole arm is fresh again
 
 
+def _stamped(t: float, q: list[float]) -> JointState:
+    msg = JointState(name=list(ARM_JOINTS), position=q)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round((t - int(t)) * 1e9))
+    return msg
+
+
+def test_a_late_message_is_dropped_and_the_next_fresh_one_is_not_a_jump() -> None:
+    """Issue 51: a message delivered 0.1 s late (stamped at capture) replaced newer values, and the fresh
+    messages after it were dropped as jumps (receipt times 10 ms apart, the arm moved 0.1 s worth) until
+    the Real env gave up with a StaleStateError."""
+    cache = JointStateCache()
+    cache.guard(rules(max_velocity=[1.0] * 5), fresh_for=0.5)
+    v = 0.9  # rad/s, the waist's speed (limit 1.0)
+    for i in range(10):  # 100 Hz, on time
+        t = 100.0 + 0.01 * i
+        assert cache.update(_stamped(t, [v * (t - 100.0), 0, 0, 0, 0]), now=t)
+    late = _stamped(99.99, [v * -0.01, 0, 0, 0, 0])  # captured before the first, arrives after the last
+    assert not cache.update(late, now=100.095)
+    assert cache.late_count == 1 and cache.malformed_count == 0
+    assert cache.sample(ARM_JOINTS).position[0] == pytest.approx(v * 0.09)  # values never went back
+    assert "1 joint_states message(s) stamped before values already received" in cache.describe_problem(ARM_JOINTS)
+    # Delivery jitter: the message stamped 100.10 arrives 90 ms late, the one stamped 100.20 on time, 5 ms
+    # after it. Its move of 90 mrad in 5 ms by receipt is a jump; 0.1 s by the stamps is within the limit.
+    assert cache.update(_stamped(100.10, [v * 0.10, 0, 0, 0, 0]), now=100.19)
+    assert cache.update(_stamped(100.20, [v * 0.20, 0, 0, 0, 0]), now=100.195)
+    assert cache.malformed_count == 0
+    assert cache.sample(ARM_JOINTS).position[0] == pytest.approx(v * 0.20)
+    # The stamps lengthen the allowed time only up to fresh_for: a forged far-future stamp is no licence.
+    assert not cache.update(_stamped(300.0, [1.5, 0, 0, 0, 0]), now=100.2) and "jumped" in cache.last_error
+
+
+def test_a_clock_that_goes_back_is_taken_after_a_few_messages() -> None:
+    """A driver whose clock jumps back (restarted, simulated time reset) is not dropped for ever: the
+    third message in a row stamped before the cache's is taken as the new clock."""
+    cache = JointStateCache()
+    cache.guard(rules(max_velocity=[1.0] * 5), fresh_for=0.5)
+    assert cache.update(_stamped(50.0, [0.0] * 5), now=10.0)
+    assert not cache.update(_stamped(49.5, [0.0] * 5), now=10.01)
+    assert not cache.update(_stamped(49.51, [0.0] * 5), now=10.02)
+    assert cache.update(_stamped(49.52, [0.0] * 5), now=10.03)
+    assert cache.update(_stamped(49.53, [0.0] * 5), now=10.04) and cache.late_count == 2
+    assert cache.update(_stamped(2.0, [0.0] * 5), now=10.05)  # more than MAX_LATE back: a new clock at once
+    assert cache.sample(ARM_JOINTS).stamp == pytest.approx(2.0)
+
+
 def test_a_pinned_cache_takes_only_its_driver_s_messages() -> None:
     cache = JointStateCache()
     driver, other = bytes(range(16)), bytes(16)

@@ -13,7 +13,10 @@
   of a forward command controller;
 * ``/clock`` (``rosgraph_msgs/Clock``), only when asked (``use_sim_time``).
 
-Times are the local monotonic clock at receipt: a state's age never depends on the robot's clock.
+Times are the local monotonic clock at receipt: a state's age never depends on the robot's clock. The
+header stamps only order the driver's messages: one stamped before the values already cached (a message
+delivered late) is dropped, and the time between two stamps may lengthen (never shorten) the time a joint
+was allowed to move between them.
 """
 
 from __future__ import annotations
@@ -46,6 +49,10 @@ FollowJointTrajectory = get_action("control_msgs/action/FollowJointTrajectory")
 # Largest |value| accepted in joint_states (rad, m, rad/s, N m): anything beyond is a broken message.
 MAX_STATE_VALUE = 1e6
 MAX_JOINTS = 1024
+#: A message stamped at most this many seconds before the cached values is a late one and is dropped;
+#: further back, or ``MAX_LATE_STREAK`` in a row, is the driver's clock jumping back, and is taken.
+MAX_LATE = 1.0
+MAX_LATE_STREAK = 3
 
 
 #: A robot's joint state as the link samples it: the one state record (``received`` is the local
@@ -78,6 +85,11 @@ def check_joint_state(msg: Any) -> str | None:
     return None
 
 
+def _stamp(msg: Any) -> float:
+    """A message's header stamp in seconds (0.0: not stamped)."""
+    return float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) * 1e-9
+
+
 #: How many publisher identities a cache remembers having heard (the oldest is forgotten first).
 MAX_SOURCES = 64
 
@@ -99,6 +111,12 @@ class JointStateCache:
 
     Once pinned (:meth:`pin`), only messages from that publisher identity count: the others are
     dropped and counted in :attr:`foreign_count`.
+
+    Values never go back in time: a message stamped before the cached values of the joints it holds
+    (a message delivered late, after a newer one) is dropped and counted in :attr:`late_count`. The
+    time a joint may have moved is the longer of the receipt times' and the stamps' difference (the
+    latter at most ``fresh_for``): a message that arrives right after a late one is not a jump.
+    Messages without stamps (zero) are ordered by receipt only.
     """
 
     def __init__(self) -> None:
@@ -107,6 +125,8 @@ class JointStateCache:
         self.received_count = 0
         self.malformed_count = 0
         self.foreign_count = 0
+        self.late_count = 0
+        self._late_streak = 0
         self.last_error: str | None = None
         self.last_received: float | None = None
         self.last_foreign: bytes | None = None
@@ -161,11 +181,29 @@ class JointStateCache:
         q = np.array([float(msg.position[where[rules.joint_names[k]]]) for k in index])
         last = np.full(len(index), np.nan)  # NaN: no fresh value to bound this joint's move
         ages = np.zeros(len(index))
+        stamp = _stamp(msg)
         for n, k in enumerate(index):
             prev = self._values.get(rules.joint_names[k])
             if prev is not None and now - prev[3] <= self._fresh_for:
-                last[n], ages[n] = prev[0], now - prev[3]
+                since_stamp = stamp - prev[4] if stamp > 0.0 and prev[4] > 0.0 else 0.0
+                last[n], ages[n] = prev[0], max(now - prev[3], min(since_stamp, self._fresh_for))
         return rules.plausible(q, last, ages, index=index)
+
+    def _late(self, msg: Any) -> bool:
+        """Whether ``msg`` is stamped before the cached values of the joints it holds (and within
+        ``MAX_LATE`` of them, and not the ``MAX_LATE_STREAK``-th such message in a row)."""
+        stamp = _stamp(msg)
+        if stamp <= 0.0:
+            return False
+        newest = max((self._values[n][4] for n in msg.name if n in self._values), default=0.0)
+        if not 0.0 < newest - stamp <= MAX_LATE:
+            self._late_streak = 0
+            return False
+        self._late_streak += 1
+        if self._late_streak >= MAX_LATE_STREAK:  # not late messages: the driver's clock went back
+            self._late_streak = 0
+            return False
+        return True
 
     def receive(self, msg: Any, source: bytes | None) -> bool:
         """A subscription's callback (``with_source``): :meth:`update` with the publisher's identity."""
@@ -186,6 +224,10 @@ class JointStateCache:
                 self.last_foreign = source
                 self._cond.notify_all()
                 return False
+            if reason is None and self._late(msg):
+                self.late_count += 1
+                self._cond.notify_all()
+                return False
             if reason is None:
                 reason = self._implausible(msg, now)
             if reason is not None:
@@ -193,7 +235,7 @@ class JointStateCache:
                 self.last_error = reason
                 self._cond.notify_all()
                 return False
-            stamp = float(msg.header.stamp.sec) + float(msg.header.stamp.nanosec) * 1e-9
+            stamp = _stamp(msg)
             pos = np.asarray(msg.position, dtype=np.float64)
             vel = np.asarray(msg.velocity, dtype=np.float64) if len(msg.velocity) else np.zeros(len(pos))
             eff = np.asarray(msg.effort, dtype=np.float64) if len(msg.effort) else np.zeros(len(pos))
@@ -247,6 +289,9 @@ class JointStateCache:
             if self.malformed_count:
                 parts.append(f"{self.malformed_count} malformed joint_states message(s) dropped, the last because "
                              f"{self.last_error}")
+            if self.late_count:
+                parts.append(f"{self.late_count} joint_states message(s) stamped before values already received "
+                             "dropped as late")
             if self.foreign_count:
                 parts.append(f"{self.foreign_count} joint_states message(s) from a publisher other than the driver "
                              f"(identity {_source_name(self.last_foreign)}, the driver's "
