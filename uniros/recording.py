@@ -40,6 +40,7 @@ TASK_TEXT = {
     "pnp": "pick up the cube and place it at the goal",
     "reach": "move the end effector to the goal",
     "slide": "slide the puck to the goal",
+    "frobs_reach": "move the end effector to the goal",
 }
 
 
@@ -103,9 +104,10 @@ def frame_of(obs: Any, keys: dict[str, str]) -> dict[str, Any]:
 
 
 def task_text(env: Any, env_id: str) -> str:
-    """The episode's task string: the arm task's kind in words, else the env ID."""
-    kind = getattr(getattr(env.unwrapped, "task", None), "KIND", None)
-    return TASK_TEXT.get(str(kind), f"{env_id}")
+    """The episode's task string: the arm task's name (its row of the task table) in words, else the env ID
+    (an env of your own)."""
+    name = getattr(getattr(env.unwrapped, "task", None), "NAME", None)
+    return TASK_TEXT.get(str(name), f"{env_id}")
 
 
 def _fps(env: Any) -> int:

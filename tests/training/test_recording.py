@@ -89,6 +89,23 @@ def test_every_frame_reads_back_equal(recorded: tuple[Path, _Tape]) -> None:
         np.testing.assert_array_equal(ep.final["observation.state"], final["observation"].astype(np.float64))
 
 
+def test_every_task_of_the_table_has_its_words() -> None:
+    """A dataset's task string is the task in words for every row of the task table (a reach dataset's was
+    its env ID), the env ID only for an env of one's own."""
+    from rl_environments.env_ids import TASKS
+    from uniros.recording import TASK_TEXT, task_text
+
+    assert set(TASKS) <= set(TASK_TEXT)
+    for env_id, words in (("RX200ReacherGoalSim-v0", "move the end effector to the goal"),
+                          ("IRB120SlideGoalSim-v0", "slide the puck to the goal")):
+        env = make_env(env_id)
+        try:
+            assert task_text(env, env_id) == words
+        finally:
+            env.close()
+    assert task_text(gym.make("CartPole-v1"), "CartPole-v1") == "CartPole-v1"
+
+
 def test_cli_records_and_refuses_an_existing_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "ds"
     assert record_main([ENV_ID, "--policy", "scripted", "--episodes", "1", "--output", str(out), "--no-progress"]) == 0
