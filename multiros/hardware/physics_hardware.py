@@ -17,9 +17,11 @@ more than ``max_lag`` seconds at once: a paused process resumes without a burst)
 A :class:`~multiros.hardware.gap.GapProfile` acts through the world's command shaping
 (:mod:`multiros.sim.entity_properties`): ``latency`` and ``time_constant`` on the arm's commands, and
 calibration ``offset`` (drawn as the plain fake robot draws them: the encoders read the truth plus the
-offset, commands land in the encoders' frame). ``backlash`` and ``droop`` are not modelled (the
-physics has a servo of its own under gravity); they are logged and ignored. The message keys
-(noise, drops, late messages, jitter) stay the fake robot's business.
+offset, commands land in the encoders' frame), ``droop`` on the ``droop_joints`` as the shaping's
+``droop`` (the servo settles that far short on the side it came from, and a command within it does not
+move it: the plain fake robot's model), and ``backlash`` by its static effect, a dead band of its width
+added to every arm joint's ``droop`` (the link's free play inside it under the physics' own dynamics
+is not modelled). The message keys (noise, drops, late messages, jitter) stay the fake robot's business.
 
 Physical properties (masses, frictions, damping, servo gains) are set through
 :meth:`~multiros.sim.world.World.set_entity_properties`: scales of the spawned values.
@@ -37,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from multiros.hardware.fake_hardware import JointStateView
-from multiros.hardware.gap import GapProfile, gap_generators
+from multiros.hardware.gap import GapProfile, GapProfileError, gap_generators
 from multiros.hardware.robot_spec import RobotSpec
 from multiros.sim.controller_manager import ControllerManager
 from multiros.sim.errors import UnstableSimulationError
@@ -133,18 +135,21 @@ class PhysicsHardware:
 
     def _shape(self, gap: GapProfile, arm: Sequence[str]) -> None:
         """The gap's timing and offsets as the world's command shaping of the arm joints."""
-        if gap.backlash > 0 or gap.droop > 0:
-            _logger.warning("physics: the gap's backlash (%g rad) and droop (%g rad) are not modelled; the physics' "
-                            "servos under gravity are the joints' own", gap.backlash, gap.droop)
+        beyond = [i for i in gap.droop_joints if i >= len(arm)]
+        if gap.droop > 0 and beyond:
+            raise GapProfileError(f"gap key 'droop_joints': {beyond} beyond the {len(arm)} arm joints {list(arm)}")
         offsets = {n: float(self._offsets[i]) for i, n in enumerate(self.world.joint_names(self.robot))}
         rows: list[PropertyRow] = []
         if gap.latency > 0:
             rows.append(("command", "", "latency", float(gap.latency)))
-        for joint in arm:
+        for k, joint in enumerate(arm):
             if gap.time_constant > 0:
                 rows.append(("command", joint, "time_constant", float(gap.time_constant)))
             if offsets[joint]:
                 rows.append(("command", joint, "offset", -offsets[joint]))  # encoder = truth + offset
+            band = gap.backlash + (gap.droop if k in gap.droop_joints else 0.0)
+            if band > 0:
+                rows.append(("command", joint, "droop", float(band)))
         if rows:
             self.set_properties(self.robot, rows)
 

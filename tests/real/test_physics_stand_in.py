@@ -134,6 +134,39 @@ def test_the_gaps_offsets_are_the_encoders_and_its_timing_the_worlds_command_sha
         hw.close()
 
 
+def _settle_after_a_move(gap: Any) -> np.ndarray:
+    """The true arm joints 3 s (world time) after the shoulder and elbow are commanded 0.3 rad up."""
+    hw, _ = _hardware(gap=gap)
+    try:
+        hw.start_controllers()
+        home = np.asarray(hw.true_state()[0][:5])
+        hw.set_command("rx200", "arm_controller", (home + [0.0, 0.3, 0.3, 0.0, 0.0]).tolist())
+        start = hw.time
+        for k in range(1, 61):
+            hw.update(now=start + 0.05 * k)
+        return np.asarray(hw.true_state()[0][:5])
+    finally:
+        hw.close()
+
+
+def test_droop_and_backlash_act_through_the_worlds_command_shaping() -> None:
+    """The gap's droop (shoulder and elbow) and backlash (every arm joint) as dead bands of the command
+    shaping: the drooping joints settle the droop (plus the backlash) short of where the same world
+    without them settles."""
+    gap = load_gap_profile("none", {"droop": "0.03", "backlash": "0.005"})
+    hw, _ = _hardware(gap=gap)
+    try:
+        shaping = hw.world._get("rx200").shaping
+        assert shaping is not None
+        np.testing.assert_allclose(shaping.droop[:5], [0.005, 0.035, 0.035, 0.005, 0.005])
+    finally:
+        hw.close()
+    short = _settle_after_a_move(None) - _settle_after_a_move(gap)
+    np.testing.assert_allclose(short[1:3], [0.035, 0.035], atol=0.004)
+    with pytest.raises(ValueError, match="droop_joints"):
+        _hardware(gap=load_gap_profile("none", {"droop": "0.03", "droop_joints": "7"}))
+
+
 def test_the_helper_puts_the_object_back_once_the_arm_returns_to_its_start_pose() -> None:
     arm = _arm()
     hw, scene = _hardware()
