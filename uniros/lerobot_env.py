@@ -26,6 +26,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from uniros.recording import environment_state, environment_state_keys
+
 __all__ = ["NAMESPACE", "LeRobotEnv", "LeRobotLayoutError", "control_fps", "lerobot_features", "make_lerobot_env",
            "register_ids"]
 
@@ -65,9 +67,7 @@ class _Layout:
                     self.cameras["rgb" if key in _STATE_KEYS else key] = key
                 elif _vector(sub) and key in _STATE_KEYS and self.state is None:
                     self.state = key
-                elif _vector(sub):
-                    self.extra.append(key)
-                else:
+                elif not _vector(sub):
                     raise LeRobotLayoutError(
                         f"observation key {key!r} ({sub}) has no place in LeRobot's observations, which take "
                         "state vectors and H x W x 3 uint8 images: make the env without it (a depth image: use "
@@ -75,6 +75,7 @@ class _Layout:
         else:
             raise LeRobotLayoutError(f"a {type(space).__name__} observation space has no LeRobot layout: uniros "
                                      "gives LeRobot Box or Dict observations")
+        self.extra = environment_state_keys(space)  # as uniros record writes observation.environment_state
         if self.state is None and not self.cameras:
             raise LeRobotLayoutError("the env's observations have neither a state vector nor a camera image")
 
@@ -96,8 +97,7 @@ class _Layout:
         if self.state is not None:
             out["agent_pos"] = np.asarray(obs if self.state == "" else obs[self.state], dtype=np.float32)
         if self.extra:
-            out["environment_state"] = np.concatenate(
-                [np.asarray(obs[k], dtype=np.float32).ravel() for k in self.extra])
+            out["environment_state"] = environment_state(obs, self.extra)
         if self.cameras:
             out["pixels"] = {cam: np.asarray(obs[key], dtype=np.uint8) for cam, key in self.cameras.items()}
         return out

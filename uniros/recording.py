@@ -8,6 +8,10 @@ normalisation statistics) and writes every step as a frame of a LeRobot v3.0 dat
 
     observation.state            the state observation (a goal env's "observation", or the plain vector)
     observation.achieved_goal    a goal env's other keys, one feature each (observation.desired_goal, ...)
+    observation.environment_state  those other vector keys concatenated in key order (a goal env:
+                                 achieved_goal then desired_goal), as LeRobot's envs give them
+                                 (uniros.lerobot_env): a LeRobot policy trained on the dataset takes
+                                 what a LeRobot eval of the env passes it
     action                       the action taken, as the env took it
     next.reward, next.done       the step's reward and whether the episode ended there
     next.success                 the step's info["is_success"]
@@ -31,7 +35,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RecordError", "add_record_parser", "cmd_record", "dataset_features", "frame_of", "image_env_kwargs", "main",
+__all__ = ["ENVIRONMENT_STATE", "STATE_KEYS", "RecordError", "add_record_parser", "cmd_record", "dataset_features",
+           "environment_state", "environment_state_keys", "frame_of", "image_env_kwargs", "main",
            "record"]
 
 #: The task strings of the arm tasks' kinds (the episode's "task" in the dataset).
@@ -56,6 +61,36 @@ def _feature(space: Any) -> dict[str, Any]:
 
 def _is_image(space: Any) -> bool:
     return len(getattr(space, "shape", ())) == 3 and getattr(space, "dtype", None) == np.uint8
+
+
+#: The keys of a Dict observation that hold its state vector (the first, in sorted order, that is a vector).
+STATE_KEYS = ("observation", "state")
+ENVIRONMENT_STATE = "observation.environment_state"
+
+
+def _vector(space: Any) -> bool:
+    from gymnasium import spaces
+
+    return isinstance(space, spaces.Box) and len(space.shape) == 1
+
+
+def environment_state_keys(observation_space: Any) -> list[str]:
+    """The vector keys of a Dict observation besides its state vector, sorted: what LeRobot's
+    ``observation.environment_state`` holds, concatenated in this order (a goal env: ``achieved_goal``,
+    ``desired_goal``). Empty for a Box observation."""
+    from gymnasium import spaces
+
+    if not isinstance(observation_space, spaces.Dict):
+        return []
+    keys = sorted(observation_space.spaces)
+    vectors = [k for k in keys if _vector(observation_space.spaces[k])]
+    state = next((k for k in vectors if k in STATE_KEYS), None)
+    return [k for k in vectors if k != state]
+
+
+def environment_state(obs: Any, keys: Sequence[str]) -> np.ndarray:
+    """``obs``'s :func:`environment_state_keys` ``keys`` concatenated (float32)."""
+    return np.concatenate([np.asarray(obs[k], dtype=np.float32).ravel() for k in keys])
 
 
 def dataset_features(observation_space: Any, action_space: Any, *,
@@ -137,9 +172,13 @@ def record(env: Any, policy: Callable[[Any], Any], episodes: int, output: Path, 
     if images and not any(ft["dtype"] == "video" for ft in feats.values()):
         raise RecordError(f"{env_id}'s observations have no camera image (uint8 H x W x 3): make it with "
                           "rgb_plus_normal_obs=True, or record without --images")
+    env_keys = environment_state_keys(env.observation_space)
+    if env_keys:  # derived: readers of uniros' own layout (demonstrations_io) use the keys above
+        size = sum(int(np.prod(env.observation_space.spaces[k].shape)) for k in env_keys)
+        feats[ENVIRONMENT_STATE] = {"dtype": "float32", "shape": [size], "names": None}
     arm = getattr(getattr(env.unwrapped, "task", None), "arm", None)
     robot = getattr(arm, "name", None) or env_id.split("-")[0]
-    extra = {"uniros": {"env_id": env_id, "observation_keys": keys,
+    extra = {"uniros": {"env_id": env_id, "observation_keys": keys, "environment_state": env_keys,
                         "action_shape": list(env.action_space.shape), "seed": seed}}
     writer = DatasetWriter(output, _fps(env), feats, robot_type=str(robot), extra_info=extra, video=video)
     task = task_text(env, env_id)
@@ -157,6 +196,8 @@ def record(env: Any, policy: Callable[[Any], Any], episodes: int, output: Path, 
                 next_obs, reward, terminated, truncated, info = env.step(action)
                 done = bool(terminated or truncated)
                 frame = frame_of(obs, keys)
+                if env_keys:
+                    frame[ENVIRONMENT_STATE] = environment_state(obs, env_keys)
                 frame["action"] = action
                 frame["next.reward"] = reward
                 frame["next.done"] = done

@@ -58,6 +58,8 @@ def _assert_lerobot_reads_every_frame(out: Path, env: _Tape) -> None:
         np.testing.assert_array_equal(item["observation.state"].numpy(), seen["observation"])
         np.testing.assert_array_equal(item["observation.achieved_goal"].numpy(), seen["achieved_goal"])
         np.testing.assert_array_equal(item["observation.desired_goal"].numpy(), seen["desired_goal"])
+        np.testing.assert_array_equal(item["observation.environment_state"].numpy(),  # what LeRobot's eval passes
+                                      np.concatenate([seen["achieved_goal"], seen["desired_goal"]]).astype(np.float32))
         np.testing.assert_array_equal(item["action"].numpy(), env.actions[i])
         assert float(item["next.reward"]) == np.float32(env.rewards[i])
         assert int(item["episode_index"]) == env.episode_of[i]

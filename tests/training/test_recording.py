@@ -82,6 +82,19 @@ def test_every_frame_reads_back_equal(recorded: tuple[Path, _Tape]) -> None:
     np.testing.assert_array_equal(frames["observation.achieved_goal"], np.stack([o["achieved_goal"] for o in tape.obs]))
     np.testing.assert_array_equal(frames["action"], np.stack(tape.actions).astype(np.float32))
     np.testing.assert_array_equal(frames["next.reward"], np.float32(tape.rewards))
+    # The goals under LeRobot's name, laid out as a LeRobot eval of the env (uniros.lerobot_env) passes them
+    from uniros.lerobot_env import LeRobotEnv
+
+    lerobot_env = LeRobotEnv(make_env(ENV_ID), ENV_ID)
+    try:
+        first, _ = lerobot_env.reset(seed=7)  # the first recorded episode's seed
+    finally:
+        lerobot_env.close()
+    np.testing.assert_array_equal(first["environment_state"], frames["observation.environment_state"][0])
+    assert ds.info["uniros"]["environment_state"] == ["achieved_goal", "desired_goal"]
+    np.testing.assert_array_equal(frames["observation.environment_state"],
+                                  np.stack([np.concatenate([o["achieved_goal"], o["desired_goal"]])
+                                            for o in tape.obs]).astype(np.float32))
     for ep, final in zip(ds.episodes, tape.finals, strict=True):
         assert ep.task == "push the cube to the goal" and ep.success is not None
         assert ep.frames["next.done"][-1] and not ep.frames["next.done"][:-1].any()
