@@ -27,6 +27,7 @@ named node on the user's domain (``uniros-sim`` with discovery on this machine o
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import itertools
 import logging
@@ -39,7 +40,7 @@ from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 from urllib.parse import urlencode
 
-from multiros.ros import Context, Node
+from multiros.ros import Context, Node, native_memory
 from multiros.ros.exceptions import TransportError
 from multiros.ros.names import split_ros_arguments
 from multiros.ros.processes import (
@@ -507,8 +508,18 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _service_history_profile(transport: str) -> contextlib.AbstractContextManager[bool]:
+    """Over rclpy on Fast DDS: service requests freed once taken (``transport/rclpy/fastdds_profile.py``)."""
+    if transport != "rclpy":
+        return contextlib.nullcontext(False)
+    from multiros.ros.transport.rclpy.fastdds_profile import service_history_profile
+
+    return service_history_profile()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """``uniros-sim``: run the simulation node standalone until interrupted."""
+    native_memory.configure_node_process()  # before the node's threads allocate (multiros/ros/native_memory.py)
     parser = _parser()
     own, ros_args = split_ros_arguments(sys.argv[1:] if argv is None else list(argv))
     opts = parser.parse_args(own)
@@ -564,9 +575,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         node_options["camera_rate"] = opts.camera_rate
     node = None
     try:
-        node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,
-                       real_time_factor=opts.real_time_factor, timestep=opts.timestep, gui=opts.gui,
-                       floor_color=opts.floor_color, serve=False, **node_options)
+        with _service_history_profile(opts.transport):  # the participant is created with the first node
+            node = compose(opts.name, context=ctx, namespace=opts.namespace or None, paused=not opts.play,
+                           real_time_factor=opts.real_time_factor, timestep=opts.timestep, gui=opts.gui,
+                           floor_color=opts.floor_color, serve=False, **node_options)
         for name, uri in robots:
             node.spawn_from_cli(name, uri)
         node.mark_launched()

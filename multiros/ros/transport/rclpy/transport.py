@@ -54,6 +54,7 @@ import time
 from collections.abc import Hashable
 from typing import TYPE_CHECKING, Any
 
+from multiros.ros import native_memory
 from multiros.ros.exceptions import ServiceCallError, ServiceTimeoutError, TransportError
 from multiros.ros.graph import CLIENT, NODE, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
 from multiros.ros.logging import LogThrottle
@@ -498,6 +499,9 @@ class _ServiceHandle(_Entity):
         except Exception as exc:  # noqa: BLE001 - a refusal that failed: nothing to send
             _log.warning("%s (no reply sent)", exc)
             return
+        finally:
+            if size >= native_memory.LARGE_BYTES:  # its buffers are freed: given back once such requests stop
+                native_memory.release_soon()
         if response is None:
             self._oversize.log(_log, logging.WARNING, "service '%s': dropped a request of %d bytes (at most %d)",
                                srv.srv_name, size, srv.max_request_bytes)
@@ -506,12 +510,16 @@ class _ServiceHandle(_Entity):
 
     def _take_raw(self, data: bytes, request_id: Any) -> None:
         try:
-            req = self._decode(data, self._request_type, trailing="ignore")
-        except Exception as exc:  # noqa: BLE001 - garbage from the wire must not kill the node
-            _log.warning("service '%s': dropped a malformed request: %s: %s", self._srv_entity.srv_name,
-                         type(exc).__name__, exc)
-            return
-        self._serve(req, request_id, bytes(bytearray(request_id.writer_guid)))
+            try:
+                req = self._decode(data, self._request_type, trailing="ignore")
+            except Exception as exc:  # noqa: BLE001 - garbage from the wire must not kill the node
+                _log.warning("service '%s': dropped a malformed request: %s: %s", self._srv_entity.srv_name,
+                             type(exc).__name__, exc)
+                return
+            self._serve(req, request_id, bytes(bytearray(request_id.writer_guid)))
+        finally:
+            if len(data) >= native_memory.LARGE_BYTES:  # its buffers are freed: given back once such requests stop
+                native_memory.release_soon()
 
     def _take(self, request: Any, header: Any, lane: Hashable = None) -> None:
         try:
