@@ -116,10 +116,11 @@ def _check_size(name: str, msg: Any) -> None:
             raise ValueError(f"parameter '{name[:80]}': a string longer than {MAX_TEXT:,} characters")
 
 
-def _refuse_oversize(size: int, response: Any) -> Any:
-    """The answer to a request of ``size`` bytes over :data:`MAX_REQUEST_BYTES`, never decoded: for a set,
-    one refused result that says so; for the other services an empty answer (as over :data:`MAX_NAMES`)."""
-    reason = f"refused: a request of {size:,} bytes; at most {MAX_REQUEST_BYTES:,}"
+def _refuse_oversize(why: str, response: Any) -> Any:
+    """The answer to a request over :data:`MAX_REQUEST_BYTES` or :data:`MAX_NAMES`, never decoded (``why``
+    says which): for a set, one refused result that says so; for the other services an empty answer (as a
+    decoded request over :data:`MAX_NAMES` gets)."""
+    reason = f"refused: {why}"
     if hasattr(response, "results"):  # SetParameters
         response.results = [get_message("rcl_interfaces/msg/SetParametersResult")(successful=False, reason=reason)]
     elif hasattr(response, "result") and hasattr(response.result, "successful"):  # SetParametersAtomically
@@ -162,7 +163,8 @@ class ParameterServices:
         self.services = [node.create_service(get_service(type_name), f"~/{name}", handlers[name])
                          for name, type_name in PARAMETER_SERVICES.items()]
         for srv in self.services:
-            srv.bound_requests(MAX_REQUEST_BYTES, _refuse_oversize)
+            # every parameter request starts with its sequence of names, parameters or prefixes
+            srv.bound_requests(MAX_REQUEST_BYTES, _refuse_oversize, max_items=MAX_NAMES)
 
     def destroy(self) -> None:
         for srv in self.services:

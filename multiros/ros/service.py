@@ -21,10 +21,11 @@ whatever the peer put there. ``inproc:<node>#<n>`` for a client in the same cont
 not tell (callers then share one anonymous identity). The prefixes keep one transport's callers
 from posing as another's.
 
-Bounded requests: :meth:`Service.bound_requests` names the most bytes (CDR) a request may have. A
-transport that sees a request's encoded size before decoding it (rclpy's) does not decode a larger
-one: the service's ``refuse`` answers it (a response saying so) or, without one, it is dropped with a
-throttled warning, so a flood of huge requests costs the node no decoding and no callback.
+Bounded requests: :meth:`Service.bound_requests` names the most bytes (CDR) a request may have, and
+for a request type whose first field is a sequence, the most elements it may hold. A transport that
+sees a request's encoded bytes before decoding them (rclpy's) does not decode a larger one: the
+service's ``refuse`` answers it (a response saying why) or, without one, it is dropped with a throttled
+warning, so a flood of huge or many-item requests costs the node no decoding and no callback.
 """
 
 from __future__ import annotations
@@ -70,23 +71,44 @@ class Service:
         self._lock = node._callback_lock if callback_group is None else callback_group.lock
         self._wire: Any = None
         self.max_request_bytes: int | None = None
-        self._refuse: Callable[[int, Any], Any] | None = None
+        self.max_request_items: int | None = None
+        self._refuse: Callable[[str, Any], Any] | None = None
 
-    def bound_requests(self, max_bytes: int, refuse: Callable[[int, Any], Any] | None = None) -> None:
-        """Requests of more than ``max_bytes`` bytes (CDR) are not decoded where the transport can tell
-        (see the module docstring): ``refuse(size, response) -> response`` answers them, or they are dropped."""
+    def bound_requests(self, max_bytes: int, refuse: Callable[[str, Any], Any] | None = None, *,
+                       max_items: int | None = None) -> None:
+        """Requests of more than ``max_bytes`` bytes (CDR), or (``max_items``, for a request type whose first
+        field is a sequence) more than ``max_items`` elements in it, are not decoded where the transport can
+        tell (see the module docstring): ``refuse(why, response) -> response`` answers them (``why``: "a
+        request of 300,000 bytes; at most 262,144"), or they are dropped."""
         if max_bytes < 1:
             raise ValueError(f"service '{self.srv_name}': max_bytes must be >= 1, not {max_bytes}")
+        if max_items is not None and max_items < 0:
+            raise ValueError(f"service '{self.srv_name}': max_items must be >= 0, not {max_items}")
         self.max_request_bytes = int(max_bytes)
+        self.max_request_items = None if max_items is None else int(max_items)
         self._refuse = refuse
 
-    def _refused(self, size: int) -> Any:
-        """The answer to a request of ``size`` bytes over :attr:`max_request_bytes`: the refusal's
+    def over_bound(self, data: bytes | bytearray | memoryview) -> str | None:
+        """Why the CDR bytes of a request are over this service's bounds (never decoded), or None."""
+        from multiros.ros.interfaces import first_sequence_length
+
+        limit = self.max_request_bytes
+        if limit is not None and len(data) > limit:
+            return f"a request of {len(data):,} bytes; at most {limit:,}"
+        most = self.max_request_items
+        if most is not None:
+            items = first_sequence_length(data)
+            if items is not None and items > most:
+                return f"a request of {items:,} items; at most {most:,}"
+        return None
+
+    def _refused(self, why: str) -> Any:
+        """The answer to a request over the bounds (``why``: :meth:`over_bound`'s): the refusal's
         response, or None (dropped)."""
         if self._refuse is None:
             return None
         try:
-            return self._refuse(size, self._response_cls())
+            return self._refuse(why, self._response_cls())
         except Exception as exc:
             raise ServiceCallError(self.srv_name, f"refusing an oversize request raised {type(exc).__name__}: "
                                                   f"{exc}") from exc

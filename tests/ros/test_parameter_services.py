@@ -126,23 +126,41 @@ def test_what_one_request_may_cost_is_bounded(served) -> None:
     assert node.get_parameter("gains.kp").value == 10.0 and "flood.p0" not in node._parameters.values
 
 
-def test_every_parameter_service_is_bounded_in_bytes_and_refuses_what_is_over() -> None:
-    """A transport that sees a request's size (rclpy's) asks the service for its refusal instead of decoding it:
-    a set gets one refused result with the size, an atomic set a refused result, the others empty answers."""
-    from multiros.ros.parameter_services import MAX_REQUEST_BYTES
+def test_every_parameter_service_is_bounded_in_bytes_and_items_and_refuses_what_is_over() -> None:
+    """A transport that sees a request's CDR bytes (rclpy's) asks the service whether they are over its bounds
+    (more bytes than MAX_REQUEST_BYTES, or more names than MAX_NAMES read from the first sequence's length)
+    and for its refusal instead of decoding them: a set gets one refused result saying why, an atomic set a
+    refused result, the others empty answers; a request within both is not over."""
+    from multiros.ros.interfaces import first_sequence_length, serialize_message
+    from multiros.ros.parameter_services import MAX_NAMES, MAX_REQUEST_BYTES
 
     ctx = ros.Context(transport="inproc").init()
     try:
         services = ParameterServices(ros.Node("sim", context=ctx))
         by_name = {srv.srv_name.rsplit("/", 1)[1]: srv for srv in services.services}
-        assert all(srv.max_request_bytes == MAX_REQUEST_BYTES for srv in services.services)
-        (result,) = by_name["set_parameters"]._refused(720_052).results
-        assert not result.successful and result.reason == "refused: a request of 720,052 bytes; at most 262,144"
-        atomic = by_name["set_parameters_atomically"]._refused(10**7).result
-        assert not atomic.successful and "10,000,000 bytes" in atomic.reason
-        assert list(by_name["get_parameters"]._refused(2_000_000).values) == []
-        assert list(by_name["list_parameters"]._refused(2_000_000).result.names) == []
+        assert all(srv.max_request_bytes == MAX_REQUEST_BYTES and srv.max_request_items == MAX_NAMES
+                   for srv in services.services)
+        Get, Set = get_service("rcl_interfaces/srv/GetParameters"), get_service("rcl_interfaces/srv/SetParameters")
+        many = serialize_message(Get.Request(names=[f"p{i}" for i in range(MAX_NAMES + 1)]))  # 3 KB
+        assert len(many) < MAX_REQUEST_BYTES and first_sequence_length(many) == MAX_NAMES + 1
+        assert by_name["get_parameters"].over_bound(many) == f"a request of {MAX_NAMES + 1} items; at most {MAX_NAMES}"
+        assert by_name["get_parameters"].over_bound(serialize_message(Get.Request(names=["a"] * MAX_NAMES))) is None
+        huge = ParamMsg(name="s", value=to_value_msg(Parameter("s", value="x" * 300_000)))
+        big = serialize_message(Set.Request(parameters=[huge]))
+        why = by_name["set_parameters"].over_bound(big)
+        assert why == f"a request of {len(big):,} bytes; at most 262,144"
+        (result,) = by_name["set_parameters"]._refused(why).results
+        assert not result.successful and result.reason == f"refused: {why}"
+        atomic = by_name["set_parameters_atomically"]._refused("a request of 300 items; at most 256").result
+        assert not atomic.successful and "300 items" in atomic.reason
+        assert list(by_name["get_parameters"]._refused("x").values) == []
+        assert list(by_name["list_parameters"]._refused("x").result.names) == []
+        assert first_sequence_length(b"\x00\x01\x00\x00") is None  # too short
+        assert first_sequence_length(b"\x00\x07\x00\x00\x05\x00\x00\x00") is None  # not plain CDR
+        assert first_sequence_length(b"\x00\x00\x00\x00\x00\x00\x01\x00") == 256  # big endian
         with pytest.raises(ValueError, match="max_bytes"):
             services.services[0].bound_requests(0)
+        with pytest.raises(ValueError, match="max_items"):
+            services.services[0].bound_requests(10, max_items=-1)
     finally:
         ctx.try_shutdown()

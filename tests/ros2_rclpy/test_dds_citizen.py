@@ -132,6 +132,10 @@ def test_an_oversize_parameter_request_is_refused_without_being_decoded(sim) -> 
         start = time.monotonic()
         (result,) = peer.call(SetParameters, f"{SIM}/set_parameters", SetParameters.Request(parameters=flood)).results
         assert not result.successful and "bytes; at most 262,144" in result.reason, result.reason
+        few_bytes = flood[:1_000]  # ~40 KB: within the bytes, over MAX_NAMES: refused from its length alone
+        set_few = SetParameters.Request(parameters=few_bytes)
+        (result,) = peer.call(SetParameters, f"{SIM}/set_parameters", set_few).results
+        assert result.reason == "refused: a request of 1,000 items; at most 256" and not result.successful
         names = [f"flood.p{i}" for i in range(100_000)]
         assert list(peer.call(GetParameters, f"{SIM}/get_parameters", GetParameters.Request(names=names)).values) == []
         assert time.monotonic() - start < 5.0  # both, with the client's own conversions (~0.2 s)

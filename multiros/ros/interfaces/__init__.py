@@ -48,6 +48,7 @@ __all__ = [
     "SHIPPED_DISTROS",
     "SUPPORTED_DISTROS",
     "DeserializationError",
+    "first_sequence_length",
     "FieldError",
     "FieldValueError",
     "InterfaceDefinitionError",
@@ -159,6 +160,15 @@ def deserialize_message(data: bytes | bytearray | memoryview, msg_type: type | s
         if rest > 7 or (size - 4) % 4 or data[pos:].count(0) != rest:
             raise DeserializationError(cls._type, "", f"{rest} unexpected bytes after the message end")
     return msg
+
+
+def first_sequence_length(data: bytes | bytearray | memoryview) -> int | None:
+    """The element count of the first field of CDR bytes (header included) whose type starts with a
+    sequence (``SetParameters``' parameters, ``GetParameters``' names): read without decoding anything
+    else; ``None`` when the bytes are too short or not plain CDR. Only meaningful for such a type."""
+    if len(data) < 8 or data[0] != 0 or data[1] > 1:
+        return None
+    return int.from_bytes(bytes(data[4:8]), "little" if data[1] else "big")
 
 
 def dds_type_name(type_name: str) -> str:

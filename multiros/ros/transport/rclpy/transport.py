@@ -474,10 +474,10 @@ class _ServiceHandle(_Entity):
             request = take()
             if request is None:
                 return
-            limit = srv.max_request_bytes
-            if limit is not None and len(request.data) > limit:
+            why = srv.over_bound(request.data)
+            if why is not None:
                 size, rid = len(request.data), request.request_id
-                lanes.submit(request.client, lambda n=size, r=rid: self._refuse(n, r), self._what)
+                lanes.submit(request.client, lambda w=why, n=size, r=rid: self._refuse(w, n, r), self._what)
             else:
                 lanes.submit(request.client, lambda r=request: self._take_raw(r.data, r.request_id), self._what)
 
@@ -492,10 +492,10 @@ class _ServiceHandle(_Entity):
             lane = client_of(header.request_id)
             self.transport.lanes.submit(lane, lambda r=request, h=header, c=lane: self._take(r, h, c), self._what)
 
-    def _refuse(self, size: int, request_id: Any) -> None:
+    def _refuse(self, why: str, size: int, request_id: Any) -> None:
         srv = self._srv_entity
         try:
-            response = srv._refused(size)
+            response = srv._refused(why)
         except Exception as exc:  # noqa: BLE001 - a refusal that failed: nothing to send
             _log.warning("%s (no reply sent)", exc)
             return
@@ -503,8 +503,7 @@ class _ServiceHandle(_Entity):
             if size >= native_memory.LARGE_BYTES:  # its buffers are freed: given back once such requests stop
                 native_memory.release_soon()
         if response is None:
-            self._oversize.log(_log, logging.WARNING, "service '%s': dropped a request of %d bytes (at most %d)",
-                               srv.srv_name, size, srv.max_request_bytes)
+            self._oversize.log(_log, logging.WARNING, "service '%s': dropped %s", srv.srv_name, why)
             return
         self._reply(response, request_id)
 
