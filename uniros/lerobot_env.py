@@ -26,15 +26,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from uniros.recording import environment_state, environment_state_keys
+from uniros.recording import STATE_KEYS, environment_state, environment_state_keys
 
 __all__ = ["NAMESPACE", "LeRobotEnv", "LeRobotLayoutError", "control_fps", "lerobot_features", "make_lerobot_env",
            "register_ids"]
 
 #: The gym namespace LeRobot looks the IDs up in (``EnvConfig.package_name`` of ``--env.type=uniros``).
 NAMESPACE = "gym_uniros"
-
-_STATE_KEYS = ("observation", "state")
 
 
 class LeRobotLayoutError(ValueError):
@@ -64,8 +62,8 @@ class _Layout:
             for key in sorted(space.spaces):
                 sub = space.spaces[key]
                 if _is_image(sub):
-                    self.cameras["rgb" if key in _STATE_KEYS else key] = key
-                elif _vector(sub) and key in _STATE_KEYS and self.state is None:
+                    self.cameras["rgb" if key in STATE_KEYS else key] = key
+                elif _vector(sub) and key in STATE_KEYS and self.state is None:
                     self.state = key
                 elif not _vector(sub):
                     raise LeRobotLayoutError(
