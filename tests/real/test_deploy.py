@@ -29,7 +29,10 @@ from .conftest import StandIn, TopicRecorder
 SIM_ID, REAL_ID = "RX200ReacherGoalSim-v0", "RX200ReacherGoalReal-v0"
 EPISODE_STEPS = 8  # the record's env_kwargs carry over to the Real twin: short episodes
 HEAVY = ("torch", "stable_baselines3", "sb3_contrib")
-_RUNNER = ("import sys\nfrom uniros.cli import main\ncode = main(sys.argv[1:])\n"
+# The runner takes Ctrl-C as a foreground program in a terminal does: a test suite started in the background
+# (`cmd &` in a script) hands its children SIGINT ignored, and Python then keeps it ignored.
+_RUNNER = ("import signal, sys\nsignal.signal(signal.SIGINT, signal.default_int_handler)\n"
+           "from uniros.cli import main\ncode = main(sys.argv[1:])\n"
            f"print('heavy modules:', sorted(m for m in {HEAVY!r} if m in sys.modules), flush=True)\n"
            "sys.exit(code)\n")
 JointTrajectory = get_message("trajectory_msgs/msg/JointTrajectory")
