@@ -153,8 +153,11 @@ def test_the_node_gives_back_the_memory_of_large_requests(sim) -> None:
     three times each, at once: the node's memory is back within 6 MB of what it was within 10 s (Fast
     DDS's service histories free each request once taken, glibc's malloc in one arena trimmed once large
     requests stop: ``multiros/ros/native_memory.py``). Before, the node kept 55 MB of them; with the malloc
-    part alone, 24 MB."""
+    part alone, 24 MB. On Fast DDS 3.x (Kilted) the histories keep their buffers (the profile is checked
+    against 2.x only): the node was back within 24 MB there, and the test is skipped."""
     import time
+
+    from multiros.ros.transport.rclpy.fastdds_profile import profile_refusal
 
     big = SetParameters.Request(parameters=[Parameter(name="use_sim_time", value=ParameterValue(
         type=ParameterType.PARAMETER_INTEGER_ARRAY, integer_array_value=list(range(1_000_000))))])
@@ -162,6 +165,10 @@ def test_the_node_gives_back_the_memory_of_large_requests(sim) -> None:
     try:
         for peer in peers:  # warm: every client matched, the node's first answers given
             peer.call(GetParameters, f"{SIM}/get_parameters", GetParameters.Request(names=["use_sim_time"]))
+        # The node's Fast DDS is this process's (the same venv), loaded by now: the peers' participants
+        why = profile_refusal(env={})
+        if why is not None:
+            pytest.skip(f"the Fast DDS history profile does not apply here: {why}")
         before = _rss_mb(sim.proc.pid)
         answers: list[str] = []
 
