@@ -170,7 +170,7 @@ class JointStateCache:
             heard = sorted(self._sources.items(), key=lambda kv: -kv[1])
         return [src for src, t in heard if now - t <= within]
 
-    def _implausible(self, msg: Any, now: float) -> str | None:
+    def _implausible(self, msg: Any, now: float, stamp: float) -> str | None:
         rules = self._rules
         if rules is None:
             return None
@@ -181,7 +181,6 @@ class JointStateCache:
         q = np.array([float(msg.position[where[rules.joint_names[k]]]) for k in index])
         last = np.full(len(index), np.nan)  # NaN: no fresh value to bound this joint's move
         ages = np.zeros(len(index))
-        stamp = _stamp(msg)
         for n, k in enumerate(index):
             prev = self._values.get(rules.joint_names[k])
             if prev is not None and now - prev[3] <= self._fresh_for:
@@ -189,10 +188,9 @@ class JointStateCache:
                 last[n], ages[n] = prev[0], max(now - prev[3], min(since_stamp, self._fresh_for))
         return rules.plausible(q, last, ages, index=index)
 
-    def _late(self, msg: Any) -> bool:
+    def _late(self, msg: Any, stamp: float) -> bool:
         """Whether ``msg`` is stamped before the cached values of the joints it holds (and within
         ``MAX_LATE`` of them, and not the ``MAX_LATE_STREAK``-th such message in a row)."""
-        stamp = _stamp(msg)
         if stamp <= 0.0:
             return False
         newest = max((self._values[n][4] for n in msg.name if n in self._values), default=0.0)
@@ -224,18 +222,18 @@ class JointStateCache:
                 self.last_foreign = source
                 self._cond.notify_all()
                 return False
-            if reason is None and self._late(msg):
+            stamp = _stamp(msg)
+            if reason is None and self._late(msg, stamp):
                 self.late_count += 1
                 self._cond.notify_all()
                 return False
             if reason is None:
-                reason = self._implausible(msg, now)
+                reason = self._implausible(msg, now, stamp)
             if reason is not None:
                 self.malformed_count += 1
                 self.last_error = reason
                 self._cond.notify_all()
                 return False
-            stamp = _stamp(msg)
             pos = np.asarray(msg.position, dtype=np.float64)
             vel = np.asarray(msg.velocity, dtype=np.float64) if len(msg.velocity) else np.zeros(len(pos))
             eff = np.asarray(msg.effort, dtype=np.float64) if len(msg.effort) else np.zeros(len(pos))
