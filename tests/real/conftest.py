@@ -34,13 +34,20 @@ _CWD = tempfile.gettempdir()  # children import the installed package, as a user
 #: robot's; on a loaded shared machine a stand-in in another process can pause longer than that, and a
 #: test of names or spaces must not then fail on the watchdog. Watchdog tests set their own limit.
 STATE_TIMEOUT = 5.0
+#: ``reset_joint_speed`` for tests that are not about the reset's pacing. An env's first reset moves for
+#: the furthest the arm can be from its initial pose (a state that claims the arm is there cannot shorten
+#: it): about 6 s at the default 0.5 rad/s, spent by every test that makes an env. The pacing tests
+#: (tests/real/test_spoofing.py) set their own speed.
+RESET_SPEED = 4.0
 
 
 def make_real(context: Context, env_id: str, *, startup_timeout: float, **kwargs: Any) -> Any:
-    """``uniros.make`` of a Real env on ``context``, with ``STATE_TIMEOUT`` unless the test sets its own."""
+    """``uniros.make`` of a Real env on ``context``, with ``STATE_TIMEOUT`` and ``RESET_SPEED`` unless the
+    test sets its own."""
     import uniros
 
     kwargs.setdefault("joint_state_timeout", STATE_TIMEOUT)
+    kwargs.setdefault("reset_joint_speed", RESET_SPEED)
     return uniros.make(env_id, context=context, startup_timeout=startup_timeout, **kwargs)
 
 

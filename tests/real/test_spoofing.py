@@ -33,7 +33,7 @@ from multiros.ros.interfaces import serialize_message, type_hash
 from multiros.ros.transport.zenoh import wire
 from rl_environments.arm_registry import arm_of
 
-from .conftest import StandIn, TopicRecorder
+from .conftest import RESET_SPEED, StandIn, TopicRecorder
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
@@ -46,6 +46,7 @@ INIT = [float(v) for v in arm_of("RX200").reach["init_joint_pos"]]
 
 def _make(ctx: Any, **kw: Any) -> Any:
     kw.setdefault("startup_timeout", 10.0)
+    kw.setdefault("reset_joint_speed", RESET_SPEED)  # the pacing tests set their own
     return uniros.make("RX200ReacherReal-v0", context=ctx, delta_action=False, max_joint_delta=CAP, **kw)
 
 

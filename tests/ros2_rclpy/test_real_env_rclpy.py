@@ -24,6 +24,9 @@ from multiros.envs.real.errors import StaleStateError, TrajectoryGoalError  # no
 
 pytestmark = pytest.mark.slow
 MAX_DELTA = 0.15  # the env's max_joint_delta (its default)
+#: The first reset moves for the furthest the arm can be (no state can shorten it): 6 s at the default
+#: 0.5 rad/s. The plain robot moves at 2 rad/s, so the tests reset at that speed.
+RESET_SPEED = 2.0
 
 
 def _robot(program, tmp_path):
@@ -39,7 +42,8 @@ def _commands(log) -> list[dict]:
 
 def test_real_env_on_rclpy_keeps_the_safety_rules_on_the_robot(program, tmp_path) -> None:
     robot, log = _robot(program, tmp_path)
-    env = uniros.make("RX200ReacherGoalReal-v0", startup_timeout=30.0, max_joint_delta=MAX_DELTA)
+    env = uniros.make("RX200ReacherGoalReal-v0", startup_timeout=30.0, max_joint_delta=MAX_DELTA,
+                      reset_joint_speed=RESET_SPEED)
     try:
         assert env.unwrapped.context.transport_name == "rclpy"  # the default where rclpy imports
         env.reset(seed=0)
@@ -68,7 +72,8 @@ def test_real_env_on_rclpy_keeps_the_safety_rules_on_the_robot(program, tmp_path
 def test_robot_killed_mid_episode_stops_the_env_with_the_reason(program, tmp_path, command_interface) -> None:
     robot, _log = _robot(program, tmp_path)
     env = uniros.make("RX200ReacherGoalReal-v0", transport="rclpy", startup_timeout=30.0,
-                      command_interface=command_interface, joint_state_timeout=0.3, timeout_sec=5.0)
+                      command_interface=command_interface, joint_state_timeout=0.3, timeout_sec=5.0,
+                      reset_joint_speed=RESET_SPEED)
     try:
         env.reset(seed=0)
         env.step(env.action_space.sample())
