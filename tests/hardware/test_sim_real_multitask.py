@@ -26,7 +26,8 @@ def test_one_her_agent_trains_on_sim_and_fake_real_robot():
             env = MultiTaskGoalEnv(
                 ["RX200ReacherGoalSim-v0", "RX200ReacherGoalReal-v0"],
                 [{"max_episode_steps": 20},
-                 {"context": ctx, "max_episode_steps": 20, "environment_loop_rate": 20.0}],
+                 {"context": ctx, "max_episode_steps": 20, "environment_loop_rate": 20.0,
+                  "reset_joint_speed": 4.0}],  # a first reset at the default 0.5 rad/s takes 6 s
                 selection="round_robin")
             try:
                 sim_space = env.envs[0].observation_space
