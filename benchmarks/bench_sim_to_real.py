@@ -52,7 +52,7 @@ def _start_standin(kind: str, env: dict[str, str], cwd: Path) -> subprocess.Pope
     if kind == "fake robot":
         argv = [sys.executable, "-m", "multiros.hardware.fake_robot", "--robot", "rx200", "--router", "none"]
     else:
-        argv = [sys.executable, "-m", "multiros.sim.launch", "--play", "--router", "none", "--log-level", "WARNING",
+        argv = [sys.executable, "-m", "multiros.sim.program", "--play", "--router", "none", "--log-level", "WARNING",
                 "--robot", f"rx200={RX200_URI}"]
     return track_child(subprocess.Popen(argv + ["--owner-pid", str(os.getpid())], env=env, cwd=cwd,
                                         stdin=subprocess.DEVNULL))

@@ -17,7 +17,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from rl_environments.arm_file import ArmFileError, error_line
+from multiros.excerpt import error_line
+from rl_environments.arm_file import ArmFileError
 
 __all__ = ["ArmCheck", "TaskCheck", "check_arm", "refusal", "CHECK_TASKS", "PASS_RATE"]
 

@@ -26,7 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from rl_environments.arm_file import MAX_MESSAGE_LINE, ArmFileError, error_line
+from multiros.excerpt import MAX_MESSAGE_LINE, error_line
+from rl_environments.arm_file import ArmFileError
 
 __all__ = ["Inspection", "inspect_description"]
 

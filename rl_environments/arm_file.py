@@ -61,8 +61,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-__all__ = ["ARM_FILE_FORMAT", "MAX_ERROR_LINE", "MAX_MESSAGE_LINE", "ArmFile", "ArmFileError", "GripperSpec",
-           "RealSpec", "error_line", "excerpt", "load_arm_file", "parse_arm_file"]
+from multiros.excerpt import MAX_MESSAGE_LINE, excerpt
+from rl_environments.arm_file_yaml import ArmFileError, read_arm_yaml, resolve_uri
+
+__all__ = ["ARM_FILE_FORMAT", "ArmFile", "ArmFileError", "GripperSpec", "RealSpec", "load_arm_file", "parse_arm_file"]
 
 #: The newest arm file format this uniros reads.
 ARM_FILE_FORMAT = 1
@@ -70,28 +72,6 @@ _AXES = ("x", "y", "z")
 #: The tasks an arm file may override training settings of (keys of ``training:``).
 TASK_NAMES = ("Reacher", "ReacherGoal", "Push", "PushGoal", "PnP", "PnPGoal")
 _GRIPPER_INTERFACES = ("forward", "trajectory", "gripper_action", "none", "niryo_tool")
-
-
-class ArmFileError(ValueError):
-    """An arm file that cannot be used: the message names the file, the key and the fix."""
-
-
-#: Characters of an error line that quotes what a file held (a value, a key, another error's line).
-MAX_ERROR_LINE = 300
-#: Characters of an error line of our own that may quote a little of a file: room for the valid keys or
-#: the fixes it lists, not for a 50,000-number value.
-MAX_MESSAGE_LINE = 1000
-
-
-def excerpt(text: str, limit: int = MAX_ERROR_LINE) -> str:
-    """``text`` cut to ``limit`` characters: an error quoting a file's value or another error shows an excerpt."""
-    return text if len(text) <= limit else f"{text[:limit - 3]}..."
-
-
-def error_line(exc: BaseException, limit: int = MAX_ERROR_LINE) -> str:
-    """An exception's first line (its type when it says nothing), cut to ``limit`` characters."""
-    text = str(exc).strip()
-    return excerpt(text.splitlines()[0] if text else type(exc).__name__, limit)
 
 
 @dataclass(frozen=True)
@@ -293,15 +273,6 @@ class _Checker:
         return _Checker(self.source, value, self.path(key), keys)
 
 
-def _resolve(uri: str, base: Path) -> str:
-    """A URI as the simulation node takes it: ``package://`` as is, a path made absolute against the file."""
-    if "://" in uri and not uri.startswith("file://"):
-        return uri
-    text = uri[len("file://"):] if uri.startswith("file://") else uri
-    path = Path(text).expanduser()
-    return str(path if path.is_absolute() else (base / path).resolve())
-
-
 _TOP = ("format", "name", "robot_name", "description", "arm", "gripper", "camera", "reach", "manipulation", "scene",
         "real", "training", "dynamics")
 _DYNAMICS = ("latency", "time_constant", "gain", "offset", "droop", "fit_residual", "source")
@@ -361,12 +332,12 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
 
     desc = top.sub("description", _DESCRIPTION)
     assert desc is not None
-    uri = _resolve(desc.string("uri"), base)
+    uri = resolve_uri(desc.string("uri"), base)
     xacro_args = desc.raw("xacro_args", {})
     if not isinstance(xacro_args, dict) or not all(isinstance(k, str) for k in xacro_args):
         desc.fail(desc.path("xacro_args"), f"must be a mapping of argument names to values, got {xacro_args!r}")
     xacro = {k: str(v).lower() if isinstance(v, bool) else str(v) for k, v in xacro_args.items()}
-    controllers_file = _resolve(desc.string("controllers"), base)
+    controllers_file = resolve_uri(desc.string("controllers"), base)
 
     arm = top.sub("arm", _ARM)
     assert arm is not None
@@ -458,7 +429,7 @@ def parse_arm_file(data: Any, source: Path) -> ArmFile:
         manipulation["arm_joints"] = list(joints)
         files = top.sub("scene", _SCENE_FILES, {})
         assert files is not None
-        scene_files = {k: _resolve(files.string(k), base) for k in _SCENE_FILES if files.has(k)}
+        scene_files = {k: resolve_uri(files.string(k), base) for k in _SCENE_FILES if files.has(k)}
         # The table and the cube are made from the scene's sizes unless the file names their MJCF.
         sizes = _Checker(source, manipulation, "manipulation", list(manipulation))
         if "table" not in scene_files:
@@ -574,59 +545,4 @@ def load_arm_file(path: str | os.PathLike[str]) -> ArmFile:
         ArmFileError: the file is missing, not YAML, or a key is unknown, missing or mistyped.
     """
     source = Path(path).expanduser()
-    return parse_arm_file(_read_extended(source, ()), source)
-
-
-_MAX_EXTENDS = 4  # files an arm file may extend, one through another
-_PATH_KEYS = (("description", "uri"), ("description", "controllers"), ("scene", "table"), ("scene", "object"))
-
-
-def _read_yaml(source: Path) -> Any:
-    """The file's YAML within bounds (:mod:`multiros.bounded_yaml`: size, depth, aliases expanded)."""
-    from multiros.bounded_yaml import YamlBoundsError, read_yaml_bounded
-
-    if not source.is_file():
-        raise ArmFileError(f"{source}: arm file not found")
-    try:
-        return read_yaml_bounded(source)
-    except YamlBoundsError as exc:
-        raise ArmFileError(f"{source}: {exc}") from None
-    except OSError as exc:
-        raise ArmFileError(f"{source}: cannot be read: {exc.strerror or type(exc).__name__}") from None
-
-
-def _read_extended(source: Path, chain: tuple[Path, ...]) -> Any:
-    """An arm file's YAML with the file it ``extends`` merged under it: its mappings key by key, anything
-    else replaced (a variant of an arm: another name, a camera, xacro arguments). The extended file's
-    relative paths stay relative to it."""
-    data = _read_yaml(source)
-    if not isinstance(data, dict) or "extends" not in data:
-        return data
-    ref = data.pop("extends")
-    if not isinstance(ref, str) or not ref.strip():
-        raise ArmFileError(excerpt(f"{source}: key 'extends' must name an arm file (a path relative to this one), "
-                                   f"got {ref!r}"))
-    base_path = (source.resolve().parent / Path(ref).expanduser()).resolve()
-    if base_path in chain or base_path == source.resolve():
-        raise ArmFileError(excerpt(f"{source}: key 'extends' {ref!r} extends itself (through "
-                                   f"{[str(p) for p in chain]})"))
-    if len(chain) >= _MAX_EXTENDS:
-        raise ArmFileError(f"{source}: key 'extends': more than {_MAX_EXTENDS} arm files extend one another")
-    base = _read_extended(base_path, (*chain, source.resolve()))
-    if not isinstance(base, dict):
-        raise ArmFileError(excerpt(f"{source}: key 'extends' {ref!r}: {base_path} is not an arm file (a YAML mapping)"))
-    for section, key in _PATH_KEYS:  # the extended file's paths, made absolute against it
-        part = base.get(section)
-        if isinstance(part, dict) and isinstance(part.get(key), str):
-            part[key] = _resolve(part[key], base_path.parent)
-    return _merged(base, data)
-
-
-def _merged(base: Any, over: Any) -> Any:
-    """``over`` on ``base``: mappings merged key by key (recursively), anything else from ``over``."""
-    if not isinstance(base, dict) or not isinstance(over, dict):
-        return over
-    out = dict(base)
-    for key, value in over.items():
-        out[key] = _merged(base.get(key), value)
-    return out
+    return parse_arm_file(read_arm_yaml(source), source)

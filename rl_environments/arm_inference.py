@@ -27,10 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from multiros.excerpt import MAX_MESSAGE_LINE, error_line
 from rl_environments.arm_description_tree import _MOVING, Inspection, _fail, _limits, _Tree
 from rl_environments.arm_draft import ArmDraft, _r, _rl, _rl_within
 from rl_environments.arm_driver_names import _real
-from rl_environments.arm_file import MAX_MESSAGE_LINE, error_line
 from rl_environments.arm_gripper import _MIN_OPEN_GAP, _PAD_BACK, _ee_link, _Gripper, _gripper, _Hand
 from rl_environments.arm_sim_controllers import _controllers
 

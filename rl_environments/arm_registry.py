@@ -21,8 +21,9 @@ import os
 from pathlib import Path
 from typing import Any
 
+from multiros.excerpt import error_line
 from rl_environments.arm import _urdf_text, chain_of, top_down_ik_of
-from rl_environments.arm_file import ArmFile, ArmFileError, error_line, load_arm_file
+from rl_environments.arm_file import ArmFile, ArmFileError, load_arm_file
 
 __all__ = ["arm_env_ids", "arm_of", "arm_value", "env_arm_paths", "chain_of", "check_description", "env_arm_errors",
            "register_arm", "register_env_arms", "registered_arms", "top_down_ik_of", "unregister_arm"]

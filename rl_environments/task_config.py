@@ -14,6 +14,8 @@ from typing import Any
 
 import yaml
 
+from multiros.excerpt import excerpt
+
 
 class TaskConfigError(ValueError):
     """A task configuration file is missing, unreadable, or has a missing or mistyped key."""
@@ -59,8 +61,7 @@ def _check_value(value: Any, expected: Any, key: str, source: str | Path) -> Any
 
 def _short(value: Any) -> str:
     """A value as an error line shows it: at most 80 characters (a file may hold a million numbers)."""
-    text = repr(value)
-    return text if len(text) <= 80 else f"{text[:77]}..."
+    return excerpt(repr(value), 80)
 
 
 #: Bounds a task config's values must keep, beyond their types: (low key, high key) element-wise, and

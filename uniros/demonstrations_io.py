@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from uniros.lerobot_dataset import DatasetFormatError, RecordedDataset, read_dataset
+from uniros.lerobot_dataset import DatasetFormatError
+from uniros.lerobot_dataset_reader import RecordedDataset, read_dataset
 
 __all__ = ["DemonstrationsError", "Transition", "check_dataset", "fill_replay_buffer_from_dataset",
            "load_demonstrations"]
@@ -158,7 +159,8 @@ def check_dataset_for(path: Path | str, env_id: str) -> None:
     Raises:
         DemonstrationsError: no dataset there, or one recorded from another ID.
     """
-    from uniros.lerobot_dataset import DatasetFormatError, read_info
+    from uniros.lerobot_dataset import DatasetFormatError
+    from uniros.lerobot_dataset_reader import read_info
 
     root = Path(path)
     try:

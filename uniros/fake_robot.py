@@ -63,8 +63,8 @@ class ArmRobotError(ValueError):
 
 def _yaml_controllers(arm: ArmFile) -> dict[str, Any]:
     """The description's controllers YAML (``description.controllers``) as a mapping ({} if unreadable)."""
+    from multiros.excerpt import error_line
     from multiros.sim.packages import default_index
-    from rl_environments.arm_file import error_line
 
     uri = arm.controllers_file
     try:
@@ -163,7 +163,7 @@ def arm_robot_spec(arm: ArmFile, *, start: str = "home", namespace: str | None =
     Raises:
         ArmRobotError: the description cannot be loaded, or the ``real:`` names do not fit it.
     """
-    from rl_environments.arm_file import error_line
+    from multiros.excerpt import error_line
 
     if start not in ("home", "init"):
         raise ArmRobotError(f"start must be 'home' or 'init', got {start!r}")

@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from uniros.recording import STATE_KEYS, environment_state, environment_state_keys
+from uniros.recording import STATE_KEYS, environment_state, environment_state_keys, is_vector_space
 
 __all__ = ["NAMESPACE", "LeRobotEnv", "LeRobotLayoutError", "control_fps", "lerobot_features", "make_lerobot_env",
            "register_ids"]
@@ -45,10 +45,6 @@ def _is_image(space: Any) -> bool:
     return bool(space.dtype == np.uint8 and space.shape[2] in (1, 3))
 
 
-def _vector(space: Any) -> bool:
-    return isinstance(space, spaces.Box) and len(space.shape) == 1
-
-
 class _Layout:
     """Where each key of an env's observation goes in LeRobot's layout."""
 
@@ -56,16 +52,16 @@ class _Layout:
         self.state: str | None = None  # the state key ("" for a plain Box observation)
         self.extra: list[str] = []  # the other vector keys -> environment_state
         self.cameras: dict[str, str] = {}  # camera name -> observation key
-        if isinstance(space, spaces.Box) and _vector(space):
+        if isinstance(space, spaces.Box) and is_vector_space(space):
             self.state = ""
         elif isinstance(space, spaces.Dict):
             for key in sorted(space.spaces):
                 sub = space.spaces[key]
                 if _is_image(sub):
                     self.cameras["rgb" if key in STATE_KEYS else key] = key
-                elif _vector(sub) and key in STATE_KEYS and self.state is None:
+                elif is_vector_space(sub) and key in STATE_KEYS and self.state is None:
                     self.state = key
-                elif not _vector(sub):
+                elif not is_vector_space(sub):
                     raise LeRobotLayoutError(
                         f"observation key {key!r} ({sub}) has no place in LeRobot's observations, which take "
                         "state vectors and H x W x 3 uint8 images: make the env without it (a depth image: use "

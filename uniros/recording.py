@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["ENVIRONMENT_STATE", "STATE_KEYS", "RecordError", "add_record_parser", "cmd_record", "dataset_features",
-           "environment_state", "environment_state_keys", "frame_of", "image_env_kwargs", "main",
+           "environment_state", "environment_state_keys", "frame_of", "image_env_kwargs", "is_vector_space", "main",
            "record"]
 
 #: The task strings of the arm tasks' kinds (the episode's "task" in the dataset).
@@ -68,7 +68,8 @@ STATE_KEYS = ("observation", "state")
 ENVIRONMENT_STATE = "observation.environment_state"
 
 
-def _vector(space: Any) -> bool:
+def is_vector_space(space: Any) -> bool:
+    """Whether ``space`` is a one-dimensional Box: a state vector, not an image."""
     from gymnasium import spaces
 
     return isinstance(space, spaces.Box) and len(space.shape) == 1
@@ -83,7 +84,7 @@ def environment_state_keys(observation_space: Any) -> list[str]:
     if not isinstance(observation_space, spaces.Dict):
         return []
     keys = sorted(observation_space.spaces)
-    vectors = [k for k in keys if _vector(observation_space.spaces[k])]
+    vectors = [k for k in keys if is_vector_space(observation_space.spaces[k])]
     state = next((k for k in vectors if k in STATE_KEYS), None)
     return [k for k in vectors if k != state]
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
+from multiros.excerpt import excerpt
 from multiros.ros.interfaces import get_message, get_service
 from multiros.ros.parameters import Parameter
 
@@ -95,10 +96,6 @@ def from_value_msg(name: str, msg: Any) -> Parameter:
         return Parameter(name, Parameter.Type(code), value)
     except Exception as exc:  # noqa: BLE001 - whatever the value was, say so
         raise ValueError(f"parameter '{name}': {exc}") from exc
-
-
-def _short(reason: str) -> str:
-    return reason if len(reason) <= MAX_REASON else f"{reason[:MAX_REASON - 3]}..."
 
 
 def _check_size(name: str, msg: Any) -> None:
@@ -229,7 +226,7 @@ class ParameterServices:
                 errors.append("")
             except ValueError as exc:
                 params.append(None)
-                errors.append(_short(str(exc)))
+                errors.append(excerpt(str(exc), MAX_REASON))
         return params, errors
 
     def _set(self, request: Any, response: Any) -> Any:
@@ -245,7 +242,8 @@ class ParameterServices:
                 response.results.append(cls(successful=False, reason=error))
                 continue
             result = self.node.set_parameters([param])[0]
-            response.results.append(cls(successful=bool(result.successful), reason=_short(result.reason)))
+            reason = excerpt(result.reason, MAX_REASON)
+            response.results.append(cls(successful=bool(result.successful), reason=reason))
         return response
 
     def _set_atomically(self, request: Any, response: Any) -> Any:
@@ -257,8 +255,9 @@ class ParameterServices:
         params, errors = self._parameters(request.parameters)
         bad = [e for e in errors if e]
         if bad:
-            response.result.successful, response.result.reason = False, _short("; ".join(bad))
+            response.result.successful, response.result.reason = False, excerpt("; ".join(bad), MAX_REASON)
             return response
         result = self.node.set_parameters_atomically([p for p in params if p is not None])
-        response.result.successful, response.result.reason = bool(result.successful), _short(result.reason)
+        response.result.successful = bool(result.successful)
+        response.result.reason = excerpt(result.reason, MAX_REASON)
         return response

@@ -337,7 +337,7 @@ def start_node_process(
     """Start a child process from ``argv`` (no shell) and track it by PID.
 
     Args:
-        argv: program and arguments, e.g. ``[sys.executable, "-m", "multiros.sim.launch"]``.
+        argv: program and arguments, e.g. ``[sys.executable, "-m", "multiros.sim.program"]``.
         env: full environment of the child (default: this process's).
         cwd: working directory.
         ready: optional readiness check, polled until it returns ``True`` (e.g. a service answers).

@@ -1,6 +1,6 @@
 """Stand-ins for a real robot, in other processes, on a private Zenoh graph.
 
-* ``sim``: the simulation node (``python -m multiros.sim.launch --play --robot rx200=...``) in
+* ``sim``: the simulation node (``python -m multiros.sim.program --play --robot rx200=...``) in
   real-time mode: its ros2_control-style topics, controller manager and FollowJointTrajectory;
 * ``fake``: ``uniros-fake-robot`` (multiros.hardware), a fake ros2_control robot.
 
@@ -78,7 +78,7 @@ class StandIn:
             env = {k: v for k, v in os.environ.items() if not k.startswith(("ZENOH_", "UNIROS_ZENOH_"))}
             env.update(child_environment(ctx))
             self.proc = subprocess.Popen(
-                [sys.executable, "-m", "multiros.sim.launch", "--log-level", "WARNING", "--play",
+                [sys.executable, "-m", "multiros.sim.program", "--log-level", "WARNING", "--play",
                  "--owner-pid", str(os.getpid()), "--robot", f"rx200={RX200_URI}", *args],
                 env=env, stdin=subprocess.DEVNULL, cwd=_CWD)
             try:

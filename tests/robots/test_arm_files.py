@@ -322,19 +322,17 @@ def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_d
     reopened.release()
     assert env_id == "RunArmReacherGoalSim-v0" and env_id in gym.registry
     unregister_arm("RunArm")
-    import argparse
-
-    from uniros.cli import _eval_target
+    from uniros.eval_target import eval_target
 
     (tmp_path / "r" / "best_model.zip").write_bytes(b"")
     # `uniros eval RUN`: a run folder may come from anyone, and an arm file's xacro may run code: the ID is typed
     with pytest.raises(TrainingError, match=r"comes from the arm file .*runarm.yaml \(its xacro may run code\): "
                                             r"evaluate it by typing the ID yourself, `uniros eval RunArmReacherGoal"):
-        _eval_target(argparse.Namespace(env_id=str(tmp_path / "r"), model=None, env=None))
+        eval_target(str(tmp_path / "r"), None, None, notes.append)
     assert "RunArmReacherGoalSim-v0" not in gym.registry
     # `uniros eval ID RUN` and `uniros eval REAL_ID RUN`: typed, the run's arm file registers
     for first in ("RunArmReacherGoalSim-v0", "RunArmReacherGoalReal-v0"):
-        target = _eval_target(argparse.Namespace(env_id=first, model=str(tmp_path / "r"), env=None))
+        target = eval_target(first, str(tmp_path / "r"), None, notes.append)
         assert target[0] == first
         unregister_arm("RunArm")
 
@@ -352,12 +350,11 @@ def test_a_run_records_its_arm_file_and_eval_or_resume_registers_it_again(ur5e_d
     assert "RunArmReacherGoalSim-v0" not in gym.registry
     # A file gone does not matter to an ID that needs no arm file, and a typo is still "unknown env".
     run_dir = str(tmp_path / "r")
-    assert _eval_target(argparse.Namespace(env_id="RX200ReacherGoalSim-v0", model=run_dir, env=None))[0] == \
-        "RX200ReacherGoalSim-v0"
+    assert eval_target("RX200ReacherGoalSim-v0", run_dir, None, notes.append)[0] == "RX200ReacherGoalSim-v0"
     with pytest.raises(TrainingError, match="unknown env 'TypoArmReacherGoalSim-v0'"):
-        _eval_target(argparse.Namespace(env_id="TypoArmReacherGoalSim-v0", model=run_dir, env=None))
+        eval_target("TypoArmReacherGoalSim-v0", run_dir, None, notes.append)
     with pytest.raises(TrainingError, match="which is gone"):  # the run's own ID: the file is what is missing
-        _eval_target(argparse.Namespace(env_id=None, model=run_dir, env=None))
+        eval_target(None, run_dir, None, notes.append)
 
 
 def test_a_world_the_node_refuses_is_one_training_error_naming_the_arm_file(ur5e_data, write):

@@ -311,14 +311,14 @@ def test_quota_per_zenoh_client(tmp_path) -> None:
 @pytest.mark.parametrize(("option", "value"), [("--max-entities", "0"), ("--max-entities-per-client", "0")])
 def test_uniros_sim_refuses_bad_entity_limits(option: str, value: str) -> None:
     """``uniros-sim --max-entities N --max-entities-per-client N``: bad values are a usage error."""
-    run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", option, value],
+    run = subprocess.run([sys.executable, "-m", "multiros.sim.program", "--transport", "inproc", option, value],
                          capture_output=True, text=True, timeout=120)
     assert run.returncode == 2 and f"{option} must be" in run.stderr
 
 
 def test_uniros_sim_gui_without_a_display_is_a_usage_error() -> None:
     env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
-    run = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc", "--gui"],
+    run = subprocess.run([sys.executable, "-m", "multiros.sim.program", "--transport", "inproc", "--gui"],
                          capture_output=True, text=True, timeout=120, env=env)
     assert run.returncode == 2 and "needs a display" in run.stderr and "drop --gui" in run.stderr
     assert "Traceback" not in run.stderr
@@ -329,7 +329,7 @@ def test_uniros_sim_on_inproc_warns_that_no_other_process_reaches_it(tmp_path) -
     log = tmp_path / "node.log"
     owner = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
     with open(log, "w") as err:
-        node = subprocess.Popen([sys.executable, "-m", "multiros.sim.launch", "--transport", "inproc",
+        node = subprocess.Popen([sys.executable, "-m", "multiros.sim.program", "--transport", "inproc",
                                  "--owner-pid", str(owner.pid)], stderr=err)
     try:
         deadline = time.monotonic() + 60

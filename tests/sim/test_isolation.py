@@ -66,7 +66,7 @@ def _stop(proc: subprocess.Popen) -> None:
 def _uniros_sim(*args: str, endpoint: str) -> Iterator[subprocess.Popen]:
     """``uniros-sim`` in a child process with a router of its own at ``endpoint``."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "multiros.sim.launch", "--router", endpoint, "--log-level", "WARNING", *args],
+        [sys.executable, "-m", "multiros.sim.program", "--router", endpoint, "--log-level", "WARNING", *args],
         stdin=subprocess.DEVNULL, cwd=_CWD,
     )
     try:
@@ -189,7 +189,7 @@ def test_uniros_sim_answers_only_once_its_robots_are_spawned():
 def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
     endpoint = free_loopback_endpoint()
     proc = subprocess.run(
-        [sys.executable, "-m", "multiros.sim.launch", "--router", endpoint,
+        [sys.executable, "-m", "multiros.sim.program", "--router", endpoint,
          "--robot", "arm=package://no_such_package/robot.urdf"],
         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60, cwd=_CWD,
     )
@@ -198,7 +198,7 @@ def test_uniros_sim_exits_non_zero_when_a_robot_cannot_be_spawned():
 
 
 def test_uniros_sim_help_mentions_isolation_options():
-    proc = subprocess.run([sys.executable, "-m", "multiros.sim.launch", "--help"], capture_output=True, text=True,
+    proc = subprocess.run([sys.executable, "-m", "multiros.sim.program", "--help"], capture_output=True, text=True,
                           timeout=60, cwd=_CWD)
     assert proc.returncode == 0
     for flag in ("--router", "--trust-path", "--allow-xacro-strings", "--owner-pid"):

@@ -111,7 +111,7 @@ def _start_node(prefix: list[str], name: str, env: dict[str, str], *robots: str)
     """``uniros-sim`` (empty: the env spawns its own robot) in a child process, under ``prefix``."""
     spawn = [a for r in robots for a in ("--robot", r)]
     return subprocess.Popen(
-        [*prefix, sys.executable, "-m", "multiros.sim.launch", "--name", name, *spawn, "--log-level", "WARNING"],
+        [*prefix, sys.executable, "-m", "multiros.sim.program", "--name", name, *spawn, "--log-level", "WARNING"],
         env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=_CWD,
     )
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import uniros
-from multiros.sim.launch import _parser
+from multiros.sim.program import _parser
 from multiros.sim.world import World, WorldOptions
 
 ENV = "IRB120ReacherGoalSim-v0"

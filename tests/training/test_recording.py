@@ -22,7 +22,8 @@ import pytest
 pytest.importorskip("pyarrow")
 
 from uniros.demonstrations_io import DemonstrationsError, fill_replay_buffer_from_dataset, load_demonstrations
-from uniros.lerobot_dataset import DatasetFormatError, DatasetWriter, read_dataset
+from uniros.lerobot_dataset import DatasetFormatError, DatasetWriter
+from uniros.lerobot_dataset_reader import read_dataset
 from uniros.recording import main as record_main
 from uniros.recording import record
 from uniros.run_envs import make_env

@@ -21,7 +21,8 @@ import pytest
 pytest.importorskip("pyarrow")
 pytest.importorskip("av")
 
-from uniros.lerobot_dataset import DatasetFormatError, DatasetWriter, read_dataset
+from uniros.lerobot_dataset import DatasetFormatError, DatasetWriter
+from uniros.lerobot_dataset_reader import read_dataset
 from uniros.lerobot_video import VideoSettings, image_stats
 from uniros.recording import main as record_main
 from uniros.recording import record

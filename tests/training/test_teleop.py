@@ -125,7 +125,7 @@ def test_record_policy_teleop_writes_the_episodes_a_script_drives(tmp_path) -> N
     from multiros.ros import Node
     from multiros.ros.interfaces import get_message
     from multiros.ros.processes import child_environment, private_context, stop_process
-    from uniros.lerobot_dataset import read_dataset
+    from uniros.lerobot_dataset_reader import read_dataset
 
     ctx = private_context()
     proc = None

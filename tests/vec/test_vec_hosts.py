@@ -30,7 +30,7 @@ def _env(**extra: str) -> dict[str, str]:
 
 
 def _node(name: str, env: dict[str, str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "multiros.sim.launch", "--name", name, "--log-level", "WARNING",
+    return subprocess.Popen([sys.executable, "-m", "multiros.sim.program", "--name", name, "--log-level", "WARNING",
                              "--owner-pid", str(os.getpid())], env=env, stdin=subprocess.DEVNULL,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tempfile.gettempdir())
 
