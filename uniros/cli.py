@@ -255,7 +255,7 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
-    from multiros.sim.launch import main as sim_main
+    from multiros.sim.program import main as sim_main
 
     return sim_main(args.sim_args)
 

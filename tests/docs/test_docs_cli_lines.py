@@ -16,7 +16,7 @@ import shlex
 import pytest
 from docs_snippets import Block, all_blocks, shell_lines
 
-from multiros.sim.launch import _parser as sim_parser
+from multiros.sim.program import _parser as sim_parser
 from uniros.cli import build_parser
 from uniros.fake_robot import build_parser as fake_robot_parser
 
