@@ -7,13 +7,15 @@ input was (docs/trust.md).
 
 from __future__ import annotations
 
-__all__ = ["MAX_ERROR_LINE", "MAX_MESSAGE_LINE", "error_line", "excerpt"]
+__all__ = ["MAX_ERROR_LINE", "MAX_MESSAGE_LINE", "MAX_VALUE_QUOTE", "error_line", "excerpt", "quote"]
 
 #: Characters of an error line that quotes what a file held (a value, a key, another error's line).
 MAX_ERROR_LINE = 300
 #: Characters of an error line of our own that may quote a little of a file: room for the valid keys or
 #: the fixes it lists, not for a 50,000-number value.
 MAX_MESSAGE_LINE = 1000
+#: Characters of a value (its ``repr``) an error line quotes from a file: a file may hold a million numbers.
+MAX_VALUE_QUOTE = 80
 
 
 def excerpt(text: str, limit: int = MAX_ERROR_LINE, *, count_rest: bool = False) -> str:
@@ -30,3 +32,8 @@ def error_line(exc: BaseException, limit: int = MAX_ERROR_LINE) -> str:
     """An exception's first line (its type when it says nothing), cut to ``limit`` characters."""
     text = str(exc).strip()
     return excerpt(text.splitlines()[0] if text else type(exc).__name__, limit)
+
+
+def quote(value: object, limit: int = MAX_VALUE_QUOTE) -> str:
+    """A value read from a file or the wire, as an error line quotes it: its ``repr``, cut to ``limit``."""
+    return excerpt(repr(value), limit)

@@ -14,7 +14,7 @@ from typing import Any
 
 import yaml
 
-from multiros.excerpt import excerpt
+from multiros.excerpt import quote
 
 
 class TaskConfigError(ValueError):
@@ -44,11 +44,11 @@ def _check_value(value: Any, expected: Any, key: str, source: str | Path) -> Any
             or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
         ):
             raise TaskConfigError(f"{source}: key {key!r} must be a list of {length} finite numbers, got "
-                                  f"{_short(value)}")
+                                  f"{quote(value)}")
         return [float(v) for v in value]
     if expected is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise TaskConfigError(f"{source}: key {key!r} must be a finite number, got {_short(value)}")
+            raise TaskConfigError(f"{source}: key {key!r} must be a finite number, got {quote(value)}")
         return float(value)
     if expected is int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -57,11 +57,6 @@ def _check_value(value: Any, expected: Any, key: str, source: str | Path) -> Any
     if not isinstance(value, expected):
         raise TaskConfigError(f"{source}: key {key!r} must be of type {expected.__name__}, got {value!r}")
     return value
-
-
-def _short(value: Any) -> str:
-    """A value as an error line shows it: at most 80 characters (a file may hold a million numbers)."""
-    return excerpt(repr(value), 80)
 
 
 #: Bounds a task config's values must keep, beyond their types: (low key, high key) element-wise, and

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from multiros.excerpt import MAX_VALUE_QUOTE, excerpt, quote
 from uniros.lerobot_dataset import (
     CODEBASE_VERSION,
     DATA_PATH,
@@ -77,7 +78,7 @@ def _read_info(root: Path) -> dict[str, Any]:
     if not isinstance(info, dict):
         raise DatasetFormatError(f"{path}: not a JSON object")
     if info.get("codebase_version") != CODEBASE_VERSION:
-        raise DatasetFormatError(f"{path}: codebase_version {info.get('codebase_version')!r}, uniros reads "
+        raise DatasetFormatError(f"{path}: codebase_version {quote(info.get('codebase_version'))}, uniros reads "
                                  f"{CODEBASE_VERSION} (convert older datasets with LeRobot)")
     feats = info.get("features")
     if not isinstance(feats, dict) or not all(
@@ -86,7 +87,7 @@ def _read_info(root: Path) -> dict[str, Any]:
         raise DatasetFormatError(f"{path}: features must map names to {{dtype, shape}}")
     for key in ("total_episodes", "total_frames", "fps"):
         if not isinstance(info.get(key), int) or info[key] < 0:
-            raise DatasetFormatError(f"{path}: {key} must be a non-negative integer, got {info.get(key)!r}")
+            raise DatasetFormatError(f"{path}: {key} must be a non-negative integer, got {quote(info.get(key))}")
     return info
 
 
@@ -104,7 +105,7 @@ def _read_parquet(path: Path) -> Any:
 
 def _column(table: Any, name: str, feature: dict[str, Any], where: Path) -> np.ndarray:
     if name not in table.column_names:
-        raise DatasetFormatError(f"{where}: no column {name!r} (info.json lists it)")
+        raise DatasetFormatError(f"{where}: no column {quote(name)} (info.json lists it)")
     col = table.column(name).combine_chunks()
     shape = [int(n) for n in feature["shape"]]
     try:
@@ -113,7 +114,7 @@ def _column(table: Any, name: str, feature: dict[str, Any], where: Path) -> np.n
         values = col.to_numpy(zero_copy_only=False)
         return np.asarray(values).reshape((table.num_rows, *([] if shape == [1] else shape)))
     except (ValueError, TypeError) as exc:
-        raise DatasetFormatError(f"{where}: column {name!r} does not hold {table.num_rows} x {shape} values "
+        raise DatasetFormatError(f"{where}: column {quote(name)} does not hold {table.num_rows} x {shape} values "
                                  f"({exc})") from None
 
 
@@ -127,7 +128,7 @@ def _video_features(root: Path, info: dict[str, Any]) -> dict[str, tuple[int, in
         if ft.get("names") in (["channels", "height", "width"], ["channel", "height", "width"]):
             shape = [*shape[1:], shape[0]]
         if len(shape) != 3 or shape[2] != 3 or not all(8 <= n <= 8192 for n in shape[:2]):
-            raise DatasetFormatError(f"{root}: video feature {key!r} of shape {ft['shape']}: uniros reads RGB "
+            raise DatasetFormatError(f"{root}: video feature {quote(key)} of shape {ft['shape']}: uniros reads RGB "
                                      "frames of 8 to 8192 pixels a side")
         out[key] = (int(shape[0]), int(shape[1]))
     if out and not isinstance(info.get("video_path"), str):
@@ -163,7 +164,8 @@ def _read_videos(root: Path, info: dict[str, Any], episodes: list[RecordedEpisod
             try:
                 path = root / str(info["video_path"]).format(video_key=key, chunk_index=chunk, file_index=file)
             except (KeyError, IndexError, ValueError):
-                raise DatasetFormatError(f"{root}: video_path {info['video_path']!r} is not a path template") from None
+                raise DatasetFormatError(f"{root}: video_path {quote(info['video_path'])} is not a path "
+                                         "template") from None
             if not path.resolve().is_relative_to(base):
                 raise DatasetFormatError(f"{root}: video {path} lies outside the dataset")
             count = max(first + len(ep) for ep, first in eps)
@@ -210,7 +212,7 @@ def read_dataset(root: Path | str, *, max_frames: int = 10_000_000, images: bool
             start, stop = int(row["dataset_from_index"]), int(row["dataset_to_index"])
             index, tasks = int(row["episode_index"]), list(row["tasks"])
         except (KeyError, TypeError, ValueError) as exc:
-            raise DatasetFormatError(f"{root}: an episode row lacks {exc}") from None
+            raise DatasetFormatError(f"{root}: an episode row lacks {excerpt(str(exc), MAX_VALUE_QUOTE)}") from None
         if key not in columns:
             if not all(0 <= k < 10_000 for k in key):
                 raise DatasetFormatError(f"{root}: episode {index}: data file index {key} out of range")
