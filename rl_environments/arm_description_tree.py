@@ -22,12 +22,15 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from multiros.excerpt import MAX_MESSAGE_LINE, error_line
 from rl_environments.arm_file import ArmFileError
+
+if TYPE_CHECKING:
+    from multiros.sim.urdf_model import Joint, Robot
 
 __all__ = ["Inspection", "inspect_description"]
 
@@ -43,14 +46,14 @@ def _fail(where: str, message: str) -> None:
 class _Tree:
     """A URDF's links and joints with the lookups the inference needs."""
 
-    robot: Any  # multiros.sim.urdf_model.Robot
+    robot: Robot
     root: str
-    joints: dict[str, Any]
-    children: dict[str, list[Any]]
-    parent: dict[str, Any]  # child link -> joint
+    joints: dict[str, Joint]
+    children: dict[str, list[Joint]]
+    parent: dict[str, Joint]  # child link -> joint
     efforts: dict[str, float]
 
-    def moving(self, joint: Any) -> bool:
+    def moving(self, joint: Joint) -> bool:
         return joint.type in _MOVING and joint.mimic is None
 
     def subtree_has_motion(self, link: str) -> bool:
@@ -65,7 +68,7 @@ class _Tree:
             link = joint.parent
         return tf
 
-    def position(self, joint: Any, q: Mapping[str, float]) -> float:
+    def position(self, joint: Joint, q: Mapping[str, float]) -> float:
         if joint.mimic is not None:
             return joint.mimic.multiplier * q.get(joint.mimic.joint, 0.0) + joint.mimic.offset
         return float(q.get(joint.name, 0.0))
@@ -86,19 +89,20 @@ class _Tree:
         return out
 
 
-def _motion(joint: Any, value: float) -> np.ndarray:
+def _motion(joint: Joint, value: float) -> np.ndarray:
     tf = np.eye(4)
     if joint.type in _REVOLUTE and value:
-        axis = np.asarray(joint.axis, dtype=float)
+        axis = joint.direction
         axis = axis / np.linalg.norm(axis)
         k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
         tf[:3, :3] = np.eye(3) + math.sin(value) * k + (1 - math.cos(value)) * k.dot(k)
     elif joint.type == "prismatic":
-        tf[:3, 3] = np.asarray(joint.axis, dtype=float) / np.linalg.norm(joint.axis) * value
+        axis = joint.direction
+        tf[:3, 3] = axis / np.linalg.norm(axis) * value
     return tf
 
 
-def _limits(joint: Any) -> tuple[float, float]:
+def _limits(joint: Joint) -> tuple[float, float]:
     if joint.type == "continuous" or joint.limit is None or joint.limit.lower is None:
         return -math.inf, math.inf
     return float(joint.limit.lower), float(joint.limit.upper if joint.limit.upper is not None else 0.0)
@@ -111,8 +115,8 @@ def _tree(text: str, source: str) -> _Tree:
 
     robot = parse_urdf(ET.fromstring(text), source)
     joints = {j.name: j for j in robot.joints}
-    children: dict[str, list[Any]] = {}
-    parent: dict[str, Any] = {}
+    children: dict[str, list[Joint]] = {}
+    parent: dict[str, Joint] = {}
     for j in robot.joints:
         children.setdefault(j.parent, []).append(j)
         parent[j.child] = j

@@ -17,11 +17,14 @@ import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rl_environments.arm_description_tree import _MOVING, Inspection, _limits, _Tree
+
+if TYPE_CHECKING:
+    from multiros.sim.urdf_model import Joint
 
 # End-effector link names, most specific first (matched as whole words of the link name).
 _EE_NAMES = ("tcp", "grasp", "grasping", "gripper_center", "end_effector", "eef", "ee", "tool", "tool0")
@@ -72,7 +75,7 @@ class _Hand:
         model = self.model
         return any(model.geom_contype[g] or model.geom_conaffinity[g] for g in self.geoms(link))
 
-    def drive(self, lead: Any, value: float, *more: tuple[Any, float]) -> None:
+    def drive(self, lead: Joint, value: float, *more: tuple[Joint, float]) -> None:
         """Every joint at zero but ``lead`` at ``value`` (and each ``(joint, value)`` of ``more``), the joints
         mimicking them where their mimic puts them."""
         import mujoco
@@ -133,12 +136,14 @@ class _Hand:
         return np.asarray(self.data.geom_xpos[geoms], dtype=float).mean(axis=0)
 
 
-def _drive_range(lead: Any, followers: Sequence[Any]) -> tuple[float, float]:
+def _drive_range(lead: Joint, followers: Sequence[Joint]) -> tuple[float, float]:
     """The driven joint's limits narrowed to where every joint mimicking it stays inside its own
     limits (a follower whose multiplier maps the drive's range past its limits)."""
     lo, hi = _limits(lead)
     for f in followers:
         f_lo, f_hi = _limits(f)
+        if f.mimic is None:
+            continue
         k, o = f.mimic.multiplier, f.mimic.offset
         if k == 0 or not (math.isfinite(f_lo) and math.isfinite(f_hi)):
             continue
@@ -159,7 +164,8 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
     if len(leaders) > 1:
         return _independent_fingers(ins, hand_model, hand, leaders)
     lead = leaders[0]
-    followers = [j for j in below if j.mimic is not None and j.mimic.joint == lead.name]
+    factor = {j.name: j.mimic.multiplier for j in below if j.mimic is not None and j.mimic.joint == lead.name}
+    followers = [j for j in below if j.name in factor]
     own = set(tree.descendants(lead.child))
     # The other finger: a follower outside the driven finger's own links (a linkage's knuckles and
     # fingertip on the same side are not), the one whose links' gap to the driven finger's changes most.
@@ -182,7 +188,7 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
     hand_model.drive(lead, lo)
     lead_tip = hand_model.tip(hand_model.geoms(lead.child), hand_origin)
 
-    def stroke(follower: Any) -> tuple[list[int], float, float]:
+    def stroke(follower: Joint) -> tuple[list[int], float, float]:
         """The follower's fingertip and its gap to the driven fingertip at the drive's two limits."""
         theirs = hand_model.geoms(follower.child)
         if not theirs:
@@ -204,9 +210,9 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
     a, b = hand_model.centre(lead_tip), hand_model.centre(other_tip)
     direction = a - b
     if lead.type == "prismatic":
-        direction = tree.transform(lead.parent, {})[:3, :3].dot(np.asarray(lead.axis, float))
+        direction = tree.transform(lead.parent, {})[:3, :3].dot(lead.direction)
     pads = (min(g_lo, g_hi), max(g_lo, g_hi))
-    found = _Gripper(lead.name, follower.name, float(follower.mimic.multiplier), closed, opened,
+    found = _Gripper(lead.name, follower.name, float(factor[follower.name]), closed, opened,
                      pads[1] - pads[0], (a + b) / 2, direction / max(np.linalg.norm(direction), 1e-9), pads,
                      grasp_point=hand_model.grasp_point(lead_tip, other_tip, hand_origin))
     why = (f"inferred: finger joint {lead.name!r} ({lead.type}) and {follower.name!r} on the other finger mimicking "
@@ -224,7 +230,7 @@ def _gripper(ins: Inspection, hand_model: _Hand, last_arm_joint: str) -> tuple[_
 
 
 def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
-                         leaders: Sequence[Any]) -> tuple[_Gripper | None, str]:
+                         leaders: Sequence[Joint]) -> tuple[_Gripper | None, str]:
     """Two finger joints driven independently (no ``<mimic>`` ties them): the pair on separate fingers
     whose fingertips' gap changes most, closed where both are nearer. The simulation's gripper
     controller drives both, the second at the ratio of their strokes (``gripper.independent``)."""
@@ -234,7 +240,7 @@ def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
              if a.child not in tree.descendants(b.child) and b.child not in tree.descendants(a.child)
              and hand_model.solid(a.child) and hand_model.solid(b.child)]
     names = [j.name for j in leaders]
-    best: tuple[float, Any, Any, dict[tuple[float, float], float], list[int], list[int]] | None = None
+    best: tuple[float, Joint, Joint, dict[tuple[float, float], float], list[int], list[int]] | None = None
     for a, b in pairs:
         (alo, ahi), (blo, bhi) = _limits(a), _limits(b)
         if not all(map(math.isfinite, (alo, ahi, blo, bhi))) or ahi - alo <= 1e-6 or bhi - blo <= 1e-6:
@@ -270,7 +276,7 @@ def _independent_fingers(ins: Inspection, hand_model: _Hand, hand: str,
     pa, pb = hand_model.centre(tip_a), hand_model.centre(tip_b)
     direction = pa - pb
     if a.type == "prismatic":
-        direction = tree.transform(a.parent, {})[:3, :3].dot(np.asarray(a.axis, float))
+        direction = tree.transform(a.parent, {})[:3, :3].dot(a.direction)
     found = _Gripper(a.name, b.name, mimic, ca, oa, gaps[open_pair] - gaps[closed_pair], (pa + pb) / 2,
                      direction / max(np.linalg.norm(direction), 1e-9), (gaps[closed_pair], gaps[open_pair]),
                      independent=True, grasp_point=hand_model.grasp_point(tip_a, tip_b, hand_origin))

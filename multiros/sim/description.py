@@ -382,7 +382,7 @@ class _UrdfBuild:
         self.vertices = 0
 
     def add_joint(self, body, joint, default_armature: float) -> JointInfo:
-        axis = np.asarray(joint.axis if joint.axis is not None else (1.0, 0.0, 0.0), dtype=float)
+        axis = joint.direction
         if not np.all(np.isfinite(axis)) or np.linalg.norm(axis) < 1e-9:
             raise DescriptionError(f"{self.source}: joint '{joint.name}' has a zero axis", source=self.source)
         limit, dyn = joint.limit, joint.dynamics

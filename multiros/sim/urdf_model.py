@@ -128,6 +128,11 @@ class Joint:
     dynamics: Dynamics | None
     mimic: Mimic | None
 
+    @property
+    def direction(self) -> np.ndarray:
+        """The axis, URDF's default ``(1, 0, 0)`` where the joint has no ``<axis>``."""
+        return np.array([1.0, 0.0, 0.0]) if self.axis is None else np.asarray(self.axis, dtype=float)
+
 
 @dataclass
 class Robot:

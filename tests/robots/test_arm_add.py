@@ -434,3 +434,22 @@ def test_a_path_uri_is_written_relative_to_the_arm_file(workspace, capsys, tmp_p
 
 def test_arm_file_error_is_a_value_error():
     assert issubclass(ArmFileError, ValueError)
+
+
+def test_a_joint_without_an_axis_turns_about_urdfs_default_x_axis():
+    """URDF's ``<axis>`` defaults to ``1 0 0``: the description's tree turns a revolute joint without one about x
+    and slides a prismatic one along x (it once read the missing axis as NaN)."""
+    from rl_environments.arm_description_tree import _tree
+
+    urdf = """<robot name="r"><link name="base"/><link name="a"/><link name="b"/>
+      <joint name="turn" type="revolute"><parent link="base"/><child link="a"/>
+        <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+      <joint name="slide" type="prismatic"><parent link="a"/><child link="b"/><origin xyz="0 0.1 0"/>
+        <limit lower="0" upper="0.05" effort="1" velocity="1"/></joint></robot>"""
+    tree = _tree(urdf, "test.urdf")
+    angle = 0.5
+    turned = tree.transform("a", {"turn": angle})
+    c, s = np.cos(angle), np.sin(angle)
+    assert np.allclose(turned[:3, :3], [[1, 0, 0], [0, c, -s], [0, s, c]])
+    slid = tree.transform("b", {"turn": 0.0, "slide": 0.03})
+    assert np.allclose(slid[:3, 3], [0.03, 0.1, 0.0])
