@@ -5,7 +5,8 @@ latency. For each perturbation (``--perturb``: ``none`` and ``hard`` by default;
 or ``KEY=LOW:HIGH``) this starts ``uniros-fake-robot --arm config/arms/rx200.yaml --physics push
 --physics-perturb P --physics-seed S`` (plus ``--tracker-noise``, ``--tracker-latency`` and ``--gap``)
 on a private Zenoh router on a free loopback port (never 7447; ROS domain ``$ROS_DOMAIN_ID``, never 0),
-a fresh robot and router per row, and plays ``--episodes`` episodes of ``RX200PushGoalReal-v0``:
+a fresh robot and router per row and policy (each policy meets the same draws and object placements),
+and plays ``--episodes`` episodes of ``RX200PushGoalReal-v0``:
 
 * with the task's scripted policy (``env.unwrapped.task.scripted_policy()``), in this process;
 * with ``--run RUNDIR`` (repeatable): the trained policy through ``uniros eval RUNDIR --env
@@ -125,26 +126,28 @@ def main() -> None:
 
     namespace = load_arm_file(args.arm).real.namespace
     rows: list[tuple[str, str, str]] = []
+    policies: list[Path | None] = ([] if args.no_scripted else [None]) + list(args.run)
     for perturb in args.perturb:
         stand_in = _stand_in_args(perturb, args)
         print("$ uniros-fake-robot " + " ".join(stand_in), flush=True)
-        ctx = private_context()
-        try:
-            robot = FakeRobotProcess(None, context=ctx, module="uniros.fake_robot", namespace=namespace,
-                                     args=stand_in, timeout_sec=120.0, cwd=str(ROOT))
+        for run in policies:  # a fresh stand-in each: the same draws, the same object placements
+            ctx = private_context()
             try:
-                if not args.no_scripted:
-                    r = scripted(ctx, args.episodes, args.seed, args.pose_timeout)
-                    rows.append((perturb, "scripted", f"{r['rate']:.2f} [{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]  "
-                                 f"trivial {r['trivial']}, cube moved {r['moved']:.3f} m, {r['seconds']:.1f} s/ep"))
-                    print(f"  scripted: {rows[-1][2]}", flush=True)
-                for run in args.run:
-                    rows.append((perturb, run.name, trained(ctx, run, args.episodes, args.eval_timeout)))
-                    print(f"  {run.name}: {rows[-1][2]}", flush=True)
+                robot = FakeRobotProcess(None, context=ctx, module="uniros.fake_robot", namespace=namespace,
+                                         args=stand_in, timeout_sec=120.0, cwd=str(ROOT))
+                try:
+                    if run is None:
+                        r = scripted(ctx, args.episodes, args.seed, args.pose_timeout)
+                        text = (f"{r['rate']:.2f} [{r['ci'][0]:.2f}, {r['ci'][1]:.2f}]  trivial {r['trivial']}, "
+                                f"cube moved {r['moved']:.3f} m, {r['seconds']:.1f} s/ep")
+                    else:
+                        text = trained(ctx, run, args.episodes, args.eval_timeout)
+                finally:
+                    robot.stop()
             finally:
-                robot.stop()
-        finally:
-            ctx.try_shutdown()
+                ctx.try_shutdown()
+            rows.append((perturb, "scripted" if run is None else run.name, text))
+            print(f"  {rows[-1][1]}: {text}", flush=True)
     print(f"\n{REAL_ID} on the physics stand-in (--physics-seed {args.seed}, tracker noise {args.tracker_noise} m, "
           f"latency {args.tracker_latency} s, gap {args.gap or 'none'}): success over {args.episodes} episodes "
           "[95% CI]")
