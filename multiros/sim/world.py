@@ -134,14 +134,28 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         m = self._model
         self.binding += 1
         self._generation += 1
+        masses = self._masses()
         for ent in self._entities.values():
             self._bind_entity(ent)
+        self._refresh_constants(masses)  # an entity's mass rows written again over the compiled masses
         self._varying = self._varying_entities()
         self._sync_warn_counts()
         self._state_spec = int(mujoco.mjtState.mjSTATE_INTEGRATION)
         self._snap = np.zeros(mujoco.mj_stateSize(m, self._state_spec))
         for fs in list(self._frame_sets):
             fs._bind()
+
+    def _masses(self) -> tuple[np.ndarray, np.ndarray]:
+        return self._model.body_mass.copy(), self._model.body_inertia.copy()
+
+    def _refresh_constants(self, before: tuple[np.ndarray, np.ndarray]) -> None:
+        """Masses or inertias changed since ``before``: the model's constants derived from them
+        (subtree masses, the inverse weights that size every constraint's impedance) computed again, as
+        MuJoCo asks after such a change (``mj_setConst``). Left stale, a cube of 1.5 times its mass
+        was flung metres by its first contact."""
+        m = self._model
+        if not (np.array_equal(before[0], m.body_mass) and np.array_equal(before[1], m.body_inertia)):
+            mujoco.mj_setConst(m, mujoco.MjData(m))  # a scratch MjData: the world's state is untouched
 
     def _varying_entities(self) -> tuple[EntityRecord, ...]:
         """Robots whose actuator targets change between step calls: time-varying controllers, shaped commands."""
@@ -707,7 +721,9 @@ class World(WorldStepping, WorldAdmission, WorldSpawnPreparation):
         nothing changes)."""
         ent = self._get(name)
         rows = check_rows(targets, names, properties, values)
+        masses = self._masses()
         changed = apply_rows(self._model, ent, rows, restore=restore)
+        self._refresh_constants(masses)
         if ent.hw is not None:
             write_actuators(self._model, self._data, ent)
         self._update_period(ent)

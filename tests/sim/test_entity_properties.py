@@ -52,6 +52,30 @@ def test_rows_outlive_a_recompile_elsewhere_in_the_world(make_world):
     assert world.model.body_mass[_body(world, "arm", "link2")] == pytest.approx(0.5 * mass)
 
 
+def test_a_mass_scale_recomputes_the_constants_mujoco_derives_from_masses(make_world):
+    """Subtree masses and inverse weights (what sizes every contact's impedance) follow a mass row, its
+    restore and a recompile: left at the spawned masses', a push cube of 1.5 times its mass was flung
+    metres by its first contact (RX200PushGoalSim-v0 with ``randomization={"object_mass": [1.5, 1.5]}``)."""
+    world = make_world()
+    world.spawn("ball", BALL, pose=([0.0, 0, 0.5], [1, 0, 0, 0]))
+    b = _body(world, "ball", "ball")
+    mass = float(world.model.body_mass[b])
+
+    def consistent(scale: float) -> None:
+        m = world.model
+        assert m.body_mass[b] == pytest.approx(scale * mass)
+        assert m.body_subtreemass[b] == pytest.approx(scale * mass)
+        assert m.body_invweight0[b][0] == pytest.approx(1.0 / (scale * mass), rel=1e-6)
+
+    consistent(1.0)
+    world.set_entity_properties("ball", ["body"], [""], ["mass"], [1.5])
+    consistent(1.5)
+    world.spawn("ball2", BALL, pose=([1.0, 0, 0.5], [1, 0, 0, 0]))  # a recompile: the row written again
+    consistent(1.5)
+    world.set_entity_properties("ball", [], [], [], [], restore=True)
+    consistent(1.0)
+
+
 def test_object_friction_and_size(make_world):
     world = make_world()
     world.spawn("ball", BALL, pose=([0.0, 0, 0.5], [1, 0, 0, 0]))
