@@ -91,8 +91,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from uniros.training import TrainingError, default_config_for, load_training_config, open_run
 
     if args.resume:
-        if args.config or args.name:
-            raise TrainingError("--resume continues a run with its own config.yaml: drop --config and --name")
+        if args.config or args.name or args.init_from:
+            raise TrainingError("--resume continues a run with its own config.yaml (and the model it started from): "
+                                "drop --config, --name and --init-from")
         run, env_id, config = open_run(args.resume)  # locked from here on: a second --resume is refused
         try:
             return _train(args, run, env_id, config)
@@ -155,6 +156,15 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
         if text:
             _note(text)
     config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
+    init_from = None
+    if getattr(args, "init_from", None):
+        from uniros.model_files import algorithm_of, resolve_model_path
+
+        init_from = resolve_model_path(args.init_from).resolve()
+        saved = algorithm_of(init_from)
+        if saved != config.algorithm:
+            raise TrainingError(f"--init-from {init_from} is a {saved.upper()} model; "
+                                f"{config.source} trains {config.algorithm.upper()}")
     if not args.resume:
         run = start_run(env_id, config, output=args.output, name=args.name, command=["uniros", *sys.argv[1:]])
     print(f"{'resuming' if args.resume else 'training'} {config.algorithm.upper()}{' + HER' if config.use_her else ''} "
@@ -168,7 +178,7 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
 
     try:
         result = run_training(run, env_id, config, resume=bool(args.resume), target=args.target, on_eval=report,
-                              on_note=_note)
+                              on_note=_note, init_from=init_from)
     except TrainingInterrupted as exc:
         print(f"\n{exc}", file=sys.stderr)
         print(f"resume with: uniros train --resume {run.root}", file=sys.stderr)
@@ -408,6 +418,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="episodes of the final evaluation (the ones `uniros eval` plays; 0: none)")
     p.add_argument("--output", default="runs", help="parent of the run directories (default: %(default)s)")
     p.add_argument("--name", help="run directory name (default: <env id>_<algo>_<timestamp>); never overwritten")
+    p.add_argument("--init-from", metavar="MODEL",
+                   help="start from a trained model's weights (a .zip or a run directory: its best model), "
+                        "with this config's hyperparameters, a fresh replay buffer and step 0: fine-tune a "
+                        "policy in a randomised world (docs/training.md)")
     p.add_argument("--resume", metavar="RUN_DIR",
                    help="continue a run from its newest usable checkpoint (from step 0 when it has none)")
     p.add_argument("--no-video", action="store_true", help="do not record best_model.mp4 (real-time speed)")

@@ -196,6 +196,47 @@ def load_model(path: Path, env: Any, *, algorithm: str | None = None, device: st
         ) from exc
 
 
+def init_parameters(model: Any, path: Path, algorithm: str) -> None:
+    """Start ``model`` from the saved model at ``path`` (a warm start, rl-zoo3's ``--trained-agent``):
+    its networks, their optimisers' states and its learned variables (SAC's entropy coefficient) are
+    copied in; ``model``'s hyperparameters, replay buffer and step count stay as it was built.
+
+    Raises:
+        ModelFileError: the file is missing or unreadable, or is for another algorithm, other spaces
+            or other network sizes (``model`` is then unchanged).
+    """
+    import copy
+    import zipfile
+
+    from stable_baselines3.common.save_util import load_from_zip_file, recursive_setattr
+
+    path = resolve_model_path(path)
+    saved = algorithm_of(path)
+    try:
+        problem = spaces_mismatch(path, model.get_env() or model)
+        _, params, variables = load_from_zip_file(str(path), device=model.device)
+    except (zipfile.BadZipFile, ValueError, KeyError, EOFError, OSError) as exc:
+        if isinstance(exc, ModelFileError):
+            raise
+        raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
+    if saved != algorithm:
+        raise ModelFileError(f"{path} is a {saved.upper()} model; this run trains {algorithm.upper()}: start from a "
+                             f"{algorithm.upper()} model, or set the config's algorithm to {saved}")
+    if problem:
+        raise ModelFileError(problem)
+    backup = copy.deepcopy(model.get_parameters())  # torch copies tensors one by one: undo a partial load
+    try:
+        model.set_parameters(params, exact_match=True, device=model.device)
+        for name, value in (variables or {}).items():
+            if value is not None:
+                recursive_setattr(model, f"{name}.data", value.data)
+    except (RuntimeError, ValueError, KeyError, AttributeError) as exc:
+        model.set_parameters(backup, exact_match=True, device=model.device)
+        raise ModelFileError(f"{path} does not fit this run's networks ({type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0][:300]}): give the config the policy_params "
+                             "(net_arch) it was trained with") from exc
+
+
 class ModelFileError(TrainingError, ValueError):
     """A saved model is missing, unreadable, for another algorithm, or for another env."""
 

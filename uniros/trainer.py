@@ -41,7 +41,7 @@ from uniros.devices import resolve_device
 from uniros.evaluation import EVAL_SEED, evaluate
 from uniros.image_spaces import images_channel_first, vector_keys
 from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
-from uniros.model_files import ModelFileError, algorithm_of, load_model, spaces_mismatch
+from uniros.model_files import ModelFileError, algorithm_of, init_parameters, load_model, spaces_mismatch
 from uniros.train_config import TrainingConfig, TrainingConfigError
 
 _logger = logging.getLogger(__name__)
@@ -343,7 +343,7 @@ class Session:
 
     # -- model --
     def build(self, resume: Checkpoint | None = None, load: Path | None = None, *, buffer: Any = None,
-              load_kwargs: dict[str, Any] | None = None) -> Any:
+              load_kwargs: dict[str, Any] | None = None, init: Path | None = None) -> Any:
         """Create the model, or load it from a checkpoint (``resume``) or a saved model (``load``).
 
         Args:
@@ -352,6 +352,9 @@ class Session:
                 off-policy model starts from an empty one that fills for ``learning_starts`` steps
                 (and the demonstrations) before updates go on.
             load_kwargs: hyperparameters that replace the saved model's (SB3's ``load(**kwargs)``).
+            init: a saved model a new model starts from (a warm start,
+                :func:`uniros.model_files.init_parameters`): the config's hyperparameters, an empty
+                replay buffer (and the demonstrations), step 0, the saved model's weights and statistics.
         """
         from stable_baselines3.common.vec_env import VecEnv
 
@@ -361,14 +364,19 @@ class Session:
         elif self.config.seed is not None:
             self.env.seed(self.config.seed)  # env i's first reset gets seed + i (SB3's convention)
         source = resume.model if resume is not None else load
+        if source is not None and init is not None:
+            raise ValueError("a model is either loaded or started from another one (init), not both")
         stats = resume.vecnormalize if resume is not None else None
-        if source is not None and stats is None and self.config.normalize:
-            candidate = normalizer_path(Path(source))
+        weights = source if source is not None else init
+        if weights is not None and stats is None and self.config.normalize:
+            candidate = normalizer_path(Path(weights))
             stats = candidate if candidate.is_file() else None
         venv = self._vec(self._monitored(self.env, "train"), training=True, stats=stats)
         self.normalizer = venv if self.config.normalize else None
         if source is None:
             self.model = build_model(self.config, venv, verbose=self.verbose)
+            if init is not None:
+                init_parameters(self.model, Path(init), self.config.algorithm)
             self._add_demonstrations()
         else:
             self.model = load_model(Path(source), venv, algorithm=self.config.algorithm, device=self.config.device,

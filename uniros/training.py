@@ -270,9 +270,11 @@ def run_training(
     on_eval: Callable[[int, float, float], None] | None = None,
     verbose: int = 0,
     on_note: Callable[[str], None] | None = None,
+    init_from: Path | None = None,
 ) -> TrainingResult:
     """Train into ``run`` (new, or ``resume`` from its newest usable checkpoint), then write the final
-    model, the learning curve and the video.
+    model, the learning curve and the video. ``init_from``: a saved model a new run starts from (its
+    weights; the config's hyperparameters, a fresh replay buffer, step 0), recorded in ``run.json``.
 
     A resumed run takes the newest checkpoint whose files all load (model, replay buffer,
     statistics), says which it skipped and why (``on_note``, default: a warning), and starts again
@@ -303,7 +305,9 @@ def run_training(
             if resume:
                 _resume_session(session, run, note)
             else:
-                session.build()
+                session.build(init=init_from)
+                if init_from is not None:
+                    run.update_meta(init_from=str(init_from))
             check_disk_for_run(run.root, config, session.model)
             run.update_meta(status="running", device=str(session.model.device))
             learning = True
@@ -392,7 +396,8 @@ def _resume_session(session: Session, run: RunDir, note: Callable[[str], None]) 
              + ": starting the run again from step 0"
              + (f"; what the earlier attempt wrote (models, evaluations, logs) is kept in {kept}" if kept else ""))
         run.update_meta(steps=0, train_seconds=0.0, resumed_from=None, resumed_without_buffer=False)
-        session.build()
+        init = meta.get("init_from")  # a warm-started run starts again from the same model
+        session.build(init=Path(init) if isinstance(init, str) and init else None)
         return
     ckpt = choice.chosen.checkpoint
     rows = [r for r in read_evaluations(run.evaluations) if r.get("steps", 0) <= ckpt.steps]
