@@ -13,7 +13,11 @@ timing
     the arm file's ``dynamics.latency``); ``control_jitter``: fraction of a control period each command
     may come later still; ``lag``: seconds of first-order lag of the joints (default the arm file's
     ``dynamics.time_constant``); ``command_offset`` (rad): each arm joint settles up to this far from its
-    target, drawn per episode in ``[-v, v]`` (a servo drooping under load; added to ``dynamics.offset``).
+    target, drawn per episode in ``[-v, v]`` (a servo drooping under load; added to ``dynamics.offset``);
+    ``droop`` (rad, ``[low, high]``): each arm joint's dead band, drawn per episode: the joint stops that
+    far short of its target on the side it came from, and a command within it of where the joint stands
+    does not move it (a stiff servo under load, or stiction: the fake robot's ``droop``; added to
+    ``dynamics.droop``).
 sensing
     ``joint_noise`` (rad, standard deviation per reading), ``joint_offset`` (rad: each arm joint's
     calibration error, drawn per episode in ``[-v, v]``), ``object_position_noise`` (m, standard
@@ -54,12 +58,13 @@ _SCALES = ("link_mass", "joint_damping", "joint_friction", "joint_armature", "ac
 RANDOMIZATION_KEYS: dict[str, str] = {
     **dict.fromkeys(_SCALES, "scale"),
     "action_latency": "control periods", "control_jitter": "fraction of a control period", "lag": "s",
-    "command_offset": "rad", "camera_position": "m", "camera_fovy": "scale", "colour": "fraction",
+    "command_offset": "rad", "droop": "rad", "camera_position": "m", "camera_fovy": "scale", "colour": "fraction",
     "joint_noise": "rad", "joint_offset": "rad", "object_position_noise": "m",
 }
 _BOUNDS: dict[str, tuple[float, float]] = {
     **dict.fromkeys(_SCALES, (0.05, 20.0)),
     "action_latency": (0, 20), "control_jitter": (0.0, 1.0), "lag": (0.0, 2.0), "command_offset": (0.0, 0.2),
+    "droop": (0.0, 0.2),
     "joint_noise": (0.0, 0.1), "joint_offset": (0.0, 0.1), "object_position_noise": (0.0, 0.1),
     "camera_position": (0.0, 0.2), "camera_fovy": (0.5, 2.0), "colour": (0.0, 0.9),
 }
@@ -133,6 +138,8 @@ class Randomization:
             calibration = rng.uniform(-r["joint_offset"][1], r["joint_offset"][1], n)
         jitter = r["control_jitter"][1] * period if "control_jitter" in r else 0.0
         droop = np.array(dyn.droop or (0.0,) * n, dtype=np.float64)
+        if "droop" in r:
+            droop = droop + rng.uniform(*r["droop"], n)
         shaped = latency > 0 or jitter > 0 or np.any(tc > 0) or np.any(gain != 1) or np.any(offset) or np.any(droop)
         if shaped:
             robot += [("command", "", "latency", float(latency)), ("command", "", "jitter", float(jitter)),

@@ -28,6 +28,7 @@ FULL = {"link_mass": [0.8, 1.2], "joint_damping": [0.5, 2.0], "joint_friction": 
     ({"joint_noise": [0.0, 0.1]}, "must be one number (rad)"),
     ({"lag": "slow"}, "must be [low, high] or one number (s)"),
     ({"joint_offset": float("nan")}, "must be in [0, 0.1]"),
+    ({"droop": [0.0, 0.5]}, "each value must be in [0, 0.2] (rad)"),
     ([1, 2], "must be a mapping of keys to ranges"),
 ])
 def test_a_bad_mapping_is_one_line_naming_the_key(data, message):
@@ -85,6 +86,28 @@ def test_action_latency_holds_the_arm_for_whole_control_periods():
     assert prompt[0] > 5e-3, "the exact arm moves in the first step"
     assert late[0] < 1e-3 and late[1] < 1e-3, "two control periods late: still for two steps"
     assert late[2] > 5e-3
+
+
+def test_droop_is_a_dead_band_each_joint_stops_short_by():
+    """``droop``: a command within the band of where a joint stands does not move it; a larger one moves
+    it to the band's edge short of the target (absolute joint targets, so the commands are exact)."""
+    env = uniros.make(REACH, delta_action=False, randomization={"droop": [0.05, 0.05]})
+    try:
+        env.reset(seed=3)
+        u = env.unwrapped
+        start = u.arm_positions().copy()
+        small = start.copy()
+        small[1] += 0.03
+        for _ in range(5):
+            env.step(small.astype(np.float32))
+        np.testing.assert_allclose(u.arm_positions(), start, atol=5e-3)  # within the band: still
+        large = start.copy()
+        large[1] += 0.2
+        for _ in range(10):
+            env.step(large.astype(np.float32))
+        assert u.arm_positions()[1] - start[1] == pytest.approx(0.15, abs=5e-3)  # 0.05 short of 0.2
+    finally:
+        env.close()
 
 
 def test_calibration_offsets_and_noise_are_in_the_readings_not_the_arm():
@@ -192,3 +215,13 @@ def test_a_pixel_envs_camera_and_colours_change_its_images():
     plain, a, b = first_image(None, 0), first_image(r, 0), first_image(r, 0)
     np.testing.assert_array_equal(a, b)
     assert np.abs(plain - a).mean() > 1.0
+
+
+def test_every_key_has_its_row_in_the_docs_table():
+    from pathlib import Path
+
+    from rl_environments.randomization import RANDOMIZATION_KEYS
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "sim_to_real.md").read_text()
+    missing = [key for key in RANDOMIZATION_KEYS if f"| `{key}` |" not in text]
+    assert not missing, f"docs/sim_to_real.md has no row for {missing}"
