@@ -157,14 +157,10 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
             _note(text)
     config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
     init_from = None
-    if getattr(args, "init_from", None):
-        from uniros.model_files import algorithm_of, resolve_model_path
+    if getattr(args, "init_from", None):  # found now (run.json records it); its fit is checked as the model is built
+        from uniros.model_files import resolve_model_path
 
         init_from = resolve_model_path(args.init_from).resolve()
-        saved = algorithm_of(init_from)
-        if saved != config.algorithm:
-            raise TrainingError(f"--init-from {init_from} is a {saved.upper()} model; "
-                                f"{config.source} trains {config.algorithm.upper()}")
     if not args.resume:
         run = start_run(env_id, config, output=args.output, name=args.name, command=["uniros", *sys.argv[1:]])
     print(f"{'resuming' if args.resume else 'training'} {config.algorithm.upper()}{' + HER' if config.use_her else ''} "

@@ -216,8 +216,6 @@ def init_parameters(model: Any, path: Path, algorithm: str) -> None:
         problem = spaces_mismatch(path, model.get_env() or model)
         _, params, variables = load_from_zip_file(str(path), device=model.device)
     except (zipfile.BadZipFile, ValueError, KeyError, EOFError, OSError) as exc:
-        if isinstance(exc, ModelFileError):
-            raise
         raise ModelFileError(f"{path} is not a readable SB3 model ({type(exc).__name__}: {exc})") from exc
     if saved != algorithm:
         raise ModelFileError(f"{path} is a {saved.upper()} model; this run trains {algorithm.upper()}: start from a "
