@@ -86,11 +86,23 @@ class ManipulationOptions(TaskOptions):
         ee_action_type: end-effector deltas + gripper (True, the default) or joint deltas + gripper.
         distance_threshold: success distance in metres (default: the config's, 0.05).
         terminate_on_success: end the episode on success (default False, as Fetch).
+        command_lead: how far the commanded end effector (m; rad per joint for joint actions) may run ahead
+            of the measured one. 0 (the default, Fetch's): each action moves from where the arm is
+            measured. Above 0: each action moves on from the last command, kept within ``command_lead``
+            of the measured arm, so commands add up through a servo's lag, latency and dead band (on a
+            real arm the measured pose trails the command; from it, a lagging arm moves a fraction of
+            each action and a late one chases old readings).
     """
 
     ee_action_type: bool = True
     distance_threshold: float | None = None
     terminate_on_success: bool = False
+    command_lead: float = 0.0
+
+    def __post_init__(self) -> None:
+        lead = self.command_lead
+        if isinstance(lead, bool) or not isinstance(lead, (int, float)) or not 0.0 <= lead <= 1.0:
+            raise ValueError(f"command_lead must be a number in [0, 1] (m, or rad for joint actions); got {lead!r}")
 
 
 class ObjectTask(ArmTask):
@@ -132,6 +144,22 @@ class ObjectTask(ArmTask):
         self.ee_low = np.asarray(cfg["position_ee_min"], dtype=np.float64)
         self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
         self.table_top = float(cfg["table_top"]) + self.base_position[2]
+        self.command_lead = float(options.command_lead)
+        self.ee_goal = np.full(3, np.nan)  # the last commanded end effector (base frame); NaN: none yet
+
+    @classmethod
+    def ee_goals(cls, tasks: Sequence[ObjectTask], ee: np.ndarray, deltas: np.ndarray) -> np.ndarray:
+        """N envs' end-effector goals (base frame) for end-effector deltas ``deltas`` (units of
+        ``ee_delta_coeff``) from the measured ``ee`` (world frame), or from each env's last goal within its
+        ``command_lead`` of it; clipped into the box and kept as the next step's last goal."""
+        ref = ee - rows(tasks, "base_position")
+        if any(task.command_lead for task in tasks):
+            lead = column(tasks, "command_lead")
+            ref = ref + np.clip(np.nan_to_num(rows(tasks, "ee_goal") - ref), -lead, lead)
+        goals = np.clip(ref + deltas * column(tasks, "ee_delta_coeff"), rows(tasks, "ee_low"), rows(tasks, "ee_high"))
+        for task, goal in zip(tasks, goals):
+            task.ee_goal = goal
+        return goals
 
     def add_scene(self, rest_z: float, object_xy: Sequence[float], mjcf: tuple[str, str] | None = None) -> None:
         """Spawn the table and the object (a robot's connection serves the tracker's object and the standing
@@ -401,6 +429,7 @@ class ManipulationTask(ObjectTask):
         self.goal = goal + base
         self.place_object(obj + base, yaw_quat(yaw))
         self.prev_action = np.zeros(self.action_space.shape)
+        self.ee_goal = np.full(3, np.nan)  # the first action moves from where the arm is
         self._episode_start = True  # velocities restart from the first observation
         self.show_object_goal()
 
@@ -410,24 +439,25 @@ class ManipulationTask(ObjectTask):
         """Joint targets (through each env's top-down IK for EE actions) and gripper targets of N envs."""
         arm = tasks[0].arm
         current = arm.positions_of(states)
+        if any(task.ee_action_type for task in tasks):
+            goals = cls.ee_goals(tasks, arm.ee_positions_of(tasks[0].connection, states), actions[:, :3])
+        if not all(task.ee_action_type for task in tasks):
+            reference = current
+            if any(task.command_lead for task in tasks):
+                lead = column(tasks, "command_lead")
+                reference = current + np.clip(rows(tasks, "joint_targets") - current, -lead, lead)
+            joint_targets = reference + actions[:, :-1] * rows(tasks, "delta_coeff")[:, None]
         if all(task.ee_action_type for task in tasks):
-            ee = arm.ee_positions_of(tasks[0].connection, states)
-            goals = np.clip(ee - rows(tasks, "base_position") + actions[:, :3] * column(tasks, "ee_delta_coeff"),
-                            rows(tasks, "ee_low"), rows(tasks, "ee_high"))
             key = tasks[0].ik_key
             if all(task.ik_key == key for task in tasks):  # one arm, one set of limits: one pass
                 targets = tasks[0].ik.solve_rows(goals, q0=current)
             else:
                 targets = np.array([task.ik.solve(goals[j], q0=current[j]) for j, task in enumerate(tasks)])
         elif not any(task.ee_action_type for task in tasks):
-            targets = current + actions[:, :-1] * rows(tasks, "delta_coeff")[:, None]
+            targets = joint_targets
         else:
-            ee = arm.ee_positions_of(tasks[0].connection, states)
-            targets = np.array([
-                t.ik.solve(np.clip(ee[j] - t.base_position + actions[j, :3] * t.ee_delta_coeff, t.ee_low, t.ee_high),
-                           q0=current[j])
-                if t.ee_action_type else current[j] + actions[j, :-1] * t.delta_coeff
-                for j, t in enumerate(tasks)])
+            targets = np.array([t.ik.solve(goals[j], q0=current[j]) if t.ee_action_type else joint_targets[j]
+                                for j, t in enumerate(tasks)])
         targets = np.clip(targets, rows(tasks, "min_joint_pos"), rows(tasks, "max_joint_pos"))
         for task, row in zip(tasks, targets):
             arm.command_arm(task.connection, row, task.info)

@@ -45,7 +45,7 @@ from gymnasium import spaces
 
 from multiros.robot_state import RobotStates
 from rl_environments.arm import Arm
-from rl_environments.arm_task import TaskHost, TaskOptions, column, rows
+from rl_environments.arm_task import TaskHost, TaskOptions, rows
 from rl_environments.manipulation import ObjectGoalSampler, quat_to_euler, yaw_quat
 from rl_environments.manipulation_task import ManipulationOptions, ObjectTask
 
@@ -170,6 +170,7 @@ class SlideTask(ObjectTask):
         self.goal = goal + base
         self.place_object(obj + base, yaw_quat(yaw))
         self.prev_action = np.zeros(3)
+        self.ee_goal = np.full(3, np.nan)  # the first action moves from where the arm is
         self._episode_start = True
         self.show_object_goal()
 
@@ -179,9 +180,7 @@ class SlideTask(ObjectTask):
         """End-effector targets through each env's top-down IK, clipped into its box and joint range."""
         arm = tasks[0].arm
         current = arm.positions_of(states)
-        ee = arm.ee_positions_of(tasks[0].connection, states)
-        goals = np.clip(ee - rows(tasks, "base_position") + actions * column(tasks, "ee_delta_coeff"),
-                        rows(tasks, "ee_low"), rows(tasks, "ee_high"))
+        goals = cls.ee_goals(tasks, arm.ee_positions_of(tasks[0].connection, states), actions)
         if all(task.ik_key == tasks[0].ik_key for task in tasks):
             targets = tasks[0].ik.solve_rows(goals, q0=current)
         else:
