@@ -21,7 +21,8 @@ timing
 sensing
     ``joint_noise`` (rad, standard deviation per reading), ``joint_offset`` (rad: each arm joint's
     calibration error, drawn per episode in ``[-v, v]``), ``object_position_noise`` (m, standard
-    deviation of the tracker's reading of the object).
+    deviation of the tracker's reading of the object), ``object_position_latency`` (s, ``[low, high]``:
+    how old the tracker's reading of the object is, drawn per episode).
 cameras and colours (pixel observations)
     ``camera_position`` (m: the observation camera moved up to this far along each axis, per episode),
     ``camera_fovy`` (scale of its field of view), ``colour`` (each of the robot's, the object's and the
@@ -60,12 +61,14 @@ RANDOMIZATION_KEYS: dict[str, str] = {
     "action_latency": "control periods", "control_jitter": "fraction of a control period", "lag": "s",
     "command_offset": "rad", "droop": "rad", "camera_position": "m", "camera_fovy": "scale", "colour": "fraction",
     "joint_noise": "rad", "joint_offset": "rad", "object_position_noise": "m",
+    "object_position_latency": "s",
 }
 _BOUNDS: dict[str, tuple[float, float]] = {
     **dict.fromkeys(_SCALES, (0.05, 20.0)),
     "action_latency": (0, 20), "control_jitter": (0.0, 1.0), "lag": (0.0, 2.0), "command_offset": (0.0, 0.2),
     "droop": (0.0, 0.2),
     "joint_noise": (0.0, 0.1), "joint_offset": (0.0, 0.1), "object_position_noise": (0.0, 0.1),
+    "object_position_latency": (0.0, 1.0),
     "camera_position": (0.0, 0.2), "camera_fovy": (0.5, 2.0), "colour": (0.0, 0.9),
 }
 _SINGLE = ("control_jitter", "command_offset", "joint_noise", "joint_offset", "object_position_noise",
@@ -173,7 +176,9 @@ class Randomization:
                 rows.append(("camera", name, "fovy", float(rng.uniform(*r["camera_fovy"]))))
         noise = r["joint_noise"][1] if "joint_noise" in r else 0.0
         tracker = r["object_position_noise"][1] if "object_position_noise" in r else 0.0
-        return EpisodeWorld(robot, entities, calibration, noise, tracker)
+        # drawn last: a config without it draws every other value as before
+        tracker_latency = float(rng.uniform(*r["object_position_latency"])) if "object_position_latency" in r else 0.0
+        return EpisodeWorld(robot, entities, calibration, noise, tracker, tracker_latency)
 
 
 @dataclass(frozen=True)
@@ -185,6 +190,7 @@ class EpisodeWorld:
     calibration: np.ndarray
     joint_noise: float
     object_noise: float
+    object_latency: float = 0.0
 
 
 def _range(key: str, value: Any, source: str) -> tuple[float, float]:
@@ -266,10 +272,10 @@ class WorldRandomizer:
         for entity in set(world.entities) | self._touched:
             connection.set_entity_properties(entity, world.entities.get(entity, []), restore=True)
         self._touched = set(world.entities)
-        if world.joint_noise > 0 or world.object_noise > 0 or np.any(world.calibration):
+        if world.joint_noise > 0 or world.object_noise > 0 or world.object_latency > 0 or np.any(world.calibration):
             index = self.arm.arm_index(connection.states.names)
             joints = np.arange(len(connection.states.names))[index]
             connection.sensors = SensorModel(joints, world.calibration, world.joint_noise, self.object_frames,
-                                             world.object_noise, self.rng)
+                                             world.object_noise, self.rng, world.object_latency)
         else:
             connection.sensors = None

@@ -281,7 +281,7 @@ class SimConnection(RobotConnection):
         if self._slot is not None and len(state.frame_positions):
             np.subtract(state.frame_positions, self._slot, out=state.frame_positions)
         if self.sensors is not None:
-            self.sensors.apply(state.position, state.frame_positions)
+            self.sensors.apply(state.position, state.frame_positions, state.sim_time)
         self._state, self._states, self._row = state, None, None
 
     def refresh(self, steps: int = 0) -> StepStatus:
@@ -298,7 +298,7 @@ class SimConnection(RobotConnection):
             if self._slot is not None and stacked.frame_positions.shape[1]:
                 np.subtract(stacked.frame_positions[j], self._slot, out=stacked.frame_positions[j])
             if self.sensors is not None:
-                self.sensors.apply(stacked.position[j], stacked.frame_positions[j])
+                self.sensors.apply(stacked.position[j], stacked.frame_positions[j], stacked.sim_time)
             self._row, self._state = (stacked, j), None
             self._states = stacked if len(stacked) == 1 else None
         else:
@@ -353,6 +353,8 @@ class SimConnection(RobotConnection):
             self.sim.reset_controllers(self.namespace, self.controllers_list or None)
 
     def start_episode(self, info: dict[str, Any]) -> None:
+        if self.sensors is not None:
+            self.sensors.forget()  # the tracker's first reading of the episode: the object where it was placed
         self.refresh(0)
 
     def set_joint_positions(self, names: Sequence[str], positions: npt.ArrayLike, hold: bool = True) -> None:

@@ -129,6 +129,42 @@ def test_calibration_offsets_and_noise_are_in_the_readings_not_the_arm():
         env.close()
 
 
+def test_the_trackers_latency_reports_the_object_where_it_was_that_long_ago():
+    """Actions that push the cube, replayed with and without 0.18 s of tracker latency (4.5 control periods):
+    the late tracker reports at each step what the prompt one reported five steps before, and the cube
+    where it was placed at the reset, not where the last episode left it."""
+    from rl_environments.manipulation_scripted import scripted_policy
+
+    prompt, late = uniros.make(PUSH), uniros.make(PUSH, randomization={"object_position_latency": [0.18, 0.18]})
+    try:
+        seen = {}
+        for name, env in (("prompt", prompt), ("late", late)):
+            for episode in (0, 1):  # the second episode starts after a pushed cube
+                obs, _ = env.reset(seed=10 + episode)
+                goals = [obs["achieved_goal"].copy()]
+                if name == "prompt":
+                    policy, actions = scripted_policy(env), []
+                    for _ in range(25):
+                        actions.append(policy(obs))
+                        obs, *_ = env.step(actions[-1])
+                        goals.append(obs["achieved_goal"].copy())
+                    seen[("actions", episode)] = actions
+                else:
+                    for action in seen[("actions", episode)]:
+                        obs, *_ = env.step(action)
+                        goals.append(obs["achieved_goal"].copy())
+                seen[(name, episode)] = np.array(goals)
+        for episode in (0, 1):
+            truth, reported = seen[("prompt", episode)], seen[("late", episode)]
+            assert np.ptp(truth[:, 0]) + np.ptp(truth[:, 1]) > 0.02, "the actions move the cube"
+            np.testing.assert_allclose(reported[5:], truth[:-5], atol=1e-6)
+            np.testing.assert_allclose(reported[:5], np.repeat(truth[:1], 5, axis=0), atol=1e-6)
+        assert late.unwrapped.connection.sensors.frame_latency == pytest.approx(0.18)
+    finally:
+        prompt.close()
+        late.close()
+
+
 def test_a_batch_draws_a_world_per_env():
     vec = uniros.make_vec(PUSH, 2, vectorization_mode="batched", randomization={"object_mass": [0.5, 2.0],
                                                                                "joint_offset": 0.02})
