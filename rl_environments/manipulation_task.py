@@ -105,6 +105,15 @@ class ManipulationOptions(TaskOptions):
             raise ValueError(f"command_lead must be a number in [0, 1] (m, or rad for joint actions); got {lead!r}")
 
 
+def _command_reference(tasks: Sequence[ObjectTask], measured: np.ndarray, last: str) -> np.ndarray:
+    """Where N envs' deltas move from: the ``measured`` rows, or, for an env with a ``command_lead``, its
+    last command (the task's value ``last``; NaN: none yet) within the lead of them."""
+    if not any(task.command_lead for task in tasks):
+        return measured
+    lead = column(tasks, "command_lead")
+    return measured + np.clip(np.nan_to_num(rows(tasks, last) - measured), -lead, lead)
+
+
 class ObjectTask(ArmTask):
     """A task with an object on a table next to the arm: the scene, the object's pose and velocities, the
     per-episode object and goal, and the faults that end an episode (push, pick-and-place, slide)."""
@@ -152,10 +161,7 @@ class ObjectTask(ArmTask):
         """N envs' end-effector goals (base frame) for end-effector deltas ``deltas`` (units of
         ``ee_delta_coeff``) from the measured ``ee`` (world frame), or from each env's last goal within its
         ``command_lead`` of it; clipped into the box and kept as the next step's last goal."""
-        ref = ee - rows(tasks, "base_position")
-        if any(task.command_lead for task in tasks):
-            lead = column(tasks, "command_lead")
-            ref = ref + np.clip(np.nan_to_num(rows(tasks, "ee_goal") - ref), -lead, lead)
+        ref = _command_reference(tasks, ee - rows(tasks, "base_position"), "ee_goal")
         goals = np.clip(ref + deltas * column(tasks, "ee_delta_coeff"), rows(tasks, "ee_low"), rows(tasks, "ee_high"))
         for task, goal in zip(tasks, goals):
             task.ee_goal = goal
@@ -442,11 +448,8 @@ class ManipulationTask(ObjectTask):
         if any(task.ee_action_type for task in tasks):
             goals = cls.ee_goals(tasks, arm.ee_positions_of(tasks[0].connection, states), actions[:, :3])
         if not all(task.ee_action_type for task in tasks):
-            reference = current
-            if any(task.command_lead for task in tasks):
-                lead = column(tasks, "command_lead")
-                reference = current + np.clip(rows(tasks, "joint_targets") - current, -lead, lead)
-            joint_targets = reference + actions[:, :-1] * rows(tasks, "delta_coeff")[:, None]
+            joint_targets = (_command_reference(tasks, current, "joint_targets")
+                             + actions[:, :-1] * rows(tasks, "delta_coeff")[:, None])
         if all(task.ee_action_type for task in tasks):
             key = tasks[0].ik_key
             if all(task.ik_key == key for task in tasks):  # one arm, one set of limits: one pass

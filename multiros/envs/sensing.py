@@ -83,6 +83,8 @@ class SensorModel:
         history = self._history
         if history and time < history[-1][0]:  # the clock went back: a new timeline
             history.clear()
+        if history and time == history[-1][0]:  # a second reading at one time (a refresh without steps)
+            history.pop()
         history.append((time, frame_positions[idx].copy()))
         due = time - self.frame_latency
         while len(history) > 1 and history[1][0] <= due:
