@@ -7,7 +7,9 @@ Importable from every test directory: ``tests/`` is on ``sys.path`` because it h
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+import threading
+import time
+from collections.abc import Callable, Mapping
 
 import zenoh
 
@@ -39,3 +41,37 @@ def open_peer_session(endpoint: str, *, credentials: Mapping[str, str] | None = 
         if credentials.get("auth_dictionary"):
             config.insert_json5("transport/auth/usrpwd/dictionary_file", json.dumps(credentials["auth_dictionary"]))
     return zenoh.open(config)
+
+
+def query_until_answered(session: zenoh.Session, key: str, *, payload: bytes, attachment: Callable[[], bytes],
+                         timeout: float, reply_timeout: float = 2.0, poll: float = 0.05) -> list[zenoh.Reply]:
+    """Query ``key`` (all complete queryables, no consolidation: as an rmw_zenoh client calls a service)
+    until a reply comes back or ``timeout`` passes; returns the replies of the answered query, or ``[]``.
+
+    A fresh session learns the node's queryables a moment after it opens (longer on a loaded machine),
+    and a query sent before then is answered at once with nothing. So between tries this waits for
+    Zenoh's matching status to say a queryable exists, instead of sending queries nothing can answer
+    (a loop of those runs at tens of thousands a second and starves the processes it waits for); a
+    query that matched but got no reply is tried again no sooner than ``poll`` seconds later.
+    ``attachment`` is called for each try (a fresh sequence number and timestamp).
+    """
+    querier = session.declare_querier(key, target=zenoh.QueryTarget.ALL_COMPLETE,
+                                      consolidation=zenoh.ConsolidationMode.NONE, timeout=reply_timeout)
+    matched = threading.Event()
+    listener = querier.declare_matching_listener(lambda status: matched.set() if status.matching else matched.clear())
+    try:
+        if querier.matching_status.matching:
+            matched.set()
+        deadline = time.monotonic() + timeout
+        while (remaining := deadline - time.monotonic()) > 0:
+            if not matched.wait(remaining):
+                break
+            started = time.monotonic()
+            replies = list(querier.get(payload=payload, attachment=attachment()))
+            if replies:
+                return replies
+            time.sleep(max(0.0, min(poll - (time.monotonic() - started), deadline - time.monotonic())))  # poll interval
+        return []
+    finally:
+        listener.undeclare()
+        querier.undeclare()

@@ -8,8 +8,7 @@ import struct
 import time
 from types import SimpleNamespace
 
-import zenoh
-from raw_zenoh import open_peer_session
+from raw_zenoh import open_peer_session, query_until_answered
 
 from multiros import ros
 from multiros.ros.interfaces import dds_type_name, get_service, serialize_message, type_hash
@@ -54,11 +53,8 @@ def test_zenoh_callers_are_their_gids(zenoh_ctx: ros.Context, zenoh_peer_ctx: ro
         domain = zenoh_ctx.domain_id
         key = f"{domain}/add/{dds_type_name('example_interfaces/srv/AddTwoInts')}/{type_hash(AddTwoInts)}"
         gid = bytes(range(100, 116))
-        deadline = time.monotonic() + 10.0
-        while len(seen) < 2 and time.monotonic() < deadline:
-            att = struct.pack("<qqB", 1, time.time_ns(), 16) + gid
-            list(session.get(key, payload=serialize_message(AddTwoInts.Request(a=1, b=1)), attachment=att,
-                             target=zenoh.QueryTarget.ALL_COMPLETE, timeout=2.0))
+        query_until_answered(session, key, payload=serialize_message(AddTwoInts.Request(a=1, b=1)), timeout=10.0,
+                             attachment=lambda: struct.pack("<qqB", 1, time.time_ns(), 16) + gid)
         assert seen[1:] == ["zenoh:" + gid.hex()]
     finally:
         session.close()

@@ -7,6 +7,7 @@ import struct
 import time
 
 import zenoh
+from raw_zenoh import query_until_answered
 
 from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
 from multiros.sim.distro_adapters import get_service
@@ -17,11 +18,9 @@ def raw_get_entities(session: zenoh.Session, domain: int, timeout: float = 10.0)
     type_name = "simulation_interfaces/srv/GetEntities"
     srv = get_service(type_name)
     key = f"{domain}/mujoco_sim/get_entities/{dds_type_name(type_name)}/{type_hash(srv)}"
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:  # the node's queryable reaches a new session within milliseconds
-        attachment = struct.pack("<qqB", 1, time.time_ns(), 16) + bytes(range(16))
-        replies = list(session.get(key, payload=serialize_message(srv.Request()), attachment=attachment,
-                                   target=zenoh.QueryTarget.ALL_COMPLETE, timeout=1.0))
-        if replies and replies[0].ok is not None:
-            return list(deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response).entities)
-    raise AssertionError(f"no answer to GetEntities within {timeout} s")
+    replies = query_until_answered(
+        session, key, payload=serialize_message(srv.Request()), timeout=timeout, reply_timeout=1.0,
+        attachment=lambda: struct.pack("<qqB", 1, time.time_ns(), 16) + bytes(range(16)))
+    if not replies or replies[0].ok is None:
+        raise AssertionError(f"no answer to GetEntities within {timeout} s")
+    return list(deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response).entities)

@@ -15,8 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import zenoh
-from raw_zenoh import open_peer_session
+from raw_zenoh import open_peer_session, query_until_answered
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags_types import service_types, store_of
@@ -81,13 +80,9 @@ class Peer:
         data = bytes(self.store.serialize_cdr(request, f"{srv}_Request"))
         self.seq += 1
         attachment = struct.pack("<qqB", self.seq, time.time_ns(), 16) + bytes(range(16))
-        deadline = time.monotonic() + timeout
-        while True:  # until the router has the node's queryable (no reply yet: retry, bounded)
-            replies = list(self.session.get(self.key(name, srv), payload=data, attachment=attachment,
-                                            target=zenoh.QueryTarget.ALL_COMPLETE,
-                                            consolidation=zenoh.ConsolidationMode.NONE, timeout=2.0))
-            if replies or time.monotonic() > deadline:
-                break
+        # until the router has the node's queryable (no reply yet: retry, bounded)
+        replies = query_until_answered(self.session, self.key(name, srv), payload=data, timeout=timeout,
+                                       attachment=lambda: attachment)
         assert len(replies) == 1, f"{name}: {len(replies)} replies"
         assert replies[0].ok is not None, replies[0].err.payload.to_string()
         return self.store.deserialize_cdr(replies[0].ok.payload.to_bytes(), f"{srv}_Response")

@@ -18,8 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-import zenoh
-from raw_zenoh import open_peer_session
+from raw_zenoh import open_peer_session, query_until_answered
 
 from multiros.ros import Context, Node
 from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
@@ -253,16 +252,15 @@ class _Peer:
     def call(self, service: str, timeout: float = 20.0, **fields):
         srv = get_service(_TYPES[service])
         key = f"{DOMAIN}/mujoco_sim/{service}/{dds_type_name(_TYPES[service])}/{type_hash(srv)}"
-        deadline = time.monotonic() + timeout
-        while True:  # the first calls may come before the node's services reached this session
-            self.seq += 1
-            attachment = struct.pack("<qqB", self.seq, time.time_ns(), 16) + self.gid
-            replies = list(self.session.get(key, payload=serialize_message(srv.Request(**fields)),
-                                            attachment=attachment, target=zenoh.QueryTarget.ALL_COMPLETE,
-                                            consolidation=zenoh.ConsolidationMode.NONE, timeout=min(timeout, 2.0)))
-            if replies and replies[0].ok is not None:
-                return deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response)
-            assert time.monotonic() < deadline, f"{service}: no answer within {timeout} s"
+        # the first calls may come before the node's services reached this session
+        replies = query_until_answered(self.session, key, payload=serialize_message(srv.Request(**fields)),
+                                       attachment=self._attachment, timeout=timeout, reply_timeout=min(timeout, 2.0))
+        assert replies and replies[0].ok is not None, f"{service}: no answer within {timeout} s"
+        return deserialize_message(replies[0].ok.payload.to_bytes(), srv.Response)
+
+    def _attachment(self) -> bytes:
+        self.seq += 1
+        return struct.pack("<qqB", self.seq, time.time_ns(), 16) + self.gid
 
     def spawn_box(self, name: str, i: int):
         req = get_service(_TYPES["spawn_entity"]).Request(name=name)

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 import zenoh
-from raw_zenoh import open_peer_session
+from raw_zenoh import open_peer_session, query_until_answered
 
 from multiros.ros import Context
 from multiros.ros.interfaces import dds_type_name, deserialize_message, serialize_message, type_hash
@@ -84,12 +84,12 @@ class RawPeer:
     def wait_for_service(self, timeout: float = 60.0) -> None:
         """Until this session's queries reach the node (a fresh session's routes take a moment, longer
         on a loaded machine: a query sent before they exist gets no reply at all)."""
-        deadline = time.monotonic() + timeout
-        request = self.request("get_entity_state", entity="nobody")
-        while time.monotonic() < deadline:
-            if list(self.send("get_entity_state", request, timeout=0.5)):
-                return
-        raise AssertionError(f"the node's services did not reach this session within {timeout} s")
+        srv_type = _TYPES["get_entity_state"]
+        key = f"{DOMAIN}/mujoco_sim/get_entity_state/{dds_type_name(srv_type)}/{type_hash(get_service(srv_type))}"
+        payload = serialize_message(self.request("get_entity_state", entity="nobody"))
+        if not query_until_answered(self.session, key, payload=payload, timeout=timeout, reply_timeout=0.5,
+                                    attachment=lambda: struct.pack("<qqB", 0, time.time_ns(), 16) + bytes(range(16))):
+            raise AssertionError(f"the node's services did not reach this session within {timeout} s")
 
     def close(self) -> None:
         self.session.close()
