@@ -412,6 +412,34 @@ def check_checkpoint(ckpt: Checkpoint, *, observation_space: Any, action_space: 
     return checked
 
 
+def newest_replay_buffer(folder: Path) -> Path:
+    """The replay buffer of the newest checkpoint in ``folder`` that kept one.
+
+    Raises:
+        ValueError: no checkpoint there kept its replay buffer.
+    """
+    for ckpt in list_checkpoints(folder):
+        if ckpt.replay_buffer is not None:
+            return ckpt.replay_buffer
+    raise ValueError(f"no checkpoint in {folder} kept its replay buffer")
+
+
+def replay_buffer_problem(buffer: Any, model: Any) -> str | None:
+    """Why ``buffer`` cannot be ``model``'s replay buffer (``None``: it can): another number of envs,
+    other spaces, or HER's buffer for a model without HER (or the reverse)."""
+    from stable_baselines3 import HerReplayBuffer
+
+    mine = model.replay_buffer
+    if int(getattr(buffer, "n_envs", 1)) != int(model.n_envs):
+        return f"holds {buffer.n_envs} envs' transitions, the run trains {model.n_envs} envs"
+    if isinstance(buffer, HerReplayBuffer) != isinstance(mine, HerReplayBuffer):
+        return f"a {type(buffer).__name__}, the run's config makes a {type(mine).__name__} (use_HER)"
+    for name in ("observation_space", "action_space"):
+        if getattr(buffer, name, None) != getattr(mine, name, None):
+            return f"{name} {getattr(buffer, name, None)}, the env gives {getattr(mine, name, None)}"
+    return None
+
+
 def problem_in(checked: CheckedCheckpoint, name: str) -> bool:
     """Whether one of ``checked``'s problems is about the file ``name``."""
     return any(p.startswith(f"{name}:") for p in checked.problems)
@@ -425,12 +453,14 @@ __all__ = [
     "latest_checkpoint",
     "list_checkpoints",
     "load_replay_buffer",
+    "newest_replay_buffer",
     "normalizer_path",
     "own_folder",
     "prune_checkpoints",
     "put_replay_buffer",
     "read_replay_buffer",
     "remove_stale_temporaries",
+    "replay_buffer_problem",
     "save_checkpoint",
     "save_model_with_stats",
     "save_replay_buffer",

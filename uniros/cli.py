@@ -85,15 +85,29 @@ def _shared_graph_note(env_id: str, env_kwargs: dict[str, object]) -> str | None
     return text
 
 
+def _init_buffer_of(init_from: str | None) -> Path:
+    """The replay buffer ``--init-buffer`` names: that of the newest checkpoint of the ``--init-from`` run."""
+    from uniros.checkpoints import newest_replay_buffer
+    from uniros.training import TrainingError
+
+    if not init_from or not Path(init_from).is_dir():
+        raise TrainingError("--init-buffer takes the replay buffer of the --init-from run: give --init-from a run "
+                            "directory")
+    try:
+        return newest_replay_buffer(Path(init_from) / "checkpoints").resolve()
+    except ValueError as exc:
+        raise TrainingError(f"--init-buffer: {exc} (the run's config kept none: keep_replay_buffers)") from None
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     from uniros.run_dir import check_run_name
     from uniros.run_envs import check_env_id
     from uniros.training import TrainingError, default_config_for, load_training_config, open_run
 
     if args.resume:
-        if args.config or args.name or args.init_from:
+        if args.config or args.name or args.init_from or args.init_buffer:
             raise TrainingError("--resume continues a run with its own config.yaml (and the model it started from): "
-                                "drop --config, --name and --init-from")
+                                "drop --config, --name, --init-from and --init-buffer")
         run, env_id, config = open_run(args.resume)  # locked from here on: a second --resume is refused
         try:
             return _train(args, run, env_id, config)
@@ -156,11 +170,13 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
         if text:
             _note(text)
     config.progress_bar = config.progress_bar and not args.no_progress and sys.stderr.isatty()
-    init_from = None
+    init_from = init_buffer = None
     if getattr(args, "init_from", None):  # found now (run.json records it); its fit is checked as the model is built
         from uniros.model_files import resolve_model_path
 
         init_from = resolve_model_path(args.init_from).resolve()
+    if getattr(args, "init_buffer", False):
+        init_buffer = _init_buffer_of(args.init_from)
     if not args.resume:
         run = start_run(env_id, config, output=args.output, name=args.name, command=["uniros", *sys.argv[1:]])
     print(f"{'resuming' if args.resume else 'training'} {config.algorithm.upper()}{' + HER' if config.use_her else ''} "
@@ -174,7 +190,7 @@ def _train(args: argparse.Namespace, run: Any, env_id: str, config: Any) -> int:
 
     try:
         result = run_training(run, env_id, config, resume=bool(args.resume), target=args.target, on_eval=report,
-                              on_note=_note, init_from=init_from)
+                              on_note=_note, init_from=init_from, init_buffer=init_buffer)
     except TrainingInterrupted as exc:
         print(f"\n{exc}", file=sys.stderr)
         print(f"resume with: uniros train --resume {run.root}", file=sys.stderr)
@@ -418,6 +434,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="start from a trained model's weights (a .zip or a run directory: its best model), "
                         "with this config's hyperparameters, a fresh replay buffer and step 0: fine-tune a "
                         "policy in a randomised world (docs/training.md)")
+    p.add_argument("--init-buffer", action="store_true",
+                   help="with --init-from RUN_DIR: start with that run's replay buffer too (its newest checkpoint's) "
+                        "instead of an empty one, so the fine-tune keeps learning from the old worlds beside the "
+                        "new ones (docs/sim_to_real.md)")
     p.add_argument("--resume", metavar="RUN_DIR",
                    help="continue a run from its newest usable checkpoint (from step 0 when it has none)")
     p.add_argument("--no-video", action="store_true", help="do not record best_model.mp4 (real-time speed)")

@@ -34,10 +34,13 @@ from uniros.checkpoints import (
     normalizer_path,
     own_folder,
     put_replay_buffer,
+    read_replay_buffer,
+    replay_buffer_problem,
     save_checkpoint,
     save_model_with_stats,
 )
 from uniros.devices import resolve_device
+from uniros.errors import TrainingError
 from uniros.evaluation import EVAL_SEED, evaluate
 from uniros.image_spaces import images_channel_first, vector_keys
 from uniros.interrupts import StopRequest, TrainingInterrupted, signals_deferred, stop_at_next_step
@@ -343,7 +346,8 @@ class Session:
 
     # -- model --
     def build(self, resume: Checkpoint | None = None, load: Path | None = None, *, buffer: Any = None,
-              load_kwargs: dict[str, Any] | None = None, init: Path | None = None) -> Any:
+              load_kwargs: dict[str, Any] | None = None, init: Path | None = None,
+              init_buffer: Path | None = None) -> Any:
         """Create the model, or load it from a checkpoint (``resume``) or a saved model (``load``).
 
         Args:
@@ -355,6 +359,11 @@ class Session:
             init: a saved model a new model starts from (a warm start,
                 :func:`uniros.model_files.init_parameters`): the config's hyperparameters, an empty
                 replay buffer (and the demonstrations), step 0, the saved model's weights and statistics.
+            init_buffer: with ``init``, a replay buffer file the new model starts with instead of an
+                empty one (the run it starts from: its transitions stay beside the new worlds' ones).
+
+        Raises:
+            TrainingError: ``init_buffer`` is unreadable or does not fit the env or config.
         """
         from stable_baselines3.common.vec_env import VecEnv
 
@@ -377,6 +386,8 @@ class Session:
             self.model = build_model(self.config, venv, verbose=self.verbose)
             if init is not None:
                 init_parameters(self.model, Path(init), self.config.algorithm)
+            if init_buffer is not None:
+                self._put_init_buffer(Path(init_buffer))
             self._add_demonstrations()
         else:
             self.model = load_model(Path(source), venv, algorithm=self.config.algorithm, device=self.config.device,
@@ -389,6 +400,20 @@ class Session:
         if self.make_eval_env is not None and self.config.eval_freq > 0:
             self._eval_env = self._eval_monitored(self.make_eval_env())
         return self.model
+
+    def _put_init_buffer(self, path: Path) -> None:
+        if getattr(self.model, "replay_buffer", None) is None:
+            raise TrainingError(f"{path}: a replay buffer, but {self.config.algorithm.upper()} has none (off-policy "
+                                "algorithms only)")
+        try:
+            buffer = read_replay_buffer(path)
+        except ValueError as exc:
+            raise TrainingError(f"{path}: {exc}") from None
+        problem = replay_buffer_problem(buffer, self.model)
+        if problem:
+            raise TrainingError(f"{path}: does not fit this run: {problem}")
+        put_replay_buffer(self.model, buffer)
+        _logger.info("started with the replay buffer %s (%d transitions)", path, buffer.size() * buffer.n_envs)
 
     def _add_demonstrations(self) -> None:
         """Put ``config.demonstrations`` scripted episodes (seeds ``seed + 10,000 + k``) and the episodes of the

@@ -271,10 +271,12 @@ def run_training(
     verbose: int = 0,
     on_note: Callable[[str], None] | None = None,
     init_from: Path | None = None,
+    init_buffer: Path | None = None,
 ) -> TrainingResult:
     """Train into ``run`` (new, or ``resume`` from its newest usable checkpoint), then write the final
     model, the learning curve and the video. ``init_from``: a saved model a new run starts from (its
-    weights; the config's hyperparameters, a fresh replay buffer, step 0), recorded in ``run.json``.
+    weights; the config's hyperparameters, a fresh replay buffer, step 0), recorded in ``run.json``;
+    ``init_buffer``: a replay buffer file it starts with instead (recorded too).
 
     A resumed run takes the newest checkpoint whose files all load (model, replay buffer,
     statistics), says which it skipped and why (``on_note``, default: a warning), and starts again
@@ -305,9 +307,9 @@ def run_training(
             if resume:
                 _resume_session(session, run, note)
             else:
-                session.build(init=init_from)
+                session.build(init=init_from, init_buffer=init_buffer)
                 if init_from is not None:
-                    run.update_meta(init_from=str(init_from))
+                    run.update_meta(init_from=str(init_from), init_buffer=str(init_buffer) if init_buffer else None)
             check_disk_for_run(run.root, config, session.model)
             run.update_meta(status="running", device=str(session.model.device))
             learning = True
@@ -396,8 +398,9 @@ def _resume_session(session: Session, run: RunDir, note: Callable[[str], None]) 
              + ": starting the run again from step 0"
              + (f"; what the earlier attempt wrote (models, evaluations, logs) is kept in {kept}" if kept else ""))
         run.update_meta(steps=0, train_seconds=0.0, resumed_from=None, resumed_without_buffer=False)
-        init = meta.get("init_from")  # a warm-started run starts again from the same model
-        session.build(init=Path(init) if isinstance(init, str) and init else None)
+        init, init_buffer = meta.get("init_from"), meta.get("init_buffer")  # a warm start starts again as it did
+        session.build(init=Path(init) if isinstance(init, str) and init else None,
+                      init_buffer=Path(init_buffer) if isinstance(init_buffer, str) and init_buffer else None)
         return
     ckpt = choice.chosen.checkpoint
     rows = [r for r in read_evaluations(run.evaluations) if r.get("steps", 0) <= ckpt.steps]

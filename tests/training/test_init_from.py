@@ -128,4 +128,44 @@ def test_uniros_train_init_from_a_run_records_it_and_trains_from_step_0(tmp_path
     assert "does not fit this run's networks" in capsys.readouterr().err
     assert not (runs / "wider").exists()
     assert cli_main(["train", "--resume", str(runs / "warm"), "--init-from", str(source)]) != 0
-    assert "drop --config, --name and --init-from" in capsys.readouterr().err
+    assert "drop --config, --name, --init-from and --init-buffer" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_init_buffer_starts_the_new_run_with_the_source_runs_replay_buffer(tmp_path, capsys):
+    """``--init-from RUN --init-buffer``: the fine-tune's replay buffer begins with the source run's
+    transitions (its newest checkpoint's buffer), recorded in run.json; a model file, a run that kept
+    no buffer, or a buffer of another config are refused before anything is written."""
+    from uniros.checkpoints import read_replay_buffer
+
+    runs = tmp_path / "runs"
+    assert cli_main(["train", ENV, "--config", str(_config(tmp_path, "a", steps=40)), "--output", str(runs),
+                     "--name", "source", "--eval-episodes", "0"]) == 0
+    source_buffer = runs / "source" / "checkpoints" / "model_replay_buffer_40_steps.pkl"
+    assert source_buffer.is_file()
+    assert cli_main(["train", ENV, "--config", str(_config(tmp_path, "b", steps=20)), "--output", str(runs),
+                     "--name", "warm", "--init-from", str(runs / "source"), "--init-buffer",
+                     "--eval-episodes", "0"]) == 0
+    meta = json.loads((runs / "warm" / "run.json").read_text())
+    assert meta["init_buffer"] == str(source_buffer.resolve()) and meta["steps"] == 20
+    source = read_replay_buffer(source_buffer)
+    warm = read_replay_buffer(runs / "warm" / "checkpoints" / "model_replay_buffer_20_steps.pkl")
+    assert warm.size() == source.size() + 20  # the source's transitions, then the fine-tune's
+    for key, rows in source.observations.items():
+        assert np.array_equal(warm.observations[key][:source.size()], rows[:source.size()]), key
+    assert np.array_equal(warm.actions[:source.size()], source.actions[:source.size()])
+
+    capsys.readouterr()
+    assert cli_main(["train", ENV, "--config", str(_config(tmp_path, "c")), "--output", str(runs), "--name", "zip",
+                     "--init-from", str(runs / "source" / "final_model.zip"), "--init-buffer"]) != 0
+    assert "give --init-from a run directory" in capsys.readouterr().err
+    source_buffer.unlink()
+    assert cli_main(["train", ENV, "--config", str(_config(tmp_path, "d")), "--output", str(runs), "--name", "none",
+                     "--init-from", str(runs / "source"), "--init-buffer"]) != 0
+    assert "kept its replay buffer" in capsys.readouterr().err
+    no_her = tmp_path / "no_her.yaml"
+    no_her.write_text(_config(tmp_path, "e").read_text().replace("use_HER: true", "use_HER: false"))
+    assert cli_main(["train", ENV, "--config", str(no_her), "--output", str(runs), "--name", "misfit",
+                     "--init-from", str(runs / "warm"), "--init-buffer"]) != 0
+    assert "does not fit this run" in capsys.readouterr().err
+    assert sorted(p.name for p in runs.iterdir()) == ["source", "warm"]
