@@ -403,13 +403,19 @@ def check_checkpoint(ckpt: Checkpoint, *, observation_space: Any, action_space: 
         else:
             try:
                 buffer = read_replay_buffer(ckpt.replay_buffer)
-                if int(getattr(buffer, "n_envs", n_envs)) != n_envs:
-                    raise ValueError(f"holds {buffer.n_envs} envs' transitions, the run trains {n_envs} envs")
+                problem = _n_envs_problem(buffer, n_envs)
+                if problem:
+                    raise ValueError(problem)
                 checked.buffer = buffer
             except ValueError as exc:
                 checked.problems.append(f"{name}: {exc}")
                 checked.buffer_missing = True
     return checked
+
+
+def _n_envs_problem(buffer: Any, n_envs: int) -> str | None:
+    held = int(getattr(buffer, "n_envs", n_envs))
+    return f"holds {held} envs' transitions, the run trains {n_envs} envs" if held != n_envs else None
 
 
 def newest_replay_buffer(folder: Path) -> Path:
@@ -430,8 +436,9 @@ def replay_buffer_problem(buffer: Any, model: Any) -> str | None:
     from stable_baselines3 import HerReplayBuffer
 
     mine = model.replay_buffer
-    if int(getattr(buffer, "n_envs", 1)) != int(model.n_envs):
-        return f"holds {buffer.n_envs} envs' transitions, the run trains {model.n_envs} envs"
+    problem = _n_envs_problem(buffer, int(model.n_envs))
+    if problem:
+        return problem
     if isinstance(buffer, HerReplayBuffer) != isinstance(mine, HerReplayBuffer):
         return f"a {type(buffer).__name__}, the run's config makes a {type(mine).__name__} (use_HER)"
     for name in ("observation_space", "action_space"):

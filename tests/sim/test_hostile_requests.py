@@ -65,13 +65,20 @@ class RawPeer:
     def request(self, service: str, **fields):
         return get_service(_TYPES[service]).Request(**fields)
 
+    @staticmethod
+    def key(service: str) -> str:
+        """The service's key expression, as rmw_zenoh builds it."""
+        srv_type = _TYPES[service]
+        return f"{DOMAIN}/mujoco_sim/{service}/{dds_type_name(srv_type)}/{type_hash(get_service(srv_type))}"
+
+    def attachment(self) -> bytes:
+        """rmw_zenoh's attachment: the next sequence number, the time and the client's GID."""
+        self.seq += 1
+        return struct.pack("<qqB", self.seq, time.time_ns(), 16) + bytes(range(16))
+
     def send(self, service: str, request, timeout: float = 5.0):
         """Send one query; return the zenoh replies handler without waiting."""
-        srv_type = _TYPES[service]
-        key = f"{DOMAIN}/mujoco_sim/{service}/{dds_type_name(srv_type)}/{type_hash(get_service(srv_type))}"
-        self.seq += 1
-        attachment = struct.pack("<qqB", self.seq, time.time_ns(), 16) + bytes(range(16))
-        return self.session.get(key, payload=serialize_message(request), attachment=attachment,
+        return self.session.get(self.key(service), payload=serialize_message(request), attachment=self.attachment(),
                                 target=zenoh.QueryTarget.ALL_COMPLETE, consolidation=zenoh.ConsolidationMode.NONE,
                                 timeout=timeout)
 
@@ -84,11 +91,9 @@ class RawPeer:
     def wait_for_service(self, timeout: float = 60.0) -> None:
         """Until this session's queries reach the node (a fresh session's routes take a moment, longer
         on a loaded machine: a query sent before they exist gets no reply at all)."""
-        srv_type = _TYPES["get_entity_state"]
-        key = f"{DOMAIN}/mujoco_sim/get_entity_state/{dds_type_name(srv_type)}/{type_hash(get_service(srv_type))}"
         payload = serialize_message(self.request("get_entity_state", entity="nobody"))
-        if not query_until_answered(self.session, key, payload=payload, timeout=timeout, reply_timeout=0.5,
-                                    attachment=lambda: struct.pack("<qqB", 0, time.time_ns(), 16) + bytes(range(16))):
+        if not query_until_answered(self.session, self.key("get_entity_state"), payload=payload, timeout=timeout,
+                                    reply_timeout=0.5, attachment=self.attachment):
             raise AssertionError(f"the node's services did not reach this session within {timeout} s")
 
     def close(self) -> None:
