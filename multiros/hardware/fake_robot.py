@@ -239,11 +239,16 @@ class FakeRobot:
         self.published += 1
 
     # -- teardown ----------------------------------------------------------------------------
-    def destroy(self) -> None:
-        """Stop the loop, then destroy every topic, service and action."""
+    def stop(self) -> None:
+        """Stop the control loop (the joints' motion and ``joint_states``); the topics and services stay
+        until :meth:`destroy`. Whoever closes the hardware the loop steps calls this first."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=2.0)
+
+    def destroy(self) -> None:
+        """Stop the loop, then destroy every topic, service and action."""
+        self.stop()
         if self._executor is not None:
             self._executor.shutdown()
             if self._spin_thread is not None:
@@ -381,6 +386,8 @@ def serve(spec: RobotSpec, opts: argparse.Namespace, parser: argparse.ArgumentPa
         while not stop.wait(0.5):
             pass
     finally:
+        if robot is not None:
+            robot.stop()  # the loop steps the hardware: it stops before detach closes that hardware
         if detach is not None:
             detach()
         if robot is not None:

@@ -101,6 +101,57 @@ def test_hardware_lag_velocity_limit_and_position_limits():
     assert positions[6] == pytest.approx(-positions[5])  # right_finger mimics left_finger
 
 
+def test_serve_stops_the_control_loop_before_the_upper_layer_closes_its_hardware(monkeypatch):
+    """The physics stand-in's world is closed by what ``attach`` returns; the loop that steps it must have
+    stopped by then (a loop stepping a closed world logged AttributeError tracebacks at shutdown)."""
+    from multiros.hardware import fake_robot as fr
+
+    spec = load_robot_spec("rx200")
+    stop = threading.Event()
+    stepped_closed = threading.Event()
+
+    class ClosingHardware(FakeHardware):
+        closed = False
+        updates = 0
+
+        def update(self, dt: float, now: float | None = None) -> None:
+            if self.closed:
+                stepped_closed.set()
+            self.updates += 1
+            if self.updates == 20:  # the loop runs: stop serving
+                stop.set()
+            super().update(dt, now)
+
+    made: list[ClosingHardware] = []
+
+    def hardware(gap, seed):
+        made.append(ClosingHardware(spec, gap=gap, seed=seed))
+        return made[-1]
+
+    closes: list[bool] = []
+
+    def attach(robot):
+        def detach() -> None:
+            made[-1].closed = True
+            # the loop ticks at update_rate (100 Hz by default): a running one steps the closed hardware
+            # within a tick; a stopped one never does
+            closes.append(stepped_closed.wait(0.3))
+        return detach
+
+    class PrivateContext:  # serve's Context(...).init(...): a private graph of this test's own
+        def __init__(self, **kwargs):
+            pass
+
+        def init(self, args):
+            return private_context()
+
+    monkeypatch.setattr(fr, "Context", PrivateContext)
+    opts = fr.build_parser().parse_args(["--robot", "rx200", "--transport", "zenoh", "--log-level", "WARNING"])
+    assert fr.serve(spec, opts, fr.build_parser(), stop, attach=attach, hardware=hardware) == 0
+    assert made[-1].updates >= 20
+    assert closes == [False], "the control loop stepped the hardware after it was closed"
+
+
 # ------------------------------------------------------------------------------ over the wire
 class Probe:
     """A client node on the fake robot's graph: joint_states recorder, services, actions."""
