@@ -25,7 +25,8 @@ Goal envs: ``Dict(observation=Box(25 + n), achieved_goal=Box(3), desired_goal=Bo
 (Fetch's 25 values plus the n arm joints): EE position, object position, object minus EE, the two finger
 joints, object roll/pitch/yaw, object linear and angular velocity, EE velocity, finger velocities, arm
 joints. ``achieved_goal`` is the object's position, ``desired_goal`` the goal. Plain envs: ``Box(31 + n)``:
-the same values, the goal, and goal minus object. World frame throughout; velocities are finite
+the same values, the goal, and goal minus object. ``observe_command=True`` adds three values after the arm
+joints (:class:`ManipulationOptions`). World frame throughout; velocities are finite
 differences of consecutive poses over the time between them; values are clipped into the declared
 bounds. Camera observations: ``rgb_obs_only``, ``rgb_plus_normal_obs``,
 ``rgb_plus_depth_plus_normal_obs`` (:mod:`rl_environments.camera_obs`).
@@ -92,17 +93,30 @@ class ManipulationOptions(TaskOptions):
             of the measured arm, so commands add up through a servo's lag, latency and dead band (on a
             real arm the measured pose trails the command; from it, a lagging arm moves a fraction of
             each action and a late one chases old readings).
+        observe_command: three more observation values after the arm joints (before a plain env's goal):
+            the last commanded end effector minus the measured one (m, base frame, zeros before the
+            episode's first action; end-effector actions only): what a lagging or late servo has still
+            to move, which the measured pose alone does not say.
     """
 
     ee_action_type: bool = True
     distance_threshold: float | None = None
     terminate_on_success: bool = False
     command_lead: float = 0.0
+    observe_command: bool = False
 
     def __post_init__(self) -> None:
         lead = self.command_lead
         if isinstance(lead, bool) or not isinstance(lead, (int, float)) or not 0.0 <= lead <= 1.0:
             raise ValueError(f"command_lead must be a number in [0, 1] (m, or rad for joint actions); got {lead!r}")
+        if not isinstance(self.observe_command, bool):
+            raise ValueError(f"observe_command must be true or false; got {self.observe_command!r}")
+        if self.observe_command and not self.ee_action_type:
+            raise ValueError("observe_command needs end-effector actions (ee_action_type=True): joint actions "
+                             "command no end effector")
+
+
+COMMAND_OFFSET_BOUND = 0.25  # m, the observed command offset's bound (``observe_command``)
 
 
 def _command_reference(tasks: Sequence[ObjectTask], measured: np.ndarray, last: str) -> np.ndarray:
@@ -154,6 +168,7 @@ class ObjectTask(ArmTask):
         self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
         self.table_top = float(cfg["table_top"]) + self.base_position[2]
         self.command_lead = float(options.command_lead)
+        self.observe_command = bool(options.observe_command)
         self.ee_goal = np.full(3, np.nan)  # the last commanded end effector (base frame); NaN: none yet
 
     @classmethod
@@ -305,8 +320,17 @@ class ObjectTask(ArmTask):
         raise NotImplementedError
 
     @classmethod
-    def results(cls: type[TaskT], tasks: Sequence[TaskT], states: RobotStates) -> StepResults:
+    def observed_rows(cls: type[TaskT], tasks: Sequence[TaskT], states: RobotStates) -> np.ndarray:
+        """N raw observations, ending with the command offset where ``observe_command`` asks for it."""
         raw = cls.raw_rows(tasks, states)
+        if not tasks[0].observe_command:
+            return raw
+        measured = raw[:, 0:3] - rows(tasks, "base_position")
+        return np.concatenate([raw, np.nan_to_num(rows(tasks, "ee_goal") - measured)], axis=1)
+
+    @classmethod
+    def results(cls: type[TaskT], tasks: Sequence[TaskT], states: RobotStates) -> StepResults:
+        raw = cls.observed_rows(tasks, states)
         cls.check_faults(tasks, raw[:, 3:6])
         n = len(tasks)
         if not tasks[0].goal_conditioned:
@@ -358,14 +382,18 @@ class ObjectTask(ArmTask):
                 "desired_goal": rows(tasks, "goal").astype(np.float32)}
 
     def observe(self) -> Any:
-        raw = type(self).raw_rows([self], self.connection.states)
+        raw = type(self).observed_rows([self], self.connection.states)
         type(self).check_faults([self], raw[:, 3:6])
         if self.goal_conditioned:
             return {k: v[0] for k, v in self.goal_observation([self], raw).items()}
         return self.plain_observation([self], raw)[0]
 
     def object_spaces(self, low: np.ndarray, high: np.ndarray) -> spaces.Space[Any]:
-        """The env's space from the raw observation's bounds (the object's position at 3:6)."""
+        """The env's space from the raw observation's bounds (the object's position at 3:6), and the command
+        offset's where ``observe_command`` asks for it."""
+        if self.observe_command:
+            low = np.concatenate([low, np.full(3, -COMMAND_OFFSET_BOUND)])
+            high = np.concatenate([high, np.full(3, COMMAND_OFFSET_BOUND)])
         if self.goal_conditioned:
             return self.goal_spaces(low, high, slice(3, 6), self.goal_low, self.goal_high)
         rel = np.abs(self.goal_high - self.goal_low) + 1.0
