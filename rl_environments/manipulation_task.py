@@ -168,7 +168,6 @@ class ObjectTask(ArmTask):
         self.ee_high = np.asarray(cfg["position_ee_max"], dtype=np.float64)
         self.table_top = float(cfg["table_top"]) + self.base_position[2]
         self.command_lead = float(options.command_lead)
-        self.observe_command = bool(options.observe_command)
         self.ee_goal = np.full(3, np.nan)  # the last commanded end effector (base frame); NaN: none yet
 
     @classmethod
@@ -323,7 +322,7 @@ class ObjectTask(ArmTask):
     def observed_rows(cls: type[TaskT], tasks: Sequence[TaskT], states: RobotStates) -> np.ndarray:
         """N raw observations, ending with the command offset where ``observe_command`` asks for it."""
         raw = cls.raw_rows(tasks, states)
-        if not tasks[0].observe_command:
+        if not tasks[0].options.observe_command:
             return raw
         measured = raw[:, 0:3] - rows(tasks, "base_position")
         return np.concatenate([raw, np.nan_to_num(rows(tasks, "ee_goal") - measured)], axis=1)
@@ -391,7 +390,7 @@ class ObjectTask(ArmTask):
     def object_spaces(self, low: np.ndarray, high: np.ndarray) -> spaces.Space[Any]:
         """The env's space from the raw observation's bounds (the object's position at 3:6), and the command
         offset's where ``observe_command`` asks for it."""
-        if self.observe_command:
+        if self.options.observe_command:
             low = np.concatenate([low, np.full(3, -COMMAND_OFFSET_BOUND)])
             high = np.concatenate([high, np.full(3, COMMAND_OFFSET_BOUND)])
         if self.goal_conditioned:
